@@ -1,0 +1,1 @@
+"""Pure physics: rotations, inertia, dynamics, integrator kernels, analytic solutions. numpy (+ numba) only."""

@@ -1,0 +1,392 @@
+"""Scenes: TOML files that declare bodies and the terms they need; validation and the embedded scenes.
+
+A scene carries only what it declares: gravity only where a body has a pivot (``cm_distance``), damping only
+where a body has ``damping``, torque inputs only with ``torque_input = true``. The model built from it has only
+those terms' variables. ``load_scene(None)`` is the full model with every variable of DESIGN.md section 4.
+
+File format (every key optional unless said)::
+
+    [scene]
+    name = "my_scene"            # required in files
+    description = "..."
+    integrator = "rk4"           # euler, rk4, splitting, splitting4, adaptive, exact
+    max_step = 1e-3              # s
+    tolerance = 1e-8             # relative and absolute tolerance of adaptive
+    output_interval = 0.01       # s, default communication step of `gyrosim simulate`
+    stop_time = 10.0             # s
+    g = 9.81                     # m/s^2, used by pivoted bodies
+
+    [[body]]
+    name = "top"                 # default body, body_1, ...
+    count = 1                    # replicate the body (fields of gyroscopes, Monte Carlo)
+    inertia = { principal = [I1, I2, I3] }           # kg*m^2, about the pivot when cm_distance is given
+    # or { tensor = [[Ixx, Ixy, Ixz], [...], [...]] } (symmetric matrix; the body frame becomes its principal axes)
+    # or { shape = "cylinder", mass = 1.0, radius = 0.1, height = 0.05 }  (sphere: radius; box: length, width,
+    #    height) about the centre of mass, shifted to the pivot by the parallel-axis theorem
+    mass = 0.5                   # kg (pivoted bodies)
+    cm_distance = 0.05           # m, pivot to centre of mass along body +z: adds the gravity term
+    damping = 0.0                # N*m*s: adds the viscous term
+    torque_input = true          # adds the inputs tau_x, tau_y, tau_z
+    attitude = { q = [w, x, y, z] }  or  { zyz = [phi, theta, psi] }           # rad
+    rates = { omega = [w1, w2, w3] }  or  { zyz_rates = [phi_dot, theta_dot, psi_dot] }   # rad/s
+    spread = { I = 0.01, omega = 0.001, seed = 1 }   # relative normal scatter across `count` copies
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .core import kernels
+from .core.inertia import InertiaTensor, check_principal_moments
+from .core.rotations import (
+    as_quaternion,
+    euler_zyz_rates_to_omega_body,
+    euler_zyz_to_quat,
+    matrix_to_quat,
+    quat_multiply,
+)
+from .errors import ConfigError
+
+__all__ = ["Scene", "BodySpec", "load_scene", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
+
+EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope")
+INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact")
+G_DEFAULT = 9.81
+
+_SCENE_KEYS = ("name", "description", "integrator", "max_step", "tolerance", "output_interval", "stop_time", "g")
+_BODY_KEYS = ("name", "count", "inertia", "mass", "cm_distance", "damping", "torque_input", "attitude", "rates",
+              "spread")
+_SHAPES = {"sphere": ("mass", "radius"), "cylinder": ("mass", "radius", "height"),
+           "box": ("mass", "length", "width", "height")}
+
+
+@dataclass(frozen=True)
+class BodySpec:
+    """One body of a scene, in its principal frame.
+
+    Attributes
+    ----------
+    name : str
+    moments : (3,) ndarray
+        Principal moments I1, I2, I3 in kg*m^2 about the reference point.
+    mass, cm_distance, damping : float
+        kg, m, N*m*s.
+    q0 : (4,) ndarray
+        Initial attitude (w, x, y, z), body (principal) frame -> world.
+    omega0 : (3,) ndarray
+        Initial body angular velocity, rad/s.
+    """
+
+    name: str
+    moments: np.ndarray
+    mass: float = 0.0
+    cm_distance: float = 0.0
+    damping: float = 0.0
+    q0: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    omega0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene: bodies, declared terms and integrator settings.
+
+    Attributes
+    ----------
+    gravity, damping, torque : bool
+        The terms the scene carries; the model drops the variables of the others.
+    """
+
+    name: str
+    bodies: tuple[BodySpec, ...]
+    gravity: bool = True
+    damping: bool = True
+    torque: bool = True
+    integrator: str = "rk4"
+    max_step: float = 1e-3
+    tolerance: float = 1e-8
+    output_interval: float = 0.01
+    stop_time: float = 10.0
+    g: float = G_DEFAULT
+    description: str = ""
+    source: str = "<embedded>"
+
+    @property
+    def flags(self) -> int:
+        """Kernel term flags (GRAVITY | DAMPING | TORQUE)."""
+        return ((kernels.GRAVITY if self.gravity else 0) | (kernels.DAMPING if self.damping else 0)
+                | (kernels.TORQUE if self.torque else 0))
+
+    @property
+    def body_names(self) -> list[str]:
+        return [b.name for b in self.bodies]
+
+    @property
+    def torque_free(self) -> bool:
+        """True when no term can exert a torque (gravity, damping and inputs all absent)."""
+        return not (self.gravity or self.damping or self.torque)
+
+
+def _suggest(key: str, allowed) -> str:
+    close = difflib.get_close_matches(key, allowed, n=1, cutoff=0.5)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return f"one of {', '.join(allowed)}{hint}"
+
+
+def _check_keys(table: dict, allowed, where: str):
+    for k in table:
+        if k not in allowed:
+            raise ConfigError(k, table[k], f"a known key: {_suggest(k, allowed)}", where=where)
+
+
+def _num(table, key, where, default=None, *, lo=None, lo_open=False, required=False):
+    if key not in table:
+        if required:
+            raise ConfigError(key, None, "a value (this key is required)", where=where)
+        return default
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise ConfigError(key, v, "a number", where=where)
+    v = float(v)
+    if not math.isfinite(v):
+        raise ConfigError(key, v, "a finite number", where=where)
+    if lo is not None and (v < lo or (lo_open and v == lo)):
+        raise ConfigError(key, v, f"a number {'>' if lo_open else '>='} {lo}", where=where)
+    return v
+
+
+def _vec(table, key, n, where):
+    v = table[key]
+    if not isinstance(v, list) or len(v) != n or any(isinstance(x, bool) or not isinstance(x, (int, float))
+                                                       for x in v):
+        raise ConfigError(key, v, f"a list of {n} numbers", where=where)
+    a = np.array(v, dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise ConfigError(key, v, f"a list of {n} finite numbers", where=where)
+    return a
+
+
+def _one_of(table: dict, options, where):
+    _check_keys(table, options, where)
+    if len(table) != 1:
+        raise ConfigError(where.rsplit(".", 1)[-1], table, f"exactly one of {', '.join(options)}", where=where)
+    (k,) = table
+    return k
+
+
+def _inertia(spec, where, mass, cm_distance):
+    """Return (principal moments, R_geom_principal) about the reference point."""
+    if not isinstance(spec, dict):
+        raise ConfigError("inertia", spec, "a table: {principal = [..]}, {tensor = [[..]]} or {shape = ..}",
+                          where=where)
+    w = f"{where}.inertia"
+    if "shape" in spec:
+        shape = spec["shape"]
+        if shape not in _SHAPES:
+            raise ConfigError("shape", shape, _suggest(str(shape), list(_SHAPES)), where=w)
+        _check_keys(spec, ("shape",) + _SHAPES[shape], w)
+        args = [_num(spec, k, w, required=True, lo=0.0, lo_open=(k in ("mass", "radius"))) for k in _SHAPES[shape]]
+        I = getattr(InertiaTensor, shape)(*args)
+        m_shape = args[0]
+        if mass and abs(m_shape - mass) > 1e-12 * max(m_shape, mass):
+            raise ConfigError("mass", mass, f"the shape's mass {m_shape} (or leave body.mass out)", where=where)
+        if cm_distance:
+            I = I.shifted(m_shape, [0.0, 0.0, cm_distance])
+        return I.to_matrix().diagonal().copy(), np.eye(3), m_shape
+    key = _one_of(spec, ("principal", "tensor"), w)
+    if key == "principal":
+        m = _vec(spec, "principal", 3, w)
+        try:
+            check_principal_moments(*m, where=w)
+        except ConfigError as e:
+            raise ConfigError(f"principal ({e.field})", e.value, e.allowed, where=w) from None
+        return m, np.eye(3), None
+    T = spec["tensor"]
+    if (not isinstance(T, list) or len(T) != 3 or any(not isinstance(r, list) or len(r) != 3 for r in T)):
+        raise ConfigError("tensor", T, "a 3x3 list of lists in kg*m^2", where=w)
+    try:
+        It = InertiaTensor.from_matrix(np.array(T, dtype=float))
+    except (ConfigError, ValueError, TypeError) as e:
+        raise ConfigError("tensor", T, getattr(e, "allowed", str(e)), where=w) from None
+    moments, axes = It.principal_axes()
+    return moments, axes, None
+
+
+def _body(tbl: dict, index: int, scene_g: float, where: str) -> tuple[list[BodySpec], set[str]]:
+    where = f"{where} body[{index}]"
+    if not isinstance(tbl, dict):
+        raise ConfigError("body", tbl, "a table ([[body]])", where=where)
+    _check_keys(tbl, _BODY_KEYS, where)
+    terms = set()
+    name = tbl.get("name", "body" if index == 0 else f"body_{index}")
+    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
+        raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-' (it is a Zenoh key)",
+                          where=where)
+    count = tbl.get("count", 1)
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1 or count > 10_000_000:
+        raise ConfigError("count", count, "an integer from 1 to 10,000,000", where=where)
+    cm = _num(tbl, "cm_distance", where, 0.0, lo=0.0)
+    mass = _num(tbl, "mass", where, None, lo=0.0, lo_open=True)
+    if "cm_distance" in tbl:
+        terms.add("gravity")
+    if "inertia" not in tbl:
+        raise ConfigError("inertia", None, "a table (this key is required)", where=where)
+    moments, R_gp, shape_mass = _inertia(tbl["inertia"], where, mass, cm)
+    if mass is None:
+        mass = shape_mass if shape_mass is not None else 0.0
+    if "gravity" in terms and mass <= 0:
+        raise ConfigError("mass", tbl.get("mass"), "a number > 0 for a body with a pivot (cm_distance)",
+                          where=where)
+    damping = _num(tbl, "damping", where, 0.0, lo=0.0)
+    if "damping" in tbl:
+        terms.add("damping")
+    ti = tbl.get("torque_input", False)
+    if not isinstance(ti, bool):
+        raise ConfigError("torque_input", ti, "true or false", where=where)
+    if ti:
+        terms.add("torque")
+    # attitude in the frame the user described; converted to the principal frame
+    q_geom = np.array([1.0, 0.0, 0.0, 0.0])
+    if "attitude" in tbl:
+        a = tbl["attitude"]
+        if not isinstance(a, dict):
+            raise ConfigError("attitude", a, "a table {q = [w, x, y, z]} or {zyz = [phi, theta, psi]}", where=where)
+        k = _one_of(a, ("q", "zyz"), f"{where}.attitude")
+        v = _vec(a, k, 4 if k == "q" else 3, f"{where}.attitude")
+        if k == "q":
+            try:
+                q_geom = as_quaternion(v, "attitude.q")
+            except ConfigError as e:
+                raise ConfigError(e.field, e.value, e.allowed, where=where) from None
+        else:
+            q_geom = euler_zyz_to_quat(*v)
+    omega_geom = np.zeros(3)
+    if "rates" in tbl:
+        r = tbl["rates"]
+        if not isinstance(r, dict):
+            raise ConfigError("rates", r, "a table {omega = [..]} or {zyz_rates = [..]}", where=where)
+        k = _one_of(r, ("omega", "zyz_rates"), f"{where}.rates")
+        v = _vec(r, k, 3, f"{where}.rates")
+        if k == "omega":
+            omega_geom = v
+        else:
+            from .core.rotations import quat_to_euler_zyz
+            phi, theta, psi = quat_to_euler_zyz(q_geom)
+            omega_geom = euler_zyz_rates_to_omega_body(phi, theta, psi, *v)
+    q0 = quat_multiply(q_geom, matrix_to_quat(R_gp)) if not np.allclose(R_gp, np.eye(3)) else q_geom
+    omega0 = R_gp.T @ omega_geom
+    spread = tbl.get("spread", {})
+    if not isinstance(spread, dict):
+        raise ConfigError("spread", spread, "a table {I = .., omega = .., seed = ..}", where=where)
+    _check_keys(spread, ("I", "omega", "seed"), f"{where}.spread")
+    sI = _num(spread, "I", f"{where}.spread", 0.0, lo=0.0)
+    sw = _num(spread, "omega", f"{where}.spread", 0.0, lo=0.0)
+    seed = spread.get("seed", 0)
+    rng = np.random.default_rng(seed if isinstance(seed, int) else 0)
+    bodies = []
+    for i in range(count):
+        m_i, w_i = moments, omega0
+        if i > 0 and (sI or sw):
+            m_i = moments * (1.0 + sI * rng.standard_normal(3))
+            w_i = omega0 * (1.0 + sw * rng.standard_normal(3))
+            try:
+                check_principal_moments(*m_i, where=where)
+            except ConfigError:
+                m_i = moments
+        bodies.append(BodySpec(name if count == 1 else f"{name}_{i}", np.array(m_i, dtype=float), float(mass),
+                               float(cm), float(damping), np.array(q0, dtype=float), np.array(w_i, dtype=float)))
+    return bodies, terms
+
+
+def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
+    """Validate a parsed scene (the TOML structure) and return a :class:`Scene`.
+
+    Raises
+    ------
+    ConfigError
+        Naming the source, the key, the value and what is allowed; unknown keys get a "did you mean".
+    """
+    _check_keys(data, ("scene", "body"), source)
+    sc = data.get("scene", {})
+    if not isinstance(sc, dict):
+        raise ConfigError("scene", sc, "a table [scene]", where=source)
+    where = f"{source} [scene]"
+    _check_keys(sc, _SCENE_KEYS, where)
+    name = sc.get("name")
+    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
+        raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-'", where=where)
+    integ = sc.get("integrator", "rk4")
+    if integ not in INTEGRATORS:
+        raise ConfigError("integrator", integ, _suggest(str(integ), INTEGRATORS), where=where)
+    g = _num(sc, "g", where, G_DEFAULT, lo=0.0)
+    bodies_tbl = data.get("body")
+    if not isinstance(bodies_tbl, list) or not bodies_tbl:
+        raise ConfigError("body", bodies_tbl, "at least one [[body]] table", where=source)
+    bodies, terms = [], set()
+    for i, b in enumerate(bodies_tbl):
+        bs, t = _body(b, i, g, source)
+        bodies.extend(bs)
+        terms |= t
+    names = [b.name for b in bodies]
+    if len(set(names)) != len(names):
+        dup = next(n for n in names if names.count(n) > 1)
+        raise ConfigError("name", dup, "unique body names", where=source)
+    scene = Scene(
+        name=name, bodies=tuple(bodies), gravity="gravity" in terms, damping="damping" in terms,
+        torque="torque" in terms, integrator=integ,
+        max_step=_num(sc, "max_step", where, 1e-3, lo=0.0, lo_open=True),
+        tolerance=_num(sc, "tolerance", where, 1e-8, lo=0.0, lo_open=True),
+        output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
+        stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
+        g=g, description=str(sc.get("description", "")), source=source)
+    if integ == "exact" and not scene.torque_free:
+        raise ConfigError("integrator", integ, "a general integrator: 'exact' solves torque-free scenes only "
+                          "(this scene has gravity, damping or torque inputs)", where=where)
+    return scene
+
+
+def full_scene() -> Scene:
+    """The full model: one body with every term (gravity, damping, torque inputs) and every variable."""
+    return Scene(name="full", bodies=(BodySpec("body", np.array([1.0, 2.0, 3.0]), 1.0, 0.0, 0.0,
+                                               np.array([1.0, 0.0, 0.0, 0.0]), np.array([1.0, 0.1, 0.1])),),
+                 gravity=True, damping=True, torque=True, integrator="rk4", max_step=1e-3,
+                 description="Full rigid-body model with every variable")
+
+
+def load_scene(scene: str | Path | Scene | None) -> Scene:
+    """Load a scene by embedded name, TOML path, or pass a :class:`Scene` through; ``None`` = the full model.
+
+    Raises
+    ------
+    ConfigError
+        Unknown name or missing file (with the embedded names and a "did you mean"), invalid TOML, or an
+        invalid entry.
+    """
+    if scene is None:
+        return full_scene()
+    if isinstance(scene, Scene):
+        return scene
+    s = str(scene)
+    if s in EMBEDDED_SCENES:
+        text = resources.files("gyrosim").joinpath("scenes", f"{s}.toml").read_text()
+        source = f"<embedded scene {s}>"
+    elif s == "full":
+        return full_scene()
+    else:
+        path = Path(s)
+        if not path.is_file():
+            raise ConfigError("scene", s, f"an embedded scene ({_suggest(s, EMBEDDED_SCENES + ('full',))}) "
+                              "or the path of a TOML scene file")
+        text = path.read_text()
+        source = str(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError("TOML", str(e), "a valid TOML document", where=source) from None
+    return scene_from_dict(data, source)
