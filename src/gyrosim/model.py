@@ -413,8 +413,7 @@ class Model:
             # sample often enough that phi and psi move less than 1 rad between unwrap points
             m = max(1, math.ceil(wmag * h / 1.0))
             taus = (t - t_a) + h * np.arange(1, m + 1) / m
-            qs = sol.attitude(taus)
-            ws = sol.omega(taus)
+            ws, qs = sol.state(taus)
             for k in range(m):
                 y[0:4] = qs[k]
                 y[4:7] = ws[k]

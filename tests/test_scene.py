@@ -1,0 +1,93 @@
+"""Scene files: validation with file, key and allowed values; did-you-mean; frames of full tensors and shapes."""
+
+import numpy as np
+import pytest
+
+from gyrosim.core.inertia import InertiaTensor
+from gyrosim.core.rotations import quat_rotate
+from gyrosim.errors import ConfigError
+from gyrosim.model import Model
+from gyrosim.scene import EMBEDDED_SCENES, load_scene
+
+pytestmark = pytest.mark.nojit
+
+
+def write(tmp_path, text, name="s.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_embedded_scenes_load_and_declare_terms():
+    for name in EMBEDDED_SCENES:
+        s = load_scene(name)
+        assert s.name == name and s.bodies
+    assert load_scene("free_body").torque_free
+    g = load_scene("gyroscope")
+    assert g.gravity and g.torque and g.damping
+
+
+def test_unknown_key_names_file_and_suggests(tmp_path):
+    p = write(tmp_path, '[scene]\nname = "x"\nintegator = "rk4"\n[[body]]\ninertia = {principal = [1, 2, 3]}\n')
+    with pytest.raises(ConfigError) as e:
+        load_scene(p)
+    msg = str(e.value)
+    assert str(p) in msg and "integator" in msg and "did you mean 'integrator'" in msg
+
+
+@pytest.mark.parametrize("body,match", [
+    ("inertia = {principal = [1, 2, 4]}", r"triangle inequality"),
+    ("inertia = {principal = [1, -2, 2]}", r"> 0"),
+    ("inertia = {principal = [1, 2]}", r"list of 3 numbers"),
+    ("inertia = {shape = 'cilinder', mass = 1, radius = 1, height = 1}", r"did you mean 'cylinder'"),
+    ("inertia = {principal = [1, 2, 3]}\nattitude = {q = [1, 1, 0, 0]}", r"unit quaternion"),
+    ("inertia = {principal = [1, 2, 3]}\ncm_distance = 0.1", r"mass .* > 0 for a body with a pivot"),
+    ("inertia = {principal = [1, 2, 3]}\nrates = {omega = [1, 2, 3], zyz_rates = [0, 0, 1]}", r"exactly one"),
+    ("mass = 1", r"inertia .* required"),
+])
+def test_bad_bodies_are_explained(tmp_path, body, match):
+    p = write(tmp_path, f'[scene]\nname = "x"\n[[body]]\n{body}\n')
+    with pytest.raises(ConfigError, match=match) as e:
+        load_scene(p)
+    assert str(p) in str(e.value)
+
+
+def test_bad_toml_and_missing_file(tmp_path):
+    with pytest.raises(ConfigError, match="valid TOML"):
+        load_scene(write(tmp_path, "[scene\n"))
+    with pytest.raises(ConfigError, match="did you mean 'heavy_top'"):
+        load_scene("heavy_tp")
+
+
+def test_exact_needs_a_torque_free_scene(tmp_path):
+    p = write(tmp_path, '[scene]\nname = "x"\nintegrator = "exact"\n[[body]]\n'
+                        'inertia = {principal = [1, 2, 3]}\ntorque_input = true\n')
+    with pytest.raises(ConfigError, match="torque-free"):
+        load_scene(p)
+
+
+def test_full_tensor_becomes_principal_frame_with_same_physics(tmp_path):
+    # a tensor with products: the model works in principal axes; L_world and energy must not change
+    I = InertiaTensor(2.0, 3.0, 4.0, I_xy=0.5, I_xz=-0.2, I_yz=0.3)
+    M = I.to_matrix()
+    w_geom = np.array([0.3, -0.5, 1.2])
+    p = write(tmp_path, '[scene]\nname = "t"\n[[body]]\ninertia = {tensor = ' + str(M.tolist()) + '}\n'
+                        'attitude = {zyz = [0.2, 0.7, -0.4]}\nrates = {omega = ' + str(w_geom.tolist()) + '}\n')
+    m = Model(p)
+    o = m.outputs()
+    from gyrosim.core.rotations import euler_zyz_to_quat
+
+    L_expected = quat_rotate(euler_zyz_to_quat(0.2, 0.7, -0.4), M @ w_geom)
+    np.testing.assert_allclose([o["L_x"], o["L_y"], o["L_z"]], L_expected, atol=1e-12)
+    assert o["energy"] == pytest.approx(0.5 * w_geom @ M @ w_geom, rel=1e-13)
+    np.testing.assert_allclose(sorted([m.get("I1"), m.get("I2"), m.get("I3")]), np.linalg.eigvalsh(M), rtol=1e-13)
+
+
+def test_shape_inertia_is_shifted_to_the_pivot(tmp_path):
+    p = write(tmp_path, '[scene]\nname = "s"\n[[body]]\ninertia = {shape = "cylinder", mass = 2.0, '
+                        'radius = 0.1, height = 0.04}\ncm_distance = 0.2\n')
+    m = Model(p)
+    c = InertiaTensor.cylinder(2.0, 0.1, 0.04)
+    assert m.get("I1") == pytest.approx(c.I_xx + 2.0 * 0.04)
+    assert m.get("I3") == pytest.approx(c.I_zz)
+    assert m.get("mass") == 2.0
