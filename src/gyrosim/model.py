@@ -162,6 +162,21 @@ class Model:
         self._exact_anchor = None  # (t, q (n,4), omega (n,3)) for the exact integrator
         self._exact_cache = None
         self._out = None
+        self._outbuf = np.empty((n, len(OUTPUT_NAMES)))
+        self._status = np.zeros(n, dtype=np.int64)
+        self._advance = kernels.advancer(n)
+        self._slots = {}
+        for name, var in self.variables.items():
+            if var.causality == "output":
+                self._slots[name] = (0, OUTPUT_NAMES.index(name))
+            elif name in ("I1", "I2", "I3"):
+                self._slots[name] = (1, int(name[1]) - 1)
+            elif name in ("tau_x", "tau_y", "tau_z"):
+                self._slots[name] = (2, "xyz".index(name[-1]))
+            elif name in ("mass", "cm_distance", "g", "damping"):
+                self._slots[name] = (3, {"mass": "_mass", "cm_distance": "_cm", "g": "_g", "damping": "_damping"}[name])
+            else:
+                self._slots[name] = (4, name)
         for k, v in (parameters or {}).items():
             self.set(k, v)
 
@@ -245,8 +260,10 @@ class Model:
             self._check_positive(name, x)
             self.max_step = x
         elif name in ("tau_x", "tau_y", "tau_z"):
-            self._tau[i, "xyz".index(name[-1])] = x
-            self._out = None
+            k = "xyz".index(name[-1])
+            self._tau[i, k] = x
+            if self._initialized:
+                self._p[i, 5 + k] = x
         elif name in _STATE_NAMES:
             self._y[i, _STATE_NAMES.index(name)] = x
             self._state_dirty = True
@@ -263,19 +280,20 @@ class Model:
 
     def get(self, name: str, body=0):
         """Value of a variable (float, or str for ``integrator``) of one body."""
-        v = self._var(name)
-        i = self._body(body)
-        if name == "integrator":
-            return self.integrator
-        if name == "max_step":
-            return self.max_step
-        if v.causality == "output":
-            return float(self._outputs_array()[i, OUTPUT_NAMES.index(name)])
-        if name in ("I1", "I2", "I3"):
-            return float(self._moments[i, int(name[1]) - 1])
-        if name in ("tau_x", "tau_y", "tau_z"):
-            return float(self._tau[i, "xyz".index(name[-1])])
-        return float({"mass": self._mass, "cm_distance": self._cm, "g": self._g, "damping": self._damping}[name][i])
+        slot = self._slots.get(name)
+        if slot is None:
+            self._var(name)  # raises with the names this scene has
+        i = body if (type(body) is int and 0 <= body < self.n_bodies) else self._body(body)
+        kind, k = slot
+        if kind == 0:
+            return float(self._outputs_array()[i, k])
+        if kind == 1:
+            return float(self._moments[i, k])
+        if kind == 2:
+            return float(self._tau[i, k])
+        if kind == 3:
+            return float(getattr(self, k)[i])
+        return self.integrator if name == "integrator" else self.max_step
 
     def outputs(self, body=0) -> dict[str, float]:
         """Every output of one body by name."""
@@ -358,8 +376,8 @@ class Model:
         if self.stop_time is not None and t + h > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
             raise StepError(f"a step of h = {h!r} s from t = {t!r} s ends at {t + h!r} s, after the stop time "
                             f"{self.stop_time!r} s")
-        self.initialize()
-        self._p[:, 5:8] = self._tau
+        if not self._initialized or self._state_dirty:
+            self.initialize()
         if self.integrator == "exact":
             self._step_exact(h)
         else:
@@ -375,14 +393,22 @@ class Model:
     def _step_kernel(self, h: float) -> None:
         method = kernels.METHOD_CODES[self.integrator]
         n_sub = max(1, math.ceil(h / self.max_step * (1.0 - 1e-12)))
-        y_save, hint_save, stats_save = self._y.copy(), self._hint.copy(), self._stats.copy()
-        status = np.zeros(self.n_bodies, dtype=np.int64)
-        kernels.advance(method, self._y, self._p, self.scene.flags, h, n_sub, self.tolerance, self.tolerance,
-                        self.max_step, self._hint, self._stats, status)
-        if np.any(status):
+        single = self.n_bodies == 1  # one body: the kernel itself leaves the row untouched on failure
+        if not single:
+            y_save, hint_save = self._y.copy(), self._hint.copy()
+        stats_save = self._stats.copy() if not single else (int(self._stats[0, 0]), int(self._stats[0, 1]),
+                                                            int(self._stats[0, 2]))
+        status = self._status
+        self._advance(method, self._y, self._p, self.scene.flags, h, n_sub, self.tolerance, self.tolerance,
+                      self.max_step, self._hint, self._stats, status)
+        if status[0] if single else status.any():
             b = int(np.flatnonzero(status)[0])
             k = int(status[b])
-            self._y, self._hint, self._stats = y_save, hint_save, stats_save
+            status[:] = 0
+            if single:
+                self._stats[0] = stats_save
+            else:
+                self._y, self._hint, self._stats = y_save, hint_save, stats_save
             where = "" if self.n_bodies == 1 else f" for body {self.body_names[b]!r}"
             if method == kernels.ADAPTIVE:
                 detail = (f"the adaptive step size fell below its minimum at internal step {k}")
@@ -424,18 +450,10 @@ class Model:
 
     def _outputs_array(self) -> np.ndarray:
         if self._out is None:
-            self.initialize()
-            p = self._params()
-            derived = np.empty((self.n_bodies, 5))
-            kernels.compute_outputs(self._y, p, derived)
-            out = np.empty((self.n_bodies, len(OUTPUT_NAMES)))
-            out[:, 0:7] = self._y[:, 0:7]
-            out[:, 7] = self._y[:, 7]
-            out[:, 8] = derived[:, 0]
-            out[:, 9] = self._y[:, 8]
-            out[:, 10:13] = derived[:, 1:4]
-            out[:, 13] = derived[:, 4]
-            self._out = out
+            if not self._initialized or self._state_dirty:
+                self.initialize()
+            kernels.compute_outputs(self._y, self._p, self._outbuf)
+            self._out = self._outbuf
         return self._out
 
     @property

@@ -32,7 +32,7 @@ except ImportError:  # pragma: no cover
 
 __all__ = [
     "GRAVITY", "DAMPING", "TORQUE", "EULER", "RK4", "SPLITTING", "SPLITTING4", "ADAPTIVE",
-    "METHOD_CODES", "advance", "compute_outputs", "NY", "NP",
+    "METHOD_CODES", "advance", "advancer", "compute_outputs", "NY", "NP",
 ]
 
 GRAVITY = 1
@@ -445,22 +445,31 @@ else:
 PARALLEL_FROM = 256
 
 
+def advancer(n_bodies: int):
+    """The compiled loop for ``n_bodies``: serial below :data:`PARALLEL_FROM` bodies, on all cores above."""
+    return _advance_parallel if n_bodies >= PARALLEL_FROM else _advance_serial
+
+
 def advance(method, y, p, flags, H, n_sub, rtol, atol, max_step, hint, stats, status):
     """Advance every body over one communication step ``H`` (s) in place; see the module docstring."""
-    fn = _advance_parallel if y.shape[0] >= PARALLEL_FROM else _advance_serial
-    fn(method, y, p, flags, H, n_sub, rtol, atol, max_step, hint, stats, status)
+    advancer(y.shape[0])(method, y, p, flags, H, n_sub, rtol, atol, max_step, hint, stats, status)
 
 
 @njit
 def compute_outputs(y, p, out):
-    """Derived outputs per body into out (N, 5): theta (rad), L_world (3, kg*m^2/s), energy (J)."""
+    """Every output per body into out (N, 14), in the order of ``gyrosim.model.OUTPUT_NAMES``: q (4), omega (3),
+    phi, theta, psi (rad; phi, psi the unwrapped ones), L_world (3, kg*m^2/s), energy (J)."""
     for b in range(y.shape[0]):
         w, x, yy, z = y[b, 0], y[b, 1], y[b, 2], y[b, 3]
         I1, I2, I3 = p[b, 0], p[b, 1], p[b, 2]
         o1, o2, o3 = y[b, 4], y[b, 5], y[b, 6]
-        out[b, 0] = 2.0 * math.atan2(math.hypot(x, yy), math.hypot(w, z))
+        for i in range(7):
+            out[b, i] = y[b, i]
+        out[b, 7] = y[b, 7]
+        out[b, 8] = 2.0 * math.atan2(math.hypot(x, yy), math.hypot(w, z))
+        out[b, 9] = y[b, 8]
         L1, L2, L3 = I1 * o1, I2 * o2, I3 * o3
-        out[b, 1] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3
-        out[b, 2] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3
-        out[b, 3] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3
-        out[b, 4] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + p[b, 3] * (1.0 - 2.0 * (x * x + yy * yy))
+        out[b, 10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3
+        out[b, 11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3
+        out[b, 12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3
+        out[b, 13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + p[b, 3] * (1.0 - 2.0 * (x * x + yy * yy))
