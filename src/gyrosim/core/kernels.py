@@ -372,19 +372,8 @@ def _dopri_advance(y, p, flags, H, rtol, atol, max_step, hint, b, stats, unwrap)
 
 
 @njit
-def _advance_body(method, y, p, flags, H, n_sub, rtol, atol, max_step, hint, b, stats):
-    """Advance body b over the communication step H; returns 0 or failing internal step + 1."""
-    yb = y[b]
-    pb = p[b]
-    w = math.sqrt(yb[4] * yb[4] + yb[5] * yb[5] + yb[6] * yb[6])
-    unwrap_each = w * H > 1.0
-    if method == ADAPTIVE:
-        st = _dopri_advance(yb, pb, flags, H, rtol, atol, max_step, hint, b, stats, unwrap_each)
-        if st == 0 and not unwrap_each:
-            _unwrap(yb)
-        return st
-    save = yb.copy()
-    h = H / n_sub
+def _fixed_steps(method, yb, pb, flags, h, n_sub, unwrap_each, check, b, stats):
+    """n_sub fixed steps; with ``check`` returns the first step whose state is not finite (k + 1), else 0."""
     if method == SPLITTING or method == SPLITTING4:
         s, pp, r = _split_axes(pb)
         L = np.empty(3)
@@ -400,26 +389,51 @@ def _advance_body(method, y, p, flags, H, n_sub, rtol, atol, max_step, hint, b, 
             for i in range(3):
                 yb[4 + i] = L[i] / pb[i]
             _normalize_q(yb)
-            stats[b, 0] += 1
-            if not _ok(yb):
-                yb[:] = save
+            if check and not _ok(yb):
                 return k + 1
             if unwrap_each:
                 _unwrap(yb)
+        stats[b, 0] += n_sub
     else:
-        nrhs = 1 if method == EULER else 4
         for k in range(n_sub):
             if method == EULER:
                 _euler_step(yb, pb, flags, h)
             else:
                 _rk4_step(yb, pb, flags, h)
-            stats[b, 0] += 1
-            stats[b, 2] += nrhs
-            if not _ok(yb):
-                yb[:] = save
+            if check and not _ok(yb):
                 return k + 1
             if unwrap_each:
                 _unwrap(yb)
+        stats[b, 0] += n_sub
+        stats[b, 2] += n_sub * (1 if method == EULER else 4)
+    return 0
+
+
+@njit
+def _advance_body(method, y, p, flags, H, n_sub, rtol, atol, max_step, hint, b, stats):
+    """Advance body b over the communication step H; returns 0 or failing internal step + 1.
+
+    Fixed-step methods check the state once at the end of the call (NaN and inf propagate); only when it is
+    not finite are the steps replayed from the saved state with a check after each, to name the failing step.
+    The body's row is then restored.
+    """
+    yb = y[b]
+    pb = p[b]
+    w = math.sqrt(yb[4] * yb[4] + yb[5] * yb[5] + yb[6] * yb[6])
+    unwrap_each = w * H > 1.0
+    if method == ADAPTIVE:
+        st = _dopri_advance(yb, pb, flags, H, rtol, atol, max_step, hint, b, stats, unwrap_each)
+        if st == 0 and not unwrap_each:
+            _unwrap(yb)
+        return st
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = yb[0], yb[1], yb[2], yb[3], yb[4], yb[5], yb[6], yb[7], yb[8]
+    h = H / n_sub
+    _fixed_steps(method, yb, pb, flags, h, n_sub, unwrap_each, False, b, stats)
+    if not _ok(yb):
+        yb[0], yb[1], yb[2], yb[3], yb[4], yb[5], yb[6], yb[7], yb[8] = s0, s1, s2, s3, s4, s5, s6, s7, s8
+        k = _fixed_steps(method, yb, pb, flags, h, n_sub, unwrap_each, True, b, stats)
+        yb[0], yb[1], yb[2], yb[3], yb[4], yb[5], yb[6], yb[7], yb[8] = s0, s1, s2, s3, s4, s5, s6, s7, s8
+        return max(k, 1)
     if not unwrap_each:
         _unwrap(yb)
     return 0
