@@ -32,9 +32,8 @@ from .elliptic import (
     ellipj_reduced_kernel,
     ellipk_kernel,
     ellipkinc_kernel,
-    ellippi_kernel,
-    ellippiinc_sc_kernel,
     elliprf_kernel,
+    elliprj_kernel,
 )
 from .rotations import as_quaternion, as_vector3
 
@@ -201,19 +200,26 @@ def _sn_loop(w, mc, K, out):
         out[i] = s
 
 
-def _poly_newton(coef, x, iters=3):
-    for _ in range(iters):
+def _poly_newton(coef, x, iters=4):
+    """Polish a root ``x`` of the polynomial ``coef`` (highest power first); keep only improving steps."""
+
+    def horner(z):
         f = 0.0
         df = 0.0
         for cc in coef:
-            df = df * x + f
-            f = f * x + cc
-        if df == 0.0:
+            df = df * z + f
+            f = f * z + cc
+        return f, df
+
+    f, df = horner(x)
+    for _ in range(iters):
+        if df == 0.0 or f == 0.0:
             break
-        dx = f / df
-        x = x - dx
-        if abs(dx) <= 1e-16 * max(1.0, abs(x)):
-            break
+        xn = x - f / df
+        fn, dfn = horner(xn)
+        if not abs(fn) < abs(f):
+            break  # near a double root Newton may jump away: keep the better value
+        x, f, df = xn, fn, dfn
     return x
 
 
@@ -259,9 +265,9 @@ class SymmetricTop:
     --------
     >>> top = SymmetricTop(I1=1.0, I3=0.5, mass=1.0, cm_height=0.3)
     >>> round(float(top.effective_potential(0.2, 10.0)), 6)
-    3.131215
+    3.010174
     >>> round(float(top.steady_precession_rate(10.0, 0.2)), 6)
-    0.609003
+    0.627147
     """
 
     I1: float
@@ -423,7 +429,7 @@ class SymmetricTop:
         theta0, phi_dot0, psi_dot0, theta_dot0 = (float(v) for v in vals.values())
         if not (0.0 < theta0 < math.pi):
             raise ConfigError("theta0", theta0, "an angle in (0, pi) rad (Euler rates are singular at the poles)")
-        I1, I3, mgl = self.I1, self.I3, self.mgl
+        I1, mgl = self.I1, self.mgl
         p_phi, p_psi = (float(v) for v in self.conserved_momenta(theta0, phi_dot0, psi_dot0))
         e = float(self.energy(theta0, theta_dot0, phi_dot0, psi_dot0))
         ep = (0.5 * I1 * (theta_dot0 ** 2 + (phi_dot0 * math.sin(theta0)) ** 2) + mgl * math.cos(theta0))
@@ -498,7 +504,7 @@ class Gyroscope:
     --------
     >>> gyro = Gyroscope(I_spin=0.01, I_transverse=0.02, mass=0.5, cm_distance=0.1)
     >>> round(float(gyro.precession_rate(100.0, theta=np.pi / 4)), 6)
-    0.493996
+    0.49395
     >>> float(gyro.nutation_frequency(100.0))
     50.0
     """
@@ -635,16 +641,11 @@ def _psi_ref(am, sn, cn, s1, s2, k1, k2):
 
 
 @njit
-def _pi_of_u(u, sn_r, cn_r, dn, j, n, mc, pic):
-    """``int_0^u du' / (1 - n sn^2(u'))`` = ``Pi(n; am(u)|m)`` from the reduced Jacobi functions."""
-    if mc == 0.0:
-        nu = -n
-        r = math.sqrt(nu)
-        return (u + r * math.atan(r * math.tanh(u))) / (1.0 + nu)
-    v = ellippiinc_sc_kernel(n, sn_r, cn_r, dn * dn)
-    if j != 0.0:
-        v += 2.0 * j * pic
-    return v
+def _g_reduced(s, c, d, n):
+    """``G(u_r) = Pi(n; am(u_r)|m) - u_r = n/3 sn^3 RJ(cn^2, dn^2, 1, 1 - n sn^2)`` for ``|u_r| <= K``."""
+    if n == 0.0 or s == 0.0:
+        return 0.0
+    return n / 3.0 * s * s * s * elliprj_kernel(c * c, d * d, 1.0, 1.0 - n * s * s)
 
 
 @njit
@@ -662,12 +663,13 @@ def _tf_setup(I, w, q):
     if e0 == 0.0 and e1 == 0.0 and e2 == 0.0:
         c[_C_MODE] = 0.0  # steady rotation about a principal axis (or zero omega)
         return c
-    c[_C_MODE] = 1.0
-    # sort the moments: iA <= iB <= iC
+    # sort the moments: iA <= iB <= iC; work with omega / max|omega| (the quadratic invariants below
+    # would underflow or overflow for extreme rates; all rates scale back with ws)
     order = np.argsort(I, kind="mergesort")
     iA, iB, iC = order[0], order[1], order[2]
     A, B, C = I[iA], I[iB], I[iC]
-    wA, wB, wC = w[iA], w[iB], w[iC]
+    ws = max(abs(w[0]), abs(w[1]), abs(w[2]))
+    wA, wB, wC = w[iA] / ws, w[iB] / ws, w[iC] / ws
     XC = A * (C - A) * wA * wA + B * (C - B) * wB * wB  # 2 E C - L^2 >= 0
     YA = B * (B - A) * wB * wB + C * (C - A) * wC * wC  # L^2 - 2 E A >= 0
     Z = A * (A - B) * wA * wA + C * (C - B) * wC * wC   # L^2 - 2 E B
@@ -678,6 +680,12 @@ def _tf_setup(I, w, q):
         io, ib, ip = iC, iB, iA
         X, Y = -YA, -XC
     Io, Ib, Ip = I[io], I[ib], I[ip]
+    if X == 0.0 or Y == 0.0 or Ip == Ib:
+        # numerically a steady rotation (e.g. a symmetric body with omega3 / |omega| < 1e-154): the motion
+        # away from it is below the round-off of omega for any representable time
+        c[_C_MODE] = 0.0
+        return c
+    c[_C_MODE] = 1.0
     # parity of the permutation (io, ib, ip) of (0, 1, 2)
     inv = 0
     perm = (io, ib, ip)
@@ -693,8 +701,8 @@ def _tf_setup(I, w, q):
     mc = abs((Ip - Io) * Z / ((Ip - Ib) * Y))
     if mc > 1.0:
         mc = 1.0
-    # omega~ = eps * omega obeys Euler's equations in the cyclic labelling (o, b, p)
-    wo, wb, wp = eps * w[io], eps * w[ib], eps * w[ip]
+    # omega~ = eps * omega obeys Euler's equations in the cyclic labelling (o, b, p); still scaled by 1/ws
+    wo, wb, wp = eps * w[io] / ws, eps * w[ib] / ws, eps * w[ip] / ws
     sgn = 1.0 if Ip > Ib else -1.0
     s3 = 1.0 if wp >= 0.0 else -1.0
     s1 = 1.0 if wo >= 0.0 else -1.0
@@ -706,13 +714,34 @@ def _tf_setup(I, w, q):
     sn0 /= hn
     dn02 = cn0 * cn0 + mc * sn0 * sn0
     u0 = sn0 * elliprf_kernel(cn0 * cn0, dn02, 1.0)
+    if not math.isfinite(u0):
+        # omega within ~1e-154 (relative) of the unstable rotation about the intermediate axis, so that
+        # 1 - m underflows: represented as the steady rotation it is numerically indistinguishable from
+        c[_C_MODE] = 0.0
+        return c
     K = ellipk_kernel(mc)
     n = Ip * (Io - Ib) / (Io * (Ip - Ib))
     if n > 0.0:
         n = 0.0
-    pic = ellippi_kernel(n, mc) if mc > 0.0 else math.inf
-    pi0 = _pi_of_u(u0, sn0, cn0, math.sqrt(dn02), 0.0, n, mc, pic)
-    Ln = math.sqrt((I[0] * w[0]) ** 2 + (I[1] * w[1]) ** 2 + (I[2] * w[2]) ** 2)
+    # angle about L: phi(t) = |L| t / I_o + |L| (1/I_o - 1/I_p)/lambda * (G(u) - G(u0)) where
+    # Pi(n; am(u)|m) = u + G(u) and G(u + 2K) = G(u) + 2 (Pi(n|m) - K): the secular part lambda t is taken
+    # out exactly, so no cancellation between Pi(u) and Pi(u0) when lambda t << 1.
+    if mc > 0.0:
+        pic = n / 3.0 * elliprj_kernel(0.0, mc, 1.0, 1.0 - n) if n != 0.0 else 0.0  # Pi(n|m) - K
+        pi0 = _g_reduced(sn0, cn0, math.sqrt(dn02), n)
+    else:
+        # separatrix: Pi(n; am(u)|1) = (u + r atan(r tanh u))/(1 + r^2), r = sqrt(-n)
+        pic = 0.0
+        pi0 = math.atan(math.sqrt(-n) * math.tanh(u0))
+    # back to physical rates
+    alpha *= ws
+    beta *= ws
+    gamma *= ws
+    lam *= ws
+    wo *= ws
+    wb *= ws
+    wp *= ws
+    Ln = ws * math.sqrt((I[0] * w[0] / ws) ** 2 + (I[1] * w[1] / ws) ** 2 + (I[2] * w[2] / ws) ** 2)
     c[_C_IO], c[_C_IB], c[_C_IP] = io, ib, ip
     c[_C_AO], c[_C_AB], c[_C_AP] = eps * s1 * alpha, eps * s2 * beta, eps * s3 * gamma
     c[_C_LAM], c[_C_U0], c[_C_MC], c[_C_K] = lam, u0, mc, K
@@ -768,8 +797,15 @@ def _tf_eval(c, t, w_out, q_out):
     wo, wb, wp = c[_C_AO] * cn, c[_C_AB] * sn, c[_C_AP] * dn
     w_out[io], w_out[ib], w_out[ip] = wo, wb, wp
     # angle about L (precession phi of the Euler angles relative to L)
-    pi_u = _pi_of_u(u, sn_r, cn_r, dn, j, n, mc, c[_C_PIC])
-    phi = c[_C_LN] * t / c[_C_MP] + c[_C_COEF] * (pi_u - c[_C_PI0])
+    if mc > 0.0:
+        dg = _g_reduced(sn_r, cn_r, dn, n) - c[_C_PI0]
+        if j != 0.0:
+            dg += 2.0 * j * c[_C_PIC]
+    else:
+        nu = -n
+        r = math.sqrt(nu)
+        dg = (r * (math.atan(r * math.tanh(u)) - c[_C_PI0]) - nu * c[_C_LAM] * t) / (1.0 + nu)
+    phi = c[_C_LN] * t / c[_C_MO] + c[_C_COEF] * dg
     Lo, Lb, Lp = c[_C_MO] * wo, c[_C_MB] * wb, c[_C_MP] * wp
     theta = math.atan2(math.hypot(Lo, Lb), Lp)
     am = math.atan2(sn_r, cn_r) + j * math.pi
@@ -854,7 +890,11 @@ class TorqueFreeSolution:
     ``phi_dot = |L| (L_o^2/I_o + L_b^2/I_b)/(L_o^2 + L_b^2) = |L| (1/I_p + (1/I_o - 1/I_p)/(1 - n sn^2 u))``
     with ``n = I_p (I_o - I_b)/(I_o (I_p - I_b)) <= 0``, integrated exactly:
     ``phi(t) = |L| t / I_p + |L| (1/I_o - 1/I_p)/lambda (Pi(n; am(u)|m) - Pi(n; am(u0)|m))``
-    (``L_o^2 + L_b^2`` never vanishes because ``p`` is the circulation axis). ``q_L`` is fixed by ``q0``.
+    (``L_o^2 + L_b^2`` never vanishes because ``p`` is the circulation axis). It is evaluated as
+    ``|L| t / I_o + |L| (1/I_o - 1/I_p)/lambda (G(u) - G(u0))`` with ``Pi(n; am(u)|m) = u + G(u)``,
+    ``G = n/3 sn^3 RJ(cn^2, dn^2, 1, 1 - n sn^2)`` on the reduced argument plus ``2 j (Pi(n|m) - K)``, so the
+    secular part is exact and nothing cancels when ``lambda t`` is small (on the separatrix ``G`` has the
+    elementary closed form ``(r atan(r tanh u) - r^2 u)/(1 + r^2)``, ``r^2 = -n``). ``q_L`` is fixed by ``q0``.
     A steady rotation about a principal axis is ``q0 * exp(omega0 t / 2)``.
 
     Everything is evaluated by numba-compilable scalar kernels; :func:`torque_free_advance` exposes them to

@@ -54,6 +54,7 @@ __all__ = [
     "ellipkinc_kernel",
     "ellippiinc_kernel",
     "ellippi_kernel",
+    "ellippiinc_sc_kernel",
     "ellipj",
     "ellipk",
     "ellipkm1",
@@ -112,11 +113,16 @@ def _sncndn_kernel(u, mc):
     Accurate for ``|u|`` up to about ``K``; callers reduce the argument first.
     """
     if mc == 0.0:
-        ch = math.cosh(u)
-        s = 1.0 / ch
+        e = math.exp(-abs(u))
+        s = 2.0 * e / (1.0 + e * e)  # sech(u) without overflow of cosh
         return math.tanh(u), s, s
     if mc == 1.0:
         return math.sin(u), math.cos(u), 1.0
+    if abs(u) < 1e-6:
+        # Maclaurin series (the recurrence below would overflow for |u| < 1e-154); error < u^4 ~ 1e-24
+        m = 1.0 - mc
+        u2 = u * u
+        return u * (1.0 - (1.0 + m) * u2 / 6.0), 1.0 - 0.5 * u2, 1.0 - 0.5 * m * u2
     em = np.empty(40)
     en = np.empty(40)
     a = 1.0
@@ -242,7 +248,10 @@ def elliprf_kernel(x, y, z):
     """
     if not (x >= 0.0 and y >= 0.0 and z >= 0.0):
         return math.nan
-    nz = (x == 0.0) + (y == 0.0) + (z == 0.0)
+    nz = 0
+    for v in (x, y, z):
+        if v == 0.0:
+            nz += 1
     if nz >= 2:
         return math.inf
     if math.isinf(x) or math.isinf(y) or math.isinf(z):
@@ -314,7 +323,10 @@ def elliprj_kernel(x, y, z, p):
     """
     if not (x >= 0.0 and y >= 0.0 and z >= 0.0 and p > 0.0):
         return math.nan
-    nz = (x == 0.0) + (y == 0.0) + (z == 0.0)
+    nz = 0
+    for v in (x, y, z):
+        if v == 0.0:
+            nz += 1
     if nz >= 2:
         return math.inf
     a0 = (x + y + z + 2.0 * p) / 5.0
