@@ -1,0 +1,1 @@
+"""The Zenoh service: keys, the serve loop, the recorder process and the command line."""

@@ -1,0 +1,203 @@
+"""``gyrosim record --key EXPR --output FILE.mcap``: record any Zenoh key expression into MCAP.
+
+A separate process from the service: subscribes ``EXPR``, writes every sample with its key as the topic
+(``"/" + key``), its Zenoh encoding mapped to the MCAP channel's message encoding and schema (ROS 2
+definitions as ``ros2msg``, JSON as ``jsonschema``) and kept in the channel metadata. Log time is the wall
+clock at reception, publish time the simulation time the payload carries. For every gyrosim body it sees, it
+queries ``.../params`` once and writes the answer as a ``gyrosim`` metadata record (scene, parameters,
+integrator).
+
+The Zenoh callback only queues samples (``FifoChannel``); this thread writes them. It stops cleanly (summary
+and footer written) on SIGINT, SIGTERM, ``duration`` or ``max_messages``; after a SIGKILL at most the last
+``flush_interval`` (0.5 s) is lost and ``gyrosim mcap recover`` makes the file valid.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from ..errors import GyrosimError
+from ..telemetry.recorder import Recorder, RecordingSummary, metadata_record
+from . import keys as K
+from .serve import install_stop_signals
+
+__all__ = ["RecordOptions", "main"]
+
+log = logging.getLogger("gyrosim.record")
+
+
+@dataclass(frozen=True)
+class RecordOptions:
+    """Options of :func:`main`.
+
+    Parameters
+    ----------
+    duration : float or None
+        Wall seconds to record; None: until SIGINT/SIGTERM.
+    max_messages : int or None
+        Stop after this many messages.
+    capacity : int
+        Samples Zenoh may queue for the writer (the callback blocks, i.e. back-pressures, beyond it).
+    flush_interval : float
+        Largest time between flushes to the file, s.
+    query_params : bool
+        Ask each gyrosim body's ``params`` queryable for the metadata record.
+    """
+
+    duration: float | None = None
+    max_messages: int | None = None
+    capacity: int = 100_000
+    flush_interval: float = 0.5
+    query_params: bool = True
+
+
+class _ParamsCollector:
+    """Ask ``.../params`` once per body seen; write each answer as a metadata record."""
+
+    def __init__(self, session, recorder: Recorder):
+        self.session = session
+        self.recorder = recorder
+        self.asked: set[str] = set()
+        self.pending: list = []
+
+    def saw(self, key: str) -> None:
+        parts = K.parse_key(key)
+        if parts is None or parts.body is None:
+            return
+        pkey = K.body_key(parts.scene, parts.body, "params", prefix=parts.prefix) if parts.prefix else None
+        if pkey is None or pkey in self.asked:
+            return
+        self.asked.add(pkey)
+        import zenoh
+
+        try:
+            handler = self.session.get(pkey, zenoh.handlers.FifoChannel(16), timeout=5.0)
+            self.pending.append((time.monotonic() + 6.0, handler))
+        except Exception as e:  # noqa: BLE001 - metadata is best effort
+            log.warning("params query %s failed: %s", pkey, e)
+
+    def poll(self) -> None:
+        still = []
+        for deadline, handler in self.pending:
+            done = time.monotonic() > deadline
+            while not done:
+                try:
+                    reply = handler.try_recv()
+                except Exception:  # the channel closed: the query is finished
+                    done = True
+                    break
+                if reply is None:
+                    break
+                if reply.ok is not None:
+                    self._write(reply.ok)
+            if not done:
+                still.append((deadline, handler))
+        self.pending = still
+
+    def _write(self, sample) -> None:
+        try:
+            info = json.loads(sample.payload.to_bytes())
+        except ValueError:
+            return
+        params = info.get("parameters", {})
+        self.recorder.add_metadata("gyrosim", metadata_record(
+            scene=info.get("scene"), parameters=params, integrator=params.get("integrator"),
+            body=info.get("body"), key=str(sample.key_expr), sim_time=info.get("time"),
+            service=info.get("service"), source="params query by gyrosim record"))
+
+
+def main(conf, key_expr: str, output, *, options: RecordOptions = RecordOptions(),
+         stop: threading.Event | None = None, ready: Callable[[], None] | None = None) -> RecordingSummary:
+    """Record ``key_expr`` into ``output`` until stopped.
+
+    Parameters
+    ----------
+    conf : zenoh.Config
+        Session configuration.
+    key_expr : str
+        Zenoh key expression, e.g. ``gyrosim/**``.
+    output : str or os.PathLike
+        MCAP file to write.
+    options : RecordOptions
+        Duration, message limit, queue capacity, flush interval.
+    stop : threading.Event, optional
+        Set it to stop; by default SIGINT and SIGTERM set it (main thread).
+    ready : callable, optional
+        Called once the subscriber is declared.
+
+    Returns
+    -------
+    RecordingSummary
+
+    Raises
+    ------
+    RecordingError
+        The file cannot be created or written.
+    """
+    import zenoh
+
+    stop = stop if stop is not None else threading.Event()
+    restore = install_stop_signals(stop)
+    try:
+        with Recorder(output, flush_interval=options.flush_interval, metadata=metadata_record(
+                key=key_expr, source="gyrosim record")) as rec:
+            try:
+                with zenoh.open(conf) as session:
+                    _record(session, rec, key_expr, options, stop, ready)
+            except zenoh.ZError as e:
+                raise GyrosimError(f"Zenoh session failed: {e}") from None
+        return rec.summary
+    finally:
+        restore()
+
+
+def _record(session, rec: Recorder, key_expr: str, o: RecordOptions, stop: threading.Event, ready) -> None:
+    import zenoh
+
+    sub = session.declare_subscriber(key_expr, zenoh.handlers.FifoChannel(o.capacity))
+    params = _ParamsCollector(session, rec) if o.query_params else None
+    seen: set[str] = set()
+    log.info("recording %r into %s", key_expr, rec.path)
+    if ready is not None:
+        ready()
+    t_end = None if o.duration is None else time.monotonic() + o.duration
+    n = 0
+    limit = o.max_messages
+    drain_until = None
+    try:
+        while True:
+            sample = sub.try_recv()
+            if sample is None:
+                if stop.is_set() or (t_end is not None and time.monotonic() >= t_end):
+                    break
+                rec.maybe_flush()
+                if params is not None:
+                    params.poll()
+                time.sleep(0.002)
+                continue
+            key = str(sample.key_expr)
+            rec.write_sample(key, str(sample.encoding), sample.payload.to_bytes(), log_time_ns=time.time_ns())
+            n += 1
+            if params is not None and key not in seen:
+                seen.add(key)
+                params.saw(key)
+            if limit is not None and n >= limit:
+                break
+            if n % 256 == 0 and (stop.is_set() or (t_end is not None and time.monotonic() >= t_end)):
+                # stopping under load: keep draining what is queued, but not for ever
+                drain_until = drain_until or time.monotonic() + 2.0
+                if time.monotonic() > drain_until:
+                    break
+    finally:
+        sub.undeclare()
+        if params is not None:  # answers that arrived meanwhile
+            deadline = time.monotonic() + (0.5 if params.pending else 0.0)
+            while params.pending and time.monotonic() < deadline:
+                params.poll()
+                time.sleep(0.01)
+    log.info("recorded %d messages", n)

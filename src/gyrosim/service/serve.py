@@ -1,0 +1,436 @@
+"""``gyrosim serve``: step a scene's model in real time and publish it on Zenoh.
+
+Reads like Zenoh's examples: :func:`main` takes a ``zenoh.Config`` and runs ``with zenoh.open(config) as
+session``. For every body of the scene it publishes, after each communication step of ``1 / rate`` s,
+
+* ``<prefix>/<scene>/<body>/state`` JSON BodyState, ``.../tf`` CDR TFMessage, ``.../imu`` CDR Imu
+  (reliable, ``CongestionControl.BLOCK``: a slow subscriber slows the service down instead of losing data),
+
+subscribes ``.../torque`` (``{"x", "y", "z"}`` N*m, body frame, held until the next command; malformed or
+out-of-limit commands are logged, counted and ignored), answers ``.../params`` queries with the current
+parameters, inputs and counters, and holds the liveliness token ``<prefix>/<scene>/alive``. Zenoh's
+callbacks only queue (``FifoChannel``); all work happens in the stepping thread.
+
+Pacing: simulated time runs ``realtime_factor`` times as fast as the wall clock (1: real time; 0: as fast as
+possible). A step that falls behind is not skipped (every step is published); the lag is reported.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+from ..errors import ConfigError, GyrosimError, IntegrationError, StepError
+from ..telemetry import messages as msg
+from . import keys as K
+
+__all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals"]
+
+log = logging.getLogger("gyrosim.service")
+
+
+@dataclass(frozen=True)
+class ServeOptions:
+    """Options of :func:`main` (the ``gyrosim serve`` flags).
+
+    Parameters
+    ----------
+    rate : float
+        Publication rate = communication steps per simulated second, Hz (> 0).
+    realtime_factor : float
+        Simulated seconds per wall-clock second; 0 runs as fast as possible.
+    duration : float or None
+        Simulated seconds to run; None runs until SIGINT/SIGTERM.
+    record : str or None
+        MCAP file to record everything published (and accepted torque commands) into.
+    prefix : str
+        First key chunk(s).
+    torque_limit : float
+        Largest accepted |torque component|, N*m.
+    wait_subscribers : float
+        Wait up to this many wall seconds for a subscriber on every state key before stepping.
+    linger : float
+        Wall seconds to keep the session open after the last message, so queued messages leave.
+    """
+
+    rate: float = 100.0
+    realtime_factor: float = 1.0
+    duration: float | None = None
+    record: str | None = None
+    prefix: str = K.DEFAULT_PREFIX
+    torque_limit: float = msg.DEFAULT_TORQUE_LIMIT
+    wait_subscribers: float = 0.0
+    linger: float = 0.2
+
+    def __post_init__(self):
+        if not (isinstance(self.rate, (int, float)) and math.isfinite(self.rate) and self.rate > 0):
+            raise ConfigError("rate", self.rate, "a finite rate > 0 Hz")
+        if not (math.isfinite(self.realtime_factor) and self.realtime_factor >= 0):
+            raise ConfigError("realtime_factor", self.realtime_factor,
+                              "a finite factor >= 0 (0: as fast as possible)")
+        if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
+            raise ConfigError("duration", self.duration, "a finite number of simulated seconds > 0")
+        if not (math.isfinite(self.torque_limit) and self.torque_limit > 0):
+            raise ConfigError("torque_limit", self.torque_limit, "a finite limit > 0 N*m")
+        if not (math.isfinite(self.wait_subscribers) and self.wait_subscribers >= 0):
+            raise ConfigError("wait_subscribers", self.wait_subscribers, "seconds >= 0")
+
+
+@dataclass
+class ServeStats:
+    """Counters of a service run."""
+
+    steps: int = 0
+    published: int = 0
+    torque_accepted: int = 0
+    torque_rejected: int = 0
+    last_rejection: str | None = None
+    queries: int = 0
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    max_lag: float = 0.0
+    stopped_by: str = ""
+    recorded: int = 0
+
+    def format(self) -> str:
+        rate = self.steps / self.wall_time if self.wall_time > 0 else float("nan")
+        s = (f"served {self.steps} steps ({self.sim_time:.3f} s simulated in {self.wall_time:.3f} s wall, "
+             f"{rate:.1f} steps/s), published {self.published} messages, torque commands: "
+             f"{self.torque_accepted} accepted, {self.torque_rejected} rejected; "
+             f"{self.queries} params queries; largest lag behind schedule {self.max_lag * 1e3:.1f} ms")
+        if self.recorded:
+            s += f"; recorded {self.recorded} messages"
+        if self.stopped_by:
+            s += f"; stopped by {self.stopped_by}"
+        return s
+
+
+def build_model(scene=None, parameters: dict | None = None):
+    """Build the :class:`gyrosim.model.Model` the service steps (no stop time: it runs until stopped)."""
+    from ..model import Model
+
+    return Model(scene, parameters=dict(parameters or {}), stop_time=None)
+
+
+def install_stop_signals(stop: threading.Event, stats: ServeStats | None = None) -> Callable[[], None]:
+    """Make SIGINT and SIGTERM set ``stop`` (main thread only); return a function restoring the handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    old = {}
+
+    def handler(signum, frame):
+        if stats is not None and not stats.stopped_by:
+            stats.stopped_by = signal.Signals(signum).name
+        if stop.is_set():  # second signal: give up on a clean stop
+            raise KeyboardInterrupt
+        stop.set()
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        old[sig] = signal.signal(sig, handler)
+
+    def restore():
+        for sig, h in old.items():
+            signal.signal(sig, h)
+
+    return restore
+
+
+class Service:
+    """The publishers, subscribers, queryables and token of one model on one session.
+
+    Parameters
+    ----------
+    session : zenoh.Session
+        Open session.
+    model : gyrosim.model.Model
+        The model to step (its scene name and body names make the keys).
+    options : ServeOptions
+        Rate, pacing, limits.
+    recorder : gyrosim.telemetry.recorder.Recorder, optional
+        Records every published message and every accepted torque command.
+    """
+
+    def __init__(self, session, model, options: ServeOptions = ServeOptions(), recorder=None):
+        import zenoh
+
+        self.session = session
+        self.model = model
+        self.options = options
+        self.recorder = recorder
+        self.stats = ServeStats()
+        self.scene = model.scene.name
+        self.bodies = list(model.body_names)
+        self.keys = [K.BodyKeys(self.scene, b, options.prefix) for b in self.bodies]
+        self.h = 1.0 / options.rate
+        self._seq = [0] * len(self.bodies)
+        self._torque_bodies = [i for i in range(len(self.bodies)) if "tau_x" in model.inputs(i)]
+        self._rejections_logged = 0
+
+        def pub(key, encoding):
+            return session.declare_publisher(key, encoding=zenoh.Encoding(encoding),
+                                             congestion_control=zenoh.CongestionControl.BLOCK,
+                                             reliability=zenoh.Reliability.RELIABLE)
+
+        self.publishers = [
+            {"state": pub(k.state, msg.STATE_ENCODING), "tf": pub(k.tf, msg.TF_ENCODING),
+             "imu": pub(k.imu, msg.IMU_ENCODING)}
+            for k in self.keys
+        ]
+        self.torque_subs = {}
+        for i, k in enumerate(self.keys):
+            # every body gets the subscriber: a body without torque inputs answers with a clear rejection
+            self.torque_subs[i] = session.declare_subscriber(k.torque, zenoh.handlers.FifoChannel(1024))
+        self.queryables = [session.declare_queryable(k.params, zenoh.handlers.FifoChannel(64))
+                           for k in self.keys]
+        self.token = session.liveliness().declare_token(K.alive_key(self.scene, prefix=options.prefix))
+
+    # --------------------------------------------------------------------------------------------- inputs
+    def _reject(self, key: str, reason: str) -> None:
+        self.stats.torque_rejected += 1
+        self.stats.last_rejection = reason
+        self._rejections_logged += 1
+        n = self.stats.torque_rejected
+        if n <= 20 or n % 1000 == 0:
+            log.warning("torque command on %s rejected (%d so far): %s", key, n, reason)
+
+    def poll_inputs(self) -> None:
+        """Apply queued torque commands and answer queued params queries (stepping thread only)."""
+        for i, sub in self.torque_subs.items():
+            while (sample := sub.try_recv()) is not None:
+                key = self.keys[i].torque
+                payload = sample.payload.to_bytes()
+                try:
+                    cmd = msg.parse_torque(payload, self.options.torque_limit)
+                    if i not in self._torque_bodies:
+                        raise msg.TorqueRejected(f"body {self.bodies[i]!r} of scene {self.scene!r} has no "
+                                                 "torque input (scene: torque_input = true)")
+                    for name, value in cmd.as_inputs().items():
+                        self.model.set(name, value, body=i)
+                except msg.TorqueRejected as e:
+                    self._reject(key, e.reason)
+                    continue
+                except ConfigError as e:  # the model refused it
+                    self._reject(key, str(e))
+                    continue
+                self.stats.torque_accepted += 1
+                if self.recorder is not None:
+                    self.recorder.write_sample(key, msg.TORQUE_ENCODING, payload,
+                                               publish_time_ns=msg.seconds_to_ns(self.model.time))
+                log.info("torque on %s: %s N*m", self.bodies[i], (cmd.x, cmd.y, cmd.z))
+        for i, q in enumerate(self.queryables):
+            while (query := q.try_recv()) is not None:
+                self.stats.queries += 1
+                try:
+                    query.reply(self.keys[i].params, msg.encode_params(self.params_info(i)),
+                                encoding=msg.PARAMS_ENCODING)
+                except Exception as e:  # a query that went away must not stop the service
+                    log.warning("params reply on %s failed: %s", self.keys[i].params, e)
+                finally:
+                    query.drop()
+
+    def params_info(self, body: int) -> dict:
+        """What a ``.../params`` query answers for one body."""
+        m = self.model
+        return {
+            "scene": self.scene, "body": self.bodies[body], "time": m.time,
+            "parameters": m.parameters(body), "inputs": m.inputs(body),
+            "service": {"rate": self.options.rate, "realtime_factor": self.options.realtime_factor,
+                        "torque_limit": self.options.torque_limit, "prefix": self.options.prefix,
+                        "stats": asdict(self.stats)},
+        }
+
+    # ------------------------------------------------------------------------------------------- stepping
+    def publish(self) -> None:
+        """Publish (and record) every body's state, tf and imu at the model's current time."""
+        m = self.model
+        t = m.time
+        t_ns = msg.seconds_to_ns(t)
+        for i, body in enumerate(self.bodies):
+            out = m.outputs(i)
+            q = (out["q_w"], out["q_x"], out["q_y"], out["q_z"])
+            omega = (out["omega_x"], out["omega_y"], out["omega_z"])
+            wall = time.time_ns()
+            state = msg.BodyState.from_outputs(t, self._seq[i], out, m.inputs(i), scene=self.scene, body=body,
+                                               wall_ns=wall)
+            payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state)),
+                        ("tf", msg.TF_ENCODING, msg.encode_tf(t, q, child_frame_id=body)),
+                        ("imu", msg.IMU_ENCODING, msg.encode_imu(t, q, omega, frame_id=body)))
+            pubs = self.publishers[i]
+            for kind, encoding, data in payloads:
+                pubs[kind].put(data)
+                if self.recorder is not None:
+                    self.recorder.write_sample(self.keys[i].key(kind), encoding, data, log_time_ns=wall,
+                                               publish_time_ns=t_ns, sequence=self._seq[i])
+                    self.stats.recorded += 1
+            self.stats.published += len(payloads)
+            self._seq[i] += 1
+
+    def wait_for_subscribers(self, timeout: float, stop: threading.Event) -> bool:
+        """Wait until every state publisher has a matching subscriber (or ``timeout`` s); True if all do."""
+        deadline = time.monotonic() + timeout
+        while not stop.is_set():
+            if all(p["state"].matching_status.matching for p in self.publishers):
+                return True
+            if time.monotonic() >= deadline:
+                return False
+            self.poll_inputs()
+            time.sleep(0.01)
+        return False
+
+    def _warm_up(self) -> None:
+        """One step on a saved state, then restore it: compiles (JIT) and warms caches before the clock runs."""
+        m = self.model
+        try:
+            saved = m.get_state()
+        except Exception:  # a model without state saving: no warm-up
+            return
+        try:
+            m.step(self.h)
+        except GyrosimError:
+            pass
+        finally:
+            m.set_state(saved)
+        msg.encode_tf(0.0, (1.0, 0.0, 0.0, 0.0), child_frame_id="warm-up")  # builds the CDR encoders once
+        msg.encode_imu(0.0, (1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0), frame_id="warm-up")
+
+    def run(self, stop: threading.Event) -> ServeStats:
+        """Publish the initial state, then step and publish until ``duration`` or ``stop``."""
+        o, m, st = self.options, self.model, self.stats
+        self._warm_up()
+        if o.wait_subscribers > 0:
+            if self.wait_for_subscribers(o.wait_subscribers, stop):
+                log.info("subscribers present on every state key")
+            else:
+                log.warning("no subscriber on some state key after %.1f s; starting anyway",
+                            o.wait_subscribers)
+        t0 = m.time
+        n_steps = None if o.duration is None else int(round(o.duration * o.rate))
+        self.poll_inputs()
+        self.publish()
+        wall0 = time.monotonic()
+        log.info("stepping: h = %g s, %s", self.h,
+                 f"{o.duration:g} s simulated" if o.duration is not None else "until stopped")
+        n = 0
+        last_flush_poll = wall0
+        while not stop.is_set() and (n_steps is None or n < n_steps):
+            if o.realtime_factor > 0:
+                target = wall0 + (n + 1) * self.h / o.realtime_factor
+                while True:
+                    now = time.monotonic()
+                    remaining = target - now
+                    if remaining <= 0 or stop.is_set():
+                        break
+                    time.sleep(min(remaining, 0.02))
+                    if remaining > 0.02:
+                        self.poll_inputs()
+                st.max_lag = max(st.max_lag, -remaining)
+                if stop.is_set():
+                    break
+            self.poll_inputs()
+            try:
+                m.step(self.h)
+            except (IntegrationError, StepError) as e:
+                st.stopped_by = f"model error: {e}"
+                log.error("model step at t = %.6g s failed: %s", m.time, e)
+                raise
+            n += 1
+            st.steps = n
+            st.sim_time = m.time - t0
+            self.publish()
+            if self.recorder is not None and time.monotonic() - last_flush_poll > 0.1:
+                self.recorder.maybe_flush()
+                last_flush_poll = time.monotonic()
+        st.wall_time = time.monotonic() - wall0
+        if not st.stopped_by:
+            st.stopped_by = "duration" if n_steps is not None and n >= n_steps else "stop request"
+        return st
+
+    def close(self) -> None:
+        """Undeclare everything (publishers first, then the token)."""
+        for pubs in self.publishers:
+            for p in pubs.values():
+                p.undeclare()
+        for s in self.torque_subs.values():
+            s.undeclare()
+        for q in self.queryables:
+            q.undeclare()
+        self.token.undeclare()
+
+
+def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters: dict | None = None,
+         model=None, stop: threading.Event | None = None, ready: Callable[[Service], None] | None = None
+         ) -> ServeStats:
+    """Serve a scene on Zenoh until ``options.duration`` simulated seconds or SIGINT/SIGTERM.
+
+    Parameters
+    ----------
+    conf : zenoh.Config
+        Session configuration (see :mod:`gyrosim.service.config`).
+    scene : str, Scene or None
+        Embedded scene name, TOML path, Scene, or None for the full model.
+    options : ServeOptions
+        Rate, pacing, duration, recording, limits.
+    parameters : dict, optional
+        Parameter values set on the model (``--set NAME=VALUE``, ``--integrator``).
+    model : Model, optional
+        A model to serve instead of building one from ``scene`` and ``parameters``.
+    stop : threading.Event, optional
+        Set it to stop; by default SIGINT and SIGTERM set it (in the main thread).
+    ready : callable, optional
+        Called with the :class:`Service` once everything is declared.
+
+    Returns
+    -------
+    ServeStats
+
+    Raises
+    ------
+    ConfigError, RecordingError, IntegrationError
+        Bad scene or parameters, unwritable recording, model failure.
+    """
+    import zenoh
+
+    from ..telemetry.recorder import Recorder, metadata_record
+
+    if model is None:
+        model = build_model(scene, parameters)
+    stop = stop if stop is not None else threading.Event()
+    recorder = None
+    if options.record:
+        params = {b: model.parameters(i) for i, b in enumerate(model.body_names)}
+        first = model.parameters(0) if model.body_names else {}
+        recorder = Recorder(options.record, metadata=metadata_record(
+            scene=model.scene.name, parameters=params, integrator=first.get("integrator"),
+            rate=options.rate, realtime_factor=options.realtime_factor, prefix=options.prefix,
+            bodies=list(model.body_names), source="gyrosim serve"))
+    service = None
+    stats = ServeStats()
+    restore = install_stop_signals(stop, stats)
+    try:
+        with zenoh.open(conf) as session:
+            service = Service(session, model, options, recorder)
+            service.stats = stats
+            log.info("serving scene %r (bodies: %s) on %s/%s/... at %g Hz, realtime factor %g",
+                     service.scene, ", ".join(service.bodies), options.prefix, service.scene, options.rate,
+                     options.realtime_factor)
+            if ready is not None:
+                ready(service)
+            try:
+                service.run(stop)
+            finally:
+                if options.linger > 0:
+                    time.sleep(options.linger)
+                service.close()
+    except zenoh.ZError as e:
+        raise GyrosimError(f"Zenoh session failed: {e}") from None
+    finally:
+        restore()
+        if recorder is not None:
+            summary = recorder.close()
+            log.info("recording: %s", summary.format().splitlines()[0])
+    return stats

@@ -1,0 +1,662 @@
+"""Message encodings of the gyrosim service and recordings: the only module that knows them.
+
+=======  ============================================  ==================================================
+kind     Zenoh encoding                                MCAP channel: message encoding, schema (encoding)
+=======  ============================================  ==================================================
+state    ``application/json;gyrosim.BodyState``        json, gyrosim.BodyState (jsonschema)
+tf       ``application/cdr;tf2_msgs/msg/TFMessage``    cdr, tf2_msgs/msg/TFMessage (ros2msg)
+imu      ``application/cdr;sensor_msgs/msg/Imu``       cdr, sensor_msgs/msg/Imu (ros2msg)
+torque   ``application/json`` ``{"x", "y", "z"}``      json, gyrosim.Torque (jsonschema)
+params   ``application/json`` (query reply)            -
+=======  ============================================  ==================================================
+
+CDR payloads are encoded from the same ROS 2 message definition text that goes into the MCAP schema (the
+concatenated form rosbag2 writes, with ``MSG: pkg/Type`` sections), so Foxglove and ``mcap-ros2-support``
+decode them. Every header stamp is the simulation time; ``publish_time`` of an MCAP message is the same time
+in ns (:func:`sim_time_ns` reads it back from any payload kind).
+
+Examples
+--------
+>>> from gyrosim.telemetry import messages as msg
+>>> data = msg.encode_imu(1.5, (1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 10.0), frame_id="gyro")
+>>> imu = msg.decode_cdr(msg.IMU_TYPE, data)
+>>> imu.header.stamp.sec, imu.header.stamp.nanosec, imu.angular_velocity.z
+(1, 500000000, 10.0)
+>>> msg.sim_time_ns(msg.IMU_ENCODING, data)
+1500000000
+>>> msg.parse_torque(b'{"x": 0.1, "y": 0, "z": -2}', limit=5.0)
+Torque(x=0.1, y=0.0, z=-2.0)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any
+
+from ..errors import ConfigError
+
+__all__ = [
+    "STATE_ENCODING",
+    "TF_ENCODING",
+    "IMU_ENCODING",
+    "TORQUE_ENCODING",
+    "PARAMS_ENCODING",
+    "STATE_SCHEMA_NAME",
+    "TORQUE_SCHEMA_NAME",
+    "TF_TYPE",
+    "IMU_TYPE",
+    "TF_MSGDEF",
+    "IMU_MSGDEF",
+    "BODY_STATE_JSON_SCHEMA",
+    "TORQUE_JSON_SCHEMA",
+    "WORLD_FRAME",
+    "DEFAULT_TORQUE_LIMIT",
+    "BodyState",
+    "ChannelSchema",
+    "Torque",
+    "TorqueRejected",
+    "seconds_to_ns",
+    "ns_to_stamp",
+    "encode_state",
+    "decode_state",
+    "encode_tf",
+    "encode_imu",
+    "decode_cdr",
+    "encode_torque",
+    "parse_torque",
+    "encode_params",
+    "sim_time_ns",
+    "stamp_and_seq",
+    "schema_for_encoding",
+    "encoding_for_channel",
+]
+
+# --------------------------------------------------------------------------------------------- encodings
+STATE_SCHEMA_NAME = "gyrosim.BodyState"
+TORQUE_SCHEMA_NAME = "gyrosim.Torque"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+IMU_TYPE = "sensor_msgs/msg/Imu"
+
+STATE_ENCODING = f"application/json;{STATE_SCHEMA_NAME}"
+TF_ENCODING = f"application/cdr;{TF_TYPE}"
+IMU_ENCODING = f"application/cdr;{IMU_TYPE}"
+TORQUE_ENCODING = "application/json"
+PARAMS_ENCODING = "application/json"
+
+#: Parent frame of every transform.
+WORLD_FRAME = "world"
+#: Default largest accepted |torque component|, N*m.
+DEFAULT_TORQUE_LIMIT = 100.0
+
+# ------------------------------------------------------------------------------ ROS 2 message definitions
+_SEP = "=" * 80 + "\n"
+
+_HEADER = """\
+# Standard metadata for higher-level stamped data types.
+builtin_interfaces/Time stamp
+string frame_id
+"""
+_TIME = """\
+int32 sec
+uint32 nanosec
+"""
+_VECTOR3 = """\
+float64 x
+float64 y
+float64 z
+"""
+_QUATERNION = """\
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+"""
+_TRANSFORM = """\
+Vector3 translation
+Quaternion rotation
+"""
+_TRANSFORM_STAMPED = """\
+std_msgs/Header header
+string child_frame_id
+Transform transform
+"""
+
+
+def _concat(top: str, deps: list[tuple[str, str]]) -> str:
+    parts = [top]
+    for name, text in deps:
+        parts.append(_SEP + f"MSG: {name}\n" + text)
+    return "".join(parts)
+
+
+#: Full ros2msg definition of tf2_msgs/msg/TFMessage, dependencies appended as rosbag2 does.
+TF_MSGDEF = _concat(
+    "geometry_msgs/TransformStamped[] transforms\n",
+    [
+        ("geometry_msgs/TransformStamped", _TRANSFORM_STAMPED),
+        ("std_msgs/Header", _HEADER),
+        ("builtin_interfaces/Time", _TIME),
+        ("geometry_msgs/Transform", _TRANSFORM),
+        ("geometry_msgs/Vector3", _VECTOR3),
+        ("geometry_msgs/Quaternion", _QUATERNION),
+    ],
+)
+
+#: Full ros2msg definition of sensor_msgs/msg/Imu, dependencies appended as rosbag2 does.
+IMU_MSGDEF = _concat(
+    """\
+# Covariances are row major about x, y, z. All zeros: covariance unknown.
+# Element 0 = -1: the quantity is not provided (and its values are to be ignored).
+std_msgs/Header header
+geometry_msgs/Quaternion orientation
+float64[9] orientation_covariance
+geometry_msgs/Vector3 angular_velocity
+float64[9] angular_velocity_covariance
+geometry_msgs/Vector3 linear_acceleration
+float64[9] linear_acceleration_covariance
+""",
+    [
+        ("std_msgs/Header", _HEADER),
+        ("builtin_interfaces/Time", _TIME),
+        ("geometry_msgs/Quaternion", _QUATERNION),
+        ("geometry_msgs/Vector3", _VECTOR3),
+    ],
+)
+
+_MSGDEFS = {TF_TYPE: TF_MSGDEF, IMU_TYPE: IMU_MSGDEF}
+
+# ------------------------------------------------------------------------------------------ JSON schemas
+_NUM = {"type": "number"}
+_NUM_OR_NULL = {"type": ["number", "null"]}
+
+
+def _vec(n: int, what: str) -> dict:
+    return {"type": "array", "items": _NUM, "minItems": n, "maxItems": n, "description": what}
+
+
+#: JSON Schema (draft 2020-12) of a BodyState message.
+BODY_STATE_JSON_SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": STATE_SCHEMA_NAME,
+    "description": "State of one rigid body of a gyrosim scene at simulation time t (SI units).",
+    "type": "object",
+    "properties": {
+        "t": {"type": "number", "description": "simulation time, s"},
+        "seq": {"type": "integer", "minimum": 0, "description": "per-body message counter from 0"},
+        "scene": {"type": "string"},
+        "body": {"type": "string"},
+        "q": _vec(4, "attitude quaternion (w, x, y, z), body -> world"),
+        "omega": _vec(3, "body-frame angular velocity, rad/s"),
+        "phi": {**_NUM_OR_NULL, "description": "ZYZ precession angle (unwrapped), rad"},
+        "theta": {**_NUM_OR_NULL, "description": "ZYZ nutation angle in [0, pi], rad"},
+        "psi": {**_NUM_OR_NULL, "description": "ZYZ spin angle (unwrapped), rad"},
+        "L": {
+            "type": ["array", "null"], "items": _NUM, "minItems": 3, "maxItems": 3,
+            "description": "world-frame angular momentum about the reference point, kg*m^2/s",
+        },
+        "energy": {**_NUM_OR_NULL, "description": "total energy, J"},
+        "inputs": {
+            "type": "object", "additionalProperties": _NUM,
+            "description": "inputs held over the last step (tau_x, tau_y, tau_z: body-frame torque, N*m)",
+        },
+        "wall_ns": {"type": "integer", "description": "publisher wall clock at publication, ns since epoch"},
+    },
+    "required": ["t", "seq", "q", "omega"],
+}
+
+#: JSON Schema of a torque command.
+TORQUE_JSON_SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": TORQUE_SCHEMA_NAME,
+    "description": "Body-frame torque command, N*m, held until the next command.",
+    "type": "object",
+    "properties": {"x": _NUM, "y": _NUM, "z": _NUM},
+    "required": ["x", "y", "z"],
+    "additionalProperties": False,
+}
+
+
+# ----------------------------------------------------------------------------------------------- time
+def seconds_to_ns(t: float) -> int:
+    """Simulation time in s -> integer ns (rounded to nearest)."""
+    return int(round(float(t) * 1e9))
+
+
+def ns_to_stamp(ns: int) -> tuple[int, int]:
+    """Integer ns -> ``(sec, nanosec)`` as in ``builtin_interfaces/Time`` (nanosec in [0, 1e9))."""
+    sec, nanosec = divmod(int(ns), 1_000_000_000)
+    return sec, nanosec
+
+
+# ----------------------------------------------------------------------------------------------- state
+def _finite_or_none(x) -> float | None:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
+class BodyState:
+    """State of one body at simulation time ``t``, as published on ``.../state``.
+
+    Parameters
+    ----------
+    t : float
+        Simulation time, s.
+    seq : int
+        Per-body message counter (0, 1, 2, ...): gaps show lost messages.
+    q : (4,) tuple of float
+        Attitude quaternion ``(w, x, y, z)``, rotating body-frame vectors into the world frame.
+    omega : (3,) tuple of float
+        Body-frame angular velocity, rad/s.
+    phi, theta, psi : float or None
+        ZYZ Euler angles, rad.
+    L : (3,) tuple of float or None
+        World-frame angular momentum, kg*m^2/s.
+    energy : float or None
+        Total energy, J.
+    inputs : dict
+        Inputs held over the last step (``tau_x``, ``tau_y``, ``tau_z``, N*m).
+    scene, body : str
+        Names.
+    wall_ns : int or None
+        Publisher wall clock at publication (ns since the Unix epoch), for latency measurements.
+    """
+
+    t: float
+    seq: int
+    q: tuple
+    omega: tuple
+    phi: float | None = None
+    theta: float | None = None
+    psi: float | None = None
+    L: tuple | None = None
+    energy: float | None = None
+    inputs: dict = field(default_factory=dict)
+    scene: str = ""
+    body: str = ""
+    wall_ns: int | None = None
+
+    @classmethod
+    def from_outputs(cls, t: float, seq: int, outputs: dict, inputs: dict | None = None, *,
+                     scene: str = "", body: str = "", wall_ns: int | None = None) -> BodyState:
+        """Build from ``Model.outputs(body)`` and ``Model.inputs(body)`` dictionaries."""
+        o = outputs
+        L = None
+        if all(k in o for k in ("L_x", "L_y", "L_z")):
+            L = (float(o["L_x"]), float(o["L_y"]), float(o["L_z"]))
+        return cls(
+            t=float(t), seq=int(seq),
+            q=(float(o["q_w"]), float(o["q_x"]), float(o["q_y"]), float(o["q_z"])),
+            omega=(float(o["omega_x"]), float(o["omega_y"]), float(o["omega_z"])),
+            phi=o.get("phi"), theta=o.get("theta"), psi=o.get("psi"), L=L, energy=o.get("energy"),
+            inputs={k: float(v) for k, v in (inputs or {}).items()},
+            scene=scene, body=body, wall_ns=wall_ns,
+        )
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (non-finite numbers become null)."""
+        d = {
+            "t": self.t, "seq": self.seq, "scene": self.scene, "body": self.body,
+            "q": list(self.q), "omega": list(self.omega),
+            "phi": _finite_or_none(self.phi), "theta": _finite_or_none(self.theta),
+            "psi": _finite_or_none(self.psi),
+            "L": None if self.L is None else [_finite_or_none(v) for v in self.L],
+            "energy": _finite_or_none(self.energy),
+            "inputs": {k: v for k, v in self.inputs.items() if math.isfinite(v)},
+        }
+        if self.wall_ns is not None:
+            d["wall_ns"] = int(self.wall_ns)
+        return d
+
+
+def encode_state(state: BodyState) -> bytes:
+    """BodyState -> UTF-8 JSON bytes (compact)."""
+    return json.dumps(state.to_dict(), separators=(",", ":"), allow_nan=False).encode()
+
+
+def decode_state(data: bytes | str) -> dict:
+    """UTF-8 JSON BodyState -> dict (keys as in :data:`BODY_STATE_JSON_SCHEMA`)."""
+    return json.loads(data)
+
+
+# ------------------------------------------------------------------------------------------------- CDR
+@cache
+def _encoder(type_name: str):
+    from mcap_ros2._dynamic import serialize_dynamic
+
+    return serialize_dynamic(type_name, _MSGDEFS[type_name])[type_name]
+
+
+@cache
+def _decoder(type_name: str, msgdef: str):
+    from mcap_ros2._dynamic import generate_dynamic
+
+    return generate_dynamic(type_name, msgdef)[type_name]
+
+
+def _header(t: float, frame_id: str) -> dict:
+    sec, nanosec = ns_to_stamp(seconds_to_ns(t))
+    return {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": frame_id}
+
+
+def _quat_xyzw(q) -> dict:
+    w, x, y, z = (float(v) for v in q)
+    return {"x": x, "y": y, "z": z, "w": w}
+
+
+def encode_tf(t: float, q, *, child_frame_id: str, frame_id: str = WORLD_FRAME,
+              translation=(0.0, 0.0, 0.0)) -> bytes:
+    """CDR ``tf2_msgs/msg/TFMessage`` with one transform ``frame_id -> child_frame_id``.
+
+    Parameters
+    ----------
+    t : float
+        Simulation time, s (header stamp).
+    q : (4,) array_like
+        Attitude ``(w, x, y, z)`` of the body in the world frame.
+    child_frame_id : str
+        The body's frame (the body name).
+    frame_id : str
+        Parent frame, default ``world``.
+    translation : (3,) array_like
+        Position of the body frame's origin (the pivot, or the centre of mass of a free body), m.
+    """
+    tx, ty, tz = (float(v) for v in translation)
+    msg = {"transforms": [{
+        "header": _header(t, frame_id),
+        "child_frame_id": child_frame_id,
+        "transform": {"translation": {"x": tx, "y": ty, "z": tz}, "rotation": _quat_xyzw(q)},
+    }]}
+    return bytes(_encoder(TF_TYPE)(msg))
+
+
+_UNKNOWN_COV = [0.0] * 9
+_NOT_PROVIDED_COV = [-1.0] + [0.0] * 8
+
+
+def encode_imu(t: float, q, omega_body, *, frame_id: str) -> bytes:
+    """CDR ``sensor_msgs/msg/Imu``: orientation and body-frame angular velocity.
+
+    The simulation gives both exactly, so their covariances are all zeros ("unknown" in ROS terms, no
+    estimate of error); linear acceleration is not provided: its covariance element 0 is -1, as ROS asks.
+
+    Parameters
+    ----------
+    t : float
+        Simulation time, s (header stamp).
+    q : (4,) array_like
+        Attitude ``(w, x, y, z)``, body -> world.
+    omega_body : (3,) array_like
+        Body-frame angular velocity, rad/s.
+    frame_id : str
+        The body's frame (the body name).
+    """
+    wx, wy, wz = (float(v) for v in omega_body)
+    msg = {
+        "header": _header(t, frame_id),
+        "orientation": _quat_xyzw(q),
+        "orientation_covariance": _UNKNOWN_COV,
+        "angular_velocity": {"x": wx, "y": wy, "z": wz},
+        "angular_velocity_covariance": _UNKNOWN_COV,
+        "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 0.0},
+        "linear_acceleration_covariance": _NOT_PROVIDED_COV,
+    }
+    return bytes(_encoder(IMU_TYPE)(msg))
+
+
+def decode_cdr(type_name: str, data: bytes, msgdef: str | None = None) -> Any:
+    """Decode a CDR payload with ``mcap-ros2-support``'s dynamic decoder.
+
+    Parameters
+    ----------
+    type_name : str
+        ROS 2 type, e.g. ``sensor_msgs/msg/Imu``.
+    data : bytes
+        Payload with its 4-byte encapsulation header.
+    msgdef : str, optional
+        Concatenated definition; default: the one this module publishes.
+    """
+    return _decoder(type_name, msgdef if msgdef is not None else _MSGDEFS[type_name])(data)
+
+
+# ---------------------------------------------------------------------------------------------- torque
+@dataclass(frozen=True)
+class Torque:
+    """Body-frame torque command, N*m."""
+
+    x: float
+    y: float
+    z: float
+
+    def as_inputs(self) -> dict[str, float]:
+        """As model inputs ``tau_x, tau_y, tau_z``."""
+        return {"tau_x": self.x, "tau_y": self.y, "tau_z": self.z}
+
+
+class TorqueRejected(ConfigError):
+    """A torque command that is not accepted; ``reason`` says why in one line."""
+
+    def __init__(self, reason: str, value=None):
+        self.reason = reason
+        super().__init__("torque", value, reason)
+
+    def __str__(self) -> str:
+        return f"torque command rejected: {self.reason}"
+
+
+#: Largest accepted torque payload, bytes.
+MAX_TORQUE_PAYLOAD = 1024
+
+
+def parse_torque(payload: bytes | bytearray | memoryview | str,
+                 limit: float = DEFAULT_TORQUE_LIMIT) -> Torque:
+    """Parse and validate a torque command ``{"x": .., "y": .., "z": ..}`` (N*m, body frame).
+
+    Parameters
+    ----------
+    payload : bytes or str
+        UTF-8 JSON object with exactly the numeric members ``x``, ``y``, ``z``.
+    limit : float
+        Largest accepted absolute value of each component, N*m.
+
+    Returns
+    -------
+    Torque
+
+    Raises
+    ------
+    TorqueRejected
+        With ``reason`` naming what is wrong: too long, not UTF-8, not JSON, not an object, missing or unknown
+        members, a member that is not a number (booleans included), NaN or infinite, or beyond ``limit``.
+    """
+    if isinstance(payload, str):
+        text = payload
+        if len(text) > MAX_TORQUE_PAYLOAD:
+            raise TorqueRejected(f"payload of {len(text)} characters, at most {MAX_TORQUE_PAYLOAD} allowed")
+    else:
+        raw = bytes(payload)
+        if len(raw) > MAX_TORQUE_PAYLOAD:
+            raise TorqueRejected(f"payload of {len(raw)} bytes, at most {MAX_TORQUE_PAYLOAD} allowed")
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise TorqueRejected(f"payload is not UTF-8 ({e.reason} at byte {e.start})", raw[:40]) from None
+
+    def _reject_constant(name):  # json accepts NaN/Infinity literals by default: reject them by name
+        raise ValueError(f"{name} is not a finite number")
+
+    try:
+        obj = json.loads(text, parse_constant=_reject_constant)
+    except ValueError as e:
+        raise TorqueRejected(f"not valid JSON ({e})", text[:80]) from None
+    if not isinstance(obj, dict):
+        raise TorqueRejected(f'expected a JSON object {{"x", "y", "z"}}, got {type(obj).__name__}', obj)
+    missing = [k for k in ("x", "y", "z") if k not in obj]
+    if missing:
+        raise TorqueRejected(f"missing member(s) {', '.join(missing)}; expected x, y, z in N*m", obj)
+    extra = sorted(set(obj) - {"x", "y", "z"})
+    if extra:
+        raise TorqueRejected(f"unknown member(s) {', '.join(extra)}; expected only x, y, z", obj)
+    values = []
+    for k in ("x", "y", "z"):
+        v = obj[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise TorqueRejected(f"{k} = {v!r} is a {type(v).__name__}, expected a number (N*m)", obj)
+        try:
+            v = float(v)
+        except OverflowError:  # a JSON integer beyond the float range
+            raise TorqueRejected(f"{k} is an integer of {len(str(obj[k]))} digits, not a finite float",
+                                 "<huge integer>") from None
+        if not math.isfinite(v):
+            raise TorqueRejected(f"{k} = {obj[k]!r} is not finite", obj)
+        if abs(v) > limit:
+            raise TorqueRejected(f"|{k}| = {abs(v):g} N*m exceeds the limit {limit:g} N*m", obj)
+        values.append(v)
+    return Torque(*values)
+
+
+def encode_torque(x: float, y: float, z: float) -> bytes:
+    """Torque command payload ``{"x", "y", "z"}`` (N*m, body frame)."""
+    return json.dumps({"x": float(x), "y": float(y), "z": float(z)}, allow_nan=True).encode()
+
+
+def encode_params(info: dict) -> bytes:
+    """JSON reply of a ``.../params`` query (non-finite numbers become null)."""
+
+    def clean(v):
+        if isinstance(v, float) and not math.isfinite(v):
+            return None
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+
+    return json.dumps(clean(info), separators=(",", ":"), allow_nan=False).encode()
+
+
+# ------------------------------------------------------------------------------------- times of payloads
+_STAMP = struct.Struct("<iI")
+
+
+def sim_time_ns(encoding: str, payload: bytes) -> int | None:
+    """Simulation time (ns) carried by a payload, or None if its encoding carries none or it is malformed.
+
+    BodyState: ``t``; Imu: header stamp; TFMessage: stamp of the first transform.
+    """
+    encoding = str(encoding)
+    try:
+        if encoding == STATE_ENCODING:
+            return seconds_to_ns(json.loads(payload)["t"])
+        if encoding == IMU_ENCODING:  # encapsulation (4) | header.stamp
+            sec, nanosec = _STAMP.unpack_from(payload, 4)
+            return sec * 1_000_000_000 + nanosec
+        if encoding == TF_ENCODING:  # encapsulation (4) | sequence length (4) | transforms[0].header.stamp
+            (n,) = struct.unpack_from("<I", payload, 4)
+            if n == 0:
+                return None
+            sec, nanosec = _STAMP.unpack_from(payload, 8)
+            return sec * 1_000_000_000 + nanosec
+    except (ValueError, KeyError, TypeError, struct.error):
+        return None
+    return None
+
+
+def stamp_and_seq(encoding: str, payload: bytes) -> tuple[int | None, int | None]:
+    """``(simulation time ns, sequence number)`` of a payload; None where it carries none.
+
+    Only BodyState carries a sequence number (``seq``); the time is as in :func:`sim_time_ns`.
+    """
+    if str(encoding) == STATE_ENCODING:
+        try:
+            d = json.loads(payload)
+            seq = d.get("seq")
+            return seconds_to_ns(d["t"]), seq if isinstance(seq, int) and seq >= 0 else None
+        except (ValueError, KeyError, TypeError, AttributeError):
+            return None, None
+    return sim_time_ns(encoding, payload), None
+
+
+# ----------------------------------------------------------------------------------------- MCAP schemas
+@dataclass(frozen=True)
+class ChannelSchema:
+    """How a Zenoh encoding maps to an MCAP channel.
+
+    Attributes
+    ----------
+    message_encoding : str
+        MCAP message encoding (``json``, ``cdr``, ...).
+    name : str
+        Schema name; empty when there is no schema.
+    encoding : str
+        Schema encoding (``jsonschema``, ``ros2msg``); empty when there is no schema.
+    data : bytes
+        Schema data.
+    """
+
+    message_encoding: str
+    name: str = ""
+    encoding: str = ""
+    data: bytes = b""
+
+
+_MESSAGE_ENCODINGS = {
+    "application/json": "json",
+    "text/json": "json",
+    "application/cdr": "cdr",
+    "application/cbor": "cbor",
+    "application/protobuf": "protobuf",
+    "application/msgpack": "msgpack",
+    "application/flatbuffers": "flatbuffer",
+}
+
+
+def _json_schema_bytes(schema: dict) -> bytes:
+    return json.dumps(schema, indent=1).encode()
+
+
+def schema_for_encoding(zenoh_encoding: str, key: str | None = None) -> ChannelSchema:
+    """MCAP channel description for a Zenoh encoding string (and, optionally, the key it came on).
+
+    Known gyrosim encodings get their full schema (a JSON key ending in ``/torque`` gets the torque schema);
+    other ``application/json`` keys get a schema-less ``json`` channel; other encodings keep the Zenoh
+    encoding string as message encoding (the bytes are kept verbatim).
+
+    Examples
+    --------
+    >>> schema_for_encoding(IMU_ENCODING).name
+    'sensor_msgs/msg/Imu'
+    >>> schema_for_encoding("zenoh/bytes").message_encoding
+    'zenoh/bytes'
+    """
+    enc = str(zenoh_encoding)
+    base, _, schema = enc.partition(";")
+    if enc == STATE_ENCODING:
+        return ChannelSchema("json", STATE_SCHEMA_NAME, "jsonschema",
+                             _json_schema_bytes(BODY_STATE_JSON_SCHEMA))
+    if base == "application/cdr" and schema in _MSGDEFS:
+        return ChannelSchema("cdr", schema, "ros2msg", _MSGDEFS[schema].encode())
+    if enc == TORQUE_ENCODING and key is not None and str(key).endswith("/torque"):
+        return ChannelSchema("json", TORQUE_SCHEMA_NAME, "jsonschema", _json_schema_bytes(TORQUE_JSON_SCHEMA))
+    if base in _MESSAGE_ENCODINGS:
+        return ChannelSchema(_MESSAGE_ENCODINGS[base])
+    return ChannelSchema(enc)
+
+
+def encoding_for_channel(message_encoding: str, schema_name: str | None, metadata: dict | None = None) -> str:
+    """Zenoh encoding to republish an MCAP channel with (replay).
+
+    The channel metadata entry ``zenoh_encoding`` written by the recorder wins; otherwise it is rebuilt from
+    the message encoding and schema name.
+    """
+    if metadata and metadata.get("zenoh_encoding"):
+        return metadata["zenoh_encoding"]
+    inverse = {v: k for k, v in _MESSAGE_ENCODINGS.items() if k != "text/json"}
+    base = inverse.get(message_encoding, message_encoding)
+    return f"{base};{schema_name}" if schema_name else base

@@ -1,0 +1,134 @@
+"""Helpers for the service tests: free ports, gyrosim subprocesses, reading recordings back.
+
+Every test uses real Zenoh sessions on 127.0.0.1 with multicast and gossip scouting off and its own ports.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+import gyrosim
+
+#: Processes started by the running test; the ``reap`` fixture kills what is left (a failed test included).
+_STARTED: list[subprocess.Popen] = []
+
+SRC = str(Path(gyrosim.__file__).resolve().parents[1])
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that nobody listens on right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def endpoint(port: int, proto: str = "tcp", host: str = "127.0.0.1") -> str:
+    return f"{proto}/{host}:{port}"
+
+
+def env() -> dict:
+    e = dict(os.environ)
+    e["PYTHONPATH"] = SRC + (os.pathsep + e["PYTHONPATH"] if e.get("PYTHONPATH") else "")
+    e["PYTHONUNBUFFERED"] = "1"
+    return e
+
+
+def gyrosim_cmd(*args: str, prefix: tuple[str, ...] = ()) -> list[str]:
+    """Command line running a gyrosim subcommand of the service/telemetry CLI."""
+    return [*prefix, sys.executable, "-m", "gyrosim.service.cli", *map(str, args)]
+
+
+def start(*args: str, prefix: tuple[str, ...] = (), cwd=None) -> subprocess.Popen:
+    """Start a gyrosim subcommand; stdout and stderr are captured as text."""
+    p = subprocess.Popen(gyrosim_cmd(*args, prefix=prefix), env=env(), cwd=cwd, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    _STARTED.append(p)
+    return p
+
+
+@pytest.fixture(autouse=True)
+def reap():
+    """Kill (by their own Popen handles) the processes a test started and left running."""
+    yield
+    while _STARTED:
+        p = _STARTED.pop()
+        if p.poll() is None:
+            p.kill()
+        try:
+            p.communicate(timeout=10)
+        except (subprocess.TimeoutExpired, ValueError):
+            pass
+
+
+def run(*args: str, timeout: float = 60, prefix: tuple[str, ...] = ()) -> subprocess.CompletedProcess:
+    return subprocess.run(gyrosim_cmd(*args, prefix=prefix), env=env(), capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def wait_for_line(proc: subprocess.Popen, needle: str, timeout: float = 20.0) -> list[str]:
+    """Read ``proc``'s stderr until a line contains ``needle``; return the lines read."""
+    import selectors
+
+    lines: list[str] = []
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stderr, selectors.EVENT_READ)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not sel.select(timeout=0.1):
+            if proc.poll() is not None:
+                break
+            continue
+        line = proc.stderr.readline()
+        if not line:
+            break
+        lines.append(line)
+        if needle in line:
+            return lines
+    raise AssertionError(f"{needle!r} not seen within {timeout} s; stderr so far:\n{''.join(lines)}")
+
+
+def stop(proc: subprocess.Popen, sig=signal.SIGINT, timeout: float = 20.0) -> tuple[int, str, str]:
+    """Send ``sig`` to a process we started, wait for it and return (code, stdout, stderr)."""
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        raise AssertionError(f"process {proc.pid} did not stop after {sig!r}:\n{err}") from None
+    return proc.returncode, out, err
+
+
+def finish(proc: subprocess.Popen, timeout: float = 60.0) -> tuple[int, str, str]:
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        raise AssertionError(f"process {proc.pid} did not finish in {timeout} s:\n{err}") from None
+    return proc.returncode, out, err
+
+
+def read_channels(path) -> dict[str, list]:
+    """Messages of a finished MCAP file by topic, read with mcap's seeking reader (fails on a broken file)."""
+    from mcap.reader import make_reader
+
+    out: dict[str, list] = {}
+    with open(path, "rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages():
+            out.setdefault(channel.topic, []).append(message)
+    return out
+
+
+def state_seqs(messages) -> list[int]:
+    return [json.loads(m.data)["seq"] for m in messages]
