@@ -1,0 +1,662 @@
+/*
+ * gyrosim standalone FMU: the FMI 3.0 co-simulation interface.
+ *
+ * Every function of fmi3Functions.h is defined and exported. The state machine is enforced as the Modelica
+ * Reference FMUs do (src/fmi3Functions.c): a call in the wrong state returns fmi3Error with "Illegal call
+ * sequence". Invalid input (a bad parameter, h <= 0, a wrong current time, a step past the stop time, a blow-up)
+ * returns fmi3Error with a message through the logger and leaves the instance as it was before the call.
+ * Model exchange, scheduled execution, event mode, clocks and configuration mode are not provided.
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "gyrosim_config.h"
+#include "gyrosim_model.h"
+#include "fmi3Functions.h"
+
+#define M ((GsInstance *)instance)
+#define ALL_STATES (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_TERMINATED)
+#define CHECK(mask, name) \
+    do { \
+        if (!instance) return fmi3Error; \
+        M->fn = (name); \
+        if (!gs_check_state(M, (mask), (name))) return fmi3Error; \
+    } while (0)
+#define NOT_NULL(p, name, what) \
+    do { \
+        if (!(p)) { \
+            gs_log_error(M, "%s = NULL is not allowed", (what)); \
+            return fmi3Error; \
+        } \
+    } while (0)
+
+typedef struct {
+    fmi3LogMessageCallback logger;
+    fmi3InstanceEnvironment env;
+} Env;
+
+static void logger3(void *env, int status, const char *category, const char *message) {
+    const Env *e = (const Env *)env;
+    if (e && e->logger) e->logger(e->env, (fmi3Status)status, category, message);
+}
+
+static fmi3Status st(int s) {
+    return (fmi3Status)s;
+}
+
+/* ----------------------------------------------------------------------------------------------- common */
+
+const char *fmi3GetVersion(void) {
+    return fmi3Version;
+}
+
+fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, size_t nCategories,
+                               const fmi3String categories[]) {
+    CHECK(ALL_STATES, "fmi3SetDebugLogging");
+    return st(gs_set_debug_logging(M, loggingOn, nCategories, categories));
+}
+
+fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
+                                          fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                          fmi3InstanceEnvironment instanceEnvironment,
+                                          fmi3LogMessageCallback logMessage) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                               "fmi3InstantiateModelExchange: model exchange is not provided by this FMU "
+                               "(co-simulation only).");
+    return NULL;
+}
+
+fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
+                                         fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
+                                         fmi3Boolean eventModeUsed, fmi3Boolean earlyReturnAllowed,
+                                         const fmi3ValueReference requiredIntermediateVariables[],
+                                         size_t nRequiredIntermediateVariables,
+                                         fmi3InstanceEnvironment instanceEnvironment,
+                                         fmi3LogMessageCallback logMessage,
+                                         fmi3IntermediateUpdateCallback intermediateUpdate) {
+    (void)resourcePath;
+    (void)visible;
+    (void)earlyReturnAllowed;
+    (void)requiredIntermediateVariables;
+    (void)intermediateUpdate;
+    if (!instanceName || !instanceName[0]) {
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                                   "fmi3InstantiateCoSimulation: missing instance name.");
+        return NULL;
+    }
+    if (!instantiationToken || strcmp(instantiationToken, INSTANTIATION_TOKEN) != 0) {
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                                   "fmi3InstantiateCoSimulation: wrong instantiationToken: expected "
+                                   INSTANTIATION_TOKEN " (modelDescription.xml).");
+        return NULL;
+    }
+    if (eventModeUsed) {
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                                   "fmi3InstantiateCoSimulation: eventModeUsed = true is not allowed: this FMU "
+                                   "has no event mode (hasEventMode=\"false\").");
+        return NULL;
+    }
+    if (nRequiredIntermediateVariables > 0) {
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                                   "fmi3InstantiateCoSimulation: intermediate variables are not provided.");
+        return NULL;
+    }
+    Env *e = (Env *)calloc(1, sizeof(Env));
+    if (!e) return NULL;
+    e->logger = logMessage;
+    e->env = instanceEnvironment;
+    GsInstance *m = gs_new(instanceName, e, logger3, loggingOn);
+    if (!m) {
+        free(e);
+        return NULL;
+    }
+    gs_log_event(m, "fmi3InstantiateCoSimulation: %s (%s), integrators euler, rk4, splitting, splitting4",
+                 instanceName, MODEL_IDENTIFIER_STRING);
+    return m;
+}
+
+fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
+                                               fmi3String resourcePath, fmi3Boolean visible,
+                                               fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
+                                               fmi3LogMessageCallback logMessage,
+                                               fmi3ClockUpdateCallback clockUpdate,
+                                               fmi3LockPreemptionCallback lockPreemption,
+                                               fmi3UnlockPreemptionCallback unlockPreemption) {
+    (void)instanceName;
+    (void)instantiationToken;
+    (void)resourcePath;
+    (void)visible;
+    (void)loggingOn;
+    (void)clockUpdate;
+    (void)lockPreemption;
+    (void)unlockPreemption;
+    if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
+                               "fmi3InstantiateScheduledExecution: scheduled execution is not provided by this "
+                               "FMU (co-simulation only).");
+    return NULL;
+}
+
+void fmi3FreeInstance(fmi3Instance instance) {
+    if (!instance) return;
+    free(M->env);
+    gs_free(M);
+}
+
+fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,
+                                       fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime) {
+    CHECK(GS_INSTANTIATED, "fmi3EnterInitializationMode");
+    if (gs_setup(M, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime) != GS_OK) return fmi3Error;
+    M->d.fmi_state = GS_INIT;
+    return fmi3OK;
+}
+
+fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
+    CHECK(GS_INIT, "fmi3ExitInitializationMode");
+    if (gs_initialize(M) != GS_OK) return fmi3Error;   /* stays in initialisation mode: fix and retry */
+    M->d.fmi_state = GS_STEP;
+    return fmi3OK;
+}
+
+fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
+    CHECK(ALL_STATES, "fmi3EnterEventMode");
+    gs_log_error(M, "this FMU has no event mode (hasEventMode=\"false\")");
+    return fmi3Error;
+}
+
+fmi3Status fmi3Terminate(fmi3Instance instance) {
+    CHECK(GS_STEP, "fmi3Terminate");
+    M->d.fmi_state = GS_TERMINATED;
+    return fmi3OK;
+}
+
+fmi3Status fmi3Reset(fmi3Instance instance) {
+    CHECK(ALL_STATES, "fmi3Reset");
+    gs_set_start_values(M);
+    return fmi3OK;
+}
+
+/* ----------------------------------------------------------------------------------------------- values */
+
+#define GET_MASK (GS_INIT | GS_STEP | GS_TERMINATED)
+#define SET_MASK (GS_INSTANTIATED | GS_INIT | GS_STEP)
+
+static int scalar_count(fmi3Instance instance, const char *function, size_t nvr, size_t nValues) {
+    if (nValues != nvr) {
+        (void)function;
+        gs_log_error(M, "nValues = %zu is not allowed: the variables are scalars, so nValues = "
+                     "nValueReferences = %zu", nValues, nvr);
+        return 0;
+    }
+    return 1;
+}
+
+fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
+    CHECK(GET_MASK, "fmi3GetFloat64");
+    if (!scalar_count(instance, "fmi3GetFloat64", nValueReferences, nValues)) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    NOT_NULL(valueReferences, "fmi3GetFloat64", "valueReferences[]");
+    NOT_NULL(values, "fmi3GetFloat64", "values[]");
+    for (size_t i = 0; i < nValueReferences; i++) {
+        if (gs_get_real(M, valueReferences[i], &values[i]) != GS_OK) return fmi3Error;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                          size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
+    CHECK(SET_MASK, "fmi3SetFloat64");
+    if (!scalar_count(instance, "fmi3SetFloat64", nValueReferences, nValues)) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    NOT_NULL(valueReferences, "fmi3SetFloat64", "valueReferences[]");
+    NOT_NULL(values, "fmi3SetFloat64", "values[]");
+    for (size_t i = 0; i < nValueReferences; i++) {
+        if (gs_set_real(M, valueReferences[i], values[i]) != GS_OK) return fmi3Error;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, fmi3String values[], size_t nValues) {
+    CHECK(GET_MASK, "fmi3GetString");
+    if (!scalar_count(instance, "fmi3GetString", nValueReferences, nValues)) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    NOT_NULL(valueReferences, "fmi3GetString", "valueReferences[]");
+    NOT_NULL(values, "fmi3GetString", "values[]");
+    for (size_t i = 0; i < nValueReferences; i++) {
+        if (gs_get_string(M, valueReferences[i], &values[i]) != GS_OK) return fmi3Error;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, const fmi3String values[], size_t nValues) {
+    CHECK(SET_MASK, "fmi3SetString");
+    if (!scalar_count(instance, "fmi3SetString", nValueReferences, nValues)) return fmi3Error;
+    if (nValueReferences == 0) return fmi3OK;
+    NOT_NULL(valueReferences, "fmi3SetString", "valueReferences[]");
+    NOT_NULL(values, "fmi3SetString", "values[]");
+    for (size_t i = 0; i < nValueReferences; i++) {
+        if (gs_set_string(M, valueReferences[i], values[i]) != GS_OK) return fmi3Error;
+    }
+    return fmi3OK;
+}
+
+static fmi3Status no_variables(fmi3Instance instance, size_t nvr, const char *function, const char *type,
+                               int mask) {
+    CHECK(mask, function);
+    if (nvr == 0) return fmi3OK;
+    gs_log_error(M, "this FMU has no %s variables", type);
+    return fmi3Error;
+}
+
+#define NO_GETTER(T, name) \
+    fmi3Status fmi3Get##name(fmi3Instance instance, const fmi3ValueReference valueReferences[], \
+                             size_t nValueReferences, T values[], size_t nValues) { \
+        (void)valueReferences; \
+        (void)values; \
+        (void)nValues; \
+        return no_variables(instance, nValueReferences, "fmi3Get" #name, #name, GET_MASK); \
+    }
+#define NO_SETTER(T, name) \
+    fmi3Status fmi3Set##name(fmi3Instance instance, const fmi3ValueReference valueReferences[], \
+                             size_t nValueReferences, const T values[], size_t nValues) { \
+        (void)valueReferences; \
+        (void)values; \
+        (void)nValues; \
+        return no_variables(instance, nValueReferences, "fmi3Set" #name, #name, SET_MASK); \
+    }
+
+NO_GETTER(fmi3Float32, Float32)
+NO_GETTER(fmi3Int8, Int8)
+NO_GETTER(fmi3UInt8, UInt8)
+NO_GETTER(fmi3Int16, Int16)
+NO_GETTER(fmi3UInt16, UInt16)
+NO_GETTER(fmi3Int32, Int32)
+NO_GETTER(fmi3UInt32, UInt32)
+NO_GETTER(fmi3Int64, Int64)
+NO_GETTER(fmi3UInt64, UInt64)
+NO_GETTER(fmi3Boolean, Boolean)
+NO_SETTER(fmi3Float32, Float32)
+NO_SETTER(fmi3Int8, Int8)
+NO_SETTER(fmi3UInt8, UInt8)
+NO_SETTER(fmi3Int16, Int16)
+NO_SETTER(fmi3UInt16, UInt16)
+NO_SETTER(fmi3Int32, Int32)
+NO_SETTER(fmi3UInt32, UInt32)
+NO_SETTER(fmi3Int64, Int64)
+NO_SETTER(fmi3UInt64, UInt64)
+NO_SETTER(fmi3Boolean, Boolean)
+
+fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, size_t valueSizes[], fmi3Binary values[], size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return no_variables(instance, nValueReferences, "fmi3GetBinary", "Binary", GET_MASK);
+}
+
+fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                         size_t nValueReferences, const size_t valueSizes[], const fmi3Binary values[],
+                         size_t nValues) {
+    (void)valueReferences;
+    (void)valueSizes;
+    (void)values;
+    (void)nValues;
+    return no_variables(instance, nValueReferences, "fmi3SetBinary", "Binary", SET_MASK);
+}
+
+fmi3Status fmi3GetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)values;
+    return no_variables(instance, nValueReferences, "fmi3GetClock", "Clock", ALL_STATES);
+}
+
+fmi3Status fmi3SetClock(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                        size_t nValueReferences, const fmi3Clock values[]) {
+    (void)valueReferences;
+    (void)values;
+    return no_variables(instance, nValueReferences, "fmi3SetClock", "Clock", ALL_STATES);
+}
+
+/* ----------------------------------------------------------------------------------------------- not provided */
+
+static fmi3Status not_provided(fmi3Instance instance, const char *function, const char *why) {
+    if (!instance) return fmi3Error;
+    M->fn = function;
+    gs_log_error(M, "not provided by this FMU (%s)", why);
+    return fmi3Error;
+}
+
+fmi3Status fmi3GetNumberOfVariableDependencies(fmi3Instance instance, fmi3ValueReference valueReference,
+                                               size_t *nDependencies) {
+    (void)valueReference;
+    (void)nDependencies;
+    return not_provided(instance, "fmi3GetNumberOfVariableDependencies",
+                        "the dependencies are those of modelDescription.xml");
+}
+
+fmi3Status fmi3GetVariableDependencies(fmi3Instance instance, fmi3ValueReference dependent,
+                                       size_t elementIndicesOfDependent[], fmi3ValueReference independents[],
+                                       size_t elementIndicesOfIndependents[], fmi3DependencyKind dependencyKinds[],
+                                       size_t nDependencies) {
+    (void)dependent;
+    (void)elementIndicesOfDependent;
+    (void)independents;
+    (void)elementIndicesOfIndependents;
+    (void)dependencyKinds;
+    (void)nDependencies;
+    return not_provided(instance, "fmi3GetVariableDependencies",
+                        "the dependencies are those of modelDescription.xml");
+}
+
+fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[],
+                                        size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,
+                                        const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
+                                        size_t nSensitivity) {
+    (void)unknowns;
+    (void)nUnknowns;
+    (void)knowns;
+    (void)nKnowns;
+    (void)seed;
+    (void)nSeed;
+    (void)sensitivity;
+    (void)nSensitivity;
+    return not_provided(instance, "fmi3GetDirectionalDerivative", "providesDirectionalDerivatives=\"false\"");
+}
+
+fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
+                                    const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
+                                    size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
+    (void)unknowns;
+    (void)nUnknowns;
+    (void)knowns;
+    (void)nKnowns;
+    (void)seed;
+    (void)nSeed;
+    (void)sensitivity;
+    (void)nSensitivity;
+    return not_provided(instance, "fmi3GetAdjointDerivative", "providesAdjointDerivatives=\"false\"");
+}
+
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
+    return not_provided(instance, "fmi3EnterConfigurationMode", "no structural parameters");
+}
+
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance) {
+    return not_provided(instance, "fmi3ExitConfigurationMode", "no structural parameters");
+}
+
+fmi3Status fmi3GetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, fmi3Float64 intervals[],
+                                  fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)intervals;
+    (void)qualifiers;
+    return not_provided(instance, "fmi3GetIntervalDecimal", "no clocks");
+}
+
+fmi3Status fmi3GetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[],
+                                   fmi3IntervalQualifier qualifiers[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    (void)qualifiers;
+    return not_provided(instance, "fmi3GetIntervalFraction", "no clocks");
+}
+
+fmi3Status fmi3GetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, fmi3Float64 shifts[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)shifts;
+    return not_provided(instance, "fmi3GetShiftDecimal", "no clocks");
+}
+
+fmi3Status fmi3GetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, fmi3UInt64 counters[], fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    return not_provided(instance, "fmi3GetShiftFraction", "no clocks");
+}
+
+fmi3Status fmi3SetIntervalDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                  size_t nValueReferences, const fmi3Float64 intervals[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)intervals;
+    return not_provided(instance, "fmi3SetIntervalDecimal", "no clocks");
+}
+
+fmi3Status fmi3SetIntervalFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                   size_t nValueReferences, const fmi3UInt64 counters[],
+                                   const fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    return not_provided(instance, "fmi3SetIntervalFraction", "no clocks");
+}
+
+fmi3Status fmi3SetShiftDecimal(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                               size_t nValueReferences, const fmi3Float64 shifts[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)shifts;
+    return not_provided(instance, "fmi3SetShiftDecimal", "no clocks");
+}
+
+fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                size_t nValueReferences, const fmi3UInt64 counters[],
+                                const fmi3UInt64 resolutions[]) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)counters;
+    (void)resolutions;
+    return not_provided(instance, "fmi3SetShiftFraction", "no clocks");
+}
+
+fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
+    return not_provided(instance, "fmi3EvaluateDiscreteStates", "no event mode");
+}
+
+fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
+                                    fmi3Boolean *terminateSimulation,
+                                    fmi3Boolean *nominalsOfContinuousStatesChanged,
+                                    fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
+                                    fmi3Float64 *nextEventTime) {
+    (void)discreteStatesNeedUpdate;
+    (void)terminateSimulation;
+    (void)nominalsOfContinuousStatesChanged;
+    (void)valuesOfContinuousStatesChanged;
+    (void)nextEventTimeDefined;
+    (void)nextEventTime;
+    return not_provided(instance, "fmi3UpdateDiscreteStates", "no event mode");
+}
+
+#define ME_ONLY "model exchange; this FMU is co-simulation only"
+
+fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
+    return not_provided(instance, "fmi3EnterContinuousTimeMode", ME_ONLY);
+}
+
+fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                                       fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
+    (void)noSetFMUStatePriorToCurrentPoint;
+    (void)enterEventMode;
+    (void)terminateSimulation;
+    return not_provided(instance, "fmi3CompletedIntegratorStep", ME_ONLY);
+}
+
+fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
+    (void)time;
+    return not_provided(instance, "fmi3SetTime", ME_ONLY);
+}
+
+fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) {
+    (void)continuousStates;
+    (void)nContinuousStates;
+    return not_provided(instance, "fmi3SetContinuousStates", ME_ONLY);
+}
+
+fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
+                                             size_t nContinuousStates) {
+    (void)derivatives;
+    (void)nContinuousStates;
+    return not_provided(instance, "fmi3GetContinuousStateDerivatives", ME_ONLY);
+}
+
+fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
+    (void)eventIndicators;
+    (void)nEventIndicators;
+    return not_provided(instance, "fmi3GetEventIndicators", ME_ONLY);
+}
+
+fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
+                                   size_t nContinuousStates) {
+    (void)continuousStates;
+    (void)nContinuousStates;
+    return not_provided(instance, "fmi3GetContinuousStates", ME_ONLY);
+}
+
+fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
+                                             size_t nContinuousStates) {
+    (void)nominals;
+    (void)nContinuousStates;
+    return not_provided(instance, "fmi3GetNominalsOfContinuousStates", ME_ONLY);
+}
+
+fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
+    (void)nEventIndicators;
+    return not_provided(instance, "fmi3GetNumberOfEventIndicators", ME_ONLY);
+}
+
+fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
+    (void)nContinuousStates;
+    return not_provided(instance, "fmi3GetNumberOfContinuousStates", ME_ONLY);
+}
+
+fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,
+                                      fmi3Float64 activationTime) {
+    (void)clockReference;
+    (void)activationTime;
+    return not_provided(instance, "fmi3ActivateModelPartition", "scheduled execution");
+}
+
+/* ----------------------------------------------------------------------------------------------- FMU state */
+
+fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    CHECK(ALL_STATES, "fmi3GetFMUState");
+    NOT_NULL(FMUState, "fmi3GetFMUState", "FMUState");
+    GsData *s = (GsData *)(*FMUState ? *FMUState : malloc(sizeof(GsData)));
+    if (!s) {
+        gs_log_error(M, "out of memory");
+        return fmi3Error;
+    }
+    *s = M->d;
+    *FMUState = s;
+    return fmi3OK;
+}
+
+fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
+    CHECK(ALL_STATES, "fmi3SetFMUState");
+    NOT_NULL(FMUState, "fmi3SetFMUState", "FMUState");
+    const GsData *s = (const GsData *)FMUState;
+    if (gs_check_state_data(M, s, "fmi3SetFMUState") != GS_OK) return fmi3Error;
+    M->d = *s;
+    M->outputs_valid = 0;
+    return fmi3OK;
+}
+
+fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
+    CHECK(ALL_STATES, "fmi3FreeFMUState");
+    if (FMUState && *FMUState) {
+        free(*FMUState);
+        *FMUState = NULL;
+    }
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size) {
+    CHECK(ALL_STATES, "fmi3SerializedFMUStateSize");
+    NOT_NULL(FMUState, "fmi3SerializedFMUStateSize", "FMUState");
+    NOT_NULL(size, "fmi3SerializedFMUStateSize", "size");
+    *size = gs_serialized_size();
+    return fmi3OK;
+}
+
+fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState, fmi3Byte serializedState[],
+                                 size_t size) {
+    CHECK(ALL_STATES, "fmi3SerializeFMUState");
+    NOT_NULL(FMUState, "fmi3SerializeFMUState", "FMUState");
+    NOT_NULL(serializedState, "fmi3SerializeFMUState", "serializedState");
+    if (size < gs_serialized_size()) {
+        gs_log_error(M, "size = %zu is not allowed: at least %zu bytes", size,
+                     gs_serialized_size());
+        return fmi3Error;
+    }
+    gs_serialize((const GsData *)FMUState, (unsigned char *)serializedState);
+    return fmi3OK;
+}
+
+fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte serializedState[], size_t size,
+                                   fmi3FMUState *FMUState) {
+    CHECK(ALL_STATES, "fmi3DeserializeFMUState");
+    NOT_NULL(FMUState, "fmi3DeserializeFMUState", "FMUState");
+    GsData d;
+    if (gs_deserialize(M, (const unsigned char *)serializedState, size, &d) != GS_OK) return fmi3Error;
+    GsData *s = (GsData *)(*FMUState ? *FMUState : malloc(sizeof(GsData)));
+    if (!s) {
+        gs_log_error(M, "out of memory");
+        return fmi3Error;
+    }
+    *s = d;
+    *FMUState = s;
+    return fmi3OK;
+}
+
+/* ----------------------------------------------------------------------------------------------- co-simulation */
+
+fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
+    CHECK(ALL_STATES, "fmi3EnterStepMode");
+    gs_log_error(M, "this FMU has no event mode; fmi3ExitInitializationMode enters step mode");
+    return fmi3Error;
+}
+
+fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference valueReferences[],
+                                    size_t nValueReferences, const fmi3Int32 orders[], fmi3Float64 values[],
+                                    size_t nValues) {
+    (void)valueReferences;
+    (void)nValueReferences;
+    (void)orders;
+    (void)values;
+    (void)nValues;
+    return not_provided(instance, "fmi3GetOutputDerivatives", "maxOutputDerivativeOrder=\"0\"");
+}
+
+fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoint,
+                      fmi3Float64 communicationStepSize, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
+                      fmi3Boolean *eventHandlingNeeded, fmi3Boolean *terminateSimulation, fmi3Boolean *earlyReturn,
+                      fmi3Float64 *lastSuccessfulTime) {
+    (void)noSetFMUStatePriorToCurrentPoint;
+    CHECK(GS_STEP, "fmi3DoStep");
+    const int s = gs_do_step(M, currentCommunicationPoint, communicationStepSize);
+    if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    if (earlyReturn) *earlyReturn = fmi3False;
+    if (lastSuccessfulTime) *lastSuccessfulTime = gs_time(M);
+    return st(s);
+}

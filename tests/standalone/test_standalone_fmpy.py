@@ -1,0 +1,264 @@
+"""The standalone FMU under FMPy: validation, simulate_fmu, low-level runs, FMU state and the error paths."""
+
+from __future__ import annotations
+
+import shutil
+import zipfile
+
+import numpy as np
+import pytest
+from standalone_helpers import SCENES, Slave, torque
+
+from gyrosim.model import OUTPUT_NAMES, Model
+
+VERSIONS = (2, 3)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("scene", SCENES, ids=lambda s: s or "full")
+def test_validate_fmu(scene, version, standalone):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    fmu = standalone(scene, version)
+    assert validate_fmu(str(fmu.path)) == []
+    md = read_model_description(str(fmu.path))
+    cs = md.coSimulation
+    assert cs.canHandleVariableCommunicationStepSize and not cs.needsExecutionTool
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    assert "euler, rk4, splitting, splitting4" in md.description
+    # the same variables, causalities, variabilities and units as the model (the Python-backed FMU's source)
+    m = Model(scene)
+    mv = {v.name: v for v in md.modelVariables if v.name != "time"}
+    assert list(mv) == list(m.variables)
+    for name, v in m.variables.items():
+        assert (mv[name].causality, mv[name].variability, mv[name].unit or "") == (v.causality, v.variability,
+                                                                                  v.unit), name
+    with zipfile.ZipFile(fmu.path) as zf:
+        names = set(zf.namelist())
+    assert {"sources/gyrosim_kernel.c", "sources/gyrosim_model.c", f"sources/fmi{version}Functions.c",
+            "sources/gyrosim_config.h"} <= names
+    assert ("sources/buildDescription.xml" in names) == (version == 3)
+
+
+def _fmpy_reference(scene, params, stop, dt, tau=(0.0, 0.0, 0.0)):
+    """The model stepped through FMPy's communication points: t_k = k*dt, h_k = t_(k+1) - t_k."""
+    m = Model(scene, parameters=params)
+    sc = m.scene
+    if sc.torque:
+        for n, v in zip(("tau_x", "tau_y", "tau_z"), tau):
+            m.set(n, v)
+    rows = [m.outputs_array()[0]]
+    n = int(round(stop / dt))
+    for k in range(n):
+        m.step((k + 1) * dt - k * dt)
+        rows.append(m.outputs_array()[0])
+    return np.array(rows)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("scene", SCENES, ids=lambda s: s or "full")
+def test_simulate_fmu_matches_model(scene, version, standalone):
+    from fmpy import simulate_fmu
+
+    fmu = standalone(scene, version)
+    dt, stop = 0.01, 3.0
+    params = {"integrator": "rk4" if scene == "heavy_top" else "splitting"}
+    tau = (0.002, -0.001, 0.0005)
+    inputs = None
+    if Model(scene).scene.torque:
+        inputs = np.array([(0.0, *tau), (stop, *tau)],
+                          dtype=[("time", float), ("tau_x", float), ("tau_y", float), ("tau_z", float)])
+    r = simulate_fmu(str(fmu.path), stop_time=stop, output_interval=dt, start_values=params, input=inputs,
+                     output=list(OUTPUT_NAMES))
+    got = np.array([[row[n] for n in OUTPUT_NAMES] for row in r])
+    ref = _fmpy_reference(scene, params, stop, dt, tau)
+    assert got.shape == ref.shape
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+
+
+def test_simulate_fmu_full_model_with_parameters(standalone):
+    from fmpy import simulate_fmu
+
+    params = {"integrator": "splitting4", "I1": 1.5, "I2": 2.0, "I3": 2.5, "mass": 2.0, "cm_distance": 0.1,
+              "damping": 0.05, "max_step": 0.002, "omega_z": 5.0, "q_w": 0.8, "q_x": 0.6}
+    ref = _fmpy_reference(None, params, 2.0, 0.01)
+    for version in VERSIONS:
+        r = simulate_fmu(str(standalone(None, version).path), stop_time=2.0, output_interval=0.01,
+                         start_values=params, output=list(OUTPUT_NAMES))
+        got = np.array([[row[n] for n in OUTPUT_NAMES] for row in r])
+        np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_low_level_run_with_varying_torque(version, standalone):
+    fmu = standalone("gyroscope", version)
+    s = Slave(fmu)
+    params = {"integrator": "splitting", "damping": 1e-4}
+    s.init(**params)
+    m = Model("gyroscope", parameters=params)
+    h = 0.01
+    for k in range(3000):
+        for n, v in zip(("tau_x", "tau_y", "tau_z"), torque(k)):
+            s.set(n, v)
+            m.set(n, v)
+        s.step(k * h, h)
+        m.step(h)
+    np.testing.assert_allclose(s.get(*OUTPUT_NAMES), m.outputs_array()[0], rtol=1e-12, atol=1e-12)
+    s.fmu.terminate()
+    s.fmu.freeInstance()
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_get_set_and_serialize_state_to_the_bit(version, standalone):
+    fmu = standalone(None, version)
+    s = Slave(fmu)
+    s.init(integrator="rk4", cm_distance=0.05, damping=0.01)
+    t, h = 0.0, 0.01
+    for _ in range(100):
+        s.step(t, h)
+        t += h
+    s.set("tau_x", 0.3)
+    state = s.get_state()
+    t_saved = t
+
+    def run(t):
+        for k in range(50):
+            s.set("tau_y", 0.01 * k)
+            s.step(t, h)
+            t += h
+        return s.get(*OUTPUT_NAMES), t
+
+    a, _ = run(t)
+    s.set_state(state)
+    assert s.get("tau_x") == [0.3]
+    b, _ = run(t_saved)
+    blob = s.serialize(state)
+    s.free_state(state)
+    state2 = s.deserialize(blob)
+    s.set_state(state2)
+    c, _ = run(t_saved)
+    assert a == b == c  # identical bits
+    # a different step size after restoring: the time rule (t_base + n*h) is part of the state
+    s.set_state(state2)
+    s.step(t_saved, 0.02)
+    s.free_state(state2)
+    s.fmu.terminate()
+    s.fmu.freeInstance()
+
+
+def test_several_instances_in_one_process(standalone):
+    """Instances with different parameters, stepped interleaved, each match their own model."""
+    fmu = standalone("free_body", 2)
+    params = [{"integrator": "rk4", "I1": 1.0 + 0.1 * i, "omega_x": 1.0 + i} for i in range(3)]
+    slaves = [Slave(fmu, name=f"i{i}") for i in range(3)]
+    models = [Model("free_body", parameters=p) for p in params]
+    for s, p in zip(slaves, params):
+        s.init(**p)
+    for k in range(500):
+        for s, m in zip(slaves, models):
+            s.step(k * 0.01, 0.01)
+            m.step(0.01)
+    for s, m in zip(slaves, models):
+        np.testing.assert_allclose(s.get(*OUTPUT_NAMES), m.outputs_array()[0], rtol=1e-12, atol=1e-12)
+        s.fmu.freeInstance()
+
+
+def _expect_error(s, fn, *args, needle):
+    from fmpy.fmi1 import FMICallException
+
+    n = len(s.log.errors())
+    with pytest.raises(FMICallException) as e:
+        fn(*args)
+    assert e.value.status == 3  # Error, never Fatal
+    new = s.log.errors()[n:]
+    assert any(needle in m for m in new), (needle, new)
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_error_paths_leave_the_host_running(version, standalone):
+    """Every refused call gives Error with a log message, and the instance stays usable or terminable."""
+    fmu = standalone(None, version)
+    s = Slave(fmu)
+    f = s.fmu
+    _expect_error(s, s.step, 0.0, 0.01, needle="Illegal call sequence")
+    _expect_error(s, s.set, "I1", -1.0, needle="I1 = -1 is not allowed")
+    _expect_error(s, s.set, "I2", float("inf"), needle="a finite number in kg.m2")
+    _expect_error(s, s.set, "mass", 0.0, needle="mass = 0 is not allowed: a number > 0 in kg")
+    _expect_error(s, s.set, "damping", -0.1, needle="damping = -0.1 is not allowed")
+    _expect_error(s, s.set, "max_step", 0.0, needle="max_step = 0 is not allowed")
+    _expect_error(s, s.set, "integrator", "adaptive", needle="needs the Python-backed FMU")
+    _expect_error(s, s.set, "integrator", "exact", needle="needs the Python-backed FMU")
+    _expect_error(s, s.set, "integrator", "runge", needle="one of euler, rk4, splitting, splitting4")
+    _expect_error(s, s.set, "theta", 1.0, needle="derived output")
+    s.setup(0.0, 1.0)
+    s.set("I3", 3.5)
+    _expect_error(s, f.exitInitializationMode, needle="triangle inequality")
+    s.set("I3", 3.0)
+    s.set("q_w", 0.5)
+    _expect_error(s, f.exitInitializationMode, needle="a unit quaternion")
+    s.set("q_w", 1.0)
+    for n, v in (("omega_x", 50.0), ("omega_y", 40.0), ("omega_z", 30.0), ("max_step", 0.1)):
+        s.set(n, v)
+    s.set("integrator", "euler")
+    f.exitInitializationMode()
+    _expect_error(s, s.set, "I1", 2.0, needle="cannot be set in state")
+    _expect_error(s, s.step, 0.5, 0.1, needle="currentCommunicationPoint = 0.5 s is not allowed")
+    _expect_error(s, s.step, 0.0, 0.0, needle="communication step h = 0 is not allowed")
+    _expect_error(s, s.step, 0.0, -0.01, needle="communication step h = -0.01 is not allowed")
+    _expect_error(s, s.step, 0.0, 1.5, needle="after the stop time 1 s")
+    before = s.get(*OUTPUT_NAMES)
+    _expect_error(s, s.step, 0.0, 1.0, needle="internal step 9 of 10")  # Euler blows up
+    assert s.get(*OUTPUT_NAMES) == before  # the state from before the step
+    _expect_error(s, s.deserialize, b"not a state", needle="size = 11 is not allowed")
+    if version == 2:
+        _expect_error(s, f.getDirectionalDerivative, [1], [2], [1.0], needle="not provided")
+    # still usable: a valid step, then a clean end
+    s.step(0.0, 0.01)
+    assert np.all(np.isfinite(s.get(*OUTPUT_NAMES)))
+    f.terminate()
+    _expect_error(s, s.step, 0.01, 0.01, needle="Illegal call sequence")
+    f.freeInstance()
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_wrong_token_is_refused(version, standalone):
+    fmu = standalone("free_body", version)
+    with pytest.raises(Exception, match="(?i)instantiate"):
+        Slave(fmu, guid="{00000000-0000-0000-0000-000000000000}")
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_sources_rebuild_with_fmpy(version, standalone, tmp_path, monkeypatch):
+    """The FMU carries its sources: FMPy's CMake build (from the FMU's SourceFiles / buildDescription.xml)
+    compiles them into a binary that runs like the original."""
+    import os
+    import sys
+    from pathlib import Path
+
+    if shutil.which("cmake") is None:
+        venv_bin = str(Path(sys.executable).parent)
+        if shutil.which("cmake", path=venv_bin) is None:
+            pytest.skip("cmake is not available")
+        monkeypatch.setenv("PATH", venv_bin + os.pathsep + os.environ.get("PATH", ""))
+    from fmpy import simulate_fmu
+    from fmpy.build import build_platform_binary
+
+    fmu = standalone("heavy_top", version)
+    d = tmp_path / "src_fmu"
+    with zipfile.ZipFile(fmu.path) as zf:
+        zf.extractall(d)
+    shutil.rmtree(d / "binaries")
+    (tmp_path / "build").mkdir()
+    build_platform_binary(d, tmp_path / "build", cmake_options={"CMAKE_C_STANDARD_LIBRARIES": "-lm"})
+    rebuilt = tmp_path / "Rebuilt.fmu"
+    with zipfile.ZipFile(rebuilt, "w") as zf:
+        for p in sorted(d.rglob("*")):
+            if p.is_file():
+                zf.write(p, p.relative_to(d).as_posix())
+    kw = dict(stop_time=1.0, output_interval=0.01, output=list(OUTPUT_NAMES))
+    a = simulate_fmu(str(fmu.path), **kw)
+    b = simulate_fmu(str(rebuilt), **kw)
+    for n in OUTPUT_NAMES:
+        np.testing.assert_array_equal(a[n], b[n])
+
