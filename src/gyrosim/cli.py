@@ -128,8 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     for mod in _PLUGINS:
         try:
             importlib.import_module(mod).register(sub)
-        except ModuleNotFoundError as e:  # a part not installed in this checkout
-            if e.name != mod:
+        except ModuleNotFoundError as e:  # a part absent from this checkout (the module or its package)
+            if not e.name or not (mod == e.name or mod.startswith(e.name + ".")):
                 raise
     return p
 
