@@ -374,7 +374,7 @@ def load_scene(scene: str | Path | Scene | None) -> Scene:
         return scene
     s = str(scene)
     if s in EMBEDDED_SCENES:
-        text = resources.files("gyrosim").joinpath("scenes", f"{s}.toml").read_text()
+        text = resources.files(__package__).joinpath("scenes", f"{s}.toml").read_text()
         source = f"<embedded scene {s}>"
     elif s == "full":
         return full_scene()

@@ -1,0 +1,54 @@
+"""``gyrosim fmu build [SCENE] --fmi-version {2,3} [--output DIR] [--standalone]`` (DESIGN.md section 5).
+
+:func:`register` adds the ``fmu`` subcommand to the ``gyrosim`` parser (``gyrosim.cli`` calls it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["register", "cmd_build"]
+
+
+def register(subparsers) -> None:
+    """Add ``fmu build`` to ``subparsers`` (the ``add_subparsers()`` object of the ``gyrosim`` parser)."""
+    p = subparsers.add_parser("fmu", help="build FMI 2.0 / 3.0 co-simulation FMUs",
+                              description="Build FMI co-simulation FMUs of the model.")
+    sub = p.add_subparsers(dest="fmu_command", metavar="COMMAND")
+    b = sub.add_parser("build", help="write DIR/<ModelIdentifier>.fmu",
+                       description="Write DIR/<ModelIdentifier>.fmu: RigidBody.fmu (every variable) with no scene, "
+                                   "else the scene's name in CamelCase (e.g. HeavyTop.fmu).",
+                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    b.add_argument("scene", nargs="?", default=None,
+                   help="embedded scene (free_body, heavy_top, gyroscope) or a scene TOML file; none = full model")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version")
+    b.add_argument("--output", "-o", type=Path, default=Path("fmu") / "dist", help="output folder")
+    b.add_argument("--standalone", action="store_true",
+                   help="build the native C FMU (no Python needed on the host) instead of the Python one")
+    b.set_defaults(func=cmd_build)
+    p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
+
+
+def cmd_build(args) -> int:
+    """Handler of ``gyrosim fmu build``: print the path written; exit code 2 for a bad scene or version."""
+    from ..errors import ConfigError
+
+    try:
+        if args.standalone:
+            from .standalone import build_standalone
+
+            path = build_standalone(args.scene, args.fmi_version, args.output)
+        else:
+            from .builder import build_fmu
+
+            path = build_fmu(args.scene, args.fmi_version, args.output)
+    except (ConfigError, ValueError) as e:
+        print(f"gyrosim fmu build: {e}", file=sys.stderr)
+        return 2
+    except (RuntimeError, OSError) as e:
+        print(f"gyrosim fmu build: {e}", file=sys.stderr)
+        return 1
+    print(path)
+    return 0

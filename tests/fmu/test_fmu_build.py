@@ -1,0 +1,116 @@
+"""Building the FMUs: validate_fmu, identifiers, the modelDescription against Model.variables, CLI, README."""
+
+from __future__ import annotations
+
+import argparse
+import zipfile
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+from fmpy.validation import validate_fmu
+
+from gyrosim.fmu import build_fmu, model_identifier
+from gyrosim.model import Model
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.mark.parametrize("v", (2, 3))
+@pytest.mark.parametrize("scene", [None, "heavy_top", "free_body", "gyroscope"])
+def test_validate_fmu_finds_no_problem(build, scene, v):
+    assert validate_fmu(str(build(scene, v))) == []
+
+
+@pytest.mark.parametrize("v", (2, 3))
+@pytest.mark.parametrize("scene", [None, "heavy_top", "free_body"])
+def test_model_description_maps_model_variables_one_to_one(build, scene, v):
+    md = read_model_description(str(build(scene, v)))
+    m = Model(scene)
+    outputs = m.outputs(0)
+    got = {x.name: x for x in md.modelVariables if x.causality != "independent"}
+    assert list(got) == list(m.variables)  # only the scene's variables, in order
+    for name, var in m.variables.items():
+        x = got[name]
+        assert x.causality == var.causality and x.variability == var.variability
+        assert x.description == var.description
+        assert (x.unit or "") == ("" if var.unit in ("",) else var.unit)
+        assert x.type == ("String" if var.type == "String" else ("Real" if v == 2 else "Float64"))
+        start = outputs[name] if var.causality == "output" else var.start
+        if var.type == "String":
+            assert x.start == start
+        else:
+            assert float(x.start) == start  # exact round trip of the start value
+        if var.causality == "output":
+            assert x.initial == "exact"
+    cs = md.coSimulation
+    assert cs.modelIdentifier == model_identifier(scene)
+    assert cs.canHandleVariableCommunicationStepSize
+    assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
+    assert cs.needsExecutionTool
+    assert {"logStatusError", "logStatusWarning"} <= {c.name for c in md.logCategories}
+    if scene is None:
+        assert {"tau_x", "damping", "mass", "cm_distance", "g"} <= set(got)
+    if scene == "free_body":
+        assert not {"tau_x", "damping", "mass"} & set(got)
+
+
+def test_identifiers():
+    assert [model_identifier(s) for s in (None, "heavy_top", "free_body", "gyroscope")] == [
+        "RigidBody", "HeavyTop", "FreeBody", "Gyroscope"]
+
+
+def test_scene_file_and_unique_package_names(tmp_path, build):
+    """A TOML scene file builds; two FMUs carry the code under the same content-hashed package name, and the
+    entry modules differ."""
+    toml = tmp_path / "my-top.toml"
+    toml.write_text((ROOT / "src/gyrosim/scenes/heavy_top.toml").read_text().replace('"heavy_top"', '"my-top"'))
+    p = build_fmu(str(toml), 3, tmp_path / "out")
+    assert p.name == "MyTop.fmu"
+    assert validate_fmu(str(p)) == []
+
+    def names(path):
+        with zipfile.ZipFile(path) as z:
+            entry = z.read("resources/slavemodule.txt").decode().strip()
+            pkgs = {n.split("/")[1] for n in z.namelist() if n.startswith("resources/gyrosim_fmu_")}
+        return entry, pkgs
+
+    e1, p1 = names(p)
+    e2, p2 = names(build("heavy_top", 3))
+    assert e1 != e2 and len(p1) == 1 and p1 == p2
+
+
+def _parser():
+    from gyrosim.fmu.cli import register
+
+    p = argparse.ArgumentParser(prog="gyrosim")
+    register(p.add_subparsers())
+    return p
+
+
+def test_cli_build(tmp_path, capsys):
+    args = _parser().parse_args(["fmu", "build", "free_body", "--fmi-version", "3", "--output", str(tmp_path)])
+    assert args.func(args) == 0
+    out = capsys.readouterr().out.strip()
+    assert out == str(tmp_path / "FreeBody.fmu") and Path(out).is_file()
+    args = _parser().parse_args(["fmu", "build", "--output", str(tmp_path)])
+    assert args.func(args) == 0
+    assert (tmp_path / "RigidBody.fmu").is_file()
+
+
+def test_cli_bad_scene_exits_2(tmp_path, capsys):
+    args = _parser().parse_args(["fmu", "build", "heavytop", "--output", str(tmp_path)])
+    assert args.func(args) == 2
+    err = capsys.readouterr().err
+    assert "heavytop" in err and "heavy_top" in err
+    with pytest.raises(SystemExit) as e:
+        _parser().parse_args(["fmu", "build", "--fmi-version", "4"])
+    assert e.value.code == 2
+
+
+def test_readme_variables_table_is_current():
+    from gyrosim.fmu.readme import BEGIN, END, variables_table
+
+    text = (ROOT / "fmu" / "README.md").read_text()
+    table = text.split(BEGIN, 1)[1].split(END, 1)[0].strip()
+    assert table == variables_table().strip(), "run: python -m gyrosim.fmu.readme fmu/README.md"
