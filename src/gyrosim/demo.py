@@ -100,27 +100,26 @@ def core_tour(out: Path) -> None:
     print(f"plot: {path}")
 
 
-def _optional(name, fn, *args):
-    try:
-        fn(*args)
-    except ModuleNotFoundError as e:
-        print(f"({name} skipped: {e.name} is not installed)")
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m gyrosim.demo")
     p.add_argument("--output", default="out/demo", help="folder for plots, FMUs and recordings")
     args = p.parse_args(argv)
     out = Path(args.output)
     core_tour(out)
-    for name, mod in (("FMU", "gyrosim.fmu.demo"), ("service", "gyrosim.service.demo")):
-        try:
-            m = __import__(mod, fromlist=["run"])
-        except ModuleNotFoundError as e:
-            if e.name == mod:
-                continue
-            raise
-        _optional(name, m.run, out)
+    # The FMU runs in a process of its own, as under a co-simulation master: FMPy loads the Python-backed FMU
+    # into its own interpreter, and that process must not also host the Zenoh sessions (see fmu/README.md).
+    import subprocess
+
+    r = subprocess.run([sys.executable, "-m", "gyrosim.fmu.demo", str(out)])
+    if r.returncode != 0:
+        print(f"(FMU part failed with exit code {r.returncode})")
+        return r.returncode
+    try:
+        from .service.demo import run as service_run
+    except ModuleNotFoundError as e:
+        print(f"(service part skipped: {e.name} is not installed)")
+    else:
+        service_run(out)
     return 0
 
 

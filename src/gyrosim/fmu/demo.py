@@ -56,3 +56,9 @@ def run(out: Path, stop: float = 2.0, dt: float = 0.01) -> dict:
         print(f"{label:24s} {path}  built in {t1 - t0:5.1f} s, simulated {n} points in {t2 - t1:5.2f} s, "
               f"max |FMU - model| = {diff:.1e}")
     return result
+
+
+if __name__ == "__main__":
+    import sys
+
+    run(Path(sys.argv[1] if len(sys.argv) > 1 else "out/demo"))

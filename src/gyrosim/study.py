@@ -1,0 +1,1225 @@
+"""The measured speed/accuracy trade behind ``gyrosim bench`` and ``make bench``.
+
+Every error is measured against an exact solution, never against gyrosim's own output:
+
+* ``free_body``: torque-free asymmetric body, I = (1, 2, 3) kg*m^2, omega0 = (1, 0.1, 0.1) rad/s, against
+  :class:`~gyrosim.core.analytic.TorqueFreeSolution` (Jacobi elliptic functions).
+* ``intermediate_axis``: the same body spun about the unstable middle axis, omega0 = (1e-3, 1, 1e-3) rad/s, a
+  trajectory next to the separatrix that flips over twice per period (55 s); same exact solution.
+* ``heavy_top``: a fast heavy symmetric top (I1 = 1.75e-3, I3 = 1e-3 kg*m^2 about the pivot, M g l = 0.245 N*m,
+  released at theta = 0.3 rad with spin 100 rad/s), against :meth:`SymmetricTop.nutation`: theta(t) in closed
+  form, the nutation bounds, the conserved p_phi (= L_z world), p_psi (= I3 omega_3) and energy. phi(t) and
+  psi(t) are the quadratures of their closed-form rates along the exact theta(t) (16-point Gauss-Legendre on
+  panels of 1/16 of a nutation period, converged to round-off), which gives the exact attitude and omega too.
+* ``long``: 1e6 steps (2e4 with ``--quick``) of the free body and of the heavy top, |L| and energy drift.
+
+Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and integrator, Model.step overhead,
+10,000-body throughput, all against a C baseline compiled with ``gcc -O2`` in the same run), ``long``, and
+``fmu`` / ``service`` (the FMU and service benches, when those packages provide ``bench.run(out_dir)``).
+
+Times: single-threaded work (one body, Model.step, the C baseline) is timed with the calling thread's CPU time
+(best of repeats), which on this shared machine is the wall time on an idle core; the 10,000-body runs, which use
+every core, with the wall clock.
+
+Outputs in the folder given by ``--output`` (default ``docs/study``): one markdown table per part
+(``accuracy_<case>.md``, ``orders.md``, ``cost.md``, ``throughput.md``, ``long_run.md``), ``summary.md`` with all
+of them, ``results.json`` with every number, and the PNG plots (``wp_<case>.png`` work-precision,
+``step_<case>.png`` error against step/tolerance, ``long_<case>.png`` drift against time, ``cost.png``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import datetime
+import json
+import math
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main", "PARTS", "CASES", "EXPECTED_ORDER", "observed_order"]
+
+FIXED = ("euler", "rk4", "splitting", "splitting4")
+INTEGRATORS = FIXED + ("adaptive",)
+PARTS = ("accuracy", "cost", "long", "fmu", "service")
+#: Classical order of each fixed-step integrator (the study checks the observed one against it).
+EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
+CASES = ("free_body", "intermediate_axis", "heavy_top")
+COLORS = {"euler": "tab:red", "rk4": "tab:blue", "splitting": "tab:green", "splitting4": "tab:olive",
+          "adaptive": "tab:purple", "exact": "black"}
+MARKERS = {"euler": "v", "rk4": "o", "splitting": "s", "splitting4": "D", "adaptive": "^", "exact": "*"}
+
+# The heavy top of the study (the embedded heavy_top scene, spun faster).
+TOP = {"I1": 1.75e-3, "I3": 1.0e-3, "mass": 0.5, "cm_distance": 0.05, "g": 9.81, "theta0": 0.3, "spin": 100.0}
+FREE_I = (1.0, 2.0, 3.0)
+
+
+# ===============================================================================================================
+# Scenes and exact references
+# ===============================================================================================================
+def free_scene(name: str, omega0, moments=FREE_I, count: int = 1, spread: dict | None = None):
+    """A torque-free scene (no gravity, damping or torque terms) from a scene dict."""
+    from .scene import scene_from_dict
+
+    body = {"name": "body", "inertia": {"principal": [float(m) for m in moments]},
+            "rates": {"omega": [float(w) for w in omega0]}}
+    if count > 1:
+        body["count"] = count
+        body["spread"] = spread or {"I": 0.01, "omega": 0.01, "seed": 1}
+    return scene_from_dict({"scene": {"name": name}, "body": [body]}, f"<study scene {name}>")
+
+
+def top_scene(name: str, spin: float = TOP["spin"], count: int = 1, spread: dict | None = None, full=False):
+    """The study's heavy symmetric top (gravity only, or every term with ``full``) from a scene dict."""
+    from .scene import scene_from_dict
+
+    body = {"name": "top", "inertia": {"principal": [TOP["I1"], TOP["I1"], TOP["I3"]]}, "mass": TOP["mass"],
+            "cm_distance": TOP["cm_distance"], "attitude": {"zyz": [0.0, TOP["theta0"], 0.0]},
+            "rates": {"zyz_rates": [0.0, 0.0, float(spin)]}}
+    if full:
+        body["damping"] = 0.0
+        body["torque_input"] = True
+    if count > 1:
+        body["count"] = count
+        body["spread"] = spread or {"I": 0.01, "omega": 0.01, "seed": 1}
+    return scene_from_dict({"scene": {"name": name, "g": TOP["g"]}, "body": [body]}, f"<study scene {name}>")
+
+
+class FreeReference:
+    """Exact torque-free motion (TorqueFreeSolution) and its invariants."""
+
+    kind = "free"
+
+    def __init__(self, moments, omega0, q0=(1.0, 0.0, 0.0, 0.0)):
+        from .core.analytic import TorqueFreeSolution
+
+        self.moments = np.asarray(moments, dtype=float)
+        self.sol = TorqueFreeSolution(*self.moments, np.asarray(omega0, float), np.asarray(q0, float))
+        self.omega0 = np.asarray(omega0, dtype=float)
+        self.energy = self.sol.energy
+        self.L = float(np.linalg.norm(self.moments * self.omega0))
+
+    def state(self, t):
+        """Exact (q (n, 4), omega (n, 3)) at times t (n,) s."""
+        w, q = self.sol.state(np.asarray(t, dtype=float))
+        return q, w
+
+
+class TopReference:
+    """Exact heavy symmetric top: theta(t) in closed form, phi(t), psi(t) by converged quadrature of their rates.
+
+    The top starts at ``phi = psi = 0``, ``theta = theta0`` with the Euler rates ``(0, 0, spin)``.
+    """
+
+    kind = "top"
+    NODES = 16
+    PANELS_PER_PERIOD = 16
+
+    def __init__(self, I1=TOP["I1"], I3=TOP["I3"], mass=TOP["mass"], l=TOP["cm_distance"], g=TOP["g"],
+                 theta0=TOP["theta0"], spin=TOP["spin"]):
+        from .core.analytic import SymmetricTop
+        from .core.rotations import euler_zyz_rates_to_omega_body
+
+        self.I1, self.I3 = float(I1), float(I3)
+        self.top = SymmetricTop(I1, I3, mass, l, g)
+        self.nut = self.top.nutation(theta0, 0.0, spin)
+        self.p_phi, self.p_psi, self.energy = self.nut.p_phi, self.nut.p_psi, self.nut.energy
+        self.theta_min, self.theta_max = self.nut.theta_min, self.nut.theta_max
+        self.omega0 = euler_zyz_rates_to_omega_body(0.0, theta0, 0.0, 0.0, 0.0, spin)
+        self.L = float(np.linalg.norm(np.array([I1, I1, I3]) * self.omega0))
+
+    def _rates(self, t):
+        """theta, theta_dot, phi_dot, psi_dot at times t (any shape)."""
+        from scipy.special import ellipj
+
+        nut = self.nut
+        u1, u2, _ = nut.u_roots
+        th = np.asarray(nut.theta(t), dtype=float)
+        u = np.cos(th)
+        sn, cn, dn, _ = ellipj(nut.nu * np.asarray(t, dtype=float) + nut.w0, nut.m)
+        u_dot = 2.0 * (u2 - u1) * nut.nu * sn * cn * dn
+        st = np.sin(th)
+        th_dot = -u_dot / st
+        phi_dot = (self.p_phi - self.p_psi * u) / (self.I1 * st * st)
+        psi_dot = self.p_psi / self.I3 - phi_dot * u
+        return th, th_dot, phi_dot, psi_dot
+
+    def angles(self, t):
+        """Exact (phi, theta, psi, phi_dot, theta_dot, psi_dot) at sorted times t (n,) >= 0."""
+        t = np.asarray(t, dtype=float)
+        x, wq = np.polynomial.legendre.leggauss(self.NODES)
+        panel = self.nut.period / self.PANELS_PER_PERIOD
+        edges = [np.array([0.0])]
+        out_idx = []
+        prev = 0.0
+        count = 0
+        for tk in t:
+            n = max(1, math.ceil((tk - prev) / panel))
+            edges.append(np.linspace(prev, tk, n + 1)[1:])
+            count += n
+            out_idx.append(count)
+            prev = tk
+        e = np.concatenate(edges)
+        a, b = e[:-1], e[1:]
+        mid, half = 0.5 * (a + b), 0.5 * (b - a)
+        tn = mid[:, None] + half[:, None] * x[None, :]
+        _, _, pd, sd = self._rates(tn)
+        phi = np.concatenate([[0.0], np.cumsum((pd * wq).sum(axis=1) * half)])[out_idx]
+        psi = np.concatenate([[0.0], np.cumsum((sd * wq).sum(axis=1) * half)])[out_idx]
+        th, td, pdt, sdt = self._rates(t)
+        return phi, th, psi, pdt, td, sdt
+
+    def state(self, t):
+        """Exact (q (n, 4), omega (n, 3)) at sorted times t (n,) s."""
+        from .core.rotations import euler_zyz_rates_to_omega_body, euler_zyz_to_quat
+
+        phi, th, psi, pd, td, sd = self.angles(t)
+        return euler_zyz_to_quat(phi, th, psi), euler_zyz_rates_to_omega_body(phi, th, psi, pd, td, sd)
+
+
+def attitude_error(q, q_exact):
+    """Rotation angle (rad) of q_exact^-1 q for rows (n, 4) -> (n,), accurate down to round-off."""
+    q = np.asarray(q, dtype=float)
+    e = np.asarray(q_exact, dtype=float)
+    w = np.sum(q * e, axis=-1)  # scalar part of conj(e) * q
+    v = e[..., :1] * q[..., 1:] - q[..., :1] * e[..., 1:] - np.cross(e[..., 1:], q[..., 1:])
+    return 2.0 * np.arctan2(np.linalg.norm(v, axis=-1), np.abs(w))
+
+
+# ===============================================================================================================
+# Study cases and ladders
+# ===============================================================================================================
+@dataclass
+class Case:
+    name: str
+    title: str
+    scene: object
+    reference: object
+    T: float
+    dt_out: float
+    steps: list
+    tolerances: list
+    exact: bool
+
+
+def make_cases(quick: bool) -> dict[str, Case]:
+    steps_free = [0.1, 0.05, 0.025, 0.0125] if quick else [0.2, 0.1, 0.05, 0.02, 0.01, 0.005, 0.002, 0.001,
+                                                               5e-4, 2e-4, 1e-4]
+    tols = [1e-4, 1e-6, 1e-8] if quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12]
+    steps_top = [2e-3, 1e-3, 5e-4, 2.5e-4] if quick else [5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5]
+    w_free = (1.0, 0.1, 0.1)
+    w_mid = (1e-3, 1.0, 1e-3)
+    return {
+        "free_body": Case("free_body", "Torque-free asymmetric body, I = (1, 2, 3), omega0 = (1, 0.1, 0.1) rad/s",
+                          free_scene("study_free_body", w_free), FreeReference(FREE_I, w_free),
+                          T=5.0 if quick else 20.0, dt_out=0.1 if quick else 0.2, steps=steps_free,
+                          tolerances=tols, exact=True),
+        "intermediate_axis": Case("intermediate_axis",
+                                  "Near the intermediate axis, I = (1, 2, 3), omega0 = (1e-3, 1, 1e-3) rad/s",
+                                  free_scene("study_intermediate_axis", w_mid), FreeReference(FREE_I, w_mid),
+                                  T=15.0 if quick else 60.0, dt_out=0.1 if quick else 0.2,
+                                  steps=steps_free, tolerances=tols, exact=True),
+        "heavy_top": Case("heavy_top", f"Fast heavy top, spin {TOP['spin']:g} rad/s, theta0 = {TOP['theta0']} rad, "
+                          f"I1 = {TOP['I1']}, I3 = {TOP['I3']} kg*m^2, M g l = "
+                          f"{TOP['mass'] * TOP['g'] * TOP['cm_distance']:.4g} N*m",
+                          top_scene("study_heavy_top"), TopReference(),
+                          T=0.5 if quick else 2.0, dt_out=0.005 if quick else 0.02, steps=steps_top,
+                          tolerances=tols, exact=False),
+    }
+
+
+# ===============================================================================================================
+# Timing helpers
+# ===============================================================================================================
+#: Clock of every single-threaded timing: the CPU time of the calling thread (numba's serial kernels, ctypes and
+#: Model.step all run in it). On this shared 2-core machine a run longer than a scheduler slice is preempted by
+#: other jobs, which doubles its wall time at random; the thread's CPU time is the wall time it takes on an idle
+#: core. The many-body runs use every core and are timed with the wall clock.
+cpu_clock = time.thread_time
+
+
+# ===============================================================================================================
+# Part 1: accuracy ladders
+# ===============================================================================================================
+def _model(scene, integrator, max_step, tol):
+    from .model import Model
+
+    m = Model(scene, parameters={"integrator": integrator, "max_step": max_step}, tolerance=tol)
+    m.initialize()
+    return m
+
+
+#: Output points of an adaptive run: few, so that they do not cut its steps short (its cost is then its own).
+ADAPTIVE_OUTPUTS = 10
+
+
+def run_accuracy(case: Case, integrator: str, h: float | None, tol: float | None, quick: bool) -> dict:
+    """One run of the ladder: errors at the output points against the exact solution, and its cost.
+
+    Fixed-step integrators are sampled every ``case.dt_out`` (which the steps divide, so sampling does not change
+    the computation) and timed as the whole run in one Model.step. ``adaptive`` is sampled at
+    ``ADAPTIVE_OUTPUTS`` points only (each output point ends a step) and timed over those Model.step calls;
+    ``exact`` is timed over its Model.step calls at every output point.
+    """
+    from .errors import IntegrationError
+    from .model import OUTPUT_NAMES
+
+    ref = case.reference
+    dt_out = case.T / ADAPTIVE_OUTPUTS if integrator == "adaptive" else case.dt_out
+    n_out = round(case.T / dt_out)
+    max_step = h if h is not None else case.T
+    tol_ = tol if tol is not None else 1e-8
+    times = dt_out * np.arange(1, n_out + 1)
+    rec = {"case": case.name, "integrator": integrator, "h": h, "tol": tol, "outputs": n_out}
+
+    holder = {}
+
+    def sampled():
+        m = holder["m"] = _model(case.scene, integrator, max_step, tol_)
+        rows = np.empty((n_out, len(OUTPUT_NAMES)))
+        wall = 0.0
+        for k in range(n_out):
+            t0 = cpu_clock()
+            m.step(dt_out)
+            wall += cpu_clock() - t0
+            rows[k] = m.outputs_array()[0]
+        return m, rows, wall
+
+    try:
+        m, rows, wall = sampled()
+    except IntegrationError as e:
+        rec.update(blew_up=True, blow_up_time=float(holder["m"].time), message=str(e))
+        return rec
+    st = m.stats
+    rec.update(blew_up=False, steps=st["steps"], rejected=st["rejected"], rhs=st["rhs_evaluations"])
+    q_ex, w_ex = ref.state(times)
+    q, w = rows[:, 0:4], rows[:, 4:7]
+    rec["attitude_error"] = float(np.max(attitude_error(q, q_ex)))
+    rec["omega_error"] = float(np.max(np.linalg.norm(w - w_ex, axis=1)) / np.linalg.norm(ref.omega0))
+    E = rows[:, 13]
+    rec["energy_drift"] = float(np.max(np.abs(E - ref.energy)) / abs(ref.energy))
+    Lw = rows[:, 10:13]
+    if ref.kind == "free":
+        rec["L_drift"] = float(np.max(np.abs(np.linalg.norm(Lw, axis=1) - ref.L)) / ref.L)
+    else:
+        theta = rows[:, 8]
+        rec["theta_error"] = float(np.max(np.abs(theta - ref.nut.theta(times))))
+        rec["bounds_excess"] = float(max(0.0, np.max(ref.theta_min - theta), np.max(theta - ref.theta_max)))
+        rec["p_phi_drift"] = float(np.max(np.abs(Lw[:, 2] - ref.p_phi)) / abs(ref.p_psi))
+        rec["p_psi_drift"] = float(np.max(np.abs(ref.I3 * w[:, 2] - ref.p_psi)) / abs(ref.p_psi))
+    if integrator in ("adaptive", "exact"):
+        rec["wall"] = min(wall, _min_time(lambda: sampled()[2], quick))
+        rec["ns_per_step"] = rec["wall"] / max(1, st["steps"]) * 1e9
+        return rec
+
+    def whole():
+        mm = _model(case.scene, integrator, max_step, tol_)
+        t0 = cpu_clock()
+        mm.step(case.T)
+        return cpu_clock() - t0
+
+    rec["wall"] = _min_time(whole, quick)
+    rec["ns_per_step"] = rec["wall"] / max(1, st["steps"]) * 1e9
+    return rec
+
+
+def _min_time(run, quick: bool, budget: float = 0.06) -> float:
+    """Smallest of repeated durations returned by run(): at least 3 repeats (1 with quick), more for short runs
+    until about ``budget`` s are spent (at most 25). The machine is shared; the minimum is the cost."""
+    best, total, n = math.inf, 0.0, 0
+    while n < (1 if quick else 3) or (not quick and total < budget and n < 25):
+        dt = run()
+        best = min(best, dt)
+        total += dt
+        n += 1
+    return best
+
+
+def observed_order(xs, errs, hi=0.1, floor_factor=100.0):
+    """Observed order: least-squares slope of log10(err) against log10(x) over the asymptotic range of a ladder.
+
+    The ladder is ordered so that the error should fall (x descending when the error grows with x, i.e. steps
+    or tolerances). The asymptotic range is every point with ``err <= hi`` (not saturated) up to the smallest
+    error; when that minimum is not the last point, or the last point gained less than order 1/2 on the one
+    before, round-off has taken over (a floor), and points within ``floor_factor`` of the minimum are left out.
+    Returns (slope, points used); nan with fewer than 3 points.
+    """
+    pts = [(float(x), float(e)) for x, e in zip(xs, errs) if e is not None and np.isfinite(e) and e > 0.0]
+    if len(pts) < 3:
+        return float("nan"), len(pts)
+    # order along the ladder: towards smaller errors in the ideal case (decreasing h or tol, increasing steps)
+    slope0 = np.polyfit(np.log10([p[0] for p in pts]), np.log10([p[1] for p in pts]), 1)[0]
+    pts.sort(key=lambda p: -p[0] if slope0 > 0 else p[0])
+    k_min = int(np.argmin([p[1] for p in pts]))
+    (x1, e1), (x2, e2) = pts[-2], pts[-1]
+    stalled = abs(math.log(e1 / e2) / math.log(x1 / x2)) < 0.5  # the last point gained less than order 1/2
+    lo = pts[k_min][1] * floor_factor if (k_min < len(pts) - 1 or stalled) else 0.0
+    use = [p for p in pts[:k_min + 1] if p[1] <= hi and p[1] >= lo]
+    if len(use) < 3:
+        return float("nan"), len(use)
+    return float(np.polyfit(np.log10([p[0] for p in use]), np.log10([p[1] for p in use]), 1)[0]), len(use)
+
+
+def case_orders(case: Case, recs: list[dict]) -> dict:
+    out = {}
+    key = "attitude_error"
+    for integ in FIXED:
+        rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
+        p, n = observed_order([r["h"] for r in rr], [r[key] for r in rr])
+        po, _ = observed_order([r["h"] for r in rr], [r["omega_error"] for r in rr])
+        out[integ] = {"order": p, "order_omega": po, "points": n, "expected": EXPECTED_ORDER[integ]}
+    rr = [r for r in recs if r["integrator"] == "adaptive" and not r["blew_up"]]
+    p_tol, n = observed_order([r["tol"] for r in rr], [r[key] for r in rr])
+    p_steps, _ = observed_order([r["steps"] for r in rr], [r[key] for r in rr])
+    out["adaptive"] = {"order_tol": p_tol, "order_steps": -p_steps if np.isfinite(p_steps) else p_steps,
+                       "points": n, "expected": 5}
+    return out
+
+
+# ===============================================================================================================
+# Part 2: cost per step, Model.step overhead, many-body throughput, C baseline
+# ===============================================================================================================
+class CBaseline:
+    """bench/baseline.c compiled with gcc -O2 in this run and called through ctypes."""
+
+    def __init__(self, workdir: Path):
+        self.lib = None
+        self.reason = ""
+        self.compiler = ""
+        src = _find_baseline_source()
+        gcc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+        if src is None:
+            self.reason = "bench/baseline.c not found (run from the source checkout)"
+            return
+        if gcc is None:
+            self.reason = "no C compiler (gcc) on PATH"
+            return
+        so = workdir / "libgyrosim_baseline.so"
+        cmd = [gcc, "-O2", "-shared", "-fPIC", "-o", str(so), str(src), "-lm"]
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            self.reason = f"{' '.join(cmd)} failed: {r.stderr.strip()[:300]}"
+            return
+        v = subprocess.run([gcc, "--version"], capture_output=True, text=True).stdout.splitlines()
+        self.compiler = (v[0] if v else gcc) + " -O2"
+        self.source = src
+        lib = ctypes.CDLL(str(so))
+        dp = ctypes.POINTER(ctypes.c_double)
+        lib.rk4_run.argtypes = [dp, dp, ctypes.c_int, ctypes.c_double, ctypes.c_long]
+        lib.rk4_run.restype = None
+        lib.rk4_many.argtypes = [dp, dp, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_long]
+        lib.rk4_many.restype = None
+        self.lib = lib
+        self._dp = dp
+
+    def rk4_run(self, y, p, flags, h, n):
+        self.lib.rk4_run(y.ctypes.data_as(self._dp), p.ctypes.data_as(self._dp), int(flags), float(h), int(n))
+
+    def rk4_many(self, y, p, flags, h, n):
+        self.lib.rk4_many(y.ctypes.data_as(self._dp), p.ctypes.data_as(self._dp), int(y.shape[0]), int(flags),
+                          float(h), int(n))
+
+
+def _find_baseline_source() -> Path | None:
+    here = Path(__file__).resolve()
+    for base in (here.parents[2], Path.cwd()):
+        p = base / "bench" / "baseline.c"
+        if p.is_file():
+            return p
+    return None
+
+
+def _arrays(scene):
+    """Kernel arrays (y (n, 9), p (n, 8)) of a scene's bodies, as Model builds them."""
+    from .core import kernels
+    from .core.rotations import quat_to_euler_zyz
+
+    n = len(scene.bodies)
+    y = np.zeros((n, kernels.NY))
+    p = np.zeros((n, kernels.NP))
+    for i, b in enumerate(scene.bodies):
+        y[i, 0:4] = b.q0
+        y[i, 4:7] = b.omega0
+        p[i, 0:3] = b.moments
+        p[i, 3] = b.mass * (scene.g if scene.gravity else 0.0) * b.cm_distance
+        p[i, 4] = b.damping
+    phi, _, psi = quat_to_euler_zyz(y[:, 0:4])
+    y[:, 7], y[:, 8] = phi, psi
+    return y, p
+
+
+def cost_scenes():
+    """The scenes of the cost comparison: (label, Scene, description)."""
+    from .scene import full_scene
+
+    return [("free_body", free_scene("cost_free_body", (1.0, 0.1, 0.1)), "torque-free: no gravity, damping or "
+             "torque terms"),
+            ("heavy_top", top_scene("cost_heavy_top"), "gravity only"),
+            ("full", full_scene(), "every term: gravity, damping, torque inputs")]
+
+
+def best_times(fns, quick: bool, min_total: float = 0.25, clock=None) -> list[float]:
+    """Smallest time (s) of each of fns, called in interleaved rounds so that all see the same machine load.
+
+    ``clock`` defaults to :func:`cpu_clock` (single-threaded work); the many-body runs pass
+    ``time.perf_counter`` (wall time: they use every core).
+
+    The machine is shared (2 cores, other work running): the minimum over rounds is the cost, and interleaving
+    keeps ratios (kernel / C) fair when the load changes during the measurement.
+    """
+    clock = clock or cpu_clock
+    best = [math.inf] * len(fns)
+    total = 0.0
+    rounds = 0
+    max_rounds = 3 if quick else 9
+    while rounds < max_rounds and (rounds < 3 or total < min_total * len(fns)):
+        for i, fn in enumerate(fns):
+            t0 = clock()
+            fn()
+            dt = clock() - t0
+            best[i] = min(best[i], dt)
+            total += dt
+        rounds += 1
+    return best
+
+
+def _kernel_runner(integrator, scene, h, n, bodies=1):
+    """A closure running kernels.advance over n internal steps of h on the scene's first ``bodies`` bodies, and a
+    function returning the accepted steps per body of the last call."""
+    from .core import kernels
+
+    y0, p = _arrays(scene)
+    y0, p = y0[:bodies].copy(), p[:bodies].copy()
+    method = kernels.METHOD_CODES[integrator]
+    hint = np.zeros(bodies)
+    stats = np.zeros((bodies, 3), dtype=np.int64)
+    status = np.zeros(bodies, dtype=np.int64)
+    max_step = h if integrator != "adaptive" else n * h
+    y = y0.copy()
+    kernels.advance(method, y, p, scene.flags, 10 * h, 10, 1e-8, 1e-8, max_step, hint, stats, status)  # compile
+
+    def go():
+        y[:] = y0
+        hint[:] = 0.0
+        stats[:] = 0
+        kernels.advance(method, y, p, scene.flags, n * h, n, 1e-8, 1e-8, max_step, hint, stats, status)
+        if status.any():  # pragma: no cover - the study's states are far from blowing up
+            raise RuntimeError(f"{integrator} blew up in the cost study")
+
+    go()
+    return go, lambda: float(stats[:, 0].mean())
+
+
+def _c_runner(cbase, scene, h, n, bodies=1):
+    y0, p = _arrays(scene)
+    y0, p = np.ascontiguousarray(y0[:bodies]), np.ascontiguousarray(p[:bodies])
+    y = y0.copy()
+
+    def go():
+        y[:] = y0
+        if bodies == 1:
+            cbase.rk4_run(y[0], p[0], scene.flags, h, n)
+        else:
+            cbase.rk4_many(y, p, scene.flags, h, n)
+
+    go()
+    return go
+
+
+def _one_thread(fn):
+    """fn run with numba limited to one thread (the parallel kernel's serial speed)."""
+    try:
+        import numba
+
+        n = numba.get_num_threads()
+    except Exception:  # noqa: BLE001 - no numba: nothing to limit
+        return fn
+
+    def go():
+        numba.set_num_threads(1)
+        try:
+            fn()
+        finally:
+            numba.set_num_threads(n)
+
+    return go
+
+
+def _model_runner(integrator, scene, H, n_sub, calls):
+    m = _model(scene, integrator, H / n_sub, 1e-8)
+    m.step(H)
+
+    def go():
+        for _ in range(calls):
+            m.step(H)
+
+    return go
+
+
+def run_cost(quick: bool, cbase: CBaseline, bar) -> dict:
+    """ns per internal step by scene and integrator (kernel and C), Model.step per call, many-body throughput."""
+    res = {"per_step": [], "model": [], "c": {}, "many": {}, "n_steps": 0}
+    h = 1e-3
+    n = 20_000 if quick else 200_000
+    res["n_steps"] = n
+    have_c = cbase is not None and cbase.lib is not None
+    for label, scene, desc in cost_scenes():
+        runners = [_kernel_runner(integ, scene, h, n) for integ in INTEGRATORS]
+        fns = [r[0] for r in runners] + ([_c_runner(cbase, scene, h, n)] if have_c else [])
+        t = best_times(fns, quick)
+        for integ, (_, steps), ti in zip(INTEGRATORS, runners, t):
+            res["per_step"].append({"scene": label, "integrator": integ, "ns_per_step": ti / steps() * 1e9,
+                                    "steps": steps(), "description": desc})
+        if have_c:
+            res["c"][label] = t[-1] / n * 1e9
+        bar.update(len(INTEGRATORS))
+        # Model.step: a co-simulation step of 0.01 s in 10 internal steps, and a step of one internal step
+        calls = 200 if quick else 2000
+        integs = ("rk4", "splitting") + (("exact",) if scene.torque_free else ())
+        fns = []
+        for integ in integs:
+            fns.append(_model_runner(integ, scene, 0.01, 10, calls) if integ != "exact" else None)
+            fns.append(_model_runner(integ, scene, h, 1, calls))
+        t = best_times([f for f in fns if f is not None], quick)
+        t_iter = iter(t)
+        for integ in integs:
+            us10 = next(t_iter) / calls * 1e6 if integ != "exact" else float("nan")
+            us1 = next(t_iter) / calls * 1e6
+            k = next((r["ns_per_step"] for r in res["per_step"] if r["scene"] == label and r["integrator"] == integ),
+                     float("nan"))
+            res["model"].append({"scene": label, "integrator": integ, "us_per_call_10": us10,
+                                 "us_per_call_1": us1, "overhead_us": us1 - k * 1e-3})
+        bar.update()
+    # many bodies stepping together
+    nb = 2_000 if quick else 10_000
+    res["many"]["bodies"] = nb
+    res["many"]["nsub"] = 20 if quick else 100
+    try:
+        import numba
+
+        res["many"]["threads"] = int(numba.get_num_threads())
+    except Exception:  # noqa: BLE001 - numba absent or JIT disabled
+        res["many"]["threads"] = 1
+    calls = 3 if quick else 10
+    nsub = 20 if quick else 100
+    for label, scene in (("heavy_top", top_scene("field_heavy_top", count=nb)),
+                         ("free_body", free_scene("field_free_body", (1.0, 0.1, 0.1), count=nb))):
+        for integ in ("rk4", "splitting"):
+            # Model.step: communication step 0.01 s, max_step 1e-3 (10 internal steps per call); the kernel
+            # directly with nsub internal steps per call; C on one core
+            kern = _kernel_runner(integ, scene, 1e-3, nsub, nb)[0]
+            fns = [_model_runner(integ, scene, 0.01, 10, calls), kern, _one_thread(kern)]
+            with_c = have_c and integ == "rk4"
+            if with_c:
+                fns.append(_c_runner(cbase, scene, 1e-3, nsub, nb))
+            t = best_times(fns, quick, clock=time.perf_counter)
+            r = {"model_body_steps_per_s": nb * 10 * calls / t[0], "kernel_body_steps_per_s": nb * nsub / t[1],
+                 "kernel_1thread_body_steps_per_s": nb * nsub / t[2]}
+            if with_c:
+                r["c_serial_body_steps_per_s"] = nb * nsub / t[3]
+            res["many"][f"{label}/{integ}"] = r
+            bar.update()
+    try:
+        import numba
+
+        res["many"]["threading_layer"] = numba.threading_layer()
+    except Exception:  # noqa: BLE001
+        res["many"]["threading_layer"] = None
+    return res
+
+
+# ===============================================================================================================
+# Part 3: long runs
+# ===============================================================================================================
+def run_long(case_name: str, integrator: str, quick: bool) -> dict:
+    from .errors import IntegrationError
+
+    n_steps = 20_000 if quick else 1_000_000
+    n_out = 50 if quick else 200
+    if case_name == "free_body":
+        h = 0.01
+        scene = free_scene("long_free_body", (1.0, 0.1, 0.1))
+        ref = FreeReference(FREE_I, (1.0, 0.1, 0.1))
+    else:
+        h = 1e-3
+        scene = top_scene("long_heavy_top")
+        ref = TopReference()
+    T = n_steps * h
+    H = T / n_out
+    tol = 1e-10
+    m = _model(scene, integrator, h if integrator != "adaptive" else H, tol)
+    ts, rows = [], []
+    rec = {"case": case_name, "integrator": integrator, "h": h, "n_steps": n_steps, "T": T,
+           "tol": tol if integrator == "adaptive" else None, "blew_up": False}
+    wall = 0.0
+    for _ in range(n_out):
+        try:
+            t0 = cpu_clock()
+            m.step(H)
+            wall += cpu_clock() - t0
+        except IntegrationError:
+            rec["blew_up"] = True
+            rec["blow_up_time"] = float(m.time)
+            break
+        ts.append(m.time)
+        rows.append(m.outputs_array()[0])
+    rec["wall"] = wall
+    rec["steps"] = m.stats["steps"]
+    rec["rhs"] = m.stats["rhs_evaluations"]
+    rec["ns_per_step"] = wall / max(1, rec["steps"]) * 1e9
+    if not rows:
+        return rec
+    rows = np.array(rows)
+    ts = np.array(ts)
+    rec["t"] = ts.tolist()
+    rec["energy_drift_t"] = (np.abs(rows[:, 13] - ref.energy) / abs(ref.energy)).tolist()
+    if ref.kind == "free":
+        rec["L_drift_t"] = (np.abs(np.linalg.norm(rows[:, 10:13], axis=1) - ref.L) / ref.L).tolist()
+    else:
+        rec["L_drift_t"] = (np.abs(rows[:, 12] - ref.p_phi) / abs(ref.p_psi)).tolist()  # p_phi = L_z world
+        rec["p_psi_drift"] = float(np.max(np.abs(ref.I3 * rows[:, 6] - ref.p_psi)) / abs(ref.p_psi))
+        rec["theta_error"] = float(np.max(np.abs(rows[:, 8] - ref.nut.theta(ts))))
+    q_ex, _ = ref.state(ts)
+    rec["attitude_error_t"] = attitude_error(rows[:, 0:4], q_ex).tolist()
+    rec["energy_drift"] = float(np.max(rec["energy_drift_t"]))
+    rec["L_drift"] = float(np.max(rec["L_drift_t"]))
+    rec["L_drift_final"] = float(rec["L_drift_t"][-1])
+    rec["attitude_error_final"] = float(rec["attitude_error_t"][-1])
+    return rec
+
+
+# ===============================================================================================================
+# Tables and plots
+# ===============================================================================================================
+def fmt(x, digits=2):
+    if x is None:
+        return "-"
+    if isinstance(x, str):
+        return x
+    if not np.isfinite(x):
+        return "-"
+    if x == 0:
+        return "0"
+    if 1e-3 <= abs(x) < 1e5:
+        return np.format_float_positional(x, precision=digits + 1, unique=False, fractional=False, trim="-")
+    return f"{x:.{digits}e}".replace("e-0", "e-").replace("e+0", "e+")
+
+
+def md_table(header, rows) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def accuracy_table(case: Case, recs: list[dict]) -> str:
+    top = case.reference.kind == "top"
+    head = ["integrator", "h (s) / tol", "steps", "RHS evals", "time (ms)", "ns/step", "attitude err (rad)",
+            "omega err (rel)", "energy drift (rel)"]
+    head += ["theta err (rad)", "bounds excess (rad)", "p_phi drift", "p_psi drift"] if top else ["|L| drift (rel)"]
+    rows = []
+    for r in recs:
+        step = fmt(r["h"]) if r["h"] is not None else ("tol " + fmt(r["tol"]) if r["tol"] is not None else "-")
+        if r["blew_up"]:
+            rows.append([r["integrator"], step, f"blew up at t = {r['blow_up_time']:.4g} s"] + ["-"] * (len(head) - 3))
+            continue
+        row = [r["integrator"], step, r["steps"], r["rhs"], fmt(r["wall"] * 1e3), fmt(r["ns_per_step"], 1),
+               fmt(r["attitude_error"]), fmt(r["omega_error"]), fmt(r["energy_drift"])]
+        row += ([fmt(r["theta_error"]), fmt(r["bounds_excess"]), fmt(r["p_phi_drift"]), fmt(r["p_psi_drift"])]
+                if top else [fmt(r["L_drift"])])
+        rows.append(row)
+    note = (f"{case.title}; T = {case.T:g} s. Errors are maxima over the outputs (every {case.dt_out:g} s; "
+            f"adaptive: every {case.T / ADAPTIVE_OUTPUTS:g} s, so that outputs do not cut its steps) against the "
+            "exact solution; omega error relative to |omega0|, drifts relative. Time: CPU time of the thread "
+            "(best of repeats; see cost.md): the "
+            "whole run as one Model.step for the fixed-step integrators, the Model.step calls between outputs for "
+            "adaptive and exact. RHS evaluations: 0 for the splittings (exact sub-flows).\n\n")
+    return f"### {case.name}\n\n" + note + md_table(head, rows)
+
+
+def orders_table(orders: dict) -> str:
+    head = ["case"] + [f"{i} (expected {EXPECTED_ORDER[i]})" for i in FIXED] + ["adaptive: err vs tol",
+                                                                                 "adaptive: err vs steps"]
+    rows = []
+    for case, o in orders.items():
+        rows.append([case] + [f"{fmt(o[i]['order'])} ({o[i]['points']} pts)" for i in FIXED]
+                    + [fmt(o["adaptive"]["order_tol"]), fmt(o["adaptive"]["order_steps"])])
+    return ("### Observed order of convergence\n\nLeast-squares slope of log(attitude error) against log(h) over "
+            "the ladder's asymptotic range: errors <= 0.1 (not saturated) down to the smallest error of the ladder; "
+            "where the error stalls or rises again at smaller steps (round-off has taken over), the points within a "
+            "factor 100 of that floor are left out. Adaptive: slope against the tolerance, and minus the slope "
+            "against the number of steps (5 for Dormand-Prince 5(4)).\n\n"
+            + md_table(head, rows))
+
+
+TARGETS = (1e-3, 1e-6, 1e-9)
+
+
+def choose_table(cases: dict, acc: dict) -> str:
+    """For each case and target attitude error, the cheapest run of each integrator that reaches it."""
+    head = ["case", "integrator"] + [f"error <= {t:g} rad: time (ms), step" for t in TARGETS]
+    rows = []
+    for name, recs in acc.items():
+        for integ in INTEGRATORS + ("exact",):
+            rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
+            if not rr:
+                continue
+            row = [name, integ]
+            for target in TARGETS:
+                ok = [r for r in rr if r["attitude_error"] <= target]
+                if not ok:
+                    row.append("not reached")
+                    continue
+                r = min(ok, key=lambda r: r["wall"])
+                step = (f"h {fmt(r['h'])}" if r["h"] is not None else
+                        f"tol {fmt(r['tol'])}" if r["tol"] is not None else "")
+                row.append(f"{fmt(r['wall'] * 1e3)} ({step})".replace(" ()", ""))
+            rows.append(row)
+    spans = ", ".join(f"{c.name} {c.T:g} s" for c in cases.values())
+    return ("### Which integrator is cheapest for an accuracy\n\nThe cheapest measured run of each integrator whose "
+            f"maximum attitude error over the run ({spans}) is within the target, with its time (thread CPU) and "
+            "step or tolerance (from the ladders above; 'not reached': no step of the ladder got there).\n\n"
+            + md_table(head, rows))
+
+
+def cost_table(res: dict, cbase: CBaseline) -> str:
+    scenes = [s for s, _, _ in cost_scenes()]
+    ns = {(r["scene"], r["integrator"]): r["ns_per_step"] for r in res["per_step"]}
+    head = ["integrator"] + [f"{s} (ns/step)" for s in scenes]
+    rows = [[i] + [fmt(ns[(s, i)], 1) for s in scenes] for i in INTEGRATORS]
+    if res["c"]:
+        rows.append(["C rk4 (gcc -O2)"] + [fmt(res["c"].get(s), 1) for s in scenes])
+        rows.append(["**rk4 / C**"] + [f"**{fmt(ns[(s, 'rk4')] / res['c'][s], 1)}x**" for s in scenes])
+    out = ("### Cost per internal step, by scene\n\nThe compiled kernel (`kernels.advance`, one body, "
+           f"{res['n_steps']:,} internal steps of 1 ms per call); adaptive: per accepted step at tolerance 1e-8. "
+           "The C baseline (`bench/baseline.c`, compiled in the same run with "
+           f"{cbase.compiler or 'not built: ' + cbase.reason}) does the same rk4 arithmetic (4 RHS, update, "
+           "quaternion renormalisation) for the same terms; target for the heavy top: rk4 within 3x of C. The kernel "
+           "also checks the state for blow-up every step and, in a call spanning more than 1 rad of rotation, "
+           "updates the unwrapped phi, psi every step. Times here and in the accuracy tables are the CPU time of "
+           "the calling thread, best of interleaved rounds: on this shared machine the wall time of a run longer "
+           "than a scheduler slice doubles at random when other jobs run; the thread's CPU time is the wall time "
+           "on an idle core.\n\n"
+           + md_table(head, rows))
+    head = ["scene", "integrator", "Model.step(0.01 s), 10 internal steps (us)", "per internal step (us)",
+            "Model.step of one internal step (us)", "overhead per call (us)"]
+    rows = [[r["scene"], r["integrator"], fmt(r["us_per_call_10"]), fmt(r["us_per_call_10"] / 10),
+             fmt(r["us_per_call_1"]), fmt(r["overhead_us"])] for r in res["model"]]
+    out += ("\n### Model.step per call\n\nThe Python side of a step (argument checks, state copy for the "
+            "restore-on-blow-up, dispatch, time bookkeeping) is the overhead; the FMU and the service pay it once "
+            "per communication step.\n\n" + md_table(head, rows))
+    return out
+
+
+def throughput_table(res: dict) -> str:
+    m = res["many"]
+    head = ["scene", "integrator", "Model.step (body-steps/s)", "kernel, all threads (body-steps/s)",
+            "kernel, 1 thread", "C rk4, 1 thread (body-steps/s)"]
+    rows = []
+    for k, v in m.items():
+        if isinstance(v, dict):
+            s, i = k.split("/")
+            rows.append([s, i, fmt(v["model_body_steps_per_s"]), fmt(v["kernel_body_steps_per_s"]),
+                         fmt(v["kernel_1thread_body_steps_per_s"]), fmt(v.get("c_serial_body_steps_per_s"))])
+    return (f"### Many bodies stepping together\n\n{m['bodies']:,} bodies (a `count = {m['bodies']}` scene with "
+            "spread), stepping together in one compiled loop over all cores "
+            f"(numba threads: {m.get('threads')}, layer {m.get('threading_layer')}). Model.step: communication "
+            "step 0.01 s with max_step 1e-3 (10 internal steps per call); kernel: `kernels.advance` with "
+            f"{m.get('nsub', 100)} internal steps per call, on all threads and limited to one. C: the baseline's "
+            "loop on one core. Wall-clock time (the loop uses every core), best of interleaved rounds. Target: >= 1e7 "
+            "body-steps/s.\n\n"
+            + md_table(head, rows))
+
+
+def long_table(recs: list[dict]) -> str:
+    head = ["case", "integrator", "steps", "time (s)", "ns/step", "max energy drift", "max |L| / p_phi drift",
+            "final |L| / p_phi drift", "final attitude err (rad)", "note"]
+    rows = []
+    for r in recs:
+        note = ""
+        if r["blew_up"]:
+            note = f"blew up near t = {r['blow_up_time']:.4g} s (step ~{r['blow_up_time'] / r['h']:,.0f})"
+        if r["integrator"] == "adaptive":
+            note = (note + "; " if note else "") + f"tol {r['tol']:g}"
+        rows.append([r["case"], r["integrator"], r["steps"], fmt(r["wall"]), fmt(r["ns_per_step"], 1),
+                     fmt(r.get("energy_drift")), fmt(r.get("L_drift")), fmt(r.get("L_drift_final")),
+                     fmt(r.get("attitude_error_final")), note])
+    n = recs[0]["n_steps"] if recs else 0
+    return (f"### Long runs ({n:,} steps)\n\nFree body (I = (1, 2, 3), omega0 = (1, 0.1, 0.1) rad/s) at h = 0.01 s "
+            f"and the heavy top at h = 1e-3 s; drifts relative, over {n:,} steps (adaptive: the same time span). "
+            "For the heavy top the momentum column is p_phi = L_z (relative to p_psi). Attitude error against the "
+            "exact solution at the end.\n\n" + md_table(head, rows))
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_case(case: Case, recs: list[dict], orders: dict, out: Path) -> list[str]:
+    plt = _plt()
+    files = []
+    # work-precision
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    for integ in INTEGRATORS + ("exact",):
+        rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
+        if not rr:
+            continue
+        ax.loglog([r["wall"] for r in rr], [max(r["attitude_error"], 1e-17) for r in rr], marker=MARKERS[integ],
+                  color=COLORS[integ], label=integ + (" (reference)" if integ == "exact" else ""),
+                  ms=9 if integ == "exact" else 5, ls="" if integ == "exact" else "-")
+    ax.set_xlabel("time of the run (s, thread CPU time)")
+    ax.set_ylabel("max attitude error (rad)")
+    ax.set_title(f"Work-precision: {case.name} (T = {case.T:g} s)", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    f = out / f"wp_{case.name}.png"
+    fig.savefig(f, dpi=110)
+    plt.close(fig)
+    files.append(f.name)
+    # error against step / tolerance
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    for integ in FIXED:
+        rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
+        if not rr:
+            continue
+        p = orders[integ]["order"]
+        a1.loglog([r["h"] for r in rr], [max(r["attitude_error"], 1e-17) for r in rr], marker=MARKERS[integ],
+                  color=COLORS[integ], label=f"{integ} (order {fmt(p)})")
+    a1.set_xlabel("internal step h (s)")
+    a1.set_ylabel("max attitude error (rad)")
+    a1.set_title("fixed step", fontsize=10)
+    a1.grid(True, which="both", alpha=0.3)
+    a1.legend(fontsize=8)
+    rr = [r for r in recs if r["integrator"] == "adaptive" and not r["blew_up"]]
+    if rr:
+        a2.loglog([r["tol"] for r in rr], [max(r["attitude_error"], 1e-17) for r in rr], marker="^",
+                  color=COLORS["adaptive"], label="attitude error")
+        a2.loglog([r["tol"] for r in rr], [max(r["omega_error"], 1e-17) for r in rr], marker="^", ls="--",
+                  color="tab:pink", label="omega error (rel)")
+        a2.loglog([r["tol"] for r in rr], [r["tol"] for r in rr], color="gray", lw=0.8, label="error = tol")
+    a2.set_xlabel("tolerance")
+    a2.set_title("adaptive (Dormand-Prince 5(4))", fontsize=10)
+    a2.grid(True, which="both", alpha=0.3)
+    a2.legend(fontsize=8)
+    fig.suptitle(case.title, fontsize=9)
+    fig.tight_layout()
+    f = out / f"step_{case.name}.png"
+    fig.savefig(f, dpi=110)
+    plt.close(fig)
+    files.append(f.name)
+    return files
+
+
+def plot_long(recs: list[dict], out: Path) -> list[str]:
+    plt = _plt()
+    files = []
+    for case in sorted({r["case"] for r in recs}):
+        rr = [r for r in recs if r["case"] == case and "t" in r]
+        fig, axs = plt.subplots(1, 3, figsize=(13, 4))
+        for r in rr:
+            c, lab = COLORS[r["integrator"]], r["integrator"]
+            t = np.array(r["t"])
+            for ax, key in zip(axs, ("energy_drift_t", "L_drift_t", "attitude_error_t")):
+                ax.loglog(t, np.maximum(r[key], 1e-17), color=c, label=lab)
+        axs[0].set_ylabel("relative energy drift")
+        axs[1].set_ylabel("relative |L| drift" if case == "free_body" else "p_phi drift (relative to p_psi)")
+        axs[2].set_ylabel("attitude error (rad)")
+        for ax in axs:
+            ax.set_xlabel("t (s)")
+            ax.grid(True, which="both", alpha=0.3)
+        axs[0].legend(fontsize=8)
+        n = rr[0]["n_steps"] if rr else 0
+        fig.suptitle(f"Long run, {case}: {n:,} steps of h = {rr[0]['h'] if rr else 0:g} s", fontsize=10)
+        fig.tight_layout()
+        f = out / f"long_{case}.png"
+        fig.savefig(f, dpi=110)
+        plt.close(fig)
+        files.append(f.name)
+    return files
+
+
+def plot_cost(res: dict, out: Path) -> str:
+    plt = _plt()
+    scenes = [s for s, _, _ in cost_scenes()]
+    ns = {(r["scene"], r["integrator"]): r["ns_per_step"] for r in res["per_step"]}
+    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    width = 0.8 / (len(INTEGRATORS) + 1)
+    x = np.arange(len(scenes))
+    for k, integ in enumerate(INTEGRATORS):
+        ax.bar(x + k * width, [ns[(s, integ)] for s in scenes], width, color=COLORS[integ], label=integ)
+    if res["c"]:
+        ax.bar(x + len(INTEGRATORS) * width, [res["c"][s] for s in scenes], width, color="gray",
+               label="C rk4 (gcc -O2)")
+    ax.set_xticks(x + 0.4 - width / 2)
+    ax.set_xticklabels(scenes)
+    ax.set_ylabel("ns per internal step")
+    ax.set_title("Cost per internal step by scene (one body)", fontsize=10)
+    ax.legend(fontsize=8, ncol=2)
+    ax.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    f = out / "cost.png"
+    fig.savefig(f, dpi=110)
+    plt.close(fig)
+    return f.name
+
+
+# ===============================================================================================================
+# Driver
+# ===============================================================================================================
+@dataclass
+class Plan:
+    parts: list
+    quick: bool
+    out: Path
+    results: dict = field(default_factory=dict)
+    tables: dict = field(default_factory=dict)
+    external: dict = field(default_factory=dict)
+    files: list = field(default_factory=list)
+
+
+def _parse_only(only) -> list[str]:
+    if not only:
+        return list(PARTS)
+    parts = []
+    for item in only:
+        for p in str(item).split(","):
+            p = p.strip()
+            if not p:
+                continue
+            if p not in PARTS:
+                from .errors import ConfigError
+
+                raise ConfigError("--only", p, "one of " + ", ".join(PARTS))
+            if p not in parts:
+                parts.append(p)
+    return parts
+
+
+def _environment() -> dict:
+    env = {"python": platform.python_version(), "numpy": np.__version__, "platform": platform.platform(),
+           "cpus": os.cpu_count(), "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")}
+    try:
+        import numba
+
+        env["numba"] = numba.__version__
+    except ImportError:
+        env["numba"] = None
+    from .core._jit import HAVE_NUMBA
+
+    env["jit"] = bool(HAVE_NUMBA)
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    env["cpu"] = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return env
+
+
+def _records_table(title: str, records: list[dict]) -> str:
+    keys = []
+    for r in records:
+        keys += [k for k in r if k not in keys]
+    rows = [[fmt(r.get(k)) if isinstance(r.get(k), float) else r.get(k, "-") for k in keys] for r in records]
+    return f"### {title}\n\n" + md_table(keys, rows)
+
+
+_EXTERNAL_RUNNER = """
+import importlib, inspect, json, sys
+mod = importlib.import_module(sys.argv[1])
+run = getattr(mod, "run", None)
+if run is None:
+    json.dump({"missing_run": True}, open(sys.argv[4], "w"))
+    sys.exit(0)
+kw = {}
+try:
+    if "quick" in inspect.signature(run).parameters:
+        kw["quick"] = sys.argv[3] == "1"
+except (TypeError, ValueError):
+    pass
+r = run(sys.argv[2], **kw)
+json.dump({"result": r}, open(sys.argv[4], "w"), default=str)
+"""
+
+
+def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str]:
+    """Run gyrosim.fmu.bench / gyrosim.fmu.standalone.bench / gyrosim.service.bench when present.
+
+    Each runs in its own Python process (they load FMU binaries, Zenoh and FMPy's native libraries, which should
+    not share a process with each other or with the study) and in a scratch folder (they may build FMUs and hosts
+    there); the markdown, JSON, CSV and PNG files they leave at its top level are copied to ``out``, and a list of
+    records that ``run`` returns becomes a table.
+    """
+    import importlib.util
+
+    mods = {"fmu": ("gyrosim.fmu.bench", "gyrosim.fmu.standalone.bench"), "service": ("gyrosim.service.bench",)}
+    msgs = []
+    for name in mods[part]:
+        try:
+            found = importlib.util.find_spec(name) is not None
+        except ModuleNotFoundError:
+            found = False
+        if not found:
+            msgs.append(f"{part}: {name} is not available in this checkout; skipped")
+            continue
+        label = name.replace("gyrosim.", "").replace(".bench", "").replace(".", "_")
+        with tempfile.TemporaryDirectory(prefix=f"gyrosim-bench-{label}-") as work:
+            res_file = Path(work) / "_study_result.json"
+            p = subprocess.run([sys.executable, "-c", _EXTERNAL_RUNNER, name, work, "1" if quick else "0",
+                                str(res_file)], capture_output=True, text=True)
+            if not res_file.is_file():
+                tail = (p.stderr or p.stdout).strip().splitlines()[-3:]
+                msgs.append(f"{part}: {name}.run failed (exit {p.returncode}): {' | '.join(tail)}")
+                continue
+            data = json.loads(res_file.read_text())
+            if data.get("missing_run"):
+                msgs.append(f"{part}: {name} has no run(out_dir); skipped")
+                continue
+            r = data.get("result")
+            copied = []
+            for f in sorted(Path(work).iterdir()):
+                if f.is_file() and f.suffix in (".md", ".json", ".csv", ".png") and f != res_file:
+                    shutil.copy2(f, out / f.name)
+                    copied.append(f.name)
+                    if f.suffix == ".md":
+                        tables[f"{label}_{f.stem}"] = f.read_text()
+        if isinstance(r, list) and r and all(isinstance(x, dict) for x in r):
+            text = _records_table(f"{name}", r)
+            tables[label] = text
+            (out / f"{label}.md").write_text(text)
+            copied.append(f"{label}.md")
+        note = "" if p.returncode == 0 else f"; its process then exited with status {p.returncode}"
+        msgs.append(f"{part}: {name}.run done" + (f": {r}" if isinstance(r, str) else "")
+                    + (f" (wrote {', '.join(copied)})" if copied else "") + note)
+    return msgs
+
+
+def main(args) -> int:
+    """Run the study: ``args.output`` (folder), ``args.quick`` (bool), ``args.only`` (part names or None)."""
+    from tqdm import tqdm
+
+    t_start = time.perf_counter()
+    out = Path(getattr(args, "output", None) or "docs/study")
+    quick = bool(getattr(args, "quick", False))
+    parts = _parse_only(getattr(args, "only", None))
+    out.mkdir(parents=True, exist_ok=True)
+    plan = Plan(parts, quick, out)
+    env = _environment()
+    env["command"] = "gyrosim bench --output " + str(out) + (" --quick" if quick else "") + (
+        "".join(f" --only {p}" for p in parts) if getattr(args, "only", None) else "")
+    plan.results["environment"] = env
+    if not env["jit"]:
+        print("note: numba JIT is off (NUMBA_DISABLE_JIT or no numba): timings are of plain Python", file=sys.stderr)
+
+    cases = make_cases(quick) if "accuracy" in parts else {}
+    n_acc = sum(len(FIXED) * len(c.steps) + len(c.tolerances) + (1 if c.exact else 0) for c in cases.values())
+    n_cost = (len(cost_scenes()) * (len(INTEGRATORS) + 1) + 4) if "cost" in parts else 0  # see run_cost
+    long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in INTEGRATORS] if "long" in parts else []
+    total = n_acc + n_cost + len(long_runs)
+    messages = []
+    cbase = None
+    with tempfile.TemporaryDirectory(prefix="gyrosim-bench-") as tmp, \
+            tqdm(total=total, desc="gyrosim bench", unit="run", file=sys.stderr, delay=0.5) as bar:
+        if "accuracy" in parts:
+            all_orders = {}
+            acc = {}
+            for case in cases.values():
+                recs = []
+                for integ in FIXED:
+                    for h in case.steps:
+                        bar.set_postfix_str(f"{case.name} {integ} h={h:g}")
+                        recs.append(run_accuracy(case, integ, h, None, quick))
+                        bar.update()
+                for tol in case.tolerances:
+                    bar.set_postfix_str(f"{case.name} adaptive tol={tol:g}")
+                    recs.append(run_accuracy(case, "adaptive", None, tol, quick))
+                    bar.update()
+                if case.exact:
+                    bar.set_postfix_str(f"{case.name} exact")
+                    recs.append(run_accuracy(case, "exact", None, None, quick))
+                    bar.update()
+                orders = case_orders(case, recs)
+                all_orders[case.name] = orders
+                acc[case.name] = recs
+                plan.tables[f"accuracy_{case.name}"] = accuracy_table(case, recs)
+                plan.files += plot_case(case, recs, orders, out)
+            plan.tables["orders"] = orders_table(all_orders)
+            plan.tables["choose"] = choose_table(cases, acc)
+            plan.results["accuracy"] = acc
+            plan.results["orders"] = all_orders
+        if "cost" in parts:
+            bar.set_postfix_str("compiling the C baseline")
+            cbase = CBaseline(Path(tmp))
+            if cbase.lib is None:
+                messages.append(f"cost: C baseline skipped: {cbase.reason}")
+            bar.set_postfix_str("cost per step")
+            res = run_cost(quick, cbase, bar)
+            res["quick"] = quick
+            res["c_compiler"] = cbase.compiler
+            plan.results["cost"] = res
+            plan.tables["cost"] = cost_table(res, cbase)
+            plan.tables["throughput"] = throughput_table(res)
+            plan.files.append(plot_cost(res, out))
+        if "long" in parts:
+            lrecs = []
+            for c, i in long_runs:
+                bar.set_postfix_str(f"long {c} {i}")
+                lrecs.append(run_long(c, i, quick))
+                bar.update()
+            plan.results["long"] = lrecs
+            plan.tables["long_run"] = long_table(lrecs)
+            plan.files += plot_long(lrecs, out)
+        for part in ("fmu", "service"):
+            if part in parts:
+                bar.set_postfix_str(part)
+                try:
+                    messages += _external_bench(part, out, quick, plan.external)
+                except Exception as e:  # noqa: BLE001 - one part failing must not lose the others
+                    messages.append(f"{part}: failed: {type(e).__name__}: {e}")
+    runtime = time.perf_counter() - t_start
+    env["runtime_s"] = round(runtime, 1)
+    for name, text in plan.tables.items():
+        (out / f"{name}.md").write_text(text)
+    head = (f"# gyrosim speed/accuracy study\n\nProduced by `{env['command']}` in {runtime:.0f} s on "
+            f"{env.get('cpu', platform.machine())} ({env['cpus']} CPUs), Python {env['python']}, numpy "
+            f"{env['numpy']}, numba {env['numba']}{'' if env['jit'] else ' (JIT off)'}, {env['date']}."
+            + (" Quick ladders (a smoke test, not the study)." if quick else "") + "\n\n")
+    tables = list(plan.tables.values()) + list(plan.external.values())
+    summary = head + "\n".join(tables) + "\n" + "".join(f"![{f}]({f})\n\n" for f in plan.files)
+    (out / "summary.md").write_text(summary)
+    plan.results["messages"] = messages
+    plan.results["parts"] = parts
+    plan.results["files"] = plan.files
+    (out / "results.json").write_text(json.dumps(plan.results, indent=1, default=_json_default))
+    print(head.strip() + "\n")
+    for text in tables:
+        print(text)
+    for m in messages:
+        print(m)
+    print(f"tables and plots in {out}/ (summary.md, results.json); {runtime:.1f} s")
+    return 0
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    return str(o)
