@@ -133,6 +133,19 @@ static int load_inner(void) {
     return ok;
 }
 
+/* When the host unloads this FMU (dlclose), unload the export library too, so that its static destructor
+   (pythonfmu's finalizePythonInterpreter) runs now, while the host's Python is alive, as it does when the host
+   loads the export library directly. Left loaded, it runs among the process's exit handlers and reads an object
+   already freed there: a heap corruption that glibc reports at exit (seen with a Zenoh session in the host). */
+__attribute__((destructor)) static void unload_inner(void) {
+    pthread_mutex_lock(&lib_mutex);
+    if (lib) {
+        dlclose(lib);
+        lib = NULL;
+    }
+    pthread_mutex_unlock(&lib_mutex);
+}
+
 static int category_on(Shim *s, const char *category) {
     size_t i;
     if (!s->logging_on) return 0;
