@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from fmi_log import FmiLog
+
 pytest.importorskip("fmpy")
 
 #: numba's compiled kernels of the FMU's package are cached here across test runs (not in the user's home)
@@ -37,28 +39,6 @@ def build(fmu_dir):
     return _build
 
 
-class LogCollector:
-    """A logger for FMPy's instances that keeps (status, category, message)."""
-
-    def __init__(self):
-        self.messages = []
-
-    def __call__(self, *args):
-        # FMI 2.0: (env, instanceName, status, category, message); FMI 3.0: (env, status, category, message)
-        status, category, message = args[-3:]
-        self.messages.append((int(status), _s(category), _s(message)))
-
-    def errors(self):
-        return [m for s, c, m in self.messages if s >= 3]
-
-    def clear(self):
-        self.messages.clear()
-
-
-def _s(x):
-    return x.decode() if isinstance(x, bytes) else (x or "")
-
-
 class Slave:
     """A low-level FMPy instance (FMU2Slave / FMU3Slave) with a uniform API over both FMI versions."""
 
@@ -68,7 +48,7 @@ class Slave:
         self.md = read_model_description(str(path))
         self.version = int(self.md.fmiVersion[0])
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.log = LogCollector()
+        self.log = FmiLog()
         ident = self.md.coSimulation.modelIdentifier
         if self.version == 2:
             from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE

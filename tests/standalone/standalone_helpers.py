@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fmi_log import FmiLog
+
 HOST_SOURCE = Path(__file__).parent / "host" / "fmi_host.c"
 SCENES = (None, "free_body", "heavy_top", "gyroscope")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4")
@@ -67,32 +69,13 @@ def step_failure(stdout: str):
     return None
 
 
-class Log:
-    """A logger for FMPy's instances that keeps (status, category, message)."""
-
-    def __init__(self):
-        self.messages = []
-
-    def __call__(self, *args):
-        # FMI 2.0: (env, instanceName, status, category, message); FMI 3.0: (env, status, category, message)
-        status, category, message = args[-3:]
-        self.messages.append((int(status), _text(category), _text(message)))
-
-    def errors(self) -> list[str]:
-        return [m for s, _, m in self.messages if s >= 3]
-
-
-def _text(x) -> str:
-    return x.decode() if isinstance(x, bytes) else (x or "")
-
-
 class Slave:
     """A low-level FMPy instance (FMU2Slave / FMU3Slave) of a standalone FMU with one API for both versions."""
 
     def __init__(self, fmu: BuiltFMU, name: str = "instance", guid: str | None = None):
         self.version = fmu.version
         self.vr = fmu.vr
-        self.log = Log()
+        self.log = FmiLog()
         guid = fmu.token if guid is None else guid
         if fmu.version == 2:
             from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE

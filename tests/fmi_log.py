@@ -1,0 +1,25 @@
+"""A logger for FMPy's low-level instances, shared by the Python-backed and the standalone FMU tests."""
+
+
+def text(x) -> str:
+    """A C string from FMPy (bytes or str or None) as str."""
+    return x.decode() if isinstance(x, bytes) else (x or "")
+
+
+class FmiLog:
+    """Keeps (status, category, message) of every logged message."""
+
+    def __init__(self):
+        self.messages = []
+
+    def __call__(self, *args):
+        # FMI 2.0: (env, instanceName, status, category, message); FMI 3.0: (env, status, category, message)
+        status, category, message = args[-3:]
+        self.messages.append((int(status), text(category), text(message)))
+
+    def errors(self) -> list[str]:
+        """Messages logged with status Error or worse."""
+        return [m for s, _, m in self.messages if s >= 3]
+
+    def clear(self):
+        self.messages.clear()
