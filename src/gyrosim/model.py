@@ -17,7 +17,7 @@ from .core import kernels
 from .core.inertia import check_principal_moments
 from .core.rotations import quat_to_euler_zyz
 from .errors import ConfigError, IntegrationError, StepError
-from .scene import INTEGRATORS, Scene, load_scene
+from .scene import INTEGRATORS, Scene, did_you_mean, load_scene
 
 __all__ = ["Model", "Variable", "ModelState", "variables_for", "OUTPUT_NAMES"]
 
@@ -173,8 +173,8 @@ class Model:
                 self._slots[name] = (1, int(name[1]) - 1)
             elif name in ("tau_x", "tau_y", "tau_z"):
                 self._slots[name] = (2, "xyz".index(name[-1]))
-            elif name in ("mass", "cm_distance", "g", "damping"):
-                self._slots[name] = (3, {"mass": "_mass", "cm_distance": "_cm", "g": "_g", "damping": "_damping"}[name])
+            elif name in self._BODY_ARRAYS:
+                self._slots[name] = (3, self._BODY_ARRAYS[name])
             else:
                 self._slots[name] = (4, name)
         for k, v in (parameters or {}).items():
@@ -200,11 +200,8 @@ class Model:
     def _var(self, name) -> Variable:
         v = self.variables.get(name)
         if v is None:
-            import difflib
-
-            close = difflib.get_close_matches(str(name), list(self.variables), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ConfigError("variable", name, f"a variable of scene {self.scene.name!r}{hint}: "
+            raise ConfigError("variable", name, f"a variable of scene {self.scene.name!r}"
+                              f"{did_you_mean(name, self.variables)}: "
                               + ", ".join(self.variables))
         return v
 
@@ -226,11 +223,8 @@ class Model:
         if v.type == "String":
             if name == "integrator":
                 if value not in INTEGRATORS:
-                    import difflib
-
-                    close = difflib.get_close_matches(str(value), INTEGRATORS, n=1)
-                    hint = f" (did you mean {close[0]!r}?)" if close else ""
-                    raise ConfigError("integrator", value, "one of " + ", ".join(INTEGRATORS) + hint)
+                    raise ConfigError("integrator", value, "one of " + ", ".join(INTEGRATORS)
+                                      + did_you_mean(value, INTEGRATORS))
                 if value == "exact" and not self.scene.torque_free:
                     raise ConfigError("integrator", value, "a general integrator: 'exact' solves torque-free "
                                       f"scenes only, and scene {self.scene.name!r} has "
@@ -254,7 +248,7 @@ class Model:
         elif name in ("mass", "cm_distance", "g", "damping"):
             if x < 0 or (name == "mass" and x == 0):
                 raise ConfigError(name, value, f"a number {'>' if name == 'mass' else '>='} 0 in {v.unit}")
-            {"mass": self._mass, "cm_distance": self._cm, "g": self._g, "damping": self._damping}[name][i] = x
+            getattr(self, self._BODY_ARRAYS[name])[i] = x
             self._initialized = False
         elif name == "max_step":
             self._check_positive(name, x)
@@ -463,6 +457,9 @@ class Model:
         return {"steps": int(s[0]), "rejected": int(s[1]), "rhs_evaluations": int(s[2])}
 
     # ----------------------------------------------------------------------------------------------- state
+    #: Per-body scalar parameters and the attribute holding each one's (n_bodies,) array.
+    _BODY_ARRAYS = {"mass": "_mass", "cm_distance": "_cm", "g": "_g", "damping": "_damping"}
+
     _STATE_FIELDS = ("_moments", "_mass", "_cm", "_g", "_damping", "_tau", "_y", "_hint", "_stats", "integrator",
                      "max_step", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h", "_initialized",
                      "_state_dirty", "_exact_anchor")

@@ -51,6 +51,7 @@ from .core.rotations import (
     euler_zyz_to_quat,
     matrix_to_quat,
     quat_multiply,
+    quat_to_euler_zyz,
 )
 from .errors import ConfigError
 
@@ -133,10 +134,14 @@ class Scene:
         return not (self.gravity or self.damping or self.torque)
 
 
+def did_you_mean(word, allowed, cutoff: float = 0.6) -> str:
+    """``" (did you mean 'x'?)"`` for the closest of ``allowed`` to ``word``, or ``""``."""
+    close = difflib.get_close_matches(str(word), list(allowed), n=1, cutoff=cutoff)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 def _suggest(key: str, allowed) -> str:
-    close = difflib.get_close_matches(key, allowed, n=1, cutoff=0.5)
-    hint = f" (did you mean {close[0]!r}?)" if close else ""
-    return f"one of {', '.join(allowed)}{hint}"
+    return f"one of {', '.join(allowed)}{did_you_mean(key, allowed, cutoff=0.5)}"
 
 
 def _check_keys(table: dict, allowed, where: str):
@@ -276,7 +281,6 @@ def _body(tbl: dict, index: int, scene_g: float, where: str) -> tuple[list[BodyS
         if k == "omega":
             omega_geom = v
         else:
-            from .core.rotations import quat_to_euler_zyz
             phi, theta, psi = quat_to_euler_zyz(q_geom)
             omega_geom = euler_zyz_rates_to_omega_body(phi, theta, psi, *v)
     q0 = quat_multiply(q_geom, matrix_to_quat(R_gp)) if not np.allclose(R_gp, np.eye(3)) else q_geom
