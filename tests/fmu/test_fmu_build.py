@@ -71,7 +71,7 @@ def test_scene_file_and_unique_package_names(tmp_path, build):
 
     def names(path):
         with zipfile.ZipFile(path) as z:
-            entry = z.read("resources/slavemodule.txt").decode().strip()
+            entry = {n for n in z.namelist() if n.startswith("resources/gyrosim_entry_")}
             pkgs = {n.split("/")[1] for n in z.namelist() if n.startswith("resources/gyrosim_fmu_")}
         return entry, pkgs
 

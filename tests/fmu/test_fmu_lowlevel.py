@@ -161,7 +161,14 @@ def test_unknown_value_reference_and_bad_state_blob(slave, v):
     log = s.log
     get = s.fmu.getReal if v == 2 else s.fmu.getFloat64
     _expect_error(lambda: get([9999]), log, "9999")
-    _expect_error(lambda: s.set_state(s.deserialize(b"not a state")), log, "not an FMU state")
+    _expect_error(lambda: s.deserialize(b"not a state"), log, "not a serialized state")
+    good = s.serialize(s.get_state())
+    _expect_error(lambda: s.deserialize(good[:-1]), log, "not a serialized state")
+    # right framing, wrong content: the model refuses it when it is set
+    import struct
+
+    junk = b"GYROSIM1" + struct.pack("<Q", 5) + b"junk!"
+    _expect_error(lambda: s.set_state(s.deserialize(junk)), log, "not an FMU state")
     s.do_step(0.0, 0.01)
     s.close()
 

@@ -9,7 +9,6 @@ import numpy as np
 
 from fmi_log import FmiLog
 
-HOST_SOURCE = Path(__file__).parent / "host" / "fmi_host.c"
 SCENES = (None, "free_body", "heavy_top", "gyroscope")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4")
 

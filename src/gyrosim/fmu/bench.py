@@ -145,7 +145,7 @@ _IMPLEMENTED = {
 
 
 def _c_source(v: int) -> str:
-    from .shim import function_types
+    from .bridge import function_types
 
     stubs = []
     for ret, name, params, _ in function_types(v):
@@ -183,8 +183,8 @@ def _c_model_description(v: int, ident: str) -> str:
 
 def build_c_fmu(fmi_version: int, out_dir) -> Path:
     """Compile the minimal C FMU (rk4 of the heavy top) with gcc -O2 and zip it into ``out_dir``."""
+    from .bridge import fmi_headers_dir, have_compiler
     from .builder import PLATFORM
-    from .shim import fmi_headers_dir, have_compiler
 
     cc = have_compiler()
     if cc is None:

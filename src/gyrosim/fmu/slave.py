@@ -1,18 +1,21 @@
 """The Python side of the gyrosim FMUs: a thin FMI facade around :class:`gyrosim.model.Model`.
 
-This module is copied into every FMU (under the FMU's unique package name) and driven by the pythonfmu
-(FMI 2.0) or pythonfmu3 (FMI 3.0) C++ export library, which calls the methods below by name. It keeps no
-physics: every value goes to or comes from the :class:`~gyrosim.model.Model`.
+This module is copied into every FMU (under the FMU's unique package name) and driven by the FMU's C bridge
+(:mod:`gyrosim.fmu.bridge`), which calls the methods below by name. It keeps no physics: every value goes to or
+comes from the :class:`~gyrosim.model.Model`.
 
-Rules the methods follow, because of how the export libraries behave:
+Rules the methods follow:
 
-* No exception ever leaves a method: the export libraries turn a Python exception into ``Fatal`` and drop
-  the Python instance. Errors are logged with status Error (category ``logStatusError``); the C shim in
-  front of the export library (see :mod:`gyrosim.fmu.shim`) turns a call that logged an error into an
-  ``Error`` return status. Getters then return NaN (or ``""``) of the right length.
+* No exception leaves a method: errors are logged with status Error (category ``logStatusError``) in
+  ``log_queue``, as ``(status, category, message)`` tuples; the bridge passes the queue to the host's logger
+  after every call and returns ``Error`` for a call that logged an error. Getters then return NaN (or ``""``)
+  of the right length. (An exception that escapes anyway is logged by the bridge as an Error too.)
 * A call in the wrong state, a bad value or a refused step leaves the instance as it was (usable); the
   state masks follow the Modelica Reference FMUs.
 * The FMU state is the whole :class:`Model` state (``Model.state_bytes``), bit for bit.
+* Fast path: :meth:`_Core._fast_info` tells the bridge when a plain doStep may run in C (a numba cfunc on the
+  model's own arrays, :mod:`gyrosim.fmu.fast`), and :meth:`_Core._sync_clock` gives the model back the clock
+  the bridge kept meanwhile.
 
 Value references: ``1 + i`` for the ``i``-th variable of ``Model.variables`` (in order); FMI 3.0 also has
 ``time`` (independent) at 0. :func:`fmu_variables` is the single source of that numbering for the
@@ -22,17 +25,13 @@ modelDescription writer and for this runtime.
 from __future__ import annotations
 
 import math
+import os
 import pickle
 
 from ..errors import GyrosimError
 from ..model import OUTPUT_NAMES, Model
 
-__all__ = ["Fmi2Slave", "Fmi3Slave", "fmu_variables", "EXPERIMENT_VR", "LOG_CATEGORIES"]
-
-#: First of 5 hidden value references through which the C shim passes the arguments of
-#: fmi3EnterInitializationMode (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime), which
-#: pythonfmu3 does not forward to Python.
-EXPERIMENT_VR = 0x7FFFFF00
+__all__ = ["Fmi2Slave", "Fmi3Slave", "fmu_variables", "LOG_CATEGORIES"]
 
 LOG_CATEGORIES = {
     "logStatusWarning": "Log messages with status Warning.",
@@ -59,35 +58,6 @@ def fmu_variables(model: Model) -> list[tuple[int, object]]:
     return [(i + 1, v) for i, v in enumerate(model.variables.values())]
 
 
-class _LogMsg:
-    """What the export libraries read from the log queue (attributes status, category, msg, debug)."""
-
-    __slots__ = ("status", "category", "msg", "debug")
-
-    def __init__(self, status, category, msg, debug=False):
-        self.status = status
-        self.category = category
-        # the FMI 2.0 logger treats the message as a printf format: keep '%' out of it
-        self.msg = msg.replace("%", " percent")
-        self.debug = debug
-
-
-class _StepResult:
-    """fmi3DoStep result read by pythonfmu3 (attributes status, terminateSimulation, ...)."""
-
-    __slots__ = ("status", "eventHandlingNeeded", "terminateSimulation", "earlyReturn")
-
-    def __init__(self, status):
-        self.status = status
-        self.eventHandlingNeeded = False
-        self.terminateSimulation = False
-        self.earlyReturn = False
-
-
-_STEP_OK = _StepResult(_OK)
-_STEP_ERROR = _StepResult(_ERROR)
-
-
 class _Core:
     """State machine, variable access and FMU state shared by the FMI 2.0 and FMI 3.0 facades.
 
@@ -101,6 +71,7 @@ class _Core:
     _scene_cache = None
 
     def __init__(self, **kwargs):
+        self._kwargs = kwargs
         self.instance_name = kwargs.get("instance_name", "")
         self.resources = kwargs.get("resources")
         self.visible = kwargs.get("visible", False)
@@ -114,7 +85,7 @@ class _Core:
             self.model = self._new_model()
             self._by_vr = {vr: v for vr, v in fmu_variables(self.model)}
             self._out_index = {n: OUTPUT_NAMES.index(n) for n in OUTPUT_NAMES}
-        except Exception as e:  # noqa: BLE001 - never let an exception reach the export library
+        except Exception as e:  # noqa: BLE001 - an exception would reach the bridge as an Error without context
             self._by_vr = {}
             self._error(f"cannot instantiate the model: {e}")
 
@@ -134,14 +105,11 @@ class _Core:
     def _new_model(self, start_time=0.0, stop_time=None, tolerance=None) -> Model:
         return Model(self._scene(), start_time=start_time, stop_time=stop_time, tolerance=tolerance)
 
-    def _get_log_queue(self):
-        return self.log_queue
-
-    def log(self, msg: str, status: int = _OK, category: str | None = None, debug: bool = False):
-        """Queue a message for the FMI logger (flushed by the export library after each call)."""
+    def log(self, msg: str, status: int = _OK, category: str | None = None):
+        """Queue a message for the FMI logger (passed on by the bridge after each call)."""
         if category is None:
             category = {1: "logStatusWarning", 3: "logStatusError", 4: "logStatusFatal"}.get(status, "logEvents")
-        self.log_queue.append(_LogMsg(int(status), category, str(msg), debug))
+        self.log_queue.append((int(status), category, str(msg)))
 
     def _error(self, msg: str):
         self.log(msg, _ERROR, "logStatusError")
@@ -159,12 +127,13 @@ class _Core:
         return f"fmi{self.FMI}{name}"
 
     # ------------------------------------------------------------------------------------------- life cycle
-    def setup_experiment(self, start_time=0.0, stop_time=None, tolerance=None):
-        """FMI 2.0 setupExperiment (pythonfmu passes it at enterInitializationMode)."""
+    def setup_experiment(self, tolerance_defined, tolerance, start_time, stop_time_defined, stop_time):
+        """fmi2SetupExperiment (FMI 3.0 passes the same to :meth:`enter_initialization_mode`)."""
         try:
-            if self._mode != INSTANTIATED:
+            if not self._allowed(INSTANTIATED, self._fn("SetupExperiment")):
                 return
-            self._set_experiment(start_time, stop_time, tolerance)
+            self._set_experiment(start_time, stop_time if stop_time_defined else None,
+                                 tolerance if tolerance_defined else None)
         except Exception as e:  # noqa: BLE001
             self._error(f"{self._fn('SetupExperiment')}: {e}")
 
@@ -182,11 +151,17 @@ class _Core:
                 raise GyrosimError(f"tolerance = {tolerance!r} is not allowed: a finite number > 0")
         self._experiment = (start, stop_time, tolerance)
 
-    def enter_initialization_mode(self):
-        """Create the model of the experiment (start, stop, tolerance) and replay the values set so far."""
+    def enter_initialization_mode(self, *experiment):
+        """Create the model of the experiment (start, stop, tolerance) and replay the values set so far.
+
+        FMI 3.0 passes the experiment here: (toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime).
+        """
         try:
             if not self._allowed(INSTANTIATED, self._fn("EnterInitializationMode")):
                 return
+            if experiment:
+                tol_def, tol, start, stop_def, stop = experiment
+                self._set_experiment(start, stop if stop_def else None, tol if tol_def else None)
             start, stop, tol = self._experiment
             model = self._new_model(start, stop, tol)
             for name, value in self._pending.items():
@@ -212,6 +187,19 @@ class _Core:
                 self._mode = TERMINATED
         except Exception as e:  # noqa: BLE001
             self._error(f"{self._fn('Terminate')}: {e}")
+
+    def reset(self):
+        """fmiXReset: back to the state right after instantiation (start values, no experiment)."""
+        try:
+            queue = self.log_queue
+            self.__init__(**self._kwargs)
+            self.log_queue[:0] = queue
+        except Exception as e:  # noqa: BLE001
+            self._error(f"{self._fn('Reset')}: {e}")
+
+    def do_step(self, current_time, step_size):
+        """fmiXDoStep; True when the step was taken."""
+        return self._step(current_time, step_size)
 
     def _step(self, t: float, h: float) -> bool:
         m = self.model
@@ -273,11 +261,6 @@ class _Core:
     def _set(self, vrs, values, kind: str):
         fn = self._fn("SetString" if kind == "String" else ("SetReal" if self.FMI == 2 else "SetFloat64"))
         try:
-            if self.FMI == 3 and kind == "Real" and vrs and vrs[0] == EXPERIMENT_VR:
-                if self._mode == INSTANTIATED and len(values) == 5:
-                    tol_def, tol, start, stop_def, stop = values
-                    self._set_experiment(start, stop if stop_def else None, tol if tol_def else None)
-                return
             if self.model is None:
                 self._allowed(0, fn)
                 return
@@ -313,17 +296,20 @@ class _Core:
         except Exception as e:  # noqa: BLE001
             self._error(f"{fn}: {e}")
 
-    def _none(self, vrs, what: str, default):
-        if len(vrs):
-            self._error(f"{what}: the FMU has no variable of this type (valueReferences {list(vrs)[:10]})")
-        return [default] * len(vrs)
+    def get_real(self, vrs):
+        return self._get(vrs, "Real")
 
-    def _refuse(self, vrs, values, what: str):
-        if len(vrs):
-            self._error(f"{what}: the FMU has no variable of this type (valueReferences {list(vrs)[:10]})")
+    def set_real(self, vrs, values):
+        self._set(vrs, values, "Real")
+
+    def get_string(self, vrs):
+        return self._get(vrs, "String")
+
+    def set_string(self, vrs, values):
+        self._set(vrs, values, "String")
 
     # ------------------------------------------------------------------------------------------- FMU state
-    def _get_fmu_state(self):
+    def get_fmu_state(self):
         """The FMU state: pickled (format tag, experiment, pending values, whole model state)."""
         try:
             if self.model is None:
@@ -335,7 +321,7 @@ class _Core:
             self._error(f"{self._fn('GetFMUstate')}: {e}")
             return b""
 
-    def _set_fmu_state(self, state):
+    def set_fmu_state(self, state):
         fn = self._fn("SetFMUstate")
         try:
             if self.model is None:
@@ -354,116 +340,68 @@ class _Core:
         except Exception as e:  # noqa: BLE001
             self._error(f"{fn}: {e}")
 
-    @staticmethod
-    def _fmu_state_to_bytes(state) -> bytes:
-        return state if isinstance(state, bytes) else b""
+    # ------------------------------------------------------------------------------------------- fast path
+    def _fast_info(self):
+        """What the bridge needs to take plain doSteps itself, or None when they must come here.
 
-    @staticmethod
-    def _fmu_state_from_bytes(data) -> bytes:
-        return bytes(data)
+        ``(cfunc address, method code, flags, addresses of y, p, hint, stats, status, max_step, tolerance,
+        t_base, n, h, has stop time, stop time)``: one body, a kernel integrator, step mode, an initialised model
+        whose state arrays stay where they are until the next call into Python (the bridge asks again after every
+        call that may change them). ``GYROSIM_FMU_FAST=0`` turns the fast path off.
+        """
+        m = self.model
+        if (m is None or self._mode != STEP_COMPLETE or m.n_bodies != 1 or m.integrator == "exact"
+                or not m._initialized or m._state_dirty):
+            return None
+        address = _fast_address()
+        if address is None:
+            return None
+        from ..core import kernels
+
+        arrays = (m._y, m._p, m._hint, m._stats, m._status)
+        if not all(a.flags.c_contiguous and a.flags.writeable for a in arrays):
+            return None
+        return (address, kernels.METHOD_CODES[m.integrator], int(m.scene.flags), m._y.ctypes.data,
+                m._p.ctypes.data, m._hint.ctypes.data, m._stats.ctypes.data, m._status.ctypes.data,
+                float(m.max_step), float(m.tolerance), float(m._t_base), int(m._n), float(m._h),
+                int(m.stop_time is not None), float(m.stop_time if m.stop_time is not None else 0.0))
+
+    def _sync_clock(self, t_base, n, h):
+        """Take the clock the bridge kept over its fast steps (and forget the cached outputs)."""
+        m = self.model
+        m._t_base, m._n, m._h = float(t_base), int(n), float(h)
+        m._out = None
+
+
+_FAST = []
+
+
+def _fast_address():
+    """Address of the fast-path cfunc (compiled on first use), or None without numba or with GYROSIM_FMU_FAST=0."""
+    if os.environ.get("GYROSIM_FMU_FAST", "1") == "0":
+        return None
+    if not _FAST:
+        address = None
+        from ..core._jit import HAVE_NUMBA
+
+        if HAVE_NUMBA:
+            try:
+                from .fast import advance_one
+
+                address = int(advance_one.address)
+            except Exception:  # noqa: BLE001 - no fast path is slower, never wrong
+                address = None
+        _FAST.append(address)
+    return _FAST[0]
 
 
 class Fmi2Slave(_Core):
-    """FMI 2.0 co-simulation facade called by the pythonfmu export library (its methods by name)."""
+    """FMI 2.0 co-simulation facade, called by the FMU's C bridge."""
 
     FMI = 2
 
-    def do_step(self, current_time, step_size, *args):
-        return self._step(current_time, step_size)
-
-    def get_real(self, vrs):
-        return self._get(vrs, "Real")
-
-    def set_real(self, vrs, values):
-        self._set(vrs, values, "Real")
-
-    def get_string(self, vrs):
-        return self._get(vrs, "String")
-
-    def set_string(self, vrs, values):
-        self._set(vrs, values, "String")
-
-    def get_integer(self, vrs):
-        return self._none(vrs, "fmi2GetInteger", 0)
-
-    def get_boolean(self, vrs):
-        return self._none(vrs, "fmi2GetBoolean", False)
-
-    def set_integer(self, vrs, values):
-        self._refuse(vrs, values, "fmi2SetInteger")
-
-    def set_boolean(self, vrs, values):
-        self._refuse(vrs, values, "fmi2SetBoolean")
-
 
 class Fmi3Slave(_Core):
-    """FMI 3.0 co-simulation facade called by the pythonfmu3 export library (its methods by name)."""
+    """FMI 3.0 co-simulation facade, called by the FMU's C bridge."""
 
     FMI = 3
-
-    def do_step(self, current_time, step_size, *args):
-        return _STEP_OK if self._step(current_time, step_size) else _STEP_ERROR
-
-    def get_float64(self, vrs):
-        return self._get(vrs, "Real")
-
-    def set_float64(self, vrs, values):
-        self._set(vrs, values, "Real")
-
-    def get_string(self, vrs):
-        return self._get(vrs, "String")
-
-    def set_string(self, vrs, values):
-        self._set(vrs, values, "String")
-
-    def get_int32(self, vrs):
-        return self._none(vrs, "fmi3GetInt32", 0)
-
-    def get_int64(self, vrs):
-        return self._none(vrs, "fmi3GetInt64", 0)
-
-    def get_uint64(self, vrs):
-        return self._none(vrs, "fmi3GetUInt64", 0)
-
-    def get_boolean(self, vrs):
-        return self._none(vrs, "fmi3GetBoolean", False)
-
-    def set_int32(self, vrs, values):
-        self._refuse(vrs, values, "fmi3SetInt32")
-
-    def set_int64(self, vrs, values):
-        self._refuse(vrs, values, "fmi3SetInt64")
-
-    def set_uint64(self, vrs, values):
-        self._refuse(vrs, values, "fmi3SetUInt64")
-
-    def set_boolean(self, vrs, values):
-        self._refuse(vrs, values, "fmi3SetBoolean")
-
-    # Model Exchange entry points pythonfmu3 knows; a co-simulation FMU answers them harmlessly
-    def get_number_of_event_indicators(self):
-        return 0
-
-    def get_number_of_continuous_states(self):
-        return 0
-
-    def get_event_indicators(self):
-        return []
-
-    def get_continuous_states(self):
-        return []
-
-    def get_continuous_state_derivatives(self):
-        return []
-
-    def get_nominals_of_continuous_states(self):
-        return []
-
-    def set_continuous_states(self, values):
-        self._refuse([0], values, "fmi3SetContinuousStates")
-
-    def set_time(self, time):
-        self._refuse([0], [time], "fmi3SetTime")
-
-    def update_discrete_states(self):
-        return None
