@@ -106,14 +106,13 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     out = Path(args.output)
     core_tour(out)
-    # The FMU runs in a process of its own, as under a co-simulation master: FMPy loads the Python-backed FMU
-    # into its own interpreter, and that process must not also host the Zenoh sessions (see fmu/README.md).
-    import subprocess
+    # the FMU and the Zenoh service share this process, as a co-simulation that streams its state would
+    from .fmu.demo import run as fmu_run
 
-    r = subprocess.run([sys.executable, "-m", "gyrosim.fmu.demo", str(out)])
-    if r.returncode != 0:
-        print(f"(FMU part failed with exit code {r.returncode})")
-        return r.returncode
+    try:
+        fmu_run(out)
+    except ModuleNotFoundError as e:
+        print(f"(FMU part skipped: {e.name} is not installed)")
     try:
         from .service.demo import run as service_run
     except ModuleNotFoundError as e:

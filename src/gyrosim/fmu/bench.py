@@ -3,8 +3,9 @@
 :func:`run` builds the FMI 2.0 and FMI 3.0 FMUs of the ``heavy_top`` scene (rk4) and two minimal C FMUs
 (FMI 2.0 and 3.0: rk4 of the heavy top with the same right-hand side, compiled with gcc -O2 against the FMI
 headers FMPy ships), then times ``doStep`` with 1 and 10 internal substeps (``max_step = h`` or ``h/10``).
-It also times ``Model.step`` alone, so the FMU's own overhead (FMPy's ctypes call, the shim, the export
-library, the facade) is the difference. ``python -m gyrosim.fmu.bench [OUT_DIR]`` prints the table.
+The Python FMUs are timed twice: as they run (a plain doStep takes the bridge's fast path, a numba cfunc on
+the model's arrays) and with ``GYROSIM_FMU_FAST=0`` (every doStep through the Python facade and ``Model.step``).
+``Model.step`` alone is timed too. ``python -m gyrosim.fmu.bench [OUT_DIR]`` prints the table.
 """
 
 from __future__ import annotations
@@ -262,14 +263,30 @@ def _time_model(nsub: int, n: int) -> float:
     return best
 
 
+def _time_slow(path, version: int, nsub: int, n: int) -> float:
+    """:func:`_time_dosteps` with the fast path off (every doStep through Python)."""
+    import os
+
+    old = os.environ.get("GYROSIM_FMU_FAST")
+    os.environ["GYROSIM_FMU_FAST"] = "0"
+    try:
+        return _time_dosteps(path, version, nsub, n, True)
+    finally:
+        if old is None:
+            del os.environ["GYROSIM_FMU_FAST"]
+        else:
+            os.environ["GYROSIM_FMU_FAST"] = old
+
+
 def run(out_dir, n: int = 20000) -> list[dict]:
     """Time doStep of the Python FMUs and the C FMUs (1 and 10 substeps); write ``bench_fmu.json``/``.md``.
 
     Returns
     -------
     list of dict
-        One row per (FMI version, substeps): ``python_us`` and ``c_us`` per doStep, ``ratio``,
-        ``model_step_us`` (Model.step alone) and ``fmu_overhead_us`` (python_us - model_step_us).
+        One row per (FMI version, substeps): ``python_us`` (as it runs, fast path on), ``python_slow_us``
+        (fast path off) and ``c_us`` per doStep, ``ratio`` (python_us / c_us), ``slow_ratio`` and
+        ``model_step_us`` (Model.step alone, no FMU).
     """
     from .builder import build_fmu
 
@@ -282,10 +299,12 @@ def run(out_dir, n: int = 20000) -> list[dict]:
         c = build_c_fmu(v, out_dir / f"fmi{v}")
         for nsub in (1, 10):
             p_us = _time_dosteps(py, v, nsub, n, True)
+            slow_us = _time_slow(py, v, nsub, n // 4)
             c_us = _time_dosteps(c, v, nsub, n, False)
-            rows.append({"fmi_version": v, "substeps": nsub, "python_us": round(p_us, 3), "c_us": round(c_us, 3),
-                         "ratio": round(p_us / c_us, 2), "model_step_us": round(model_us[nsub], 3),
-                         "fmu_overhead_us": round(p_us - model_us[nsub], 3)})
+            rows.append({"fmi_version": v, "substeps": nsub, "python_us": round(p_us, 3),
+                         "python_slow_us": round(slow_us, 3), "c_us": round(c_us, 3),
+                         "ratio": round(p_us / c_us, 2), "slow_ratio": round(slow_us / c_us, 2),
+                         "model_step_us": round(model_us[nsub], 3)})
     (out_dir / "bench_fmu.json").write_text(json.dumps(rows, indent=1))
     (out_dir / "bench_fmu.md").write_text(format_table(rows) + "\n")
     return rows
@@ -293,11 +312,13 @@ def run(out_dir, n: int = 20000) -> list[dict]:
 
 def format_table(rows) -> str:
     """Markdown table of :func:`run`'s rows."""
-    lines = ["| FMI | substeps | Python FMU µs/doStep | C FMU µs/doStep | ratio | Model.step µs | FMU overhead µs |",
-             "|---|---:|---:|---:|---:|---:|---:|"]
+    lines = ["| FMI | substeps | Python FMU µs/doStep | C FMU µs/doStep | ratio | fast path off µs | ratio off | "
+             "Model.step µs |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['fmi_version']}.0 | {r['substeps']} | {r['python_us']:.2f} | {r['c_us']:.2f} | "
-                     f"{r['ratio']:.1f} | {r['model_step_us']:.2f} | {r['fmu_overhead_us']:.2f} |")
+                     f"{r['ratio']:.2f} | {r['python_slow_us']:.2f} | {r['slow_ratio']:.1f} | "
+                     f"{r['model_step_us']:.2f} |")
     return "\n".join(lines)
 
 
