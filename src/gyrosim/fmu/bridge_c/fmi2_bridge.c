@@ -165,8 +165,9 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint, fmi2R
     if (s && fast_step(s, currentCommunicationPoint, communicationStepSize)) return fmi2OK;
     {
         ENTER(s, "fmi2DoStep");
+        /* a step through Python changes what the fast path uses only when that was on (its clock) */
         st = finish(s, call(s, "fmi2DoStep", "do_step", "(dd)", currentCommunicationPoint, communicationStepSize),
-                    1);
+                    s->armed);
         LEAVE(s);
     }
     return (fmi2Status)st;

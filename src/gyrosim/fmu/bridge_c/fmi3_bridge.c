@@ -211,8 +211,9 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
     }
     {
         ENTER(s, "fmi3DoStep");
+        /* a step through Python changes what the fast path uses only when that was on (its clock) */
         st = finish(s, call(s, "fmi3DoStep", "do_step", "(dd)", currentCommunicationPoint, communicationStepSize),
-                    1);
+                    s->armed);
         LEAVE(s);
     }
     if (lastSuccessfulTime)
