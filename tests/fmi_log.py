@@ -23,3 +23,21 @@ class FmiLog:
 
     def clear(self):
         self.messages.clear()
+
+
+def expect_error(call, log: FmiLog, *words) -> str:
+    """``call()`` raises FMPy's FMICallException with status Error (3), and an Error message naming every one of
+    ``words`` reached ``log``; returns the text of the Error messages."""
+    import pytest
+    from fmpy.fmi1 import FMICallException
+
+    log.clear()
+    with pytest.raises(FMICallException) as e:
+        call()
+    assert e.value.status == 3, f"status {e.value.status}, expected Error (3)"
+    errors = log.errors()
+    assert errors, "no Error message reached the logger"
+    text = " ".join(errors)
+    for w in words:
+        assert w in text, f"{w!r} not in {text!r}"
+    return text

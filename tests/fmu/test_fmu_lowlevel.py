@@ -8,26 +8,14 @@ import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
 
+from fmi_log import expect_error
+
 VERSIONS = (2, 3)
 ERROR = 3
 
 
 def _bits(d):
     return {k: np.float64(v).tobytes() for k, v in d.items()}
-
-
-def _expect_error(call, log, *words):
-    """``call()`` raises FMICallException with status Error and logs an Error message naming ``words``."""
-    log.clear()
-    with pytest.raises(FMICallException) as e:
-        call()
-    assert e.value.status == ERROR, f"status {e.value.status}, expected Error (3)"
-    errors = log.errors()
-    assert errors, "no Error message reached the logger"
-    text = " ".join(errors)
-    for w in words:
-        assert w in text, f"{w!r} not in {text!r}"
-    return text
 
 
 @pytest.mark.parametrize("v", VERSIONS)
@@ -90,16 +78,16 @@ def test_step_errors_return_error_and_keep_instance_usable(slave, v):
     s.init(stop=0.05)
     log = s.log
     before = _bits(s.outputs())
-    _expect_error(lambda: s.do_step(0.0, 0.0), log, "communicationStepSize")
-    _expect_error(lambda: s.do_step(0.0, -0.01), log, "communicationStepSize")
-    _expect_error(lambda: s.do_step(0.0, math.nan), log)
-    _expect_error(lambda: s.do_step(0.5, 0.01), log, "currentCommunicationPoint")
-    _expect_error(lambda: s.do_step(0.0, 0.06), log, "stop time")
+    expect_error(lambda: s.do_step(0.0, 0.0), log, "communicationStepSize")
+    expect_error(lambda: s.do_step(0.0, -0.01), log, "communicationStepSize")
+    expect_error(lambda: s.do_step(0.0, math.nan), log)
+    expect_error(lambda: s.do_step(0.5, 0.01), log, "currentCommunicationPoint")
+    expect_error(lambda: s.do_step(0.0, 0.06), log, "stop time")
     assert _bits(s.outputs()) == before  # nothing moved
     s.do_step(0.0, 0.01)  # usable
     s.do_step(0.01 + 1e-13, 0.01)  # round-off in the communication point is accepted
     s.do_step(0.02, 0.03 + 1e-12)  # round-off on the last step up to the stop time is accepted
-    _expect_error(lambda: s.do_step(0.05, 0.01), log, "stop time")
+    expect_error(lambda: s.do_step(0.05, 0.01), log, "stop time")
     s.close()
 
 
@@ -107,19 +95,19 @@ def test_step_errors_return_error_and_keep_instance_usable(slave, v):
 def test_invalid_parameters_return_error(slave, v):
     s = slave(None, v)
     log = s.log
-    _expect_error(lambda: s.set("I1", -1.0), log, "I1")
-    _expect_error(lambda: s.set("I2", math.inf), log, "I2")
-    _expect_error(lambda: s.set("mass", math.nan), log, "mass")
-    _expect_error(lambda: s.set("integrator", "runge"), log, "integrator")
-    _expect_error(lambda: s.set("energy", 1.0), log, "energy")
+    expect_error(lambda: s.set("I1", -1.0), log, "I1")
+    expect_error(lambda: s.set("I2", math.inf), log, "I2")
+    expect_error(lambda: s.set("mass", math.nan), log, "mass")
+    expect_error(lambda: s.set("integrator", "runge"), log, "integrator")
+    expect_error(lambda: s.set("energy", 1.0), log, "energy")
     s.setup(stop=1.0)
     s.set("I1", 10.0)  # breaks the triangle inequality with I2 = 2, I3 = 3
-    _expect_error(lambda: s.fmu.exitInitializationMode(), log, "triangle")
+    expect_error(lambda: s.fmu.exitInitializationMode(), log, "triangle")
     s.set("I1", 1.0)  # fixed: initialization completes
     s.fmu.exitInitializationMode()
-    _expect_error(lambda: s.set("I1", 2.0), log, "I1")  # fixed parameter after initialization
+    expect_error(lambda: s.set("I1", 2.0), log, "I1")  # fixed parameter after initialization
     s.set("tau_x", 0.5)  # inputs are fine
-    _expect_error(lambda: s.set("tau_y", math.nan), log, "tau_y")
+    expect_error(lambda: s.set("tau_y", math.nan), log, "tau_y")
     s.do_step(0.0, 0.01)
     s.close()
 
@@ -129,7 +117,7 @@ def test_non_unit_start_quaternion_is_refused_at_initialization(slave, v):
     s = slave("free_body", v)
     s.setup(stop=1.0)
     s.set("q_w", 2.0)
-    _expect_error(lambda: s.fmu.exitInitializationMode(), s.log, "unit quaternion")
+    expect_error(lambda: s.fmu.exitInitializationMode(), s.log, "unit quaternion")
     s.set("q_w", 1.0)
     s.fmu.exitInitializationMode()
     s.do_step(0.0, 0.01)
@@ -140,15 +128,15 @@ def test_non_unit_start_quaternion_is_refused_at_initialization(slave, v):
 def test_wrong_state_calls_return_error(slave, v):
     s = slave("heavy_top", v)
     log = s.log
-    _expect_error(lambda: s.do_step(0.0, 0.01), log, "illegal call sequence")
-    _expect_error(lambda: s.fmu.exitInitializationMode(), log, "illegal call sequence")
-    _expect_error(lambda: s.get("q_w"), log, "illegal call sequence")
-    _expect_error(lambda: s.fmu.terminate(), log, "illegal call sequence")
+    expect_error(lambda: s.do_step(0.0, 0.01), log, "illegal call sequence")
+    expect_error(lambda: s.fmu.exitInitializationMode(), log, "illegal call sequence")
+    expect_error(lambda: s.get("q_w"), log, "illegal call sequence")
+    expect_error(lambda: s.fmu.terminate(), log, "illegal call sequence")
     s.init(stop=1.0)
-    _expect_error(lambda: s.setup(), log, "illegal call sequence")
+    expect_error(lambda: s.setup(), log, "illegal call sequence")
     s.do_step(0.0, 0.01)
     s.fmu.terminate()
-    _expect_error(lambda: s.do_step(0.01, 0.01), log, "illegal call sequence")
+    expect_error(lambda: s.do_step(0.01, 0.01), log, "illegal call sequence")
     assert s.get("q_w")[0] == s.get("q_w")[0]  # outputs still readable after terminate
     s.freed = True
     s.fmu.freeInstance()
@@ -160,15 +148,15 @@ def test_unknown_value_reference_and_bad_state_blob(slave, v):
     s.init(stop=1.0)
     log = s.log
     get = s.fmu.getReal if v == 2 else s.fmu.getFloat64
-    _expect_error(lambda: get([9999]), log, "9999")
-    _expect_error(lambda: s.deserialize(b"not a state"), log, "not a serialized state")
+    expect_error(lambda: get([9999]), log, "9999")
+    expect_error(lambda: s.deserialize(b"not a state"), log, "not a serialized state")
     good = s.serialize(s.get_state())
-    _expect_error(lambda: s.deserialize(good[:-1]), log, "not a serialized state")
+    expect_error(lambda: s.deserialize(good[:-1]), log, "not a serialized state")
     # right framing, wrong content: the model refuses it when it is set
     import struct
 
     junk = b"GYROSIM1" + struct.pack("<Q", 5) + b"junk!"
-    _expect_error(lambda: s.set_state(s.deserialize(junk)), log, "not an FMU state")
+    expect_error(lambda: s.set_state(s.deserialize(junk)), log, "not an FMU state")
     s.do_step(0.0, 0.01)
     s.close()
 
@@ -259,7 +247,7 @@ def test_fmu_does_not_use_host_gyrosim(slave):
 def test_logging_categories_filter_but_errors_always_reach_the_host(slave):
     s = slave("heavy_top", 2, logging_on=False)
     s.init(stop=1.0)
-    _expect_error(lambda: s.do_step(0.0, -1.0), s.log, "communicationStepSize")
+    expect_error(lambda: s.do_step(0.0, -1.0), s.log, "communicationStepSize")
     s.close()
 
 

@@ -35,8 +35,6 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
                               fmi2String fmuResourceLocation, const fmi2CallbackFunctions *functions,
                               fmi2Boolean visible, fmi2Boolean loggingOn) {
     Inst *s;
-    char *resources;
-    int gil;
     if (!functions) return NULL;
 #define EARLY_ERROR(...)                                                                                   \
     do {                                                                                                   \
@@ -52,35 +50,13 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         EARLY_ERROR("fmi2Instantiate: fmuGUID = \"%s\" does not match this FMU's guid \"%s\"",
                     fmuGUID ? fmuGUID : "(null)", INSTANTIATION_TOKEN);
     if (!load_python()) EARLY_ERROR("fmi2Instantiate: %s", py_error);
-    resources = uri_to_path(fmuResourceLocation);
-    if (!resources || !*resources) {
-        free(resources);
-        EARLY_ERROR("fmi2Instantiate: fmuResourceLocation is missing (the model's code is in the FMU's resources)");
-    }
-    s = (Inst *)calloc(1, sizeof(Inst));
-    if (!s) {
-        free(resources);
+    s = alloc_inst(instanceName, loggingOn, emit2);
+    if (!s || !(s->host_callbacks = malloc(sizeof(fmi2CallbackFunctions)))) {
+        free_inst(s);
         EARLY_ERROR("fmi2Instantiate: out of memory");
     }
-    s->name = strdup(instanceName ? instanceName : "");
-    s->host_callbacks = malloc(sizeof(fmi2CallbackFunctions));
-    if (s->host_callbacks) memcpy(s->host_callbacks, functions, sizeof(fmi2CallbackFunctions));
-    s->emit = emit2;
-    s->logging_on = loggingOn;
-    gil = P.PyGILState_Ensure();
-    s->facade = create_facade(s, "fmi2Instantiate", 2, resources, visible, loggingOn);
-    drain_log(s);
-    if (s->facade && s->worst >= ST_ERROR) { /* the facade could not build its model */
-        P.Py_DecRef(s->facade);
-        s->facade = NULL;
-    }
-    P.PyGILState_Release(gil);
-    free(resources);
-    if (!s->facade) {
-        free_inst(s);
-        return NULL;
-    }
-    return (fmi2Component)s;
+    memcpy(s->host_callbacks, functions, sizeof(fmi2CallbackFunctions));
+    return (fmi2Component)start_instance(s, "fmi2Instantiate", 2, fmuResourceLocation, visible);
 #undef EARLY_ERROR
 }
 

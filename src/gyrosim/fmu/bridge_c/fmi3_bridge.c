@@ -11,6 +11,15 @@ static void emit3(Inst *s, int status, const char *category, const char *message
     if (logger) logger((fmi3InstanceEnvironment)s->host_env, (fmi3Status)status, category, message);
 }
 
+/* nValues must equal nValueReferences: every variable of the FMU is a scalar. */
+static int scalar_counts(Inst *s, const char *fn, size_t nValueReferences, size_t nValues) {
+    if (!s || nValues == nValueReferences) return 1;
+    s->worst = ST_OK;
+    LOG_ERROR(s, "%s: nValues = %zu but nValueReferences = %zu (the FMU has no arrays)", fn, nValues,
+              nValueReferences);
+    return 0;
+}
+
 const char *fmi3GetVersion(void) { return fmi3Version; }
 
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
@@ -42,8 +51,6 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     size_t nRequiredIntermediateVariables, fmi3InstanceEnvironment instanceEnvironment,
     fmi3LogMessageCallback logMessage, fmi3IntermediateUpdateCallback intermediateUpdate) {
     Inst *s;
-    char *resources;
-    int gil;
     (void)eventModeUsed; (void)earlyReturnAllowed; (void)requiredIntermediateVariables;
     (void)nRequiredIntermediateVariables; (void)intermediateUpdate;
 #define EARLY_ERROR(...)                                                                   \
@@ -57,36 +64,11 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         EARLY_ERROR("fmi3InstantiateCoSimulation: instantiationToken = \"%s\" does not match this FMU's \"%s\"",
                     instantiationToken ? instantiationToken : "(null)", INSTANTIATION_TOKEN);
     if (!load_python()) EARLY_ERROR("fmi3InstantiateCoSimulation: %s", py_error);
-    resources = uri_to_path(resourcePath);
-    if (!resources || !*resources) {
-        free(resources);
-        EARLY_ERROR("fmi3InstantiateCoSimulation: resourcePath is missing (the model's code is in the FMU's "
-                    "resources)");
-    }
-    s = (Inst *)calloc(1, sizeof(Inst));
-    if (!s) {
-        free(resources);
-        EARLY_ERROR("fmi3InstantiateCoSimulation: out of memory");
-    }
-    s->name = strdup(instanceName ? instanceName : "");
+    s = alloc_inst(instanceName, loggingOn, emit3);
+    if (!s) EARLY_ERROR("fmi3InstantiateCoSimulation: out of memory");
     s->host_env = instanceEnvironment;
     s->host_logger = (void *)logMessage;
-    s->emit = emit3;
-    s->logging_on = loggingOn;
-    gil = P.PyGILState_Ensure();
-    s->facade = create_facade(s, "fmi3InstantiateCoSimulation", 3, resources, visible, loggingOn);
-    drain_log(s);
-    if (s->facade && s->worst >= ST_ERROR) {
-        P.Py_DecRef(s->facade);
-        s->facade = NULL;
-    }
-    P.PyGILState_Release(gil);
-    free(resources);
-    if (!s->facade) {
-        free_inst(s);
-        return NULL;
-    }
-    return (fmi3Instance)s;
+    return (fmi3Instance)start_instance(s, "fmi3InstantiateCoSimulation", 3, resourcePath, visible);
 #undef EARLY_ERROR
 }
 
@@ -122,48 +104,28 @@ fmi3Status fmi3Reset(fmi3Instance instance) { return (fmi3Status)simple_call((In
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
     Inst *s = (Inst *)instance;
-    if (s && nValues != nValueReferences) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "fmi3GetFloat64: nValues = %zu but nValueReferences = %zu (the FMU has no arrays)", nValues,
-                  nValueReferences);
-        return fmi3Error;
-    }
+    if (!scalar_counts(s, "fmi3GetFloat64", nValueReferences, nValues)) return fmi3Error;
     return (fmi3Status)get_reals(s, "fmi3GetFloat64", valueReferences, nValueReferences, values);
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
     Inst *s = (Inst *)instance;
-    if (s && nValues != nValueReferences) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "fmi3SetFloat64: nValues = %zu but nValueReferences = %zu (the FMU has no arrays)", nValues,
-                  nValueReferences);
-        return fmi3Error;
-    }
+    if (!scalar_counts(s, "fmi3SetFloat64", nValueReferences, nValues)) return fmi3Error;
     return (fmi3Status)set_reals(s, "fmi3SetFloat64", valueReferences, nValueReferences, values);
 }
 
 fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                          size_t nValueReferences, fmi3String values[], size_t nValues) {
     Inst *s = (Inst *)instance;
-    if (s && nValues != nValueReferences) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "fmi3GetString: nValues = %zu but nValueReferences = %zu (the FMU has no arrays)", nValues,
-                  nValueReferences);
-        return fmi3Error;
-    }
+    if (!scalar_counts(s, "fmi3GetString", nValueReferences, nValues)) return fmi3Error;
     return (fmi3Status)get_strings(s, "fmi3GetString", valueReferences, nValueReferences, values);
 }
 
 fmi3Status fmi3SetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                          size_t nValueReferences, const fmi3String values[], size_t nValues) {
     Inst *s = (Inst *)instance;
-    if (s && nValues != nValueReferences) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "fmi3SetString: nValues = %zu but nValueReferences = %zu (the FMU has no arrays)", nValues,
-                  nValueReferences);
-        return fmi3Error;
-    }
+    if (!scalar_counts(s, "fmi3SetString", nValueReferences, nValues)) return fmi3Error;
     return (fmi3Status)set_strings(s, "fmi3SetString", valueReferences, nValueReferences, values);
 }
 

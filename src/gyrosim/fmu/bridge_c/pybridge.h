@@ -471,16 +471,27 @@ static int check_list(Inst *s, const char *fn, PyObject *r, size_t n) {
     return 1;
 }
 
+/* The arguments of a get or set call: 1 to go on; else 0 with the status to return (OK for no values). */
+static int check_values(Inst *s, const char *fn, const void *vr, size_t n, const void *values, int *status) {
+    *status = ST_ERROR;
+    if (!s) return 0;
+    if (n == 0) {
+        *status = ST_OK;
+        return 0;
+    }
+    if (!vr || !values) {
+        s->worst = ST_OK;
+        LOG_ERROR(s, "%s: valueReferences or values is NULL", fn);
+        return 0;
+    }
+    return 1;
+}
+
 static int get_reals(Inst *s, const char *fn, const unsigned int *vr, size_t n, double *out) {
     PyObject *r;
     size_t i;
     int st;
-    if (n == 0) return ST_OK;
-    if (!vr || !out) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "%s: valueReferences or values is NULL", fn);
-        return ST_ERROR;
-    }
+    if (!check_values(s, fn, vr, n, out, &st)) return st;
     {
         ENTER(s, fn);
         r = call(s, fn, "get_real", "(N)", vr_list(vr, n));
@@ -497,12 +508,7 @@ static int set_reals(Inst *s, const char *fn, const unsigned int *vr, size_t n, 
     PyObject *v;
     size_t i;
     int st;
-    if (n == 0) return ST_OK;
-    if (!vr || !values) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "%s: valueReferences or values is NULL", fn);
-        return ST_ERROR;
-    }
+    if (!check_values(s, fn, vr, n, values, &st)) return st;
     {
         ENTER(s, fn);
         v = P.PyList_New((Py_ssize_t)n);
@@ -527,12 +533,7 @@ static int get_strings(Inst *s, const char *fn, const unsigned int *vr, size_t n
     PyObject *r;
     size_t i;
     int st;
-    if (n == 0) return ST_OK;
-    if (!vr || !out) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "%s: valueReferences or values is NULL", fn);
-        return ST_ERROR;
-    }
+    if (!check_values(s, fn, vr, n, out, &st)) return st;
     {
         ENTER(s, fn);
         free_strings(s);
@@ -557,12 +558,7 @@ static int set_strings(Inst *s, const char *fn, const unsigned int *vr, size_t n
     PyObject *v;
     size_t i;
     int st;
-    if (n == 0) return ST_OK;
-    if (!vr || !values) {
-        s->worst = ST_OK;
-        LOG_ERROR(s, "%s: valueReferences or values is NULL", fn);
-        return ST_ERROR;
-    }
+    if (!check_values(s, fn, vr, n, values, &st)) return st;
     {
         ENTER(s, fn);
         v = P.PyList_New((Py_ssize_t)n);
@@ -593,6 +589,7 @@ static int get_state(Inst *s, const char *fn, void **state) {
     char *buf = NULL;
     Py_ssize_t len = 0;
     int st;
+    if (!s) return ST_ERROR;
     if (!state) {
         s->worst = ST_OK;
         LOG_ERROR(s, "%s: FMUstate is NULL", fn);
@@ -627,6 +624,7 @@ static int valid_blob(const Blob *b) { return b && memcmp(b->magic, STATE_MAGIC,
 static int set_state(Inst *s, const char *fn, void *state) {
     Blob *b = (Blob *)state;
     int st;
+    if (!s) return ST_ERROR;
     if (!valid_blob(b)) {
         s->worst = ST_OK;
         LOG_ERROR(s, "%s: FMUstate is NULL or not a state of this FMU", fn);
@@ -735,6 +733,41 @@ static void free_inst(Inst *s) {
     free(s->name);
     free(s->host_callbacks);
     free(s);
+}
+
+/* A new instance for the host; the caller sets its host_* fields, then calls start_instance. */
+static Inst *alloc_inst(const char *name, int logging_on, void (*emit)(Inst *, int, const char *, const char *)) {
+    Inst *s = (Inst *)calloc(1, sizeof(Inst));
+    if (!s) return NULL;
+    s->name = strdup(name ? name : "");
+    s->logging_on = logging_on;
+    s->emit = emit;
+    return s;
+}
+
+/* Create the instance's facade from the FMU's resources (a file:// URI or a path); errors go to the host's
+   logger. Returns s, or NULL after freeing it. */
+static Inst *start_instance(Inst *s, const char *fn, int fmi, const char *resource_location, int visible) {
+    char *resources = uri_to_path(resource_location);
+    int gil;
+    if (!resources || !*resources) {
+        LOG_ERROR(s, "%s: the resource location is missing (the model's code is in the FMU's resources)", fn);
+    } else {
+        gil = P.PyGILState_Ensure();
+        s->facade = create_facade(s, fn, fmi, resources, visible, s->logging_on);
+        drain_log(s);
+        if (s->facade && s->worst >= ST_ERROR) { /* the facade could not build its model */
+            P.Py_DecRef(s->facade);
+            s->facade = NULL;
+        }
+        P.PyGILState_Release(gil);
+    }
+    free(resources);
+    if (!s->facade) {
+        free_inst(s);
+        return NULL;
+    }
+    return s;
 }
 
 /* Free the facade (GIL) and the instance. */
