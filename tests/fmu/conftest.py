@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from fmi_log import FmiLog
+from fmi_slave import FmiSlave
 
 pytest.importorskip("fmpy")
 
@@ -39,92 +39,19 @@ def build(fmu_dir):
     return _build
 
 
-class Slave:
-    """A low-level FMPy instance (FMU2Slave / FMU3Slave) with a uniform API over both FMI versions."""
+class Slave(FmiSlave):
+    """:class:`FmiSlave` of a built FMU, with its model description (``md``)."""
 
     def __init__(self, path, unzip_dir, name="instance", logging_on=False):
         from fmpy import read_model_description
 
         self.md = read_model_description(str(path))
-        self.version = int(self.md.fmiVersion[0])
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.log = FmiLog()
-        ident = self.md.coSimulation.modelIdentifier
-        if self.version == 2:
-            from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-
-            self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=str(unzip_dir), modelIdentifier=ident,
-                                 instanceName=name)
-            cb = fmi2CallbackFunctions()
-            cb.logger = fmi2CallbackLoggerTYPE(self.log)
-            cb.allocateMemory = defaultCallbacks.allocateMemory
-            cb.freeMemory = defaultCallbacks.freeMemory
-            self._cb = cb
-            try:
-                self.fmu.instantiate(callbacks=cb, loggingOn=logging_on)
-            except Exception as e:
-                raise RuntimeError(f"instantiation failed: {self.log.messages}") from e
-        else:
-            from fmpy.fmi3 import FMU3Slave
-
-            self.fmu = FMU3Slave(guid=self.md.guid, unzipDirectory=str(unzip_dir), modelIdentifier=ident,
-                                 instanceName=name)
-            self.fmu.instantiate(loggingOn=logging_on, logMessage=self.log)
-
-    def setup(self, start=0.0, stop=None, tolerance=None):
-        if self.version == 2:
-            self.fmu.setupExperiment(tolerance=tolerance, startTime=start, stopTime=stop)
-            self.fmu.enterInitializationMode()
-        else:
-            self.fmu.enterInitializationMode(tolerance=tolerance, startTime=start, stopTime=stop)
-
-    def init(self, start=0.0, stop=None, tolerance=None, **values):
-        self.setup(start, stop, tolerance)
-        for k, v in values.items():
-            self.set(k, v)
-        self.fmu.exitInitializationMode()
-
-    def get(self, *names):
-        vrs = [self.vr[n] for n in names]
-        return self.fmu.getReal(vrs) if self.version == 2 else self.fmu.getFloat64(vrs)
-
-    def set(self, name, value):
-        if isinstance(value, str):
-            self.fmu.setString([self.vr[name]], [value])
-        elif self.version == 2:
-            self.fmu.setReal([self.vr[name]], [value])
-        else:
-            self.fmu.setFloat64([self.vr[name]], [value])
+        super().__init__(int(self.md.fmiVersion[0]), unzip_dir, self.md.coSimulation.modelIdentifier, self.md.guid,
+                         {v.name: v.valueReference for v in self.md.modelVariables}, name, logging_on)
 
     def outputs(self):
         names = [v.name for v in self.md.modelVariables if v.causality == "output"]
         return dict(zip(names, self.get(*names)))
-
-    def do_step(self, t, h):
-        return self.fmu.doStep(t, h)
-
-    def get_state(self):
-        return self.fmu.getFMUstate() if self.version == 2 else self.fmu.getFMUState()
-
-    def set_state(self, s):
-        return self.fmu.setFMUstate(s) if self.version == 2 else self.fmu.setFMUState(s)
-
-    def free_state(self, s):
-        return self.fmu.freeFMUstate(s) if self.version == 2 else self.fmu.freeFMUState(s)
-
-    def serialize(self, s):
-        return self.fmu.serializeFMUstate(s) if self.version == 2 else self.fmu.serializeFMUState(s)
-
-    def deserialize(self, b):
-        return self.fmu.deSerializeFMUstate(b) if self.version == 2 else self.fmu.deserializeFMUState(b)
-
-    freed = False
-
-    def close(self, terminate=True):
-        if terminate:
-            self.fmu.terminate()
-        self.freed = True
-        self.fmu.freeInstance()
 
 
 @pytest.fixture(scope="session")

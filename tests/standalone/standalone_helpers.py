@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fmi_log import FmiLog
+from fmi_slave import FmiSlave
 
 SCENES = (None, "free_body", "heavy_top", "gyroscope")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4")
@@ -68,72 +68,9 @@ def step_failure(stdout: str):
     return None
 
 
-class Slave:
-    """A low-level FMPy instance (FMU2Slave / FMU3Slave) of a standalone FMU with one API for both versions."""
+class Slave(FmiSlave):
+    """:class:`FmiSlave` of a standalone FMU (``guid`` overrides its token)."""
 
     def __init__(self, fmu: BuiltFMU, name: str = "instance", guid: str | None = None):
-        self.version = fmu.version
-        self.vr = fmu.vr
-        self.log = FmiLog()
-        guid = fmu.token if guid is None else guid
-        if fmu.version == 2:
-            from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-            from fmpy.fmi2 import defaultCallbacks as dc
-
-            self.fmu = FMU2Slave(guid=guid, unzipDirectory=str(fmu.unzip_dir), modelIdentifier=fmu.identifier,
-                                 instanceName=name)
-            cb = fmi2CallbackFunctions()
-            cb.logger = fmi2CallbackLoggerTYPE(self.log)
-            cb.allocateMemory = dc.allocateMemory
-            cb.freeMemory = dc.freeMemory
-            self._cb = cb
-            self.fmu.instantiate(callbacks=cb)
-        else:
-            from fmpy.fmi3 import FMU3Slave
-
-            self.fmu = FMU3Slave(guid=guid, unzipDirectory=str(fmu.unzip_dir), modelIdentifier=fmu.identifier,
-                                 instanceName=name)
-            self.fmu.instantiate(logMessage=self.log)
-
-    def setup(self, start=0.0, stop=None):
-        if self.version == 2:
-            self.fmu.setupExperiment(startTime=start, stopTime=stop)
-            self.fmu.enterInitializationMode()
-        else:
-            self.fmu.enterInitializationMode(startTime=start, stopTime=stop)
-
-    def init(self, start=0.0, stop=None, **values):
-        self.setup(start, stop)
-        for k, v in values.items():
-            self.set(k, v)
-        self.fmu.exitInitializationMode()
-
-    def get(self, *names) -> list[float]:
-        vrs = [self.vr[n] for n in names]
-        return list(self.fmu.getReal(vrs) if self.version == 2 else self.fmu.getFloat64(vrs))
-
-    def set(self, name, value):
-        if isinstance(value, str):
-            self.fmu.setString([self.vr[name]], [value])
-        elif self.version == 2:
-            self.fmu.setReal([self.vr[name]], [float(value)])
-        else:
-            self.fmu.setFloat64([self.vr[name]], [float(value)])
-
-    def step(self, t, h):
-        return self.fmu.doStep(t, h)
-
-    def get_state(self):
-        return self.fmu.getFMUstate() if self.version == 2 else self.fmu.getFMUState()
-
-    def set_state(self, s):
-        return self.fmu.setFMUstate(s) if self.version == 2 else self.fmu.setFMUState(s)
-
-    def free_state(self, s):
-        return self.fmu.freeFMUstate(s) if self.version == 2 else self.fmu.freeFMUState(s)
-
-    def serialize(self, s) -> bytes:
-        return self.fmu.serializeFMUstate(s) if self.version == 2 else self.fmu.serializeFMUState(s)
-
-    def deserialize(self, b):
-        return self.fmu.deSerializeFMUstate(b) if self.version == 2 else self.fmu.deserializeFMUState(b)
+        super().__init__(fmu.version, fmu.unzip_dir, fmu.identifier, fmu.token if guid is None else guid, fmu.vr,
+                         name)
