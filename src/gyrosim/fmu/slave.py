@@ -28,6 +28,7 @@ import math
 import os
 import pickle
 
+from ..core import kernels
 from ..errors import GyrosimError
 from ..model import OUTPUT_NAMES, Model
 
@@ -197,11 +198,8 @@ class _Core:
         except Exception as e:  # noqa: BLE001
             self._error(f"{self._fn('Reset')}: {e}")
 
-    def do_step(self, current_time, step_size):
-        """fmiXDoStep; True when the step was taken."""
-        return self._step(current_time, step_size)
-
-    def _step(self, t: float, h: float) -> bool:
+    def do_step(self, t: float, h: float) -> bool:
+        """fmiXDoStep from ``t`` over ``h``; True when the step was taken."""
         m = self.model
         if self._mode == STEP_COMPLETE and h > 0.0 and abs(t - m.time) <= _TIME_TOL * max(1.0, abs(t)):
             try:
@@ -356,8 +354,6 @@ class _Core:
         address = _fast_address()
         if address is None:
             return None
-        from ..core import kernels
-
         arrays = (m._y, m._p, m._hint, m._stats, m._status)
         if not all(a.flags.c_contiguous and a.flags.writeable for a in arrays):
             return None

@@ -74,7 +74,6 @@ typedef ssize_t Py_ssize_t;
     X(void, PyErr_Fetch, (PyObject **, PyObject **, PyObject **))                                 \
     X(void, PyErr_Clear, (void))                                                                  \
     X(PyObject *, PyObject_Str, (PyObject *))                                                     \
-    X(void, Py_IncRef, (PyObject *))                                                              \
     X(void, Py_DecRef, (PyObject *))                                                              \
     X(PyObject *, PySys_GetObject, (const char *))                                                \
     X(int, PySequence_Contains, (PyObject *, PyObject *))
@@ -322,7 +321,7 @@ static void refresh_fast(Inst *s) {
 static double fast_time(const Inst *s) { return s->t_base + (double)s->n * s->h; }
 
 /* One doStep on the fast path; 0 when it must go through Python instead (which then reports any problem).
-   The checks and the clock update are those of slave._Core._step and Model.step, operation by operation. */
+   The checks and the clock update are those of slave._Core.do_step and Model.step, operation by operation. */
 static int fast_step(Inst *s, double t, double h) {
     double time, x;
     long long n_sub, s0, s1, s2;
