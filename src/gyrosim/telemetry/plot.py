@@ -98,23 +98,22 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
 
     figures = []
 
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
-    for topic, s in series.items():
-        for k, name in enumerate(("phi (precession)", "theta (nutation)", "psi (spin)")):
-            axes[k].plot(s.t, s.euler[:, k], label=label(topic))
-            axes[k].set_ylabel(f"{name} / rad")
-    axes[-1].set_xlabel("t / s")
-    fig.suptitle("attitude (ZYZ Euler angles)")
-    figures.append(("attitude", fig))
+    def three_panels(column, ylabels, title):
+        """One panel per component of ``column`` (an (n, 3) field of every series) against time."""
+        fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
+        for topic, s in series.items():
+            for k, ylabel in enumerate(ylabels):
+                axes[k].plot(s.t, getattr(s, column)[:, k], label=label(topic))
+                axes[k].set_ylabel(ylabel)
+        axes[-1].set_xlabel("t / s")
+        fig.suptitle(title)
+        return fig
 
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
-    for topic, s in series.items():
-        for k, c in enumerate("xyz"):
-            axes[k].plot(s.t, s.omega[:, k], label=label(topic))
-            axes[k].set_ylabel(f"omega_{c} / (rad/s)")
-    axes[-1].set_xlabel("t / s")
-    fig.suptitle("body-frame angular velocity")
-    figures.append(("rates", fig))
+    figures.append(("attitude", three_panels(
+        "euler", [f"{n} / rad" for n in ("phi (precession)", "theta (nutation)", "psi (spin)")],
+        "attitude (ZYZ Euler angles)")))
+    figures.append(("rates", three_panels("omega", [f"omega_{c} / (rad/s)" for c in "xyz"],
+                                          "body-frame angular velocity")))
 
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
     for topic, s in series.items():
