@@ -3,11 +3,13 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
-export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 
-.PHONY: demo test test-nojit bench docs lint clean venv
+.PHONY: demo test bench docs lint clean venv
 
-$(STAMP): pyproject.toml
+ENGINE := $(wildcard src/gyrosim/core/engine/*) src/gyrosim/core/_enginemodule.c setup.py
+
+# the C engine is compiled at install: a changed source reinstalls
+$(STAMP): pyproject.toml $(ENGINE)
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
@@ -20,10 +22,6 @@ lint: $(STAMP)
 
 test: $(STAMP) lint
 	$(PY) -m pytest -q
-	NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q -m "nojit and not slow" -p no:cacheprovider
-
-test-nojit: $(STAMP)
-	NUMBA_DISABLE_JIT=1 $(PY) -m pytest -q -m "nojit and not slow"
 
 demo: $(STAMP)
 	$(PY) -m gyrosim.demo
@@ -36,4 +34,4 @@ docs: $(STAMP)
 	$(VENV)/bin/gyrosim bench --output docs/study
 
 clean:
-	rm -rf $(VENV) .numba_cache .pytest_cache fmu/dist out
+	rm -rf $(VENV) .pytest_cache fmu/dist out build src/gyrosim/core/*.so

@@ -19,7 +19,7 @@ HOST_SOURCE = Path(__file__).parent / "standalone" / "host" / "fmi_host.c"
 def host(tmp_path_factory):
     """``host(fmu, script) -> stdout`` runs the C host (compiled once; no Python in its process) on the binary
     of ``fmu`` (anything with ``version``, ``binary`` and ``token``); see tests/standalone/host/fmi_host.c."""
-    from gyrosim.fmu.standalone.build import fmi_include_dir
+    from gyrosim.fmu.build import fmi_include_dir
 
     exe = tmp_path_factory.mktemp("host") / "fmi_host"
     # no -lm: the FMU's binary must bring its own libm dependency

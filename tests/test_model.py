@@ -10,7 +10,6 @@ from gyrosim import TorqueFreeSolution
 from gyrosim.errors import ConfigError, IntegrationError, StepError
 from gyrosim.model import OUTPUT_NAMES, Model
 
-pytestmark = pytest.mark.nojit
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive")
 
 
@@ -32,13 +31,19 @@ def test_scenes_carry_only_their_terms():
 
 
 def test_time_is_t0_plus_n_h_without_round_off():
-    m = Model("free_body", start_time=0.5)
-    acc = 0.5
-    for _ in range(1000):
-        m.step(0.001)
-        acc += 0.001
-    assert m.time == 0.5 + 1000 * 0.001
-    assert acc != m.time  # naive accumulation drifts; the model does not
+    # Exact comparisons at every step. A model that accumulated t += h would fail them: from 0.5 in steps of 0.001
+    # the running sum first leaves the grid t0 + k*h at k = 61 and ends at 1.4999999999999454, not 1.5; from 1.5
+    # in steps of 0.1 it ends at 2.500000000000001, not 2.5.
+    t0, h, n = 0.5, 0.001, 1000
+    m = Model("free_body", start_time=t0)
+    for k in range(1, n + 1):
+        m.step(h)
+        assert m.time == t0 + k * h, f"step {k}"
+    # a new step size starts a new run from where the last one ended
+    t1, h1 = t0 + n * h, 0.1
+    for k in range(1, 11):
+        m.step(h1)
+        assert m.time == t1 + k * h1, f"step {k} of h = 0.1"
 
 
 @pytest.mark.parametrize("h", [0.0, -0.1, math.nan, math.inf, "x"])

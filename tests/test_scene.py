@@ -9,8 +9,6 @@ from gyrosim.errors import ConfigError
 from gyrosim.model import Model
 from gyrosim.scene import EMBEDDED_SCENES, load_scene
 
-pytestmark = pytest.mark.nojit
-
 
 def write(tmp_path, text, name="s.toml"):
     p = tmp_path / name

@@ -1,7 +1,8 @@
 """The step-based model: Scene -> Model(parameters, inputs) -> step(h) -> outputs, with exact state save/restore.
 
-The FMU wrappers, the Zenoh service and ``gyrosim simulate`` all drive this class; it holds the only mapping
-from the variable names of DESIGN.md section 4 to the physics.
+``gyrosim simulate``, the Zenoh service and the study drive this class; it maps the variable names of DESIGN.md
+section 4 onto the C engine (:mod:`gyrosim.core._engine`, ``core/engine/gyrosim_engine.h``), which does every
+step. The FMUs compile the same engine, so a run here and a run of an FMU give the same bits.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .core import kernels
+from .core import _engine
 from .core.inertia import check_principal_moments
 from .core.rotations import quat_to_euler_zyz
 from .errors import ConfigError, IntegrationError, StepError
@@ -43,6 +44,8 @@ class Variable:
     description: str
     start: float | str | None = None
 
+
+_METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 
 OUTPUT_NAMES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "phi", "theta", "psi",
                 "L_x", "L_y", "L_z", "energy")
@@ -143,11 +146,12 @@ class Model:
         self._g = np.full(n, self.scene.g if self.scene.gravity else 0.0)
         self._damping = np.array([b.damping for b in bs], dtype=float)
         self._tau = np.zeros((n, 3))
-        self._y = np.zeros((n, kernels.NY))
+        self._y = np.zeros((n, _engine.NY))
         self._y[:, 0:4] = [b.q0 for b in bs]
         self._y[:, 4:7] = [b.omega0 for b in bs]
         self._hint = np.zeros(n)
         self._stats = np.zeros((n, 3), dtype=np.int64)
+        self._ex = np.zeros((n, _engine.EX_SIZE))  # the exact integrator's anchor (EX_VALID = 0: none)
         self.integrator = self.scene.integrator
         self.max_step = float(self.scene.max_step)
         self.tolerance = float(self.scene.tolerance if tolerance is None else tolerance)
@@ -159,12 +163,9 @@ class Model:
         self._h = 0.0
         self._initialized = False
         self._state_dirty = True
-        self._exact_anchor = None  # (t, q (n,4), omega (n,3)) for the exact integrator
-        self._exact_cache = None
         self._out = None
         self._outbuf = np.empty((n, len(OUTPUT_NAMES)))
-        self._status = np.zeros(n, dtype=np.int64)
-        self._advance = kernels.advancer(n)
+        self._status = np.zeros(n, dtype=np.int32)
         self._slots = {}
         for name, var in self.variables.items():
             if var.causality == "output":
@@ -232,7 +233,7 @@ class Model:
                                                   if getattr(self.scene, t)) + " terms")
                 if value != self.integrator:
                     self._hint[:] = 0.0
-                    self._exact_anchor = None
+                    self._ex[:, _engine.EX_VALID] = 0.0
                 self.integrator = value
             return
         try:
@@ -245,6 +246,7 @@ class Model:
             self._check_positive(name, x)
             self._moments[i, int(name[1]) - 1] = x
             self._initialized = False
+            self._ex[i, _engine.EX_VALID] = 0.0
         elif name in ("mass", "cm_distance", "g", "damping"):
             if x < 0 or (name == "mass" and x == 0):
                 raise ConfigError(name, value, f"a number {'>' if name == 'mass' else '>='} 0 in {v.unit}")
@@ -261,7 +263,7 @@ class Model:
         elif name in _STATE_NAMES:
             self._y[i, _STATE_NAMES.index(name)] = x
             self._state_dirty = True
-            self._exact_anchor = None
+            self._ex[i, _engine.EX_VALID] = 0.0
             self._out = None
         else:
             raise ConfigError(name, value, "a parameter, an input or a state start (q_*, omega_*); "
@@ -308,7 +310,7 @@ class Model:
 
     # ----------------------------------------------------------------------------------------------- stepping
     def _params(self) -> np.ndarray:
-        p = np.empty((self.n_bodies, kernels.NP))
+        p = np.empty((self.n_bodies, _engine.NP))
         p[:, 0:3] = self._moments
         p[:, 3] = self._mass * self._g * self._cm
         p[:, 4] = self._damping
@@ -342,10 +344,7 @@ class Model:
             w = self._y[:, 4:7]
             if not np.all(np.isfinite(w)):
                 raise ConfigError("omega", w[~np.isfinite(w).all(axis=1)][0].tolist(), "finite rates in rad/s")
-            self._y[:, 0:4] = q / nq[:, None]
-            phi, _, psi = quat_to_euler_zyz(self._y[:, 0:4])
-            self._y[:, 7] = phi
-            self._y[:, 8] = psi
+            _engine.start_state(self._y)  # q /= |q|; phi, psi from q (as the FMUs do)
             self._state_dirty = False
             self._out = None
 
@@ -372,10 +371,7 @@ class Model:
                             f"{self.stop_time!r} s")
         if not self._initialized or self._state_dirty:
             self.initialize()
-        if self.integrator == "exact":
-            self._step_exact(h)
-        else:
-            self._step_kernel(h)
+        self._step_engine(h, t)
         if h == self._h:
             self._n += 1
         else:
@@ -384,69 +380,47 @@ class Model:
             self._h = h
         self._out = None
 
-    def _step_kernel(self, h: float) -> None:
-        method = kernels.METHOD_CODES[self.integrator]
-        n_sub = max(1, math.ceil(h / self.max_step * (1.0 - 1e-12)))
-        single = self.n_bodies == 1  # one body: the kernel itself leaves the row untouched on failure
+    def _step_engine(self, h: float, t: float) -> None:
+        method = _METHOD_CODES[self.integrator]
+        single = self.n_bodies == 1  # one body: the engine itself leaves the row untouched on failure
         if not single:
-            y_save, hint_save = self._y.copy(), self._hint.copy()
-        stats_save = self._stats.copy() if not single else (int(self._stats[0, 0]), int(self._stats[0, 1]),
-                                                            int(self._stats[0, 2]))
+            saved = (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
         status = self._status
-        self._advance(method, self._y, self._p, self.scene.flags, h, n_sub, self.tolerance, self.tolerance,
-                      self.max_step, self._hint, self._stats, status)
-        if status[0] if single else status.any():
+        failed = _engine.advance(method, self.scene.flags, self._y, self._p, t, h, self.tolerance, self.tolerance,
+                                 self.max_step, self._hint, self._stats, self._ex, status, 0)
+        if failed:
             b = int(np.flatnonzero(status)[0])
             k = int(status[b])
             status[:] = 0
-            if single:
-                self._stats[0] = stats_save
-            else:
-                self._y, self._hint, self._stats = y_save, hint_save, stats_save
-            where = "" if self.n_bodies == 1 else f" for body {self.body_names[b]!r}"
-            if method == kernels.ADAPTIVE:
-                detail = (f"the adaptive step size fell below its minimum at internal step {k}")
+            if not single:
+                self._y, self._hint, self._stats, self._ex = saved
+            where = "" if single else f" for body {self.body_names[b]!r}"
+            n_sub = _engine.substeps(h, self.max_step)
+            if method == _METHOD_CODES["adaptive"]:
+                detail = f"the adaptive step size fell below its minimum at internal step {k}"
                 advice = "loosen the tolerance or check the parameters (the solution may truly blow up)"
+            elif method == _METHOD_CODES["exact"]:
+                detail = "the exact torque-free solution"
+                advice = "check the parameters and the state (the rates may be beyond double precision)"
+            elif n_sub == 0:
+                raise StepError(f"a step of h = {h!r} s with max_step = {self.max_step!r} s needs "
+                                f"{h / self.max_step:.3g} internal steps: too many (at most 4.6e18); "
+                                "raise max_step or take shorter steps")
             else:
                 detail = f"internal step {k} of {n_sub} (internal step {h / n_sub:.6g} s)"
-                advice = (f"use a smaller max_step (now {self.max_step:.6g} s) or a stable integrator "
-                          "('splitting' or 'adaptive')")
+                others = [n for n in ("splitting", "adaptive") if n != self.integrator]
+                advice = (f"use a smaller max_step (now {self.max_step:.6g} s) or the integrator "
+                          f"{others[0]!r}")
             raise IntegrationError(
-                f"integrator {self.integrator!r} blew up{where} in the step from t = {self.time!r} s with "
-                f"h = {h!r} s: {detail} gave a non-finite or overflowing state (|omega| > {kernels.OMEGA_LIMIT:g}"
-                f" rad/s); {advice}")
-
-    def _step_exact(self, h: float) -> None:
-        from .core.analytic import TorqueFreeSolution
-
-        t = self.time
-        if self._exact_anchor is None:
-            self._exact_anchor = (t, self._y[:, 0:4].copy(), self._y[:, 4:7].copy())
-            self._exact_cache = None
-        t_a, q_a, w_a = self._exact_anchor
-        if self._exact_cache is None:
-            self._exact_cache = [TorqueFreeSolution(*self._moments[b], w_a[b], q_a[b])
-                                 for b in range(self.n_bodies)]
-        for b, sol in enumerate(self._exact_cache):
-            y = self._y[b]
-            wmag = float(np.linalg.norm(y[4:7]))
-            # sample often enough that phi and psi move less than 1 rad between unwrap points
-            m = max(1, math.ceil(wmag * h / 1.0))
-            taus = (t - t_a) + h * np.arange(1, m + 1) / m
-            ws, qs = sol.state(taus)
-            for k in range(m):
-                y[0:4] = qs[k]
-                y[4:7] = ws[k]
-                kernels._unwrap(y)
-            if not np.all(np.isfinite(y)):
-                raise IntegrationError(f"the exact solution is not finite at t = {t + h!r} s")
-        self._stats[:, 0] += 1
+                f"integrator {self.integrator!r} blew up{where} in the step from t = {t!r} s with "
+                f"h = {h!r} s: {detail} gave a non-finite or overflowing state (|omega| > "
+                f"{_engine.OMEGA_LIMIT:g} rad/s); {advice}")
 
     def _outputs_array(self) -> np.ndarray:
         if self._out is None:
             if not self._initialized or self._state_dirty:
                 self.initialize()
-            kernels.compute_outputs(self._y, self._p, self._outbuf)
+            _engine.outputs(self._y, self._p, self._outbuf)
             self._out = self._outbuf
         return self._out
 
@@ -462,7 +436,7 @@ class Model:
 
     _STATE_FIELDS = ("_moments", "_mass", "_cm", "_g", "_damping", "_tau", "_y", "_hint", "_stats", "integrator",
                      "max_step", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h", "_initialized",
-                     "_state_dirty", "_exact_anchor")
+                     "_state_dirty", "_ex")
 
     def get_state(self) -> ModelState:
         """Snapshot of the whole state, integrator history included, exact to the bit."""
@@ -477,7 +451,6 @@ class Model:
                               f"a state of this scene ({self.n_bodies} bodies)")
         for k, v in state.data.items():
             setattr(self, k, copy.deepcopy(v))
-        self._exact_cache = None
         self._out = None
         if self._initialized:
             self._p = self._params()

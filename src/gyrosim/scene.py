@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .core import kernels
+from .core import _engine
 from .core.inertia import InertiaTensor, check_principal_moments
 from .core.rotations import (
     as_quaternion,
@@ -120,9 +120,9 @@ class Scene:
 
     @property
     def flags(self) -> int:
-        """Kernel term flags (GRAVITY | DAMPING | TORQUE)."""
-        return ((kernels.GRAVITY if self.gravity else 0) | (kernels.DAMPING if self.damping else 0)
-                | (kernels.TORQUE if self.torque else 0))
+        """Engine term flags (GRAVITY | DAMPING | TORQUE)."""
+        return ((_engine.GRAVITY if self.gravity else 0) | (_engine.DAMPING if self.damping else 0)
+                | (_engine.TORQUE if self.torque else 0))
 
     @property
     def body_names(self) -> list[str]:

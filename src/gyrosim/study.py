@@ -239,7 +239,7 @@ def make_cases(quick: bool) -> dict[str, Case]:
 # ===============================================================================================================
 # Timing helpers
 # ===============================================================================================================
-#: Clock of every single-threaded timing: the CPU time of the calling thread (numba's serial kernels, ctypes and
+#: Clock of every single-threaded timing: the CPU time of the calling thread (the engine's serial loop, ctypes and
 #: Model.step all run in it). On this shared 2-core machine a run longer than a scheduler slice is preempted by
 #: other jobs, which doubles its wall time at random; the thread's CPU time is the wall time it takes on an idle
 #: core. The many-body runs use every core and are timed with the wall clock.
@@ -438,21 +438,19 @@ def _find_baseline_source() -> Path | None:
 
 
 def _arrays(scene):
-    """Kernel arrays (y (n, 9), p (n, 8)) of a scene's bodies, as Model builds them."""
-    from .core import kernels
-    from .core.rotations import quat_to_euler_zyz
+    """Engine arrays (y (n, 9), p (n, 8)) of a scene's bodies, as Model builds them."""
+    from .core import _engine
 
     n = len(scene.bodies)
-    y = np.zeros((n, kernels.NY))
-    p = np.zeros((n, kernels.NP))
+    y = np.zeros((n, _engine.NY))
+    p = np.zeros((n, _engine.NP))
     for i, b in enumerate(scene.bodies):
         y[i, 0:4] = b.q0
         y[i, 4:7] = b.omega0
         p[i, 0:3] = b.moments
         p[i, 3] = b.mass * (scene.g if scene.gravity else 0.0) * b.cm_distance
         p[i, 4] = b.damping
-    phi, _, psi = quat_to_euler_zyz(y[:, 0:4])
-    y[:, 7], y[:, 8] = phi, psi
+    _engine.start_state(y)
     return y, p
 
 
@@ -491,26 +489,27 @@ def best_times(fns, quick: bool, min_total: float = 0.25, clock=None) -> list[fl
     return best
 
 
-def _kernel_runner(integrator, scene, h, n, bodies=1):
-    """A closure running kernels.advance over n internal steps of h on the scene's first ``bodies`` bodies, and a
-    function returning the accepted steps per body of the last call."""
-    from .core import kernels
+def _kernel_runner(integrator, scene, h, n, bodies=1, threads=0):
+    """A closure running the engine (``_engine.advance``) over n internal steps of h on the scene's first ``bodies``
+    bodies, and a function returning the accepted steps per body of the last call."""
+    from .core import _engine
 
     y0, p = _arrays(scene)
     y0, p = y0[:bodies].copy(), p[:bodies].copy()
-    method = kernels.METHOD_CODES[integrator]
+    method = _engine.METHODS.index(integrator)
     hint = np.zeros(bodies)
     stats = np.zeros((bodies, 3), dtype=np.int64)
-    status = np.zeros(bodies, dtype=np.int64)
+    status = np.zeros(bodies, dtype=np.int32)
+    ex = np.zeros((bodies, _engine.EX_SIZE))
     max_step = h if integrator != "adaptive" else n * h
     y = y0.copy()
-    kernels.advance(method, y, p, scene.flags, 10 * h, 10, 1e-8, 1e-8, max_step, hint, stats, status)  # compile
 
     def go():
         y[:] = y0
         hint[:] = 0.0
         stats[:] = 0
-        kernels.advance(method, y, p, scene.flags, n * h, n, 1e-8, 1e-8, max_step, hint, stats, status)
+        _engine.advance(method, scene.flags, y, p, 0.0, n * h, 1e-8, 1e-8, max_step, hint, stats, ex, status,
+                        threads)
         if status.any():  # pragma: no cover - the study's states are far from blowing up
             raise RuntimeError(f"{integrator} blew up in the cost study")
 
@@ -531,25 +530,6 @@ def _c_runner(cbase, scene, h, n, bodies=1):
             cbase.rk4_many(y, p, scene.flags, h, n)
 
     go()
-    return go
-
-
-def _one_thread(fn):
-    """fn run with numba limited to one thread (the parallel kernel's serial speed)."""
-    try:
-        import numba
-
-        n = numba.get_num_threads()
-    except Exception:  # noqa: BLE001 - no numba: nothing to limit
-        return fn
-
-    def go():
-        numba.set_num_threads(1)
-        try:
-            fn()
-        finally:
-            numba.set_num_threads(n)
-
     return go
 
 
@@ -602,12 +582,9 @@ def run_cost(quick: bool, cbase: CBaseline, bar) -> dict:
     nb = 2_000 if quick else 10_000
     res["many"]["bodies"] = nb
     res["many"]["nsub"] = 20 if quick else 100
-    try:
-        import numba
+    from .core import _engine
 
-        res["many"]["threads"] = int(numba.get_num_threads())
-    except Exception:  # noqa: BLE001 - numba absent or JIT disabled
-        res["many"]["threads"] = 1
+    res["many"]["threads"] = int(_engine.max_threads())
     calls = 3 if quick else 10
     nsub = 20 if quick else 100
     for label, scene in (("heavy_top", top_scene("field_heavy_top", count=nb)),
@@ -616,7 +593,8 @@ def run_cost(quick: bool, cbase: CBaseline, bar) -> dict:
             # Model.step: communication step 0.01 s, max_step 1e-3 (10 internal steps per call); the kernel
             # directly with nsub internal steps per call; C on one core
             kern = _kernel_runner(integ, scene, 1e-3, nsub, nb)[0]
-            fns = [_model_runner(integ, scene, 0.01, 10, calls), kern, _one_thread(kern)]
+            serial = _kernel_runner(integ, scene, 1e-3, nsub, nb, threads=1)[0]
+            fns = [_model_runner(integ, scene, 0.01, 10, calls), kern, serial]
             with_c = have_c and integ == "rk4"
             if with_c:
                 fns.append(_c_runner(cbase, scene, 1e-3, nsub, nb))
@@ -627,12 +605,7 @@ def run_cost(quick: bool, cbase: CBaseline, bar) -> dict:
                 r["c_serial_body_steps_per_s"] = nb * nsub / t[3]
             res["many"][f"{label}/{integ}"] = r
             bar.update()
-    try:
-        import numba
-
-        res["many"]["threading_layer"] = numba.threading_layer()
-    except Exception:  # noqa: BLE001
-        res["many"]["threading_layer"] = None
+    res["many"]["threading_layer"] = "OpenMP" if _engine.OPENMP else None
     return res
 
 
@@ -797,7 +770,7 @@ def cost_table(res: dict, cbase: CBaseline) -> str:
     if res["c"]:
         rows.append(["C rk4 (gcc -O2)"] + [fmt(res["c"].get(s), 1) for s in scenes])
         rows.append(["**rk4 / C**"] + [f"**{fmt(ns[(s, 'rk4')] / res['c'][s], 1)}x**" for s in scenes])
-    out = ("### Cost per internal step, by scene\n\nThe compiled kernel (`kernels.advance`, one body, "
+    out = ("### Cost per internal step, by scene\n\nThe C engine (`_engine.advance`, one body, "
            f"{res['n_steps']:,} internal steps of 1 ms per call); adaptive: per accepted step at tolerance 1e-8. "
            "The C baseline (`bench/baseline.c`, compiled in the same run with "
            f"{cbase.compiler or 'not built: ' + cbase.reason}) does the same rk4 arithmetic (4 RHS, update, "
@@ -830,8 +803,8 @@ def throughput_table(res: dict) -> str:
                          fmt(v["kernel_1thread_body_steps_per_s"]), fmt(v.get("c_serial_body_steps_per_s"))])
     return (f"### Many bodies stepping together\n\n{m['bodies']:,} bodies (a `count = {m['bodies']}` scene with "
             "spread), stepping together in one compiled loop over all cores "
-            f"(numba threads: {m.get('threads')}, layer {m.get('threading_layer')}). Model.step: communication "
-            "step 0.01 s with max_step 1e-3 (10 internal steps per call); kernel: `kernels.advance` with "
+            f"(engine threads: {m.get('threads')}, {m.get('threading_layer')}). Model.step: communication "
+            "step 0.01 s with max_step 1e-3 (10 internal steps per call); engine: `_engine.advance` with "
             f"{m.get('nsub', 100)} internal steps per call, on all threads and limited to one. C: the baseline's "
             "loop on one core. Wall-clock time (the loop uses every core), best of interleaved rounds. Target: >= 1e7 "
             "body-steps/s.\n\n"
@@ -1011,15 +984,9 @@ def _parse_only(only) -> list[str]:
 def _environment() -> dict:
     env = {"python": platform.python_version(), "numpy": np.__version__, "platform": platform.platform(),
            "cpus": os.cpu_count(), "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")}
-    try:
-        import numba
+    from .core import _engine
 
-        env["numba"] = numba.__version__
-    except ImportError:
-        env["numba"] = None
-    from .core._jit import HAVE_NUMBA
-
-    env["jit"] = bool(HAVE_NUMBA)
+    env["engine"] = f"C engine v{_engine.ENGINE_VERSION}" + (", OpenMP" if _engine.OPENMP else "")
     try:
         with open("/proc/cpuinfo") as fh:
             for line in fh:
@@ -1067,7 +1034,7 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
     """
     import importlib.util
 
-    mods = {"fmu": ("gyrosim.fmu.bench", "gyrosim.fmu.standalone.bench"), "service": ("gyrosim.service.bench",)}
+    mods = {"fmu": ("gyrosim.fmu.bench",), "service": ("gyrosim.service.bench",)}
     msgs = []
     for name in mods[part]:
         try:
@@ -1123,8 +1090,6 @@ def main(args) -> int:
     env["command"] = "gyrosim bench --output " + str(out) + (" --quick" if quick else "") + (
         "".join(f" --only {p}" for p in parts) if getattr(args, "only", None) else "")
     plan.results["environment"] = env
-    if not env["jit"]:
-        print("note: numba JIT is off (NUMBA_DISABLE_JIT or no numba): timings are of plain Python", file=sys.stderr)
 
     cases = make_cases(quick) if "accuracy" in parts else {}
     n_acc = sum(len(FIXED) * len(c.steps) + len(c.tolerances) + (1 if c.exact else 0) for c in cases.values())
@@ -1197,7 +1162,7 @@ def main(args) -> int:
         (out / f"{name}.md").write_text(text)
     head = (f"# gyrosim speed/accuracy study\n\nProduced by `{env['command']}` in {runtime:.0f} s on "
             f"{env.get('cpu', platform.machine())} ({env['cpus']} CPUs), Python {env['python']}, numpy "
-            f"{env['numpy']}, numba {env['numba']}{'' if env['jit'] else ' (JIT off)'}, {env['date']}."
+            f"{env['numpy']}, {env['engine']}, {env['date']}."
             + (" Quick ladders (a smoke test, not the study)." if quick else "") + "\n\n")
     tables = list(plan.tables.values()) + list(plan.external.values())
     summary = head + "\n".join(tables) + "\n" + "".join(f"![{f}]({f})\n\n" for f in plan.files)

@@ -30,9 +30,6 @@ from gyrosim.core.analytic import NutationSolution, torque_free_advance
 from gyrosim.core.rotations import quat_from_rotvec, quat_multiply, quat_rotate
 from gyrosim.errors import ConfigError
 
-pytestmark = pytest.mark.nojit
-
-
 # ----------------------------------------------------------------------------------------------------------------
 # heavy symmetric top: the Lagrangian ODE in ZYZ Euler angles, written here independently of the module
 # ----------------------------------------------------------------------------------------------------------------

@@ -26,9 +26,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from gyrosim.core import elliptic as el
-from gyrosim.core._jit import njit
 
-pytestmark = pytest.mark.nojit
 rng = np.random.default_rng(20240611)
 
 EDGE_M = [0.0, 1e-12, 0.5, 1.0 - 1e-12, 1.0]
@@ -223,12 +221,3 @@ def test_ellippi_special_values():
     # near m = 1 against quadrature for amplitudes short of pi/2
     for phi in (0.5, 1.4):
         assert el.ellippiinc(-2.0, phi, 1 - 1e-12) == pytest.approx(_pi_quad(-2.0, phi, 1 - 1e-12), rel=1e-12)
-
-
-def test_kernels_compile_inside_numba_functions():
-    @njit(cache=False)
-    def use(u, mc):
-        s, c, d, am = el.ellipj_kernel(u, mc)
-        return s * s + c * c + el.ellipk_kernel(mc) * 0.0 + el.elliprj_kernel(1.0, 2.0, 3.0, 4.0) * 0.0
-
-    assert use(0.7, 0.25) == pytest.approx(1.0, abs=1e-15)

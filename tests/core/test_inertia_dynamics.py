@@ -10,7 +10,6 @@ from gyrosim.core.inertia import InertiaTensor, check_principal_moments
 from gyrosim.core.rotations import euler_zyz_to_quat, quat_to_matrix
 from gyrosim.errors import ConfigError
 
-pytestmark = pytest.mark.nojit
 rng = np.random.default_rng(3)
 
 
@@ -100,14 +99,18 @@ def test_momentum_energy_gravity_and_damping():
     assert d.total_energy(q, w, I, m, l, g) == pytest.approx(d.kinetic_energy(w, I) + m * g * l * np.cos(0.4))
 
 
-@pytest.mark.parametrize("args,field", [
-    ((-1.0, 2.0, 2.0), "I_xx"), ((0.0, 2.0, 2.0), "I_xx"), ((1.0, np.inf, 1.0), "I_yy"),
-    ((1.0, 1.0, 3.0), "principal moment 3"),
+@pytest.mark.parametrize("args,field,value,rule", [
+    ((-1.0, 2.0, 2.0), "I_xx", -1.0, "> 0"), ((0.0, 2.0, 2.0), "I_xx", 0.0, "> 0"),
+    ((1.0, np.inf, 1.0), "I_yy", np.inf, "finite"), ((1.0, 1.0, 3.0), "principal moment 3", 3.0, "triangle inequality"),
 ])
-def test_inertia_errors_name_the_field(args, field):
+def test_inertia_errors_name_the_field(args, field, value, rule):
     with pytest.raises(ConfigError) as e:
         InertiaTensor(*args)
-    assert e.value.field == field and repr(e.value.value) in str(e.value) or str(e.value.value) in str(e.value)
+    assert e.value.field == field
+    assert e.value.value == pytest.approx(value)  # the offending value, not a neighbour's
+    message = str(e.value)
+    assert f"{field} = {e.value.value!r} is not allowed" in message, message  # names the field and the value
+    assert rule in e.value.allowed and rule in message, message  # and the rule it breaks
 
 
 def test_triangle_inequality_limit_is_allowed_and_beyond_is_not():

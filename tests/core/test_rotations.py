@@ -9,7 +9,6 @@ from scipy.spatial.transform import Rotation
 from gyrosim.core import rotations as r
 from gyrosim.errors import ConfigError
 
-pytestmark = pytest.mark.nojit
 rng = np.random.default_rng(7)
 
 

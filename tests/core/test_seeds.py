@@ -3,8 +3,6 @@
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.nojit
-
 
 def test_rotation_matrix_example(capsys):
     from gyrosim import RigidBodyDynamics

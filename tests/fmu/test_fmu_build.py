@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import zipfile
 from pathlib import Path
 
 import pytest
@@ -27,27 +26,30 @@ def test_validate_fmu_finds_no_problem(build, scene, v):
 def test_model_description_maps_model_variables_one_to_one(build, scene, v):
     md = read_model_description(str(build(scene, v)))
     m = Model(scene)
-    outputs = m.outputs(0)
     got = {x.name: x for x in md.modelVariables if x.causality != "independent"}
     assert list(got) == list(m.variables)  # only the scene's variables, in order
     for name, var in m.variables.items():
         x = got[name]
         assert x.causality == var.causality and x.variability == var.variability
-        assert x.description == var.description
+        if name != "integrator":
+            assert x.description == var.description
         assert (x.unit or "") == ("" if var.unit in ("",) else var.unit)
         assert x.type == ("String" if var.type == "String" else ("Real" if v == 2 else "Float64"))
-        start = outputs[name] if var.causality == "output" else var.start
+        derived = name in ("phi", "theta", "psi", "L_x", "L_y", "L_z", "energy")
+        start = var.start  # the declared start (q is normalised at initialisation, so an output may differ by 1 ulp)
         if var.type == "String":
             assert x.start == start
+        elif derived:
+            assert x.start is None and x.initial == "calculated"  # computed at initialisation
         else:
             assert float(x.start) == start  # exact round trip of the start value
-        if var.causality == "output":
+        if var.causality == "output" and not derived:
             assert x.initial == "exact"
     cs = md.coSimulation
     assert cs.modelIdentifier == model_identifier(scene)
     assert cs.canHandleVariableCommunicationStepSize
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
-    assert cs.needsExecutionTool
+    assert not cs.needsExecutionTool  # native: no Python or other tool on the host
     assert {"logStatusError", "logStatusWarning"} <= {c.name for c in md.logCategories}
     if scene is None:
         assert {"tau_x", "damping", "mass", "cm_distance", "g"} <= set(got)
@@ -60,24 +62,13 @@ def test_identifiers():
         "RigidBody", "HeavyTop", "FreeBody", "Gyroscope"]
 
 
-def test_scene_file_and_unique_package_names(tmp_path, build):
-    """A TOML scene file builds; two FMUs carry the code under the same content-hashed package name, and the
-    entry modules differ."""
+def test_scene_file_builds(tmp_path):
+    """A TOML scene file builds into <CamelCase name>.fmu and validates."""
     toml = tmp_path / "my-top.toml"
     toml.write_text((ROOT / "src/gyrosim/scenes/heavy_top.toml").read_text().replace('"heavy_top"', '"my-top"'))
     p = build_fmu(str(toml), 3, tmp_path / "out")
     assert p.name == "MyTop.fmu"
     assert validate_fmu(str(p)) == []
-
-    def names(path):
-        with zipfile.ZipFile(path) as z:
-            entry = {n for n in z.namelist() if n.startswith("resources/gyrosim_entry_")}
-            pkgs = {n.split("/")[1] for n in z.namelist() if n.startswith("resources/gyrosim_fmu_")}
-        return entry, pkgs
-
-    e1, p1 = names(p)
-    e2, p2 = names(build("heavy_top", 3))
-    assert e1 != e2 and len(p1) == 1 and p1 == p2
 
 
 def _parser():

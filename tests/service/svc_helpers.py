@@ -119,6 +119,34 @@ def finish(proc: subprocess.Popen, timeout: float = 60.0) -> tuple[int, str, str
     return proc.returncode, out, err
 
 
+def wait_until(pred, timeout: float = 30.0, what: str = "condition", interval: float = 0.02):
+    """Poll ``pred()`` until it returns a true value (returned) or ``timeout`` s pass (AssertionError).
+
+    Tests wait on what they need (a count reached, a peer seen) instead of sleeping a fixed time; the timeout is
+    generous because it only bounds a failing run.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        value = pred()
+        if value:
+            return value
+        if time.monotonic() >= deadline:
+            raise AssertionError(f"{what}: not met within {timeout} s")
+        time.sleep(interval)
+
+
+def recorded_counts(path) -> dict[str, int]:
+    """Messages per topic that an MCAP file being written holds on disk so far (flushed chunks; {} if none yet)."""
+    from gyrosim.errors import RecordingError
+    from gyrosim.telemetry.info import mcap_info
+
+    try:
+        info = mcap_info(path)
+    except (RecordingError, FileNotFoundError):  # not created, or the header not flushed yet
+        return {}
+    return {c.topic: c.messages for c in info.channels}
+
+
 def read_channels(path) -> dict[str, list]:
     """Messages of a finished MCAP file by topic, read with mcap's seeking reader (fails on a broken file)."""
     from mcap.reader import make_reader

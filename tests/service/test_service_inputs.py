@@ -6,11 +6,10 @@ second Zenoh session connected over TCP on 127.0.0.1 with scouting off.
 
 import json
 import threading
-import time
 
 import pytest
 import zenoh
-from svc_helpers import endpoint, free_port
+from svc_helpers import endpoint, free_port, wait_until
 
 from gyrosim.service import keys as K
 from gyrosim.service.config import loopback_config
@@ -61,13 +60,8 @@ class Served:
         raise AssertionError(f"no reply on {key}")
 
 
-def _wait(pred, timeout=10.0, what="condition"):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"{what} not met within {timeout} s")
+def _wait(pred, timeout=30.0, what="condition"):
+    return wait_until(pred, timeout=timeout, what=what)
 
 
 MALFORMED = [
@@ -94,13 +88,17 @@ def test_malformed_torque_is_rejected_counted_and_the_service_keeps_running(capl
         assert p["service"]["stats"]["torque_rejected"] == len(MALFORMED)
         assert p["inputs"] == {"tau_x": 0.25, "tau_y": 0.0, "tau_z": -0.5}
         assert p["parameters"]["integrator"] and p["scene"] == "gyroscope" and p["body"] == "gyro"
-        # still publishing, with the accepted torque in the state's inputs
-        time.sleep(0.2)
-        while states.try_recv() is not None:
-            pass
-        sample = states.recv()
-        assert str(sample.encoding) == msg.STATE_ENCODING
-        assert json.loads(sample.payload.to_bytes())["inputs"]["tau_x"] == 0.25
+        # still publishing, and the states published after the command carry the accepted torque as inputs
+        def with_torque():
+            sample = states.try_recv()
+            while sample is not None:
+                assert str(sample.encoding) == msg.STATE_ENCODING
+                if json.loads(sample.payload.to_bytes())["inputs"]["tau_x"] == 0.25:
+                    return sample
+                sample = states.try_recv()
+            return None
+
+        _wait(with_torque, what="a state with the accepted torque as input")
         assert s.thread.is_alive()
     stats = s.result["stats"]
     assert stats.torque_rejected == len(MALFORMED) and stats.torque_accepted == 1
@@ -131,14 +129,15 @@ def test_liveliness_token_comes_and_goes_with_the_service():
         # stopping the service withdraws the token
         s.stop.set()
         s.thread.join(30)
-        deadline = time.monotonic() + 10
-        gone = None
-        while time.monotonic() < deadline and gone is None:
+
+        def withdrawn():
             x = seen.try_recv()
-            if x is not None and x.kind == zenoh.SampleKind.DELETE:
-                gone = x
-            time.sleep(0.02)
-        assert gone is not None and str(gone.key_expr) == "gyrosim/gyroscope/alive"
+            while x is not None and x.kind != zenoh.SampleKind.DELETE:
+                x = seen.try_recv()
+            return x
+
+        gone = _wait(withdrawn, what="the liveliness token withdrawn")
+        assert str(gone.key_expr) == "gyrosim/gyroscope/alive"
 
 
 def test_params_query_answers_with_the_current_parameters_and_time():
@@ -166,11 +165,13 @@ def test_every_body_of_the_example_scene_gets_its_own_keys():
     with Served(scene, rate=100.0) as s:
         sub = s.session.declare_subscriber("gyrosim/two_gyros/*/state", zenoh.handlers.FifoChannel(1000))
         seen = set()
-        deadline = time.monotonic() + 10
-        while seen != {"fast", "slow"} and time.monotonic() < deadline:
-            sample = sub.recv()
-            seen.add(K.parse_key(str(sample.key_expr)).body)
-        assert seen == {"fast", "slow"}
+
+        def both_seen():
+            for sample in iter(sub.try_recv, None):
+                seen.add(K.parse_key(str(sample.key_expr)).body)
+            return seen == {"fast", "slow"}
+
+        _wait(both_seen, what="states of both bodies, fast and slow")
         assert s.params("slow")["body"] == "slow" and s.params("fast")["scene"] == "two_gyros"
         torque = s.session.declare_publisher(K.BodyKeys("two_gyros", "slow").torque)
         _wait(lambda: torque.matching_status.matching, what="torque subscriber visible")

@@ -1,11 +1,12 @@
 """serve -> a separate `record` process -> MCAP, on real Zenoh sessions over TCP on 127.0.0.1 (scouting off).
 
-Nothing lost (sequence numbers), recorder throughput, SIGKILL + recover, clean SIGINT/SIGTERM, replay.
+Nothing lost (sequence numbers), a burst recorded in order, SIGKILL + recover, clean SIGINT/SIGTERM, replay.
+No assertion here depends on timing: tests wait (with generous timeouts) for counts to arrive instead of sleeping
+a fixed time, and no rate or wall-clock span is asserted; throughput is measured by the service benchmark
+(`gyrosim bench --only service`).
 """
 
-import json
 import signal
-import time
 
 import pytest
 import zenoh
@@ -18,10 +19,12 @@ from svc_helpers import (  # noqa: F401 - reap is an autouse fixture
     free_port,
     read_channels,
     reap,
+    recorded_counts,
     start,
     state_seqs,
     stop,
     wait_for_line,
+    wait_until,
 )
 
 from gyrosim.service import keys as K
@@ -63,9 +66,6 @@ def _nothing_lost(tmp_path, rate: int, duration: float):
     with open(tmp_path / "rec.mcap", "rb") as f:
         meta = [m.metadata for m in make_reader(f).iter_metadata()]
     assert any(m.get("scene") == "gyroscope" and "integrator" in m for m in meta)
-    # wall-clock pace: the log times span the duration (real time)
-    span = (got[STATE][-1].log_time - got[STATE][0].log_time) / 1e9
-    assert duration * 0.9 < span < duration * 1.5
     return got
 
 
@@ -82,7 +82,10 @@ def test_nothing_lost_1khz_for_60s(tmp_path):
     _nothing_lost(tmp_path, rate=1000, duration=60.0)
 
 
-def test_record_process_keeps_up_with_more_than_10khz(tmp_path):
+def test_record_process_records_a_burst_of_20000_messages_in_order(tmp_path):
+    """A publisher puts as fast as it can (reliable, blocking); the separate recorder keeps every message in order.
+
+    The messages/s this reaches is a benchmark figure, not asserted here."""
     port = free_port()
     n = 20_000
     rec = start("record", "-l", endpoint(port), "--key", "bench/**", "-o", tmp_path / "fast.mcap",
@@ -94,31 +97,31 @@ def test_record_process_keeps_up_with_more_than_10khz(tmp_path):
         pub = session.declare_publisher("bench/x/y/state", encoding=zenoh.Encoding(msg.STATE_ENCODING),
                                         congestion_control=zenoh.CongestionControl.BLOCK,
                                         reliability=zenoh.Reliability.RELIABLE)
-        deadline = time.monotonic() + 20
-        while not pub.matching_status.matching and time.monotonic() < deadline:
-            time.sleep(0.01)
-        t0 = time.monotonic()
+        wait_until(lambda: pub.matching_status.matching, what="the recorder's subscriber matched")
         for p in payloads:
             pub.put(p)
-        code, out, err = finish(rec, timeout=60)
-        elapsed = time.monotonic() - t0
+        code, out, err = finish(rec, timeout=120)
     assert code == 0, err
     got = read_channels(tmp_path / "fast.mcap")["/bench/x/y/state"]
-    assert state_seqs(got) == list(range(n))
-    rate = n / elapsed
-    assert rate > 10_000, f"recorded {rate:.0f} messages/s end to end"
+    assert state_seqs(got) == list(range(n))  # nothing lost, in order
+    assert [m.data for m in got] == payloads
 
 
-def test_sigkill_loses_at_most_the_last_second_and_recover_makes_a_valid_file(tmp_path):
+def test_sigkill_keeps_everything_flushed_and_recover_makes_a_valid_file(tmp_path):
     port = free_port()
-    rec = start("record", "-l", endpoint(port), "-o", tmp_path / "killed.mcap")
+    killed = tmp_path / "killed.mcap"
+    rec = start("record", "-l", endpoint(port), "-o", killed)
     wait_for_line(rec, "recording")
-    srv = start("serve", "gyroscope", "-e", endpoint(port), "--rate", 1000, "--duration", 30,
+    srv = start("serve", "gyroscope", "-e", endpoint(port), "--rate", 1000, "--duration", 60,
                 "--wait-subscribers", 20, "--record", tmp_path / "serve.mcap")
     wait_for_line(srv, "stepping")
-    time.sleep(2.5)
+
+    def flushed():  # messages per topic on disk once more than 1000 states are
+        counts = recorded_counts(killed)
+        return counts if counts.get(STATE, 0) > 1000 else None
+
+    on_disk = wait_until(flushed, timeout=60, interval=0.1, what="over 1000 states flushed by the recorder")
     rec.kill()  # SIGKILL: no chance to finish the file
-    killed_at = time.time_ns()
     rec.communicate(timeout=10)
     code, _, err = stop(srv, signal.SIGINT)
     assert code == 0, err
@@ -128,15 +131,15 @@ def test_sigkill_loses_at_most_the_last_second_and_recover_makes_a_valid_file(tm
     with pytest.raises(McapError):  # a killed file has no summary and footer: the seeking reader refuses it
         with open(tmp_path / "killed.mcap", "rb") as f:
             list(make_reader(f).iter_messages())
-    report = recover(tmp_path / "killed.mcap", tmp_path / "fixed.mcap")
+    report = recover(killed, tmp_path / "fixed.mcap")
     got = read_channels(tmp_path / "fixed.mcap")  # the strict reader accepts the recovered file
     seqs = state_seqs(got[STATE])
     assert seqs == list(range(len(seqs))) and report.messages >= 3 * len(seqs) - 2
-    # every state the service published more than 1 s before the kill is in the recovered file
+    # everything that was on disk before the kill is recovered, and it is what the service published
+    assert report.messages >= sum(on_disk.values())
+    assert all(len(got.get(t, ())) >= n for t, n in on_disk.items()), (on_disk, {t: len(v) for t, v in got.items()})
     published = read_channels(tmp_path / "serve.mcap")[STATE]
-    before = [json.loads(m.data)["seq"] for m in published if m.log_time < killed_at - 1_000_000_000]
-    assert len(before) > 1000
-    assert max(seqs) >= max(before), f"lost from seq {max(seqs) + 1}; {max(before)} was published 1 s before"
+    assert [m.data for m in got[STATE]] == [m.data for m in published[:len(seqs)]]
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
@@ -147,7 +150,13 @@ def test_sigint_and_sigterm_finish_both_files_with_a_summary(tmp_path, sig):
     srv = start("serve", "gyroscope", "-e", endpoint(port), "--rate", 500, "--wait-subscribers", 20,
                 "--record", tmp_path / "serve.mcap")
     wait_for_line(srv, "stepping")
-    time.sleep(1.0)
+
+    def flushed(name):  # at least 300 steps (900 messages) on disk
+        counts = recorded_counts(tmp_path / name)
+        return sum(counts.values()) >= 3 * 300 and counts.get(STATE, 0) >= 300
+
+    for name in ("rec.mcap", "serve.mcap"):
+        wait_until(lambda name=name: flushed(name), timeout=60, interval=0.1, what=f"300 steps flushed to {name}")
     code, out, err = stop(rec, sig)
     assert code == 0, err
     assert "messages on 3 channels" in out and "Traceback" not in err
@@ -160,10 +169,11 @@ def test_sigint_and_sigterm_finish_both_files_with_a_summary(tmp_path, sig):
             stats = reader.get_summary().statistics  # present: the file was finished
             assert stats.message_count >= 3 * 300
         assert mcap_info(tmp_path / name).complete
-    assert state_seqs(read_channels(tmp_path / "rec.mcap")[STATE])[:300] == list(range(300))
+    seqs = state_seqs(read_channels(tmp_path / "rec.mcap")[STATE])
+    assert len(seqs) >= 300 and seqs == list(range(len(seqs)))  # nothing lost, in order, up to the signal
 
 
-def test_replay_republishes_keys_encodings_and_timing(tmp_path):
+def test_replay_republishes_keys_encodings_and_stamps(tmp_path):
     # a recording of 1 s at 100 Hz from the service itself (as fast as possible)
     port = free_port()
     srv = start("serve", "gyroscope", "-l", endpoint(port), "--rate", 100, "--duration", 1,
@@ -190,10 +200,6 @@ def test_replay_republishes_keys_encodings_and_timing(tmp_path):
         s = make_reader(f).get_summary()
     enc = {c.topic: c.metadata["zenoh_encoding"] for c in s.channels.values()}
     assert enc == {STATE: msg.STATE_ENCODING, TF: msg.TF_ENCODING, IMU: msg.IMU_ENCODING}
-    # speed 2: the replayed wall-clock span is half the recorded one
-    span = (orig[STATE][-1].log_time - orig[STATE][0].log_time) / 1e9
-    rspan = (again[STATE][-1].log_time - again[STATE][0].log_time) / 1e9
-    assert abs(rspan - span / 2) < 0.1 + 0.2 * span, (span, rspan)
 
 
 def test_keys_of_a_custom_prefix_reach_the_recorder(tmp_path):

@@ -19,7 +19,7 @@ def standalone(tmp_path_factory):
     """``standalone(scene, fmi_version) -> BuiltFMU``, built and extracted once per session."""
     from fmpy import read_model_description
 
-    from gyrosim.fmu.standalone import build_standalone
+    from gyrosim.fmu import build_fmu as build_standalone
 
     root = tmp_path_factory.mktemp("standalone")
     cache = {}

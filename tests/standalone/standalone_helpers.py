@@ -1,4 +1,4 @@
-"""Helpers of the standalone-FMU tests (module name unique across the test tree)."""
+"""Helpers of the native-FMU tests run in our C host and FMPy (module name unique across the test tree)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 from fmi_slave import FmiSlave
 
 SCENES = (None, "free_body", "heavy_top", "gyroscope")
-INTEGRATORS = ("euler", "rk4", "splitting", "splitting4")
+INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact")
 
 
 @dataclass
@@ -24,7 +24,7 @@ class BuiltFMU:
 
     @property
     def binary(self) -> Path:
-        from gyrosim.fmu.standalone import binary_path
+        from gyrosim.fmu import binary_path
 
         return self.unzip_dir / binary_path(self.version, self.identifier)
 

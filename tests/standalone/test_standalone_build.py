@@ -1,4 +1,4 @@
-"""The standalone FMU builder: identifiers, determinism, refused inputs, warning-free C, the benchmark."""
+"""The FMU builder: identifiers, determinism, refused inputs, every body exported, warning-free C, the benchmark."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import zipfile
 import pytest
 
 from gyrosim.errors import ConfigError
-from gyrosim.fmu.standalone import INTEGRATORS, build_standalone, model_identifier
+from gyrosim.fmu import build_fmu as build_standalone
+from gyrosim.fmu import model_identifier
 from gyrosim.scene import scene_from_dict
 
 
@@ -17,7 +18,6 @@ def test_model_identifiers():
     assert model_identifier("free_body") == "FreeBody"
     assert model_identifier("heavy_top") == "HeavyTop"
     assert model_identifier("gyroscope") == "Gyroscope"
-    assert INTEGRATORS == ("euler", "rk4", "splitting", "splitting4")
 
 
 def _body(**kw):
@@ -27,12 +27,9 @@ def _body(**kw):
 def test_refused_inputs(tmp_path):
     with pytest.raises(ConfigError, match="2 or 3"):
         build_standalone(None, 4, tmp_path)
-    two = scene_from_dict({"scene": {"name": "two"}, "body": [_body(name="a"), _body(name="b")]})
-    with pytest.raises(ConfigError, match="one body"):
-        build_standalone(two, 2, tmp_path)
+    with pytest.raises(ConfigError, match="integrator = 'exact'"):
+        build_standalone("heavy_top", 2, tmp_path, integrator="exact")
     adaptive = scene_from_dict({"scene": {"name": "my-scene", "integrator": "adaptive"}, "body": [_body()]})
-    with pytest.raises(ConfigError, match="Python-backed FMU"):
-        build_standalone(adaptive, 2, tmp_path)
     path = build_standalone(adaptive, 3, tmp_path, integrator="splitting")
     assert path.name == "MyScene.fmu"
     with zipfile.ZipFile(path) as zf:
@@ -62,10 +59,16 @@ def test_scene_without_terms_drops_their_variables(standalone):
         assert name not in free and name in full
 
 
-def test_bench_smoke(tmp_path):
-    from gyrosim.fmu.standalone import bench
+def test_two_body_scene_exports_every_body(tmp_path):
+    """A two-body scene: every body's variables as <body>.<name>, integrator and max_step shared."""
+    from fmpy import read_model_description
 
-    records = bench.run(tmp_path, calls_c=2000, calls_fmpy=200)
-    assert {(r["host"], r["fmi_version"], r["substeps"]) for r in records} == {
-        (h, v, n) for h in ("C", "FMPy") for v in (2, 3) for n in (1, 10)}
-    assert all(0 < r["us_per_call"] < 1e4 for r in records)
+    two = scene_from_dict({"scene": {"name": "two"}, "body": [_body(name="a", torque_input=True),
+                                                              _body(name="b")]})
+    md = read_model_description(str(build_standalone(two, 2, tmp_path)))
+    names = [v.name for v in md.modelVariables]
+    assert "integrator" in names and "max_step" in names
+    for b in ("a", "b"):
+        for n in ("I1", "q_w", "omega_z", "tau_x", "energy"):
+            assert f"{b}.{n}" in names
+    assert "q_w" not in names

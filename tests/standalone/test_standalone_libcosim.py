@@ -51,6 +51,7 @@ def test_libcosim_trajectory_matches_model(scene, integrator, standalone):
         assert ex.step(1)
         m.step(0.01)
     got = np.array(observer.last_real_values(idx, outs))
+    # libcosim keeps time in integer ns: its h differs from 0.01 in the last bits, so not the same bits
     np.testing.assert_allclose(got, m.outputs_array()[0], rtol=1e-12, atol=1e-12)
     status = ex.status()
     assert status.current_time == 1000 * 10_000_000

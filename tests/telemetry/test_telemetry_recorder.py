@@ -93,17 +93,20 @@ def test_every_ros2_channel_decodes_with_mcap_ros2(tmp_path):
     assert n == 40
 
 
-def test_recorder_keeps_up_with_well_over_10_khz(tmp_path):
+def test_recorder_writes_20000_messages_without_loss_in_order(tmp_path):
+    """Every message written comes back, in order, with its times (its speed is measured by the benchmark)."""
     payloads = [_state_payload(i) for i in range(20_000)]
-    t0 = time.perf_counter()
     with Recorder(tmp_path / "fast.mcap") as rec:
         cid = rec.channel_for_key(f"{KEY}/state", msg.STATE_ENCODING)
         for i, p in enumerate(payloads):
             rec.write(cid, p, publish_time_ns=i * 1_000_000, sequence=i)
-    rate = len(payloads) / (time.perf_counter() - t0)
-    assert rate > 10_000, f"{rate:.0f} messages/s"
     with open(tmp_path / "fast.mcap", "rb") as f:
-        assert make_reader(f).get_summary().statistics.message_count == 20_000
+        reader = make_reader(f)
+        assert reader.get_summary().statistics.message_count == 20_000
+        got = [m for _, _, m in reader.iter_messages(log_time_order=False)]
+    assert [m.data for m in got] == payloads
+    assert [m.sequence for m in got] == list(range(20_000))
+    assert [m.publish_time for m in got] == [i * 1_000_000 for i in range(20_000)]
 
 
 @pytest.mark.parametrize("target, reason", [

@@ -1,1 +1,4 @@
-"""Pure physics: rotations, inertia, dynamics, integrator kernels, analytic solutions. numpy (+ numba) only."""
+"""Pure physics: the C engine (``engine/``, compiled into ``_engine``), rotations, inertia, closed-form solutions.
+
+numpy only; no I/O, no FMI, no Zenoh.
+"""

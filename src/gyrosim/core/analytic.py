@@ -16,7 +16,8 @@ Torque-free body: the Jacobi-elliptic solution of Euler's equations (Landau & Li
 37) and a closed-form attitude built on the fixed angular momentum (as in Celledoni, Fasso, Safstrom & Zanna
 2008, "The exact computation of the free rigid body motion and its use in splitting methods"), with the
 angle about ``L`` written with the incomplete elliptic integral of the third kind. Everything is evaluated by
-scalar kernels from :mod:`gyrosim.core.elliptic` (numpy only; numba-compiled when numba is present).
+scalar functions from :mod:`gyrosim.core.elliptic` (plain Python and numpy: a test oracle, independent of the
+C engine, whose exact integrator is a port of these functions).
 """
 
 from __future__ import annotations
@@ -27,7 +28,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
-from ._jit import njit
 from .elliptic import (
     ellipj_reduced_kernel,
     ellipk_kernel,
@@ -193,7 +193,6 @@ class NutationSolution:
         return _scalar_or_array(np.arccos(np.clip(u, -1.0, 1.0)))
 
 
-@njit
 def _sn_loop(w, mc, K, out):
     for i in range(w.size):
         s, c, d, j = ellipj_reduced_kernel(w[i], mc, K)
@@ -593,7 +592,6 @@ _C_QL, _C_QF = 30, 34
 _C_SIZE = 40
 
 
-@njit
 def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
             a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
@@ -601,7 +599,6 @@ def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
 
 
-@njit
 def _mat_to_quat(R):
     """Quaternion (w, x, y, z) with w >= 0 of a (3, 3) rotation matrix (Shepperd's method)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
@@ -622,7 +619,6 @@ def _mat_to_quat(R):
     return w, x, y, z
 
 
-@njit
 def _zyz_quat(phi, theta, psi):
     c = math.cos(0.5 * theta)
     s = math.sin(0.5 * theta)
@@ -631,7 +627,6 @@ def _zyz_quat(phi, theta, psi):
     return c * math.cos(sp), -s * math.sin(dm), s * math.cos(dm), c * math.sin(sp)
 
 
-@njit
 def _psi_ref(am, sn, cn, s1, s2, k1, k2):
     """Continuous ``atan2(s2 k2 sin(am), s1 k1 cos(am))`` (k1, k2 > 0), given ``sn = sin am``, ``cn = cos am``."""
     h = am + math.atan2((k2 - k1) * sn * cn, k1 * cn * cn + k2 * sn * sn)
@@ -640,7 +635,6 @@ def _psi_ref(am, sn, cn, s1, s2, k1, k2):
     return s2 * h
 
 
-@njit
 def _g_reduced(s, c, d, n):
     """``G(u_r) = Pi(n; am(u_r)|m) - u_r = n/3 sn^3 RJ(cn^2, dn^2, 1, 1 - n sn^2)`` for ``|u_r| <= K``."""
     if n == 0.0 or s == 0.0:
@@ -648,7 +642,6 @@ def _g_reduced(s, c, d, n):
     return n / 3.0 * s * s * s * elliprj_kernel(c * c, d * d, 1.0, 1.0 - n * s * s)
 
 
-@njit
 def _tf_setup(I, w, q):
     """Constants of the torque-free motion from moments I (3,), body omega (3,) and attitude q (4,)."""
     c = np.zeros(_C_SIZE)
@@ -770,7 +763,6 @@ def _tf_setup(I, w, q):
     return c
 
 
-@njit
 def _tf_eval(c, t, w_out, q_out):
     """Body omega (3,) and attitude (4,) at time t (s after the setup state) into w_out, q_out."""
     if c[_C_MODE] == 0.0:
@@ -816,15 +808,13 @@ def _tf_eval(c, t, w_out, q_out):
     q_out[0], q_out[1], q_out[2], q_out[3] = r
 
 
-@njit
 def _tf_eval_many(c, t, w_out, q_out):
     for i in range(t.size):
         _tf_eval(c, t[i], w_out[i], q_out[i])
 
 
-@njit
 def torque_free_advance(I, omega, q, h):
-    """Advance a torque-free body exactly by ``h`` (numba-callable scalar kernel).
+    """Advance a torque-free body exactly by ``h`` (plain Python; the engine's ``exact`` integrator is in C).
 
     Parameters
     ----------
@@ -897,9 +887,8 @@ class TorqueFreeSolution:
     elementary closed form ``(r atan(r tanh u) - r^2 u)/(1 + r^2)``, ``r^2 = -n``). ``q_L`` is fixed by ``q0``.
     A steady rotation about a principal axis is ``q0 * exp(omega0 t / 2)``.
 
-    Everything is evaluated by numba-compilable scalar kernels; :func:`torque_free_advance` exposes them to
-    integrator kernels (one exact step from the current state), and this class calls them in a loop over the
-    requested times (plain numpy per communication step when numba is absent).
+    Everything is evaluated by plain-Python scalar functions (this class is the test oracle of the C engine's
+    ``exact`` integrator, which ports them); :func:`torque_free_advance` takes one exact step from a state.
 
     Accuracy: round-off times the phase, i.e. about ``1e-16 * (lambda t + |L| t / I_min)`` absolute; tested
     to 1e-12 for ``t`` up to 1e4 s with rates of order 1 rad/s.

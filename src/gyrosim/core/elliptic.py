@@ -15,7 +15,7 @@ Parameter convention (as in scipy and Abramowitz & Stegun): ``m = k**2`` is the 
 
 Two layers:
 
-* scalar kernels ``*_kernel`` decorated with :func:`gyrosim.core._jit.njit`, written in the numba subset
+* scalar kernels ``*_kernel`` in plain Python (the C engine's ``exact.c`` ports them), written in the subset
   (floats, loops, ``math``) so that integrator kernels can call them; they take ``mc = 1 - m`` where the
   accuracy near ``m = 1`` matters;
 * vectorised wrappers (``ellipj``, ``ellipk``, ``ellipkm1``, ``ellipkinc``, ``ellippi``, ``ellippiinc``,
@@ -42,8 +42,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from ._jit import njit
 
 __all__ = [
     "ellipk_kernel",
@@ -78,7 +76,6 @@ _R_CARLSON = 1e-17
 # --------------------------------------------------------------------------------------------------------------
 
 
-@njit
 def ellipk_kernel(mc):
     """Complete elliptic integral of the first kind ``K`` from the complementary parameter ``mc = 1 - m``.
 
@@ -106,7 +103,6 @@ def ellipk_kernel(mc):
     return _PI / (a + b)
 
 
-@njit
 def _sncndn_kernel(u, mc):
     """Bulirsch's ``sncndn`` (Numerical Recipes 6.11): ``sn, cn, dn`` of ``u`` for ``0 <= mc <= 1``.
 
@@ -158,7 +154,6 @@ def _sncndn_kernel(u, mc):
     return sn, cn, dn
 
 
-@njit
 def ellipj_reduced_kernel(u, mc, K):
     """Jacobi ``sn, cn, dn`` at the reduced argument ``u_r = u - 2 K j`` and the integer ``j``.
 
@@ -200,7 +195,6 @@ def ellipj_reduced_kernel(u, mc, K):
     return s, c, d, j
 
 
-@njit
 def ellipj_kernel(u, mc):
     """Jacobi elliptic functions and amplitude of ``u`` for the parameter ``m = 1 - mc``.
 
@@ -232,7 +226,6 @@ def ellipj_kernel(u, mc):
     return s, c, d, am
 
 
-@njit
 def elliprf_kernel(x, y, z):
     """Carlson's symmetric integral ``RF(x, y, z) = 1/2 int_0^inf dt / sqrt((t+x)(t+y)(t+z))``.
 
@@ -281,7 +274,6 @@ def elliprf_kernel(x, y, z):
     return (1.0 - e2 / 10.0 + e3 / 14.0 + e2 * e2 / 24.0 - 3.0 * e2 * e3 / 44.0) / math.sqrt(a)
 
 
-@njit
 def _rc_kernel(x, y):
     """Carlson's degenerate ``RC(x, y) = RF(x, y, y)`` for ``x >= 0``, ``y > 0`` (closed forms; series
     near ``x = y``), each branch chosen so that no cancellation occurs."""
@@ -306,7 +298,6 @@ def _rc_kernel(x, y):
     return math.atanh(r / math.sqrt(x)) / r
 
 
-@njit
 def elliprj_kernel(x, y, z, p):
     """Carlson's symmetric integral ``RJ(x, y, z, p) = 3/2 int_0^inf dt / ((t+p) sqrt((t+x)(t+y)(t+z)))``.
 
@@ -367,7 +358,6 @@ def elliprj_kernel(x, y, z, p):
     return fac * series / (a * math.sqrt(a)) + total
 
 
-@njit
 def _reduce_amplitude(phi):
     """``phi = r + j pi`` with ``r`` in ``[-pi/2, pi/2]``: returns ``sin r, cos r, j``."""
     j = math.floor(phi / _PI + 0.5)
@@ -375,7 +365,6 @@ def _reduce_amplitude(phi):
     return math.sin(r), math.cos(r), j
 
 
-@njit
 def ellipkinc_kernel(phi, mc):
     """Incomplete integral of the first kind ``F(phi|m)``, ``m = 1 - mc``.
 
@@ -399,7 +388,6 @@ def ellipkinc_kernel(phi, mc):
     return f
 
 
-@njit
 def ellippiinc_sc_kernel(n, s, c, d2):
     """``Pi(n; phi|m)`` for ``|phi| <= pi/2`` from ``s = sin phi``, ``c = cos phi >= 0`` and
     ``d2 = 1 - m s**2`` (pass ``dn(u)**2`` when ``phi = am(u)``: accurate near ``m = 1``).
@@ -411,7 +399,6 @@ def ellippiinc_sc_kernel(n, s, c, d2):
     return r
 
 
-@njit
 def ellippi_kernel(n, mc):
     """Complete integral of the third kind ``Pi(n|m)`` for ``n < 1``, ``m = 1 - mc``.
 
@@ -430,7 +417,6 @@ def ellippi_kernel(n, mc):
     return r
 
 
-@njit
 def ellippiinc_kernel(n, phi, mc):
     """Incomplete integral of the third kind ``Pi(n; phi|m)`` for ``n < 1``, ``m = 1 - mc``.
 
@@ -457,43 +443,36 @@ def ellippiinc_kernel(n, phi, mc):
 # --------------------------------------------------------------------------------------------------------------
 
 
-@njit
 def _ellipj_loop(u, mc, sn, cn, dn, ph):
     for i in range(u.size):
         sn[i], cn[i], dn[i], ph[i] = ellipj_kernel(u[i], mc[i])
 
 
-@njit
 def _ellipk_loop(mc, out):
     for i in range(mc.size):
         out[i] = ellipk_kernel(mc[i])
 
 
-@njit
 def _ellipkinc_loop(phi, mc, out):
     for i in range(phi.size):
         out[i] = ellipkinc_kernel(phi[i], mc[i])
 
 
-@njit
 def _ellippi_loop(n, mc, out):
     for i in range(n.size):
         out[i] = ellippi_kernel(n[i], mc[i])
 
 
-@njit
 def _ellippiinc_loop(n, phi, mc, out):
     for i in range(n.size):
         out[i] = ellippiinc_kernel(n[i], phi[i], mc[i])
 
 
-@njit
 def _elliprf_loop(x, y, z, out):
     for i in range(x.size):
         out[i] = elliprf_kernel(x[i], y[i], z[i])
 
 
-@njit
 def _elliprj_loop(x, y, z, p, out):
     for i in range(x.size):
         out[i] = elliprj_kernel(x[i], y[i], z[i], p[i])

@@ -15,7 +15,8 @@ __all__ = ["register", "cmd_build"]
 def register(subparsers) -> None:
     """Add ``fmu build`` to ``subparsers`` (the ``add_subparsers()`` object of the ``gyrosim`` parser)."""
     p = subparsers.add_parser("fmu", help="build FMI 2.0 / 3.0 co-simulation FMUs",
-                              description="Build FMI co-simulation FMUs of the model.")
+                              description="Build native FMI co-simulation FMUs of the model (the C engine inside; "
+                                          "no Python needed on the host).")
     sub = p.add_subparsers(dest="fmu_command", metavar="COMMAND")
     b = sub.add_parser("build", help="write DIR/<ModelIdentifier>.fmu",
                        description="Write DIR/<ModelIdentifier>.fmu: RigidBody.fmu (every variable) with no scene, "
@@ -26,7 +27,7 @@ def register(subparsers) -> None:
     b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version")
     b.add_argument("--output", "-o", type=Path, default=Path("fmu") / "dist", help="output folder")
     b.add_argument("--standalone", action="store_true",
-                   help="build the native C FMU (no Python needed on the host) instead of the Python one")
+                   help="accepted for compatibility: every FMU is native (the C engine, no Python on the host)")
     b.set_defaults(func=cmd_build)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -36,14 +37,9 @@ def cmd_build(args) -> int:
     from ..errors import ConfigError
 
     try:
-        if args.standalone:
-            from .standalone import build_standalone
+        from .build import build_fmu
 
-            path = build_standalone(args.scene, args.fmi_version, args.output)
-        else:
-            from .builder import build_fmu
-
-            path = build_fmu(args.scene, args.fmi_version, args.output)
+        path = build_fmu(args.scene, args.fmi_version, args.output)
     except (ConfigError, ValueError) as e:
         print(f"gyrosim fmu build: {e}", file=sys.stderr)
         return 2

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from ..model import Model
-from .slave import fmu_variables
+from .build import fmu_variables
 
 __all__ = ["variables_table", "update_readme", "BEGIN", "END"]
 
@@ -24,10 +24,10 @@ def variables_table(scene=None) -> str:
     out = m.outputs(0)
     lines = ["| vr | name | causality | variability | unit | start | description |",
              "|---:|---|---|---|---|---|---|"]
-    for vr, v in fmu_variables(m):
+    for vr, (name, _, v) in enumerate(fmu_variables(m.scene), start=1):
         start = out[v.name] if v.causality == "output" else v.start
         start = f"{start:.6g}" if isinstance(start, float) else f"`{start}`"
-        lines.append(f"| {vr} | `{v.name}` | {v.causality} | {v.variability} | {v.unit or '-'} | {start} | "
+        lines.append(f"| {vr} | `{name}` | {v.causality} | {v.variability} | {v.unit or '-'} | {start} | "
                      f"{v.description} |")
     return "\n".join(lines)
 

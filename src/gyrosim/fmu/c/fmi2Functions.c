@@ -1,5 +1,5 @@
 /*
- * gyrosim standalone FMU: the FMI 2.0 co-simulation interface.
+ * gyrosim FMU: the FMI 2.0 co-simulation interface around the engine (gyrosim_model.c).
  *
  * Every function of fmi2Functions.h is defined and exported. The call sequence is enforced as the Modelica
  * Reference FMUs do (src/fmi2Functions.c): a call in the wrong state returns fmi2Error with "Illegal call
@@ -11,8 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gyrosim_config.h"
-#include "gyrosim_model.h"
+#include "gyrosim_model.h"   /* first: the engine's FP_CONTRACT pragma */
 #include "fmi2Functions.h"
 
 #define M ((GsInstance *)c)
@@ -107,7 +106,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     e->logger = logger;
     e->env = env;
     e->name = m->instance_name;
-    gs_log_event(m, "fmi2Instantiate: %s (%s), integrators euler, rk4, splitting, splitting4", name,
+    gs_log_event(m, "fmi2Instantiate: %s (%s), integrators " GS_INTEGRATOR_LIST, name,
                  MODEL_IDENTIFIER_STRING);
     return m;
 }
@@ -238,12 +237,9 @@ fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     CHECK(ALL_STATES, "fmi2GetFMUstate");
     NOT_NULL(FMUstate, "fmi2GetFMUstate", "FMUstate");
-    GsData *s = (GsData *)(*FMUstate ? *FMUstate : malloc(sizeof(GsData)));
-    if (!s) {
-        gs_log_error(M, "out of memory");
-        return fmi2Error;
-    }
-    *s = M->d;
+    GsData *s = *FMUstate ? (GsData *)*FMUstate : gs_state_alloc(M);
+    if (!s) return fmi2Error;
+    memcpy(s, &M->d, sizeof(GsData));
     *FMUstate = s;
     return fmi2OK;
 }
@@ -252,9 +248,8 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     CHECK(ALL_STATES, "fmi2SetFMUstate");
     NOT_NULL(FMUstate, "fmi2SetFMUstate", "FMUstate");
     const GsData *s = (const GsData *)FMUstate;
-    if (gs_check_state_data(M, s, "fmi2SetFMUstate") != GS_OK) return fmi2Error;
-    M->d = *s;
-    M->outputs_valid = 0;
+    if (gs_check_state_data(M, s) != GS_OK) return fmi2Error;
+    gs_restore(M, s);
     return fmi2OK;
 }
 
@@ -292,14 +287,12 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
                                    fmi2FMUstate *FMUstate) {
     CHECK(ALL_STATES, "fmi2DeSerializeFMUstate");
     NOT_NULL(FMUstate, "fmi2DeSerializeFMUstate", "FMUstate");
-    GsData d;
-    if (gs_deserialize(M, (const unsigned char *)serializedState, size, &d) != GS_OK) return fmi2Error;
-    GsData *s = (GsData *)(*FMUstate ? *FMUstate : malloc(sizeof(GsData)));
-    if (!s) {
-        gs_log_error(M, "out of memory");
+    GsData *s = *FMUstate ? (GsData *)*FMUstate : gs_state_alloc(M);
+    if (!s) return fmi2Error;
+    if (gs_deserialize(M, (const unsigned char *)serializedState, size, s) != GS_OK) {
+        if (s != *FMUstate) free(s);
         return fmi2Error;
     }
-    *s = d;
     *FMUstate = s;
     return fmi2OK;
 }

@@ -1,22 +1,23 @@
 /*
- * gyrosim standalone FMU: the step-based model, a C mirror of gyrosim.model.Model for one body.
+ * gyrosim FMU glue: the step-based model of gyrosim.model.Model around the engine, for GS_N_BODIES bodies.
  *
- * Validation rules, messages, the time rule (time = t_base + n*h over each run of equal steps), the number of
- * internal steps (n_sub = max(1, ceil(h/max_step*(1 - 1e-12)))) and the initialisation (normalise q, start the
- * unwrapped angles from quat_to_euler_zyz) follow src/gyrosim/model.py.
+ * Validation rules, the time rule (time = t_base + n*h over each run of equal steps), the initialisation
+ * (q normalised, the unwrapped angles started: gs_start_state) and every step (gs_advance) follow
+ * src/gyrosim/model.py; the physics is the engine's alone.
  */
-#include "gyrosim_kernel.h"   /* first: its FP_CONTRACT pragma */
+#include "gyrosim_model.h"   /* first: the engine's FP_CONTRACT pragma */
+
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "gyrosim_model.h"
-#include "gyrosim_config.h"
-
 static const int VR_KIND[] = GS_VR_KINDS;
+static const int VR_BODY[] = GS_VR_BODIES;
 #define N_VR ((uint32_t)(sizeof(VR_KIND) / sizeof(VR_KIND[0])))
+static const char *const BODY_NAME[GS_N_BODIES] = GS_BODY_NAMES;
+static const double START_BODY[GS_N_BODIES][14] = GS_START_BODIES;
 
 static const char *const KIND_NAME[GS_V_COUNT] = {
     "?", "time", "I1", "I2", "I3", "mass", "cm_distance", "g", "damping", "integrator", "max_step",
@@ -27,9 +28,6 @@ static const char *const KIND_UNIT[GS_V_COUNT] = {
     "", "s", "kg.m2", "kg.m2", "kg.m2", "kg", "m", "m/s2", "N.m.s", "", "s",
     "1", "1", "1", "1", "rad/s", "rad/s", "rad/s", "N.m", "N.m", "N.m",
     "rad", "rad", "rad", "kg.m2/s", "kg.m2/s", "kg.m2/s", "J"};
-
-static const char *const METHOD_NAME[] = {"euler", "rk4", "splitting", "splitting4"};
-#define N_METHODS 4
 
 /* ------------------------------------------------------------------------------------------ helpers */
 
@@ -50,6 +48,23 @@ static Num num(double x) {
         if (!isfinite(x) || strtod(r.s, NULL) == x) break;
     }
     return r;
+}
+
+/* The variable's name as in modelDescription.xml: "<body>.<name>" in multi-body scenes. */
+typedef struct { char s[160]; } Name;
+
+static Name var_name(int body, int kind) {
+    Name r;
+    if (GS_N_BODIES > 1 && body >= 0) {
+        snprintf(r.s, sizeof(r.s), "%s.%s", BODY_NAME[body], KIND_NAME[kind]);
+    } else {
+        snprintf(r.s, sizeof(r.s), "%s", KIND_NAME[kind]);
+    }
+    return r;
+}
+
+static const char *where(int body) {
+    return GS_N_BODIES > 1 ? BODY_NAME[body] : "";
 }
 
 static uint64_t fnv1a(const char *s) {
@@ -103,7 +118,7 @@ int gs_set_debug_logging(GsInstance *m, int logging_on, size_t n, const char *co
         } else if (c && strcmp(c, "logStatusError") == 0) {
             m->log_errors = logging_on;
         } else if (c && (strcmp(c, "logStatusWarning") == 0 || strcmp(c, "logStatusFatal") == 0)) {
-            /* declared for parity with the Python-backed FMU; this FMU never returns Warning or Fatal */
+            /* declared by convention; this FMU never returns Warning or Fatal */
         } else {
             gs_log_error(m, "categories[%zu] = \"%s\" is not allowed: one of \"logEvents\", \"logStatusWarning\", "
                          "\"logStatusError\", \"logStatusFatal\"", i, c ? c : "(null)");
@@ -143,14 +158,6 @@ int gs_check_state(GsInstance *m, int mask, const char *function) {
     return 0;
 }
 
-int gs_vr_kind(uint32_t vr) {
-    return vr < N_VR ? VR_KIND[vr] : GS_V_NONE;
-}
-
-const char *gs_kind_name(int kind) {
-    return (kind > 0 && kind < GS_V_COUNT) ? KIND_NAME[kind] : "?";
-}
-
 /* ------------------------------------------------------------------------------------------ life cycle */
 
 void gs_set_start_values(GsInstance *m) {
@@ -159,22 +166,17 @@ void gs_set_start_values(GsInstance *m) {
     d->token_hash = fnv1a(INSTANTIATION_TOKEN);
     d->fmi_state = GS_INSTANTIATED;
     d->integrator = GS_START_INTEGRATOR_CODE;
-    d->moments[0] = GS_START_I1;
-    d->moments[1] = GS_START_I2;
-    d->moments[2] = GS_START_I3;
-    d->mass = GS_START_MASS;
-    d->cm_distance = GS_START_CM_DISTANCE;
-    d->g = GS_START_G;
-    d->damping = GS_START_DAMPING;
     d->max_step = GS_START_MAX_STEP;
     d->tolerance = GS_START_TOLERANCE;
-    d->y[0] = GS_START_Q_W;
-    d->y[1] = GS_START_Q_X;
-    d->y[2] = GS_START_Q_Y;
-    d->y[3] = GS_START_Q_Z;
-    d->y[4] = GS_START_OMEGA_X;
-    d->y[5] = GS_START_OMEGA_Y;
-    d->y[6] = GS_START_OMEGA_Z;
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        const double *s = START_BODY[b];
+        for (int i = 0; i < 3; i++) d->moments[b][i] = s[i];
+        d->mass[b] = s[3];
+        d->cm_distance[b] = s[4];
+        d->g[b] = s[5];
+        d->damping[b] = s[6];
+        for (int i = 0; i < 7; i++) d->y[b][i] = s[7 + i];
+    }
     d->state_dirty = 1;
     m->outputs_valid = 0;
 }
@@ -197,6 +199,7 @@ GsInstance *gs_new(const char *instance_name, void *env, GsLogger log, int loggi
 
 void gs_free(GsInstance *m) {
     if (!m) return;
+    free(m->scratch);
     free(m->instance_name);
     free(m);
 }
@@ -234,16 +237,16 @@ int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double star
 }
 
 /* inertia.check_principal_moments (positivity is enforced on set) */
-static int check_moments(GsInstance *m) {
-    static const char *const names[3] = {"I1", "I2", "I3"};
-    const double *I = m->d.moments;
+static int check_moments(GsInstance *m, int b) {
+    const double *I = m->d.moments[b];
     for (int c = 0; c < 3; c++) {
         const int a = c == 0 ? 1 : 0;
-        const int b = c == 2 ? 1 : 2;
-        if (I[a] + I[b] < I[c] * (1.0 - 1e-12)) {
+        const int bb = c == 2 ? 1 : 2;
+        if (I[a] + I[bb] < I[c] * (1.0 - 1e-12)) {
             gs_log_error(m, "%s = %s is not allowed: at most %s + %s = %.12g (triangle inequality of principal "
-                         "moments; %s = %.12g, %s = %.12g)", names[c], num(I[c]).s, names[a], names[b],
-                         I[a] + I[b], names[a], I[a], names[b], I[b]);
+                         "moments; %s = %.12g, %s = %.12g)", var_name(b, GS_V_I1 + c).s, num(I[c]).s,
+                         KIND_NAME[GS_V_I1 + a], KIND_NAME[GS_V_I1 + bb], I[a] + I[bb], KIND_NAME[GS_V_I1 + a],
+                         I[a], KIND_NAME[GS_V_I1 + bb], I[bb]);
             return GS_ERROR;
         }
     }
@@ -254,43 +257,48 @@ static int check_moments(GsInstance *m) {
 int gs_initialize(GsInstance *m) {
     GsData *d = &m->d;
     if (!d->initialized) {
-        if (check_moments(m) != GS_OK) return GS_ERROR;
+        for (int b = 0; b < GS_N_BODIES; b++) {
+            if (check_moments(m, b) != GS_OK) return GS_ERROR;
 #if GS_HAS_GRAVITY
-        if (d->cm_distance > 0 && d->mass <= 0) {
-            gs_log_error(m, "mass = %s is not allowed: a number > 0", num(d->mass).s);
-            return GS_ERROR;
-        }
+            if (d->cm_distance[b] > 0 && d->mass[b] <= 0) {
+                gs_log_error(m, "%s = %s is not allowed: a number > 0", var_name(b, GS_V_MASS).s, num(d->mass[b]).s);
+                return GS_ERROR;
+            }
 #endif
-        d->p[0] = d->moments[0];
-        d->p[1] = d->moments[1];
-        d->p[2] = d->moments[2];
-        d->p[3] = d->mass * d->g * d->cm_distance;   /* Model._params: mass * g * cm (g = 0 without gravity) */
-        d->p[4] = d->damping;
-        d->p[5] = d->tau[0];
-        d->p[6] = d->tau[1];
-        d->p[7] = d->tau[2];
+        }
+        for (int b = 0; b < GS_N_BODIES; b++) {
+            double *p = d->p[b];
+            p[0] = d->moments[b][0];
+            p[1] = d->moments[b][1];
+            p[2] = d->moments[b][2];
+            p[3] = d->mass[b] * d->g[b] * d->cm_distance[b];   /* Model._params */
+            p[4] = d->damping[b];
+            p[5] = d->tau[b][0];
+            p[6] = d->tau[b][1];
+            p[7] = d->tau[b][2];
+        }
         d->initialized = 1;
     }
     if (d->state_dirty) {
-        const double nq = gs_norm4(d->y);
-        if (!(fabs(nq - 1.0) <= 1e-6)) {
-            gs_log_error(m, "q = [%s, %s, %s, %s] is not allowed: a unit quaternion (q_w, q_x, q_y, q_z) with "
-                         "|q| = 1 within 1e-6; its norm is %.9g", num(d->y[0]).s, num(d->y[1]).s, num(d->y[2]).s,
-                         num(d->y[3]).s, nq);
-            return GS_ERROR;
-        }
-        for (int i = 4; i < 7; i++) {
-            if (!isfinite(d->y[i])) {
-                gs_log_error(m, "omega = [%s, %s, %s] is not allowed: finite rates in rad/s", num(d->y[4]).s,
-                             num(d->y[5]).s, num(d->y[6]).s);
+        for (int b = 0; b < GS_N_BODIES; b++) {
+            const double nq = gs_norm4(d->y[b]);
+            if (!(fabs(nq - 1.0) <= 1e-6)) {
+                gs_log_error(m, "q%s%s = [%s, %s, %s, %s] is not allowed: a unit quaternion (q_w, q_x, q_y, q_z) "
+                             "with |q| = 1 within 1e-6; its norm is %.9g", GS_N_BODIES > 1 ? " of body " : "",
+                             where(b), num(d->y[b][0]).s, num(d->y[b][1]).s, num(d->y[b][2]).s, num(d->y[b][3]).s,
+                             nq);
                 return GS_ERROR;
             }
+            for (int i = 4; i < 7; i++) {
+                if (!isfinite(d->y[b][i])) {
+                    gs_log_error(m, "omega%s%s = [%s, %s, %s] is not allowed: finite rates in rad/s",
+                                 GS_N_BODIES > 1 ? " of body " : "", where(b), num(d->y[b][4]).s,
+                                 num(d->y[b][5]).s, num(d->y[b][6]).s);
+                    return GS_ERROR;
+                }
+            }
         }
-        for (int i = 0; i < 4; i++) d->y[i] = d->y[i] / nq;
-        double phi, theta, psi;
-        gs_quat_to_euler_zyz(d->y, &phi, &theta, &psi);
-        d->y[7] = phi;
-        d->y[8] = psi;
+        for (int b = 0; b < GS_N_BODIES; b++) gs_start_state(d->y[b]);
         d->state_dirty = 0;
         m->outputs_valid = 0;
     }
@@ -302,17 +310,7 @@ int gs_initialize(GsInstance *m) {
 static int outputs(GsInstance *m) {
     if (!m->outputs_valid) {
         if (gs_initialize(m) != GS_OK) return GS_ERROR;
-        double p[GS_NP];
-        const GsData *d = &m->d;
-        p[0] = d->moments[0];
-        p[1] = d->moments[1];
-        p[2] = d->moments[2];
-        p[3] = d->mass * d->g * d->cm_distance;
-        p[4] = d->damping;
-        p[5] = d->tau[0];
-        p[6] = d->tau[1];
-        p[7] = d->tau[2];
-        gs_compute_outputs(d->y, p, m->outputs);
+        gs_outputs(GS_N_BODIES, &m->d.y[0][0], &m->d.p[0][0], &m->outputs[0][0]);
         m->outputs_valid = 1;
     }
     return GS_OK;
@@ -324,39 +322,43 @@ static int unknown_vr(GsInstance *m, uint32_t vr, const char *type) {
     return GS_ERROR;
 }
 
+static int vr_kind(uint32_t vr, int *body) {
+    if (vr >= N_VR) return GS_V_NONE;
+    *body = VR_BODY[vr];
+    return VR_KIND[vr];
+}
+
 int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
-    const int k = gs_vr_kind(vr);
+    int b = 0;
+    const int k = vr_kind(vr, &b);
     GsData *d = &m->d;
     switch (k) {
         case GS_V_TIME: *value = gs_time(m); return GS_OK;
-        case GS_V_I1: case GS_V_I2: case GS_V_I3: *value = d->moments[k - GS_V_I1]; return GS_OK;
-        case GS_V_MASS: *value = d->mass; return GS_OK;
-        case GS_V_CM: *value = d->cm_distance; return GS_OK;
-        case GS_V_G: *value = d->g; return GS_OK;
-        case GS_V_DAMPING: *value = d->damping; return GS_OK;
+        case GS_V_I1: case GS_V_I2: case GS_V_I3: *value = d->moments[b][k - GS_V_I1]; return GS_OK;
+        case GS_V_MASS: *value = d->mass[b]; return GS_OK;
+        case GS_V_CM: *value = d->cm_distance[b]; return GS_OK;
+        case GS_V_G: *value = d->g[b]; return GS_OK;
+        case GS_V_DAMPING: *value = d->damping[b]; return GS_OK;
         case GS_V_MAX_STEP: *value = d->max_step; return GS_OK;
-        case GS_V_TX: case GS_V_TY: case GS_V_TZ: *value = d->tau[k - GS_V_TX]; return GS_OK;
-        case GS_V_QW: case GS_V_QX: case GS_V_QY: case GS_V_QZ:
-        case GS_V_OX: case GS_V_OY: case GS_V_OZ:
+        case GS_V_TX: case GS_V_TY: case GS_V_TZ: *value = d->tau[b][k - GS_V_TX]; return GS_OK;
+        case GS_V_QW: case GS_V_QX: case GS_V_QY: case GS_V_QZ: case GS_V_OX: case GS_V_OY: case GS_V_OZ:
+        case GS_V_PHI: case GS_V_THETA: case GS_V_PSI: case GS_V_LX: case GS_V_LY: case GS_V_LZ: case GS_V_ENERGY: {
             if (outputs(m) != GS_OK) return GS_ERROR;
-            *value = d->y[k - GS_V_QW];
+            static const int SLOT[GS_V_COUNT] = {
+                [GS_V_QW] = 0, [GS_V_QX] = 1, [GS_V_QY] = 2, [GS_V_QZ] = 3, [GS_V_OX] = 4, [GS_V_OY] = 5,
+                [GS_V_OZ] = 6, [GS_V_PHI] = 7, [GS_V_THETA] = 8, [GS_V_PSI] = 9, [GS_V_LX] = 10, [GS_V_LY] = 11,
+                [GS_V_LZ] = 12, [GS_V_ENERGY] = 13};
+            *value = m->outputs[b][SLOT[k]];
             return GS_OK;
-        case GS_V_PHI: case GS_V_PSI:
-            if (outputs(m) != GS_OK) return GS_ERROR;
-            *value = d->y[k == GS_V_PHI ? 7 : 8];
-            return GS_OK;
-        case GS_V_THETA: case GS_V_LX: case GS_V_LY: case GS_V_LZ: case GS_V_ENERGY:
-            if (outputs(m) != GS_OK) return GS_ERROR;
-            *value = m->outputs[k == GS_V_THETA ? 0 : (k == GS_V_ENERGY ? 4 : 1 + k - GS_V_LX)];
-            return GS_OK;
+        }
         default:
             return unknown_vr(m, vr, "Real");
     }
 }
 
-static int finite_in_unit(GsInstance *m, int k, double x) {
+static int finite_in_unit(GsInstance *m, int b, int k, double x) {
     if (!isfinite(x)) {
-        gs_log_error(m, "%s = %s is not allowed: a finite number in %s", KIND_NAME[k], num(x).s,
+        gs_log_error(m, "%s = %s is not allowed: a finite number in %s", var_name(b, k).s, num(x).s,
                      KIND_UNIT[k][0] ? KIND_UNIT[k] : "1");
         return 0;
     }
@@ -364,7 +366,8 @@ static int finite_in_unit(GsInstance *m, int k, double x) {
 }
 
 int gs_set_real(GsInstance *m, uint32_t vr, double x) {
-    const int k = gs_vr_kind(vr);
+    int b = 0;
+    const int k = vr_kind(vr, &b);
     GsData *d = &m->d;
     if (k == GS_V_NONE || k == GS_V_INTEGRATOR) return unknown_vr(m, vr, "Real");
     if (k == GS_V_TIME) {
@@ -372,37 +375,39 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
         return GS_ERROR;
     }
     const int is_input = k == GS_V_TX || k == GS_V_TY || k == GS_V_TZ;
+    const Name name = var_name(b, k);
     if (!is_input && !(d->fmi_state & (GS_INSTANTIATED | GS_INIT))) {
         gs_log_error(m, "%s cannot be set in state %s: only the inputs tau_x, tau_y, tau_z can be set after "
-                     "initialisation (%s is a %s)", KIND_NAME[k], state_name(d->fmi_state), KIND_NAME[k],
+                     "initialisation (%s is a %s)", name.s, state_name(d->fmi_state), name.s,
                      k <= GS_V_MAX_STEP ? "fixed parameter" : "output");
         return GS_ERROR;
     }
     if (k >= GS_V_PHI) {
         gs_log_error(m, "%s = %s is not allowed: a parameter, an input or a state start (q_*, omega_*); %s is a "
-                     "derived output", KIND_NAME[k], num(x).s, KIND_NAME[k]);
+                     "derived output", name.s, num(x).s, name.s);
         return GS_ERROR;
     }
-    if (!finite_in_unit(m, k, x)) return GS_ERROR;
+    if (!finite_in_unit(m, b, k, x)) return GS_ERROR;
     switch (k) {
         case GS_V_I1: case GS_V_I2: case GS_V_I3:
             if (!(x > 0)) {
-                gs_log_error(m, "%s = %s is not allowed: a finite number > 0", KIND_NAME[k], num(x).s);
+                gs_log_error(m, "%s = %s is not allowed: a finite number > 0", name.s, num(x).s);
                 return GS_ERROR;
             }
-            d->moments[k - GS_V_I1] = x;
+            d->moments[b][k - GS_V_I1] = x;
             d->initialized = 0;
+            d->ex[b][GS_EX_VALID] = 0.0;
             break;
         case GS_V_MASS: case GS_V_CM: case GS_V_G: case GS_V_DAMPING:
             if (x < 0 || (k == GS_V_MASS && x == 0)) {
-                gs_log_error(m, "%s = %s is not allowed: a number %s 0 in %s", KIND_NAME[k], num(x).s,
+                gs_log_error(m, "%s = %s is not allowed: a number %s 0 in %s", name.s, num(x).s,
                              k == GS_V_MASS ? ">" : ">=", KIND_UNIT[k]);
                 return GS_ERROR;
             }
-            if (k == GS_V_MASS) d->mass = x;
-            else if (k == GS_V_CM) d->cm_distance = x;
-            else if (k == GS_V_G) d->g = x;
-            else d->damping = x;
+            if (k == GS_V_MASS) d->mass[b] = x;
+            else if (k == GS_V_CM) d->cm_distance[b] = x;
+            else if (k == GS_V_G) d->g[b] = x;
+            else d->damping[b] = x;
             d->initialized = 0;
             break;
         case GS_V_MAX_STEP:
@@ -413,11 +418,12 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
             d->max_step = x;
             break;
         case GS_V_TX: case GS_V_TY: case GS_V_TZ:
-            d->tau[k - GS_V_TX] = x;
+            d->tau[b][k - GS_V_TX] = x;
             break;
         default:  /* q_*, omega_* */
-            d->y[k - GS_V_QW] = x;
+            d->y[b][k - GS_V_QW] = x;
             d->state_dirty = 1;
+            d->ex[b][GS_EX_VALID] = 0.0;
             break;
     }
     m->outputs_valid = 0;
@@ -425,35 +431,42 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
 }
 
 int gs_get_string(GsInstance *m, uint32_t vr, const char **value) {
-    if (gs_vr_kind(vr) != GS_V_INTEGRATOR) return unknown_vr(m, vr, "String");
-    *value = METHOD_NAME[m->d.integrator];
+    int b = 0;
+    if (vr_kind(vr, &b) != GS_V_INTEGRATOR) return unknown_vr(m, vr, "String");
+    *value = gs_method_names[m->d.integrator];
     return GS_OK;
 }
 
 int gs_set_string(GsInstance *m, uint32_t vr, const char *value) {
-    if (gs_vr_kind(vr) != GS_V_INTEGRATOR) return unknown_vr(m, vr, "String");
+    int b = 0;
+    if (vr_kind(vr, &b) != GS_V_INTEGRATOR) return unknown_vr(m, vr, "String");
     if (!(m->d.fmi_state & (GS_INSTANTIATED | GS_INIT))) {
         gs_log_error(m, "integrator cannot be set in state %s: it is a fixed parameter",
                      state_name(m->d.fmi_state));
         return GS_ERROR;
     }
     if (!value) {
-        gs_log_error(m, "integrator = NULL is not allowed: one of euler, rk4, splitting, splitting4");
+        gs_log_error(m, "integrator = NULL is not allowed: one of " GS_INTEGRATOR_LIST);
         return GS_ERROR;
     }
-    for (int i = 0; i < N_METHODS; i++) {
-        if (strcmp(value, METHOD_NAME[i]) == 0) {
-            m->d.integrator = i;
-            return GS_OK;
+    const int code = gs_method_code(value);
+    if (code == GS_EXACT && GS_FLAGS != 0) {
+        gs_log_error(m, "integrator = 'exact' is not allowed: a general integrator: 'exact' solves torque-free "
+                     "scenes only, and scene '" GS_SCENE_NAME "' has gravity, damping or torque terms");
+        return GS_ERROR;
+    }
+    if (code < 0) {
+        gs_log_error(m, "integrator = '%.64s' is not allowed: one of " GS_INTEGRATOR_LIST, value);
+        return GS_ERROR;
+    }
+    if (code != m->d.integrator) {   /* Model.set: a new integrator starts without history */
+        for (int b = 0; b < GS_N_BODIES; b++) {
+            m->d.hint[b] = 0.0;
+            m->d.ex[b][GS_EX_VALID] = 0.0;
         }
     }
-    if (strcmp(value, "adaptive") == 0 || strcmp(value, "exact") == 0) {
-        gs_log_error(m, "integrator = '%s' is not allowed: the standalone (native) FMU has euler, rk4, splitting, "
-                     "splitting4; '%s' needs the Python-backed FMU", value, value);
-    } else {
-        gs_log_error(m, "integrator = '%.64s' is not allowed: one of euler, rk4, splitting, splitting4", value);
-    }
-    return GS_ERROR;
+    m->d.integrator = code;
+    return GS_OK;
 }
 
 /* ------------------------------------------------------------------------------------------ stepping */
@@ -477,25 +490,57 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         return GS_ERROR;
     }
     if (gs_initialize(m) != GS_OK) return GS_ERROR;
-    d->p[5] = d->tau[0];
-    d->p[6] = d->tau[1];
-    d->p[7] = d->tau[2];
-    const double n_sub_f = ceil(h / d->max_step * (1.0 - 1e-12));
-    if (!(n_sub_f < 9.2e18)) {
-        gs_log_error(m, "a step of h = %s s with max_step = %s s needs %s internal steps: too many", num(h).s,
-                     num(d->max_step).s, num(n_sub_f).s);
+    const int method = d->integrator;
+    const int64_t n_sub = gs_substeps(h, d->max_step);
+    if (method != GS_ADAPTIVE && method != GS_EXACT && n_sub == 0) {
+        gs_log_error(m, "a step of h = %s s with max_step = %s s needs %.3g internal steps: too many (at most "
+                     "4.6e18); raise max_step or take shorter steps", num(h).s, num(d->max_step).s, h / d->max_step);
         return GS_ERROR;
     }
-    const long n_sub = n_sub_f > 1.0 ? (long)n_sub_f : 1L;
-    const int k = gs_advance(d->integrator, d->y, d->p, GS_FLAGS, h, n_sub);
-    if (k) {
-        gs_log_error(m, "integrator '%s' blew up in the step from t = %s s with h = %s s: internal step %d of %ld "
-                     "(internal step %.6g s) gave a non-finite or overflowing state (|omega| > 1e+100 rad/s); use "
-                     "a smaller max_step (now %.6g s) or a stable integrator ('splitting')",
-                     METHOD_NAME[d->integrator], num(t).s, num(h).s, k, n_sub, h / (double)n_sub, d->max_step);
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        d->p[b][5] = d->tau[b][0];
+        d->p[b][6] = d->tau[b][1];
+        d->p[b][7] = d->tau[b][2];
+    }
+#if GS_N_BODIES > 1
+    if (!m->scratch) m->scratch = (GsData *)malloc(sizeof(GsData));
+    if (!m->scratch) {
+        gs_log_error(m, "out of memory");
         return GS_ERROR;
     }
-    d->steps += (uint64_t)n_sub;
+    memcpy(m->scratch, d, sizeof(GsData));
+#endif
+    const size_t failed = gs_advance(method, GS_FLAGS, GS_N_BODIES, &d->y[0][0], &d->p[0][0], t, h, d->tolerance,
+                                     d->tolerance, d->max_step, d->hint, &d->stats[0][0], &d->ex[0][0], m->status,
+                                     1);
+    if (failed) {
+        int b = 0;
+        while (b < GS_N_BODIES - 1 && !m->status[b]) b++;
+        const int k = m->status[b];
+#if GS_N_BODIES > 1
+        memcpy(d, m->scratch, sizeof(GsData));
+#endif
+        char detail[200], advice[200];
+        if (method == GS_ADAPTIVE) {
+            snprintf(detail, sizeof(detail), "the adaptive step size fell below its minimum at internal step %d", k);
+            snprintf(advice, sizeof(advice), "loosen the tolerance or check the parameters (the solution may "
+                     "truly blow up)");
+        } else if (method == GS_EXACT) {
+            snprintf(detail, sizeof(detail), "the exact torque-free solution");
+            snprintf(advice, sizeof(advice), "check the parameters and the state (the rates may be beyond double "
+                     "precision)");
+        } else {
+            snprintf(detail, sizeof(detail), "internal step %d of %lld (internal step %.6g s)", k, (long long)n_sub,
+                     h / (double)n_sub);
+            snprintf(advice, sizeof(advice), "use a smaller max_step (now %.6g s) or the integrator '%s'",
+                     d->max_step, method == GS_SPLITTING ? "adaptive" : "splitting");
+        }
+        gs_log_error(m, "integrator '%s' blew up%s%s%s in the step from t = %s s with h = %s s: %s gave a non-finite "
+                     "or overflowing state (|omega| > 1e+100 rad/s); %s", gs_method_names[method],
+                     GS_N_BODIES > 1 ? " for body '" : "", where(b), GS_N_BODIES > 1 ? "'" : "", num(t).s, num(h).s,
+                     detail, advice);
+        return GS_ERROR;
+    }
     if (h == d->h) {
         d->n += 1;
     } else {
@@ -509,12 +554,18 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
 
 /* ------------------------------------------------------------------------------------------ state */
 
-#define GS_MAGIC 0x31535947u  /* "GYS1" */
+#define GS_MAGIC 0x32535947u  /* "GYS2" */
 
 typedef struct {
     uint32_t magic;
     uint32_t size;
 } GsHeader;
+
+GsData *gs_state_alloc(GsInstance *m) {
+    GsData *s = (GsData *)malloc(sizeof(GsData));
+    if (!s) gs_log_error(m, "out of memory (an FMU state of %zu bytes)", sizeof(GsData));
+    return s;
+}
 
 size_t gs_serialized_size(void) {
     return sizeof(GsHeader) + sizeof(GsData);
@@ -528,31 +579,37 @@ void gs_serialize(const GsData *d, unsigned char *out) {
     memcpy(out + sizeof(h), d, sizeof(GsData));
 }
 
-int gs_check_state_data(GsInstance *m, const GsData *d, const char *function) {
+int gs_check_state_data(GsInstance *m, const GsData *d) {
     if (d->token_hash != m->d.token_hash) {
-        (void)function;
         gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
         return GS_ERROR;
     }
     return GS_OK;
 }
 
+void gs_restore(GsInstance *m, const GsData *d) {
+    memcpy(&m->d, d, sizeof(GsData));
+    m->outputs_valid = 0;
+}
+
 int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *out) {
     GsHeader h;
     if (!in || size != gs_serialized_size()) {
-        gs_log_error(m, "size = %zu is not allowed: a state serialised by this FMU has %zu "
-                     "bytes", size, gs_serialized_size());
+        gs_log_error(m, "size = %zu is not allowed: a state serialised by this FMU has %zu bytes", size,
+                     gs_serialized_size());
         return GS_ERROR;
     }
     memcpy(&h, in, sizeof(h));
     if (h.magic != GS_MAGIC || h.size != sizeof(GsData)) {
-        gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU "
-                     "(wrong header)");
+        gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU (wrong header)");
         return GS_ERROR;
     }
-    GsData d;
-    memcpy(&d, in + sizeof(h), sizeof(GsData));
-    if (gs_check_state_data(m, &d, NULL) != GS_OK) return GS_ERROR;
-    *out = d;
+    uint64_t token;
+    memcpy(&token, in + sizeof(h) + offsetof(GsData, token_hash), sizeof(token));
+    if (token != m->d.token_hash) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
+        return GS_ERROR;
+    }
+    memcpy(out, in + sizeof(h), sizeof(GsData));
     return GS_OK;
 }

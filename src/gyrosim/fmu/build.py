@@ -1,9 +1,12 @@
-"""Build the standalone FMU: native code compiled with the system C compiler, no Python inside.
+"""Build the gyrosim FMU: FMI 2.0 / 3.0 co-simulation, native code compiled from the engine's C sources.
 
-The variables, units and start values come from :func:`gyrosim.model.variables_for` (the same source as the
-Python-backed FMU); the physics is the hand-written C mirror of :mod:`gyrosim.core.kernels` in ``c/``, checked
-against :class:`gyrosim.model.Model` to 1e-12 by ``tests/standalone``. The FMU also carries its C sources (FMI 2.0
-``SourceFiles``, FMI 3.0 ``sources/buildDescription.xml``), so other platforms can compile it.
+One FMU kind. Its binary is the C engine (``core/engine/``: the same sources and floating-point flags as the
+Python extension, so an FMU run and ``Model.step`` agree to the bit) plus the FMI glue in ``c/`` (variables,
+validation, time, saved state; no physics). No Python on the host. The FMU carries its sources (FMI 2.0
+``SourceFiles``, FMI 3.0 ``sources/buildDescription.xml``), from which it rebuilds to the same bits.
+
+Variables come from :func:`gyrosim.model.variables_for`; a multi-body scene exports every body, its variables
+named ``<body>.<name>`` (``fast.q_w``), with ``integrator`` and ``max_step`` shared by all bodies.
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -20,24 +24,23 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
-from ...core import kernels
-from ...errors import ConfigError
-from ...model import variables_for
-from ...scene import Scene, load_scene
+from ..errors import ConfigError
+from ..model import variables_for
+from ..scene import INTEGRATORS, Scene, load_scene
 
-__all__ = ["build_standalone", "model_identifier", "INTEGRATORS", "fmi_include_dir", "compile_command",
-           "binary_path", "C_FLAGS"]
+__all__ = ["build_fmu", "model_identifier", "fmi_include_dir", "compile_command", "binary_path", "C_FLAGS",
+           "DEFAULT_OUTPUT", "engine_sources", "SCENE_VARIABLES"]
 
-#: Integrators of the standalone FMU (``adaptive`` and ``exact`` need the Python-backed FMU).
-INTEGRATORS = ("euler", "rk4", "splitting", "splitting4")
-_CODES = {"euler": 0, "rk4": 1, "splitting": 2, "splitting4": 3}
-assert all(kernels.METHOD_CODES[k] == v for k, v in _CODES.items())
+DEFAULT_OUTPUT = Path("fmu") / "dist"
 
-#: Compiler flags: -ffp-contract=off keeps every product and sum a separate IEEE operation, as numpy and numba
-#: do, which is what lets the C kernel reproduce the Python kernel to the bit.
-C_FLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-ffp-contract=off", "-fPIC", "-fvisibility=hidden")
+#: The engine's floating-point flags (core/engine/cflags.txt, shared with the Python extension) and the FMU's.
+C_FLAGS = (*resources.files("gyrosim.core").joinpath("engine", "cflags.txt").read_text().split(),
+           "-Wall", "-Wextra", "-fPIC", "-fvisibility=hidden")
 
-_SOURCES = ("gyrosim_kernel.h", "gyrosim_kernel.c", "gyrosim_model.h", "gyrosim_model.c")
+_ENGINE = ("gyrosim_engine.h", "engine.c", "exact.c", "cflags.txt")
+_GLUE = ("gyrosim_model.h", "gyrosim_model.c")
+#: Scene-wide variables (not per body) of a multi-body FMU.
+SCENE_VARIABLES = ("integrator", "max_step")
 _KINDS = {"I1": "GS_V_I1", "I2": "GS_V_I2", "I3": "GS_V_I3", "mass": "GS_V_MASS", "cm_distance": "GS_V_CM",
           "g": "GS_V_G", "damping": "GS_V_DAMPING", "integrator": "GS_V_INTEGRATOR", "max_step": "GS_V_MAX_STEP",
           "q_w": "GS_V_QW", "q_x": "GS_V_QX", "q_y": "GS_V_QY", "q_z": "GS_V_QZ", "omega_x": "GS_V_OX",
@@ -59,8 +62,13 @@ _LOG_CATEGORIES = (("logStatusWarning", "Log messages with status Warning (this 
                    ("logEvents", "Log instantiation."))
 
 
-def _c_source_dir():
-    return resources.files(__package__).joinpath("c")
+def engine_sources() -> dict[str, str]:
+    """The C sources an FMU is compiled from, ``{file name: text}`` (engine, then glue; no generated config)."""
+    eng = resources.files("gyrosim.core").joinpath("engine")
+    glue = resources.files(__package__).joinpath("c")
+    out = {name: eng.joinpath(name).read_text() for name in _ENGINE}
+    out.update({name: glue.joinpath(name).read_text() for name in _GLUE})
+    return out
 
 
 def fmi_include_dir() -> Path:
@@ -71,13 +79,20 @@ def fmi_include_dir() -> Path:
 
 
 def model_identifier(scene: str | Path | Scene | None = None) -> str:
-    """``RigidBody`` for the full model, else the scene name in CamelCase (``heavy_top`` -> ``HeavyTop``)."""
-    sc = load_scene(scene)
-    if scene is None or sc.name == "full":
+    """``RigidBody`` for the full model, else the scene name in CamelCase.
+
+    Examples
+    --------
+    >>> model_identifier(None), model_identifier("heavy_top"), model_identifier("free_body")
+    ('RigidBody', 'HeavyTop', 'FreeBody')
+    """
+    if scene is None:
         return "RigidBody"
-    parts = [p for p in sc.name.replace("-", "_").split("_") if p]
-    ident = "".join(p[:1].upper() + p[1:] for p in parts)
-    return ident if ident[:1].isalpha() else "Scene" + ident
+    sc = load_scene(scene)
+    if sc.name == "full":
+        return "RigidBody"
+    ident = "".join(p[:1].upper() + p[1:] for p in re.split(r"[^0-9A-Za-z]+", sc.name) if p)
+    return ident if ident[:1].isalpha() else "Gyrosim" + ident
 
 
 def binary_path(fmi_version: int, identifier: str) -> str:
@@ -97,74 +112,80 @@ def _fmt(x) -> str:
     return repr(float(x))
 
 
-def _config_header(sc: Scene, variables, vrs: dict[str, int], ident: str, token: str, fmi_version: int,
-                   integrator: str) -> str:
-    b = sc.bodies[0]
+def _c_string(s: str) -> str:
+    return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def fmu_variables(sc: Scene) -> list[tuple[str, int, object]]:
+    """``(name, body, Variable)`` in value-reference order (from 1): scene-wide variables once, the rest per body
+    (named ``<body>.<name>`` when the scene has several bodies). ``body`` is -1 for scene-wide variables."""
+    n = len(sc.bodies)
+    rows = []
+    base = variables_for(sc, 0)
+    if n == 1:
+        return [(name, 0, v) for name, v in base.items()]
+    for name in SCENE_VARIABLES:
+        rows.append((name, -1, base[name]))
+    for b, body in enumerate(sc.bodies):
+        for name, v in variables_for(sc, b).items():
+            if name not in SCENE_VARIABLES:
+                rows.append((f"{body.name}.{name}", b, v))
+    return rows
+
+
+def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, integrator: str) -> str:
     # FMI 3.0 has the independent variable time at value reference 0; FMI 2.0 leaves 0 unused
-    kinds = ["GS_V_TIME" if fmi_version == 3 else "GS_V_NONE"] + [_KINDS[n] for n in variables]
-    assert [vrs[n] for n in variables] == list(range(1, len(variables) + 1))
-    start = {
-        "I1": b.moments[0], "I2": b.moments[1], "I3": b.moments[2], "MASS": b.mass, "CM_DISTANCE": b.cm_distance,
-        # Model: g of a scene without gravity is 0 (no potential energy term)
-        "G": sc.g if sc.gravity else 0.0, "DAMPING": b.damping, "MAX_STEP": sc.max_step,
-        "TOLERANCE": sc.tolerance, "Q_W": b.q0[0], "Q_X": b.q0[1], "Q_Y": b.q0[2], "Q_Z": b.q0[3],
-        "OMEGA_X": b.omega0[0], "OMEGA_Y": b.omega0[1], "OMEGA_Z": b.omega0[2],
-    }
-    flags = sc.flags
+    kinds = ["GS_V_TIME" if fmi_version == 3 else "GS_V_NONE"] + [_KINDS[v.name] for _, _, v in rows]
+    bodies = ["0"] + [str(max(b, 0)) for _, b, _ in rows]
+    g = sc.g if sc.gravity else 0.0  # Model: g of a scene without gravity is 0 (no potential energy term)
+    starts = []
+    for body in sc.bodies:
+        vals = [*body.moments, body.mass, body.cm_distance, g, body.damping, *body.q0, *body.omega0]
+        starts.append("{" + ", ".join(_hexf(v) for v in vals) + "}")
     lines = [
-        "/* Generated by gyrosim.fmu.standalone.build: the scene's variables, value references and start values. */",
+        "/* Generated by gyrosim.fmu.build: the scene's variables, value references and start values. */",
         "#ifndef GYROSIM_CONFIG_H", "#define GYROSIM_CONFIG_H", "",
         f"#define FMI_VERSION {fmi_version}",
         f"#define MODEL_IDENTIFIER {ident}",
         f'#define MODEL_IDENTIFIER_STRING "{ident}"',
         f'#define INSTANTIATION_TOKEN "{token}"',
-        f'#define GS_SCENE_NAME "{sc.name}"', "",
-        f"#define GS_FLAGS {flags}   /* GRAVITY={kernels.GRAVITY}, DAMPING={kernels.DAMPING}, "
-        f"TORQUE={kernels.TORQUE} */",
-        f"#define GS_HAS_GRAVITY {int(sc.gravity)}",
-        f"#define GS_HAS_DAMPING {int(sc.damping)}",
-        f"#define GS_HAS_TORQUE {int(sc.torque)}", "",
-        "/* value reference -> variable (index = value reference) */",
-        "#define GS_VR_KINDS {" + ", ".join(kinds) + "}", "",
-        f"#define GS_START_INTEGRATOR_CODE {_CODES[integrator]}   /* {integrator} */",
-    ]
-    for k, v in start.items():
-        lines.append(f"#define GS_START_{k} {_hexf(v)}   /* {_fmt(v)} */")
-    lines += [
-        "",
-        "/* constants of gyrosim.core.kernels, bit for bit */",
-        f"#define GS_PI {_hexf(math.pi)}",
-        f"#define GS_TWO_PI {_hexf(kernels.TWO_PI)}",
-        f"#define GS_Y0 {_hexf(kernels._Y0)}",
-        f"#define GS_Y1 {_hexf(kernels._Y1)}",
+        f"#define GS_SCENE_NAME {_c_string(sc.name)}", "",
+        f"#define GS_N_BODIES {len(sc.bodies)}",
+        f"#define GS_FLAGS {sc.flags}   /* GRAVITY=1, DAMPING=2, TORQUE=4 */",
+        f"#define GS_HAS_GRAVITY {int(sc.gravity)}", "",
+        "/* value reference -> variable kind and body (index = value reference) */",
+        "#define GS_VR_KINDS {" + ", ".join(kinds) + "}",
+        "#define GS_VR_BODIES {" + ", ".join(bodies) + "}",
+        "#define GS_BODY_NAMES {" + ", ".join(_c_string(b.name) for b in sc.bodies) + "}", "",
+        f"#define GS_START_INTEGRATOR_CODE {INTEGRATORS.index(integrator)}   /* {integrator} */",
+        f"#define GS_START_MAX_STEP {_hexf(sc.max_step)}   /* {_fmt(sc.max_step)} */",
+        f"#define GS_START_TOLERANCE {_hexf(sc.tolerance)}   /* {_fmt(sc.tolerance)} */",
+        "/* per body: I1, I2, I3, mass, cm_distance, g, damping, q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z */",
+        "#define GS_START_BODIES {" + ", \\\n    ".join(starts) + "}",
         "", "#endif", "",
     ]
     return "\n".join(lines)
 
 
-def _indent(elem: ET.Element) -> None:
-    ET.indent(elem, space="  ")
-
-
-def _variable_description(name: str, v) -> str:
+def _variable_description(name: str, v, sc: Scene) -> str:
     if name == "integrator":
-        return ("integrator: " + ", ".join(INTEGRATORS) + " (standalone FMU; adaptive and exact need the "
-                "Python-backed FMU)")
+        return "integrator: " + ", ".join(i for i in INTEGRATORS if i != "exact" or sc.torque_free)
     return v.description
 
 
-def _model_description(sc: Scene, variables, vrs, ident, token, fmi_version, integrator, sources) -> str:
-    from ... import __version__
+def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources) -> str:
+    from .. import __version__
 
+    integ = [i for i in INTEGRATORS if i != "exact" or sc.torque_free]
     desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
-            f"{sc.description or 'rigid body'}. Standalone native FMU (C, no Python); integrators "
-            + ", ".join(INTEGRATORS) + " (adaptive and exact only in the Python-backed FMU).")
+            f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python); "
+            f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + ".")
     root = ET.Element("fmiModelDescription")
     root.set("fmiVersion", "2.0" if fmi_version == 2 else "3.0")
     root.set("modelName", ident)
     root.set("guid" if fmi_version == 2 else "instantiationToken", token)
     root.set("description", desc)
-    root.set("generationTool", f"gyrosim {__version__} (gyrosim.fmu.standalone)")
+    root.set("generationTool", f"gyrosim {__version__}")
     root.set("variableNamingConvention", "flat")
     if fmi_version == 2:
         root.set("numberOfEventIndicators", "0")
@@ -188,7 +209,7 @@ def _model_description(sc: Scene, variables, vrs, ident, token, fmi_version, int
         for s in sources:
             if s.endswith(".c"):
                 ET.SubElement(sf, "File", name=s)
-    units = sorted({v.unit for v in variables.values() if v.unit} | {"s"})
+    units = sorted({v.unit for _, _, v in rows if v.unit} | {"s"})
     ud = ET.SubElement(root, "UnitDefinitions")
     for u in units:
         ue = ET.SubElement(ud, "Unit", name=u)
@@ -199,26 +220,27 @@ def _model_description(sc: Scene, variables, vrs, ident, token, fmi_version, int
     ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=_fmt(sc.stop_time),
                   tolerance=_fmt(sc.tolerance), stepSize=_fmt(sc.output_interval))
     mv = ET.SubElement(root, "ModelVariables")
-    if fmi_version == 3:  # as the Python-backed FMU: time only in FMI 3.0
+    if fmi_version == 3:
         ET.SubElement(mv, "Float64", name="time", valueReference="0", causality="independent",
                       variability="continuous", unit="s", description="simulation time")
     outputs, initial_unknowns = [], []
-    for i, (name, v) in enumerate(variables.items()):
+    for i, (name, _, v) in enumerate(rows):
+        vr = i + 1
         index = i + 1  # 1-based index in ModelVariables (FMI 2.0)
-        attrs = {"name": name, "valueReference": str(vrs[name]), "causality": v.causality,
-                 "variability": v.variability, "description": _variable_description(name, v)}
+        attrs = {"name": name, "valueReference": str(vr), "causality": v.causality,
+                 "variability": v.variability, "description": _variable_description(v.name, v, sc)}
         start = None
         if v.causality == "output":
-            outputs.append((index, vrs[name]))
-            if name in _DERIVED:
+            outputs.append((index, vr))
+            if v.name in _DERIVED:
                 attrs["initial"] = "calculated"
-                initial_unknowns.append((index, vrs[name]))
+                initial_unknowns.append((index, vr))
             else:
                 attrs["initial"] = "exact"
                 start = v.start
         elif v.causality == "parameter":
             attrs["initial"] = "exact"
-            start = integrator if name == "integrator" else v.start
+            start = integrator if v.name == "integrator" else v.start
         else:
             start = v.start
         if fmi_version == 2:
@@ -251,47 +273,48 @@ def _model_description(sc: Scene, variables, vrs, ident, token, fmi_version, int
             ET.SubElement(ms, "Output", valueReference=str(vr))
         for _, vr in initial_unknowns:
             ET.SubElement(ms, "InitialUnknown", valueReference=str(vr))
-    _indent(root)
+    ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
 def _build_description(ident: str, sources) -> str:
+    flags = " ".join(f for f in C_FLAGS if f.startswith(("-std", "-O", "-ff", "-fno")))
     root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
     bc = ET.SubElement(root, "BuildConfiguration", modelIdentifier=ident,
-                       description="C99; compile with -ffp-contract=off (no fused multiply-add) to reproduce "
-                                   "the Python model to the bit; link libm")
-    sfs = ET.SubElement(bc, "SourceFileSet", language="C99", compilerOptions="-ffp-contract=off")
+                       description=f"C11; compile with {flags} (no fused multiply-add, no fast-math) to reproduce "
+                                   "gyrosim's Model.step to the bit; link libm")
+    sfs = ET.SubElement(bc, "SourceFileSet", language="C11", compilerOptions=flags)
     for s in sources:
         if s.endswith(".c"):
             ET.SubElement(sfs, "SourceFile", name=s)
     ET.SubElement(bc, "Library", name="m", external="true", description="the C math library (libm)")
-    _indent(root)
+    ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
 def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None = None) -> list[str]:
     """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources)."""
     cc = cc or os.environ.get("CC", "gcc")
-    srcs = ["gyrosim_kernel.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
+    srcs = ["engine.c", "exact.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
     return [cc, *C_FLAGS, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 
 
-def build_standalone(scene: str | Path | Scene | None = None, fmi_version: int = 2,
-                     output_dir: str | Path = Path("fmu/dist"), *, integrator: str | None = None,
-                     cc: str | None = None) -> Path:
-    """Build ``<output_dir>/<ModelIdentifier>.fmu``: a co-simulation FMU whose binary is native C.
+def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
+              output_dir: str | Path = DEFAULT_OUTPUT, *, integrator: str | None = None,
+              cc: str | None = None) -> Path:
+    """Build ``<output_dir>/<ModelIdentifier>.fmu``: a co-simulation FMU whose binary is the C engine.
 
     Parameters
     ----------
     scene : str, Path, Scene or None
         Embedded scene name, TOML path or :class:`~gyrosim.scene.Scene`; ``None`` is the full model
-        (``RigidBody.fmu``) with every variable of DESIGN.md section 4. The scene must have one body.
+        (``RigidBody.fmu``) with every variable of DESIGN.md section 4. Every body of the scene is exported.
     fmi_version : {2, 3}
     output_dir : path
         Created if missing.
     integrator : str, optional
-        Start value of the ``integrator`` parameter (default the scene's); one of :data:`INTEGRATORS`.
+        Start value of the ``integrator`` parameter (default the scene's).
     cc : str, optional
         C compiler (default ``$CC`` or ``gcc``).
 
@@ -302,29 +325,28 @@ def build_standalone(scene: str | Path | Scene | None = None, fmi_version: int =
     Raises
     ------
     ConfigError
-        An unknown FMI version, a scene with several bodies, an integrator the standalone FMU does not have.
+        An unknown FMI version or integrator ('exact' on a scene with torques).
     RuntimeError
-        The C compiler failed (its output in the message).
+        The C compiler failed or warned (its output in the message).
+    OSError
+        The output folder cannot be written.
     """
     if fmi_version not in (2, 3):
         raise ConfigError("fmi_version", fmi_version, "2 or 3")
     sc = load_scene(scene)
-    if len(sc.bodies) != 1:
-        raise ConfigError("scene", sc.name, f"a scene with one body: the standalone FMU simulates one body "
-                          f"(this scene has {len(sc.bodies)})")
     integrator = sc.integrator if integrator is None else integrator
-    if integrator not in INTEGRATORS:
-        raise ConfigError("integrator", integrator, "one of " + ", ".join(INTEGRATORS) + " (the standalone FMU; "
-                          "'adaptive' and 'exact' need the Python-backed FMU): pass integrator=...")
+    allowed = [i for i in INTEGRATORS if i != "exact" or sc.torque_free]
+    if integrator not in allowed:
+        raise ConfigError("integrator", integrator, "one of " + ", ".join(allowed))
     ident = model_identifier(scene)
-    variables = variables_for(sc)
-    vrs = {n: i + 1 for i, n in enumerate(variables)}
-    csrc = _c_source_dir()
-    texts = {s: csrc.joinpath(s).read_text() for s in (*_SOURCES, f"fmi{fmi_version}Functions.c")}
+    rows = fmu_variables(sc)
+    texts = engine_sources()
+    texts[f"fmi{fmi_version}Functions.c"] = resources.files(__package__).joinpath(
+        "c", f"fmi{fmi_version}Functions.c").read_text()
     sources = [*texts, "gyrosim_config.h"]
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
-    md = _model_description(sc, variables, vrs, ident, _TOKEN, fmi_version, integrator, sources)
-    config = _config_header(sc, variables, vrs, ident, _TOKEN, fmi_version, integrator)
+    md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources)
+    config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator)
     h = hashlib.sha256()
     for part in (md, config, *texts.values()):
         h.update(part.encode())
@@ -333,7 +355,7 @@ def build_standalone(scene: str | Path | Scene | None = None, fmi_version: int =
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)
     fmu_path = output_dir / f"{ident}.fmu"
-    with tempfile.TemporaryDirectory(prefix="gyrosim_standalone_") as tmp:
+    with tempfile.TemporaryDirectory(prefix="gyrosim_fmu_") as tmp:
         root = Path(tmp)
         src_dir = root / "sources"
         src_dir.mkdir()
@@ -349,10 +371,10 @@ def build_standalone(scene: str | Path | Scene | None = None, fmi_version: int =
         try:
             r = subprocess.run(cmd, capture_output=True, text=True)
         except FileNotFoundError:
-            raise RuntimeError(f"C compiler {cmd[0]!r} not found: the standalone FMU is compiled at build time "
+            raise RuntimeError(f"C compiler {cmd[0]!r} not found: the FMU is compiled at build time "
                                "(install gcc, or set CC)") from None
         if r.returncode != 0 or r.stderr.strip():
-            raise RuntimeError(f"compiling the standalone FMU failed or warned:\n{' '.join(cmd)}\n{r.stderr}")
+            raise RuntimeError(f"compiling the FMU failed or warned:\n{' '.join(cmd)}\n{r.stderr}")
         tmp_fmu = root / f"{ident}.fmu"
         with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.write(root / "modelDescription.xml", "modelDescription.xml")

@@ -1,16 +1,20 @@
 /*
- * gyrosim standalone FMU: the step-based model (a C mirror of gyrosim.model.Model for one body), independent
- * of the FMI version. fmi2Functions.c and fmi3Functions.c map the FMI calls onto these functions.
+ * gyrosim FMU glue: the step-based model around the engine (../../core/engine/gyrosim_engine.h), independent of
+ * the FMI version, for the scene's GS_N_BODIES bodies. fmi2Functions.c and fmi3Functions.c map the FMI calls
+ * onto these functions. It keeps no physics: parameters, validation, time and the saved state; every step is
+ * gs_advance, as in gyrosim.model.Model.
  */
 #ifndef GYROSIM_MODEL_H
 #define GYROSIM_MODEL_H
 
+#include "gyrosim_engine.h"   /* first: its FP_CONTRACT pragma */
+
 #include <stddef.h>
 #include <stdint.h>
 
-#include "gyrosim_kernel.h"
+#include "gyrosim_config.h"   /* generated: GS_N_BODIES, GS_FLAGS, value references, start values */
 
-/* Variable kinds; the generated gyrosim_config.h maps value references to them (GS_VR_KINDS). */
+/* Variable kinds; the generated gyrosim_config.h maps value references to (body, kind). */
 enum {
     GS_V_NONE = 0, GS_V_TIME,
     GS_V_I1, GS_V_I2, GS_V_I3, GS_V_MASS, GS_V_CM, GS_V_G, GS_V_DAMPING, GS_V_INTEGRATOR, GS_V_MAX_STEP,
@@ -29,22 +33,24 @@ enum { GS_OK = 0, GS_WARNING = 1, GS_DISCARD = 2, GS_ERROR = 3, GS_FATAL = 4 };
 typedef struct {
     uint64_t token_hash;      /* FNV-1a of the instantiation token: a serialised state fits only its FMU */
     int32_t fmi_state;        /* GS_INSTANTIATED, ... */
-    int32_t integrator;       /* GS_EULER, GS_RK4, GS_SPLITTING, GS_SPLITTING4 */
-    int32_t initialized;      /* parameters validated and p[] current (Model._initialized) */
+    int32_t integrator;       /* GS_EULER, ... GS_EXACT */
+    int32_t initialized;      /* parameters validated and p current (Model._initialized) */
     int32_t state_dirty;      /* q, omega set since the last initialisation (Model._state_dirty) */
     int32_t stop_defined;
     int32_t tolerance_defined;
-    double moments[3];        /* kg*m^2 */
-    double mass, cm_distance, g, damping;   /* kg, m, m/s^2, N*m*s */
-    double tau[3];            /* N*m */
     double max_step;          /* s */
-    double tolerance;         /* FMI tolerance (used by no standalone integrator; kept for get/set state) */
-    double y[GS_NY];          /* q, omega, phi, psi */
-    double p[GS_NP];          /* kernel parameters, current when initialized */
+    double tolerance;         /* relative and absolute tolerance of adaptive (the FMI tolerance) */
     double start_time, stop_time;      /* s */
     double t_base, h;         /* time = t_base + n*h (Model.time) */
     int64_t n;
-    uint64_t steps;           /* internal steps taken */
+    double moments[GS_N_BODIES][3];    /* kg*m^2 */
+    double mass[GS_N_BODIES], cm_distance[GS_N_BODIES], g[GS_N_BODIES], damping[GS_N_BODIES];
+    double tau[GS_N_BODIES][3];        /* N*m */
+    double y[GS_N_BODIES][GS_NY];      /* engine state: q, omega, phi, psi */
+    double p[GS_N_BODIES][GS_NP];      /* engine parameters, current when initialized */
+    double hint[GS_N_BODIES];          /* adaptive's next internal step */
+    int64_t stats[GS_N_BODIES][GS_NSTATS];
+    double ex[GS_N_BODIES][GS_EX_SIZE];  /* exact's anchor */
 } GsData;
 
 typedef void (*GsLogger)(void *env, int status, const char *category, const char *message);
@@ -57,8 +63,10 @@ typedef struct {
     int log_events;           /* "logEvents" */
     int log_errors;           /* "logStatusError" */
     const char *fn;           /* the FMI function being called: the prefix of log messages */
-    double outputs[5];        /* cached derived outputs */
+    double outputs[GS_N_BODIES][GS_NOUT];  /* cached outputs */
     int outputs_valid;
+    int32_t status[GS_N_BODIES];
+    GsData *scratch;          /* the state before a multi-body step (restored when a body fails) */
 } GsInstance;
 
 GsInstance *gs_new(const char *instance_name, void *env, GsLogger log, int logging_on);
@@ -79,8 +87,6 @@ int gs_set_debug_logging(GsInstance *m, int logging_on, size_t n, const char *co
 
 /* Allowed states and the variable of a value reference. */
 int gs_check_state(GsInstance *m, int mask, const char *function);
-int gs_vr_kind(uint32_t vr);
-const char *gs_kind_name(int kind);
 
 int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double start_time, int stop_defined,
              double stop_time);
@@ -92,10 +98,20 @@ int gs_set_string(GsInstance *m, uint32_t vr, const char *value);
 int gs_do_step(GsInstance *m, double current_time, double h);
 double gs_time(const GsInstance *m);
 
-/* Serialised state: a small header (magic, format version, size) followed by GsData. */
+/* FMU states: heap copies of GsData. Serialised: a small header (magic, size) followed by GsData. */
+GsData *gs_state_alloc(GsInstance *m);
 size_t gs_serialized_size(void);
 void gs_serialize(const GsData *d, unsigned char *out);
 int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *out);
-int gs_check_state_data(GsInstance *m, const GsData *d, const char *function);
+int gs_check_state_data(GsInstance *m, const GsData *d);
+void gs_restore(GsInstance *m, const GsData *d);
+
+/* the integrators this FMU offers, for messages */
+#define GS_INTEGRATOR_LIST "euler, rk4, splitting, splitting4, adaptive" GS_EXACT_LIST
+#if GS_FLAGS == 0
+#define GS_EXACT_LIST ", exact"
+#else
+#define GS_EXACT_LIST ""
+#endif
 
 #endif

@@ -1,5 +1,5 @@
 /*
- * gyrosim standalone FMU: the FMI 3.0 co-simulation interface.
+ * gyrosim FMU: the FMI 3.0 co-simulation interface around the engine (gyrosim_model.c).
  *
  * Every function of fmi3Functions.h is defined and exported. The state machine is enforced as the Modelica
  * Reference FMUs do (src/fmi3Functions.c): a call in the wrong state returns fmi3Error with "Illegal call
@@ -10,8 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gyrosim_config.h"
-#include "gyrosim_model.h"
+#include "gyrosim_model.h"   /* first: the engine's FP_CONTRACT pragma */
 #include "fmi3Functions.h"
 
 #define M ((GsInstance *)instance)
@@ -115,7 +114,7 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
         free(e);
         return NULL;
     }
-    gs_log_event(m, "fmi3InstantiateCoSimulation: %s (%s), integrators euler, rk4, splitting, splitting4",
+    gs_log_event(m, "fmi3InstantiateCoSimulation: %s (%s), integrators " GS_INTEGRATOR_LIST,
                  instanceName, MODEL_IDENTIFIER_STRING);
     return m;
 }
@@ -561,12 +560,9 @@ fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference 
 fmi3Status fmi3GetFMUState(fmi3Instance instance, fmi3FMUState *FMUState) {
     CHECK(ALL_STATES, "fmi3GetFMUState");
     NOT_NULL(FMUState, "fmi3GetFMUState", "FMUState");
-    GsData *s = (GsData *)(*FMUState ? *FMUState : malloc(sizeof(GsData)));
-    if (!s) {
-        gs_log_error(M, "out of memory");
-        return fmi3Error;
-    }
-    *s = M->d;
+    GsData *s = *FMUState ? (GsData *)*FMUState : gs_state_alloc(M);
+    if (!s) return fmi3Error;
+    memcpy(s, &M->d, sizeof(GsData));
     *FMUState = s;
     return fmi3OK;
 }
@@ -575,9 +571,8 @@ fmi3Status fmi3SetFMUState(fmi3Instance instance, fmi3FMUState FMUState) {
     CHECK(ALL_STATES, "fmi3SetFMUState");
     NOT_NULL(FMUState, "fmi3SetFMUState", "FMUState");
     const GsData *s = (const GsData *)FMUState;
-    if (gs_check_state_data(M, s, "fmi3SetFMUState") != GS_OK) return fmi3Error;
-    M->d = *s;
-    M->outputs_valid = 0;
+    if (gs_check_state_data(M, s) != GS_OK) return fmi3Error;
+    gs_restore(M, s);
     return fmi3OK;
 }
 
@@ -616,14 +611,12 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
                                    fmi3FMUState *FMUState) {
     CHECK(ALL_STATES, "fmi3DeserializeFMUState");
     NOT_NULL(FMUState, "fmi3DeserializeFMUState", "FMUState");
-    GsData d;
-    if (gs_deserialize(M, (const unsigned char *)serializedState, size, &d) != GS_OK) return fmi3Error;
-    GsData *s = (GsData *)(*FMUState ? *FMUState : malloc(sizeof(GsData)));
-    if (!s) {
-        gs_log_error(M, "out of memory");
+    GsData *s = *FMUState ? (GsData *)*FMUState : gs_state_alloc(M);
+    if (!s) return fmi3Error;
+    if (gs_deserialize(M, (const unsigned char *)serializedState, size, s) != GS_OK) {
+        if (s != *FMUState) free(s);
         return fmi3Error;
     }
-    *s = d;
     *FMUState = s;
     return fmi3OK;
 }

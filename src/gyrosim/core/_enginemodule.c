@@ -1,0 +1,219 @@
+/*
+ * gyrosim.core._engine: the CPython face of the C engine (engine/gyrosim_engine.h). Thin: it checks the
+ * buffers it is given (dtype, contiguity, shape) and calls the engine with the GIL released.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include "engine/gyrosim_engine.h"
+
+typedef struct {
+    Py_buffer view;
+    int held;
+} Buf;
+
+static void release(Buf *b, int n) {
+    for (int i = 0; i < n; i++) {
+        if (b[i].held) PyBuffer_Release(&b[i].view);
+        b[i].held = 0;
+    }
+}
+
+/* A C-contiguous buffer of `count` items of `fmt` ('d' float64, 'q' int64, 'i' int32); count < 0: any. */
+static int get_buf(PyObject *obj, Buf *b, const char *name, char fmt, Py_ssize_t count, int writable) {
+    if (obj == Py_None) {
+        b->held = 0;
+        b->view.buf = NULL;
+        b->view.len = 0;
+        return 0;
+    }
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(obj, &b->view, flags) < 0) {
+        PyErr_Format(PyExc_TypeError, "%s: a C-contiguous%s array is needed", name, writable ? " writable" : "");
+        return -1;
+    }
+    b->held = 1;
+    const char *f = b->view.format ? b->view.format : "B";
+    if (f[0] == '<' || f[0] == '=' || f[0] == '@') f++;
+    int fmt_ok = 0;
+    if (fmt == 'd') fmt_ok = f[0] == 'd' && f[1] == 0;
+    if (fmt == 'i') fmt_ok = b->view.itemsize == 4 && (f[0] == 'i' || f[0] == 'l') && f[1] == 0;
+    if (fmt == 'q') fmt_ok = b->view.itemsize == 8 && (f[0] == 'q' || f[0] == 'l') && f[1] == 0;
+    if (!fmt_ok) {
+        PyErr_Format(PyExc_TypeError, "%s: dtype %s is needed, got format '%s'", name,
+                     fmt == 'd' ? "float64" : (fmt == 'i' ? "int32" : "int64"), b->view.format);
+        return -1;
+    }
+    if (count >= 0 && b->view.len / b->view.itemsize != count) {
+        PyErr_Format(PyExc_ValueError, "%s: %zd items are needed, got %zd", name, count,
+                     b->view.len / b->view.itemsize);
+        return -1;
+    }
+    return 0;
+}
+
+/* advance(method, flags, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, threads) -> failed bodies */
+static PyObject *py_advance(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 14) {
+        PyErr_SetString(PyExc_TypeError, "advance() takes 14 arguments");
+        return NULL;
+    }
+    const int method = (int)PyLong_AsLong(args[0]);
+    const int flags = (int)PyLong_AsLong(args[1]);
+    const double t = PyFloat_AsDouble(args[4]);
+    const double H = PyFloat_AsDouble(args[5]);
+    const double rtol = PyFloat_AsDouble(args[6]);
+    const double atol = PyFloat_AsDouble(args[7]);
+    const double max_step = PyFloat_AsDouble(args[8]);
+    const int threads = (int)PyLong_AsLong(args[13]);
+    if (PyErr_Occurred()) return NULL;
+    Buf b[6] = {{0}};
+    if (get_buf(args[2], &b[0], "y", 'd', -1, 1) < 0) goto fail;
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
+        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
+        goto fail;
+    }
+    if (get_buf(args[3], &b[1], "p", 'd', n * GS_NP, 0) < 0) goto fail;
+    if (get_buf(args[9], &b[2], "hint", 'd', n, 1) < 0) goto fail;
+    if (get_buf(args[10], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) goto fail;
+    if (get_buf(args[11], &b[4], "ex", 'd', args[11] == Py_None ? -1 : n * GS_EX_SIZE, 1) < 0) goto fail;
+    if (get_buf(args[12], &b[5], "status", 'i', n, 1) < 0) goto fail;
+    if (method == GS_EXACT && !b[4].held) {
+        PyErr_SetString(PyExc_ValueError, "ex: the exact integrator needs its anchor array");
+        goto fail;
+    }
+    size_t failed;
+    Py_BEGIN_ALLOW_THREADS
+    failed = gs_advance(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t, H, rtol,
+                        atol, max_step, (double *)b[2].view.buf, (int64_t *)b[3].view.buf, (double *)b[4].view.buf,
+                        (int32_t *)b[5].view.buf, threads);
+    Py_END_ALLOW_THREADS
+    release(b, 6);
+    return PyLong_FromSize_t(failed);
+fail:
+    release(b, 6);
+    return NULL;
+}
+
+/* outputs(y, p, out): every output per body (n, 14) */
+static PyObject *py_outputs(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "outputs() takes 3 arguments");
+        return NULL;
+    }
+    Buf b[3] = {{0}};
+    if (get_buf(args[0], &b[0], "y", 'd', -1, 0) < 0) goto fail;
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    if (get_buf(args[1], &b[1], "p", 'd', n * GS_NP, 0) < 0) goto fail;
+    if (get_buf(args[2], &b[2], "out", 'd', n * GS_NOUT, 1) < 0) goto fail;
+    gs_outputs((size_t)n, (const double *)b[0].view.buf, (const double *)b[1].view.buf, (double *)b[2].view.buf);
+    release(b, 3);
+    Py_RETURN_NONE;
+fail:
+    release(b, 3);
+    return NULL;
+}
+
+/* start_state(y): every row's q normalised, its phi, psi from q */
+static PyObject *py_start_state(PyObject *self, PyObject *arg) {
+    (void)self;
+    Buf b = {0};
+    if (get_buf(arg, &b, "y", 'd', -1, 1) < 0) {
+        release(&b, 1);
+        return NULL;
+    }
+    const Py_ssize_t n = b.view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    for (Py_ssize_t i = 0; i < n; i++) gs_start_state((double *)b.view.buf + i * GS_NY);
+    release(&b, 1);
+    Py_RETURN_NONE;
+}
+
+/* substeps(H, max_step) -> int (0: too many) */
+static PyObject *py_substeps(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "substeps() takes 2 arguments");
+        return NULL;
+    }
+    const double H = PyFloat_AsDouble(args[0]);
+    const double m = PyFloat_AsDouble(args[1]);
+    if (PyErr_Occurred()) return NULL;
+    return PyLong_FromLongLong((long long)gs_substeps(H, m));
+}
+
+/* tf_eval(I(3), w(3), q(4), t(k), w_out(k,3), q_out(k,4)): the exact torque-free flow at times t */
+static PyObject *py_tf_eval(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "tf_eval() takes 6 arguments");
+        return NULL;
+    }
+    Buf b[6] = {{0}};
+    if (get_buf(args[0], &b[0], "I", 'd', 3, 0) < 0) goto fail;
+    if (get_buf(args[1], &b[1], "w", 'd', 3, 0) < 0) goto fail;
+    if (get_buf(args[2], &b[2], "q", 'd', 4, 0) < 0) goto fail;
+    if (get_buf(args[3], &b[3], "t", 'd', -1, 0) < 0) goto fail;
+    const Py_ssize_t k = b[3].view.len / (Py_ssize_t)sizeof(double);
+    if (get_buf(args[4], &b[4], "w_out", 'd', 3 * k, 1) < 0) goto fail;
+    if (get_buf(args[5], &b[5], "q_out", 'd', 4 * k, 1) < 0) goto fail;
+    double c[GS_TF_SIZE];
+    gs_tf_setup((const double *)b[0].view.buf, (const double *)b[1].view.buf, (const double *)b[2].view.buf, c);
+    const double *t = (const double *)b[3].view.buf;
+    double *wo = (double *)b[4].view.buf, *qo = (double *)b[5].view.buf;
+    for (Py_ssize_t i = 0; i < k; i++) gs_tf_eval(c, t[i], wo + 3 * i, qo + 4 * i);
+    release(b, 6);
+    Py_RETURN_NONE;
+fail:
+    release(b, 6);
+    return NULL;
+}
+
+static PyObject *py_max_threads(PyObject *self, PyObject *unused) {
+    (void)self;
+    (void)unused;
+    return PyLong_FromLong(gs_max_threads());
+}
+
+static PyMethodDef methods[] = {
+    {"advance", (PyCFunction)(void (*)(void))py_advance, METH_FASTCALL,
+     "advance(method, flags, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, threads) -> failed bodies"},
+    {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
+    {"start_state", py_start_state, METH_O, "start_state(y): each row's q normalised, phi and psi from it"},
+    {"substeps", (PyCFunction)(void (*)(void))py_substeps, METH_FASTCALL,
+     "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},
+    {"tf_eval", (PyCFunction)(void (*)(void))py_tf_eval, METH_FASTCALL,
+     "tf_eval(I, w, q, t, w_out, q_out): the exact torque-free flow at times t"},
+    {"max_threads", py_max_threads, METH_NOARGS, "threads the many-body loop may use"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_engine",
+                                    "The C engine of gyrosim (see engine/gyrosim_engine.h).", -1, methods,
+                                    NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__engine(void) {
+    PyObject *m = PyModule_Create(&module);
+    if (!m) return NULL;
+    PyModule_AddIntConstant(m, "NY", GS_NY);
+    PyModule_AddIntConstant(m, "NP", GS_NP);
+    PyModule_AddIntConstant(m, "NOUT", GS_NOUT);
+    PyModule_AddIntConstant(m, "EX_SIZE", GS_EX_SIZE);
+    PyModule_AddIntConstant(m, "EX_VALID", GS_EX_VALID);
+    PyModule_AddIntConstant(m, "GRAVITY", GS_GRAVITY);
+    PyModule_AddIntConstant(m, "DAMPING", GS_DAMPING);
+    PyModule_AddIntConstant(m, "TORQUE", GS_TORQUE);
+    PyModule_AddIntConstant(m, "ENGINE_VERSION", GS_ENGINE_VERSION);
+    PyModule_AddObject(m, "OMEGA_LIMIT", PyFloat_FromDouble(GS_OMEGA_LIMIT));
+    PyObject *names = PyTuple_New(GS_N_METHODS);
+    for (int i = 0; i < GS_N_METHODS; i++) PyTuple_SET_ITEM(names, i, PyUnicode_FromString(gs_method_names[i]));
+    PyModule_AddObject(m, "METHODS", names);
+#ifdef _OPENMP
+    PyModule_AddIntConstant(m, "OPENMP", 1);
+#else
+    PyModule_AddIntConstant(m, "OPENMP", 0);
+#endif
+    return m;
+}

@@ -1,0 +1,597 @@
+/*
+ * gyrosim engine: dynamics, the integrators and the many-body loop. See gyrosim_engine.h (the contract).
+ *
+ * Equations (body frame, principal axes, about the reference point):
+ *   I domega/dt = (I omega) x omega + mgl (R^T e_z) x e_3 - c omega + tau,    dq/dt = q * (0, omega) / 2
+ * with the gravity torque present when flags has GS_GRAVITY, damping with GS_DAMPING, tau with GS_TORQUE.
+ */
+#include "gyrosim_engine.h"   /* first: its FP_CONTRACT pragma */
+
+#include <math.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#define GS_PI 3.141592653589793
+#define GS_TWO_PI 6.283185307179586
+
+const char *const gs_method_names[GS_N_METHODS] = {"euler", "rk4", "splitting", "splitting4", "adaptive",
+                                                   "exact"};
+
+int gs_method_code(const char *name) {
+    if (!name) return -1;
+    for (int i = 0; i < GS_N_METHODS; i++) {
+        if (strcmp(name, gs_method_names[i]) == 0) return i;
+    }
+    return -1;
+}
+
+int64_t gs_substeps(double H, double max_step) {
+    const double n = ceil(H / max_step * (1.0 - 1e-12));
+    if (!(n < 4.6e18)) return 0;
+    return n > 1.0 ? (int64_t)n : 1;
+}
+
+int gs_max_threads(void) {
+#ifdef _OPENMP
+    return omp_get_max_threads();
+#else
+    return 1;
+#endif
+}
+
+/* ------------------------------------------------------------------------------------------- angles */
+
+static double wrap(double a) {
+    return a - GS_TWO_PI * floor((a + GS_PI) / GS_TWO_PI);
+}
+
+void gs_unwrap(double y[GS_NY]) {
+    const double w = y[0], x = y[1], yy = y[2], z = y[3];
+    /* squared: |q| = 1, so nothing overflows, and no hypot on the per-step path */
+    const double a2 = w * w + z * z;
+    const double b2 = x * x + yy * yy;
+    const double hs = atan2(z, w);
+    const double hd = atan2(-x, yy);
+    const double phi0 = y[7], psi0 = y[8];
+    if (b2 < 1e-24 * a2) {          /* theta = 0: only phi + psi is defined; keep psi */
+        y[7] = phi0 + wrap(2.0 * hs - psi0 - phi0);
+    } else if (a2 < 1e-24 * b2) {   /* theta = pi: only phi - psi is defined; keep psi */
+        y[7] = phi0 + wrap(2.0 * hd + psi0 - phi0);
+    } else {
+        y[7] = phi0 + wrap(hs + hd - phi0);
+        y[8] = psi0 + wrap(hs - hd - psi0);
+    }
+}
+
+double gs_norm4(const double q[4]) {
+    return sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+}
+
+/* numpy.remainder for doubles: the result has the sign of b */
+static double np_remainder(double a, double b) {
+    double mod = fmod(a, b);
+    if (mod != 0.0) {
+        if ((b < 0) != (mod < 0)) mod += b;
+    } else {
+        mod = copysign(0.0, b);
+    }
+    return mod;
+}
+
+static double wrap_angle(double a) {   /* to (-pi, pi] */
+    const double w = np_remainder(a + GS_PI, GS_TWO_PI) - GS_PI;
+    return w == -GS_PI ? GS_PI : w;
+}
+
+void gs_quat_to_euler_zyz(const double q_in[4], double *phi, double *theta, double *psi) {
+    const double n = gs_norm4(q_in);
+    const double w = q_in[0] / n, x = q_in[1] / n, y = q_in[2] / n, z = q_in[3] / n;
+    const double a = hypot(w, z);
+    const double b = hypot(x, y);
+    *theta = 2.0 * atan2(b, a);
+    const double half_sum = atan2(z, w);
+    const double half_diff = atan2(-x, y);
+    const int lock0 = b < 1e-12;
+    const int lockpi = a < 1e-12;
+    const double ph = lock0 ? 2.0 * half_sum : (lockpi ? 2.0 * half_diff : half_sum + half_diff);
+    const double ps = (lock0 || lockpi) ? 0.0 : half_sum - half_diff;
+    *phi = wrap_angle(ph);
+    *psi = wrap_angle(ps);
+}
+
+void gs_start_state(double y[GS_NY]) {
+    const double nq = gs_norm4(y);
+    for (int i = 0; i < 4; i++) y[i] = y[i] / nq;
+    double phi, theta, psi;
+    gs_quat_to_euler_zyz(y, &phi, &theta, &psi);
+    y[7] = phi;
+    y[8] = psi;
+}
+
+/* ------------------------------------------------------------------------------------------- dynamics */
+
+/* k[0:4] = dq/dt, k[4:7] = domega/dt */
+static inline void rhs(const double *s, const double *p, int flags, double k[7]) {
+    const double qw = s[0], qx = s[1], qy = s[2], qz = s[3], o1 = s[4], o2 = s[5], o3 = s[6];
+    const double I1 = p[0], I2 = p[1], I3 = p[2];
+    double a1 = (I2 - I3) * o2 * o3;
+    double a2 = (I3 - I1) * o3 * o1;
+    double a3 = (I1 - I2) * o1 * o2;
+    if (flags & GS_GRAVITY) {
+        const double zb0 = 2.0 * (qx * qz - qw * qy);   /* (R^T e_z)_1 */
+        const double zb1 = 2.0 * (qy * qz + qw * qx);   /* (R^T e_z)_2 */
+        a1 += p[3] * zb1;
+        a2 -= p[3] * zb0;
+    }
+    if (flags & GS_DAMPING) {
+        a1 -= p[4] * o1;
+        a2 -= p[4] * o2;
+        a3 -= p[4] * o3;
+    }
+    if (flags & GS_TORQUE) {
+        a1 += p[5];
+        a2 += p[6];
+        a3 += p[7];
+    }
+    k[0] = 0.5 * (-qx * o1 - qy * o2 - qz * o3);
+    k[1] = 0.5 * (qw * o1 + qy * o3 - qz * o2);
+    k[2] = 0.5 * (qw * o2 - qx * o3 + qz * o1);
+    k[3] = 0.5 * (qw * o3 + qx * o2 - qy * o1);
+    k[4] = a1 / I1;
+    k[5] = a2 / I2;
+    k[6] = a3 / I3;
+}
+
+static inline int ok(const double *y) {
+    for (int i = 0; i < 7; i++) {
+        if (!isfinite(y[i])) return 0;
+    }
+    return fabs(y[4]) + fabs(y[5]) + fabs(y[6]) < GS_OMEGA_LIMIT;
+}
+
+static inline void normalize_q(double *y) {
+    const double n = sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]);
+    if (n > 0.0) {
+        y[0] /= n;
+        y[1] /= n;
+        y[2] /= n;
+        y[3] /= n;
+    }
+}
+
+static inline void euler_step(double *y, const double *p, int flags, double h) {
+    double k[7];
+    rhs(y, p, flags, k);
+    for (int i = 0; i < 7; i++) y[i] += h * k[i];
+    normalize_q(y);
+}
+
+static inline void rk4_step(double *y, const double *p, int flags, double h) {
+    const double h2 = 0.5 * h;
+    double k1[7], k2[7], k3[7], k4[7], s[7];
+    rhs(y, p, flags, k1);
+    for (int i = 0; i < 7; i++) s[i] = y[i] + h2 * k1[i];
+    rhs(s, p, flags, k2);
+    for (int i = 0; i < 7; i++) s[i] = y[i] + h2 * k2[i];
+    rhs(s, p, flags, k3);
+    for (int i = 0; i < 7; i++) s[i] = y[i] + h * k3[i];
+    rhs(s, p, flags, k4);
+    const double h6 = h / 6.0;
+    for (int i = 0; i < 7; i++) y[i] += h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+    normalize_q(y);
+}
+
+/* ---------------------------------------------------------------------------------------------------------
+ * Lie-Poisson splitting. H = |L|^2/(2 Ip) + (1/Is - 1/Ip) Ls^2/2 [symmetric top, exact] + (1/Ir - 1/Ip) Lr^2/2
+ * [one axis, exact], with (p, r) the two moments closest in 1/I and s the third axis. Both pieces preserve |L|
+ * and are Poisson maps, so the Strang composition is symplectic, second order, keeps |L| to round-off and is
+ * exact for a symmetric body. Gravity and the external torque enter as kicks of L_body with q fixed (their exact
+ * flow), damping as the exact decay L_i *= exp(-c h / I_i).
+ * --------------------------------------------------------------------------------------------------------- */
+
+static inline void qmul_right(double *q, double c, double v0, double v1, double v2) {
+    const double w = q[0], x = q[1], yy = q[2], z = q[3];
+    q[0] = w * c - x * v0 - yy * v1 - z * v2;
+    q[1] = w * v0 + x * c + yy * v2 - z * v1;
+    q[2] = w * v1 - x * v2 + yy * c + z * v0;
+    q[3] = w * v2 + x * v1 - yy * v0 + z * c;
+}
+
+/* exact flow of coef * L_k^2 / 2: L turns about body axis k by -coef*L_k*h, the body by +that */
+static void axis_flow(double L[3], double *q, int k, double coef, double h) {
+    const double ang = coef * L[k] * h;
+    const double c = cos(ang), s = sin(ang);
+    const int i = (k + 1) % 3;
+    const int j = (k + 2) % 3;
+    const double li = L[i], lj = L[j];
+    L[i] = li * c + lj * s;
+    L[j] = -li * s + lj * c;
+    const double ch = cos(0.5 * ang), sh = sin(0.5 * ang);
+    if (k == 0) {
+        qmul_right(q, ch, sh, 0.0, 0.0);
+    } else if (k == 1) {
+        qmul_right(q, ch, 0.0, sh, 0.0);
+    } else {
+        qmul_right(q, ch, 0.0, 0.0, sh);
+    }
+}
+
+/* exact flow of |L|^2/(2 Ip): L_body fixed, the body turns about L by |L| h / Ip */
+static void spherical_flow(const double L[3], double *q, double Ip, double h) {
+    const double n = sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2]);
+    if (n == 0.0) return;
+    const double ang = n * h / Ip;
+    const double s = sin(0.5 * ang) / n;
+    qmul_right(q, cos(0.5 * ang), s * L[0], s * L[1], s * L[2]);
+}
+
+static void kick(double L[3], const double *q, const double *p, int flags, double h, int damping_first) {
+    if (damping_first && (flags & GS_DAMPING)) {
+        for (int i = 0; i < 3; i++) L[i] *= exp(-p[4] * h / p[i]);
+    }
+    if (flags & GS_GRAVITY) {
+        const double zb0 = 2.0 * (q[1] * q[3] - q[0] * q[2]);
+        const double zb1 = 2.0 * (q[2] * q[3] + q[0] * q[1]);
+        L[0] += h * p[3] * zb1;
+        L[1] -= h * p[3] * zb0;
+    }
+    if (flags & GS_TORQUE) {
+        L[0] += h * p[5];
+        L[1] += h * p[6];
+        L[2] += h * p[7];
+    }
+    if (!damping_first && (flags & GS_DAMPING)) {
+        for (int i = 0; i < 3; i++) L[i] *= exp(-p[4] * h / p[i]);
+    }
+}
+
+static void split_axes(const double *p, int *s_out, int *p_out, int *r_out) {
+    double best = 1e300;
+    int s_best = 2, p_best = 0, r_best = 1;
+    for (int s = 0; s < 3; s++) {
+        const int a = (s + 1) % 3;
+        const int b = (s + 2) % 3;
+        const double d = fabs(1.0 / p[a] - 1.0 / p[b]);
+        if (d < best) {
+            best = d;
+            s_best = s;
+            p_best = a < b ? a : b;
+            r_best = a > b ? a : b;
+        }
+    }
+    *s_out = s_best;
+    *p_out = p_best;
+    *r_out = r_best;
+}
+
+static void strang(double L[3], double *q, const double *p, int flags, double h, int s, int pp, int r) {
+    const int kicks = flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE);
+    if (kicks) kick(L, q, p, flags, 0.5 * h, 1);
+    const double cr = 1.0 / p[r] - 1.0 / p[pp];
+    const double cs = 1.0 / p[s] - 1.0 / p[pp];
+    if (cr != 0.0) axis_flow(L, q, r, cr, 0.5 * h);
+    spherical_flow(L, q, p[pp], h);
+    if (cs != 0.0) axis_flow(L, q, s, cs, h);
+    if (cr != 0.0) axis_flow(L, q, r, cr, 0.5 * h);
+    if (kicks) kick(L, q, p, flags, 0.5 * h, 0);
+}
+
+/* Yoshida's triple jump: the symmetric second-order step composed into a fourth-order one */
+#define GS_Y1 0x1.59e8b6eb96339p+0    /* 1 / (2 - 2^(1/3)) = 1.3512071919596578 */
+#define GS_Y0 (-0x1.b3d16dd72c672p+0) /* -2^(1/3) / (2 - 2^(1/3)) = -1.7024143839193155 */
+
+/* ------------------------------------------------------------------------------------------- fixed steps */
+
+/* n_sub fixed steps of h; with check, stop at the first step whose state is not ok and return its index + 1 */
+static int64_t fixed_steps(int method, double *y, const double *p, int flags, double h, int64_t n_sub,
+                           int unwrap_each, int check) {
+    if (method == GS_SPLITTING || method == GS_SPLITTING4) {
+        int s, pp, r;
+        double L[3];
+        split_axes(p, &s, &pp, &r);
+        for (int64_t k = 0; k < n_sub; k++) {
+            for (int i = 0; i < 3; i++) L[i] = p[i] * y[4 + i];
+            if (method == GS_SPLITTING) {
+                strang(L, y, p, flags, h, s, pp, r);
+            } else {
+                strang(L, y, p, flags, GS_Y1 * h, s, pp, r);
+                strang(L, y, p, flags, GS_Y0 * h, s, pp, r);
+                strang(L, y, p, flags, GS_Y1 * h, s, pp, r);
+            }
+            for (int i = 0; i < 3; i++) y[4 + i] = L[i] / p[i];
+            normalize_q(y);
+            if (check && !ok(y)) return k + 1;
+            if (unwrap_each) gs_unwrap(y);
+        }
+    } else if (method == GS_EULER) {
+        for (int64_t k = 0; k < n_sub; k++) {
+            euler_step(y, p, flags, h);
+            if (check && !ok(y)) return k + 1;
+            if (unwrap_each) gs_unwrap(y);
+        }
+    } else {
+        /* the flags are constant: one loop per combination lets the compiler drop the absent terms */
+        switch (flags) {
+#define RK4_LOOP(F) \
+            for (int64_t k = 0; k < n_sub; k++) { \
+                rk4_step(y, p, (F), h); \
+                if (check && !ok(y)) return k + 1; \
+                if (unwrap_each) gs_unwrap(y); \
+            } \
+            break;
+            case 0: RK4_LOOP(0)
+            case GS_GRAVITY: RK4_LOOP(GS_GRAVITY)
+            case GS_TORQUE: RK4_LOOP(GS_TORQUE)
+            case GS_GRAVITY | GS_TORQUE: RK4_LOOP(GS_GRAVITY | GS_TORQUE)
+            default: RK4_LOOP(flags)
+#undef RK4_LOOP
+        }
+    }
+    return 0;
+}
+
+static int32_t clamp_status(int64_t k) {
+    return (int32_t)(k > 2147483647 ? 2147483647 : (k < 1 ? 1 : k));
+}
+
+/* ------------------------------------------------------------------------------------------- adaptive */
+/* Dormand-Prince 5(4) with FSAL, error per component scaled by atol + rtol*max(|y|, |y_new|), RMS norm. */
+
+#define C_A21 (1.0 / 5.0)
+#define C_A31 (3.0 / 40.0)
+#define C_A32 (9.0 / 40.0)
+#define C_A41 (44.0 / 45.0)
+#define C_A42 (-56.0 / 15.0)
+#define C_A43 (32.0 / 9.0)
+#define C_A51 (19372.0 / 6561.0)
+#define C_A52 (-25360.0 / 2187.0)
+#define C_A53 (64448.0 / 6561.0)
+#define C_A54 (-212.0 / 729.0)
+#define C_A61 (9017.0 / 3168.0)
+#define C_A62 (-355.0 / 33.0)
+#define C_A63 (46732.0 / 5247.0)
+#define C_A64 (49.0 / 176.0)
+#define C_A65 (-5103.0 / 18656.0)
+#define C_B1 (35.0 / 384.0)
+#define C_B3 (500.0 / 1113.0)
+#define C_B4 (125.0 / 192.0)
+#define C_B5 (-2187.0 / 6784.0)
+#define C_B6 (11.0 / 84.0)
+#define C_E1 (71.0 / 57600.0)
+#define C_E3 (-71.0 / 16695.0)
+#define C_E4 (71.0 / 1920.0)
+#define C_E5 (-17253.0 / 339200.0)
+#define C_E6 (22.0 / 525.0)
+#define C_E7 (-1.0 / 40.0)
+
+/* Advance y over H with error control; returns 0 or the failing step index + 1 (y is then unchanged). */
+static int64_t dopri_advance(double *y, const double *p, int flags, double H, double rtol, double atol,
+                             double max_step, double *hint, int64_t *stats, int unwrap) {
+    double K[7][7], yt[GS_NY], yn[GS_NY];
+    memcpy(yt, y, sizeof(yt));
+    memcpy(yn, y, sizeof(yn));
+    double t = 0.0;
+    double h = *hint;
+    if (!(h > 0.0)) {
+        /* starting step from the scale of the derivative (Hairer, Norsett, Wanner) */
+        rhs(y, p, flags, K[0]);
+        stats[2] += 1;
+        double d0 = 0.0, d1 = 0.0;
+        for (int i = 0; i < 7; i++) {
+            const double sc = atol + rtol * fabs(y[i]);
+            d0 += (y[i] / sc) * (y[i] / sc);
+            d1 += (K[0][i] / sc) * (K[0][i] / sc);
+        }
+        d0 = sqrt(d0 / 7.0);
+        d1 = sqrt(d1 / 7.0);
+        h = (d0 > 1e-5 && d1 > 1e-5) ? 0.01 * d0 / d1 : 1e-6;
+    }
+    h = fmin(fmin(h, max_step), H);
+    rhs(y, p, flags, K[0]);
+    stats[2] += 1;
+    int64_t nstep = 0;
+    const double h_min = 1e-14 * fmax(1.0, H);
+    double last_h = h;
+    while (t < H) {
+        nstep += 1;
+        if (nstep > 50000000) return nstep;
+        const double remaining = H - t;
+        int clipped = 0;
+        if (h >= remaining * (1.0 - 1e-12)) {
+            h = remaining;
+            clipped = 1;
+        }
+        for (int i = 0; i < 7; i++) yt[i] = yn[i] + h * C_A21 * K[0][i];
+        rhs(yt, p, flags, K[1]);
+        for (int i = 0; i < 7; i++) yt[i] = yn[i] + h * (C_A31 * K[0][i] + C_A32 * K[1][i]);
+        rhs(yt, p, flags, K[2]);
+        for (int i = 0; i < 7; i++) yt[i] = yn[i] + h * (C_A41 * K[0][i] + C_A42 * K[1][i] + C_A43 * K[2][i]);
+        rhs(yt, p, flags, K[3]);
+        for (int i = 0; i < 7; i++)
+            yt[i] = yn[i] + h * (C_A51 * K[0][i] + C_A52 * K[1][i] + C_A53 * K[2][i] + C_A54 * K[3][i]);
+        rhs(yt, p, flags, K[4]);
+        for (int i = 0; i < 7; i++)
+            yt[i] = yn[i] + h * (C_A61 * K[0][i] + C_A62 * K[1][i] + C_A63 * K[2][i] + C_A64 * K[3][i]
+                                 + C_A65 * K[4][i]);
+        rhs(yt, p, flags, K[5]);
+        for (int i = 0; i < 7; i++)
+            yt[i] = yn[i] + h * (C_B1 * K[0][i] + C_B3 * K[2][i] + C_B4 * K[3][i] + C_B5 * K[4][i]
+                                 + C_B6 * K[5][i]);
+        rhs(yt, p, flags, K[6]);
+        stats[2] += 6;
+        double err = 0.0;
+        for (int i = 0; i < 7; i++) {
+            const double e = h * (C_E1 * K[0][i] + C_E3 * K[2][i] + C_E4 * K[3][i] + C_E5 * K[4][i]
+                                  + C_E6 * K[5][i] + C_E7 * K[6][i]);
+            const double sc = atol + rtol * fmax(fabs(yn[i]), fabs(yt[i]));
+            err += (e / sc) * (e / sc);
+        }
+        err = sqrt(err / 7.0);
+        if (!(isfinite(err) && ok(yt))) {
+            if (h <= h_min) return nstep;
+            h *= 0.2;
+            stats[1] += 1;
+            continue;
+        }
+        if (err <= 1.0) {
+            t = clipped ? H : t + h;
+            for (int i = 0; i < 7; i++) {
+                yn[i] = yt[i];
+                K[0][i] = K[6][i];
+            }
+            normalize_q(yn);
+            if (unwrap) gs_unwrap(yn);
+            stats[0] += 1;
+            const double fac = err == 0.0 ? 5.0 : fmin(5.0, fmax(0.2, 0.9 * pow(err, -0.2)));
+            if (!clipped) last_h = h;
+            h = fmin(h * fac, max_step);
+            if (clipped) last_h = fmax(last_h, h);
+        } else {
+            stats[1] += 1;
+            h *= fmax(0.2, 0.9 * pow(err, -0.2));
+            if (h < h_min) return nstep;
+        }
+    }
+    *hint = fmin(last_h, max_step);
+    memcpy(y, yn, sizeof(yn));
+    return 0;
+}
+
+/* ------------------------------------------------------------------------------------------- exact */
+
+static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
+    if (ex[GS_EX_VALID] != 1.0) {
+        gs_tf_setup(p, y + 4, y, ex);
+        ex[GS_EX_T0] = t;
+        ex[GS_EX_VALID] = 1.0;
+    }
+    const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    /* sample often enough that phi and psi move less than 1 rad between unwrap points */
+    double mf = ceil(wmag * H);
+    if (!(mf < 1e9)) return 1;
+    const int64_t m = mf > 1.0 ? (int64_t)mf : 1;
+    double save[GS_NY];
+    memcpy(save, y, sizeof(save));
+    const double tau0 = t - ex[GS_EX_T0];
+    for (int64_t k = 1; k <= m; k++) {
+        gs_tf_eval(ex, tau0 + H * (double)k / (double)m, y + 4, y);
+        gs_unwrap(y);
+    }
+    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8])) {
+        memcpy(y, save, sizeof(save));
+        return 1;
+    }
+    stats[0] += 1;
+    return 0;
+}
+
+/* ------------------------------------------------------------------------------------------- the loop */
+
+static int32_t advance_body(int method, int flags, double *y, const double *p, double t, double H, int64_t n_sub,
+                            double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex) {
+    const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    const int unwrap_each = w * H > 1.0;
+    if (method == GS_EXACT) return exact_advance(y, p, t, H, ex, stats);
+    if (method == GS_ADAPTIVE) {
+        int64_t st = dopri_advance(y, p, flags, H, rtol, atol, max_step, hint, stats, unwrap_each);
+        if (st) return clamp_status(st);
+        if (!unwrap_each) gs_unwrap(y);
+        return 0;
+    }
+    /* the state is checked once at the end (NaN and inf propagate); only on failure are the steps replayed
+     * from the saved state with a check after each, to name the failing step */
+    double save[GS_NY];
+    memcpy(save, y, sizeof(save));
+    const double h = H / (double)n_sub;
+    fixed_steps(method, y, p, flags, h, n_sub, unwrap_each, 0);
+    if (!ok(y)) {
+        memcpy(y, save, sizeof(save));
+        const int64_t k = fixed_steps(method, y, p, flags, h, n_sub, unwrap_each, 1);
+        memcpy(y, save, sizeof(save));
+        return clamp_status(k);
+    }
+    if (!unwrap_each) gs_unwrap(y);
+    stats[0] += n_sub;
+    stats[2] += method == GS_EULER ? n_sub : (method == GS_RK4 ? 4 * n_sub : 0);
+    return 0;
+}
+
+/* bodies from which the loop runs on several threads */
+#define GS_PARALLEL_FROM 64
+
+size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, double t, double H,
+                  double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
+                  int32_t *status, int threads) {
+    if (method < 0 || method >= GS_N_METHODS) {
+        for (size_t b = 0; b < n; b++) status[b] = 1;
+        return n;
+    }
+    int64_t n_sub = 1;
+    if (method != GS_ADAPTIVE && method != GS_EXACT) {
+        n_sub = gs_substeps(H, max_step);
+        if (n_sub == 0) {
+            for (size_t b = 0; b < n; b++) status[b] = 1;
+            return n;
+        }
+    }
+    size_t failed = 0;
+#ifdef _OPENMP
+    const int nt = threads > 0 ? threads : omp_get_max_threads();
+    if (n >= GS_PARALLEL_FROM && nt > 1) {
+        const long long nn = (long long)n;
+#pragma omp parallel for schedule(static) num_threads(nt) reduction(+:failed)
+        for (long long b = 0; b < nn; b++) {
+            int64_t st[GS_NSTATS] = {stats[b * 3], stats[b * 3 + 1], stats[b * 3 + 2]};
+            status[b] = advance_body(method, flags, y + b * GS_NY, p + b * GS_NP, t, H, n_sub, rtol, atol,
+                                     max_step, hint + b, st, ex ? ex + b * GS_EX_SIZE : NULL);
+            if (status[b]) {
+                failed += 1;
+            } else {
+                stats[b * 3] = st[0];
+                stats[b * 3 + 1] = st[1];
+                stats[b * 3 + 2] = st[2];
+            }
+        }
+        return failed;
+    }
+#else
+    (void)threads;
+#endif
+    for (size_t b = 0; b < n; b++) {
+        int64_t st[GS_NSTATS] = {stats[b * 3], stats[b * 3 + 1], stats[b * 3 + 2]};
+        status[b] = advance_body(method, flags, y + b * GS_NY, p + b * GS_NP, t, H, n_sub, rtol, atol, max_step,
+                                 hint + b, st, ex ? ex + b * GS_EX_SIZE : NULL);
+        if (status[b]) {
+            failed += 1;
+        } else {
+            stats[b * 3] = st[0];
+            stats[b * 3 + 1] = st[1];
+            stats[b * 3 + 2] = st[2];
+        }
+    }
+    return failed;
+}
+
+/* ------------------------------------------------------------------------------------------- outputs */
+
+void gs_outputs(size_t n, const double *y, const double *p, double *out) {
+    for (size_t b = 0; b < n; b++) {
+        const double *yb = y + b * GS_NY, *pb = p + b * GS_NP;
+        double *o = out + b * GS_NOUT;
+        const double w = yb[0], x = yb[1], yy = yb[2], z = yb[3];
+        const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
+        const double o1 = yb[4], o2 = yb[5], o3 = yb[6];
+        for (int i = 0; i < 7; i++) o[i] = yb[i];
+        o[7] = yb[7];
+        o[8] = 2.0 * atan2(hypot(x, yy), hypot(w, z));
+        o[9] = yb[8];
+        const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
+        o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
+        o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
+        o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
+        o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
+    }
+}

@@ -1,0 +1,575 @@
+/*
+ * gyrosim engine: the exact torque-free flow (Jacobi elliptic functions and Carlson's integrals).
+ *
+ * An operation-by-operation port of the scalar kernels of gyrosim.core.elliptic (ellipk_kernel,
+ * ellipj_reduced_kernel, _sncndn_kernel, elliprf_kernel, _rc_kernel, elliprj_kernel) and of the torque-free
+ * solution in gyrosim.core.analytic (_tf_setup, _tf_eval and their helpers _qmul, _mat_to_quat, _zyz_quat,
+ * _psi_ref, _g_reduced). Every expression keeps the Python operation order (left to right, no fused
+ * multiply-adds), so the results agree with the numba kernels to the bit where libm agrees.
+ *
+ * No state outside the arguments: safe to call from many threads at once.
+ */
+#include "gyrosim_engine.h"
+
+#include <math.h>
+
+/* math.pi and 0.5 * math.pi */
+static const double GS_PI = 3.14159265358979323846;
+static const double GS_HALF_PI = 0.5 * 3.14159265358979323846;
+/* Bulirsch's AGM stops when |a - b| <= GS_CA * a */
+static const double GS_CA = 1e-9;
+/* Carlson's duplication: relative truncation error below GS_R_CARLSON */
+static const double GS_R_CARLSON = 1e-17;
+
+/* layout of the constants c[GS_TF_SIZE] (the _C_* indices of analytic.py) */
+enum {
+    C_MODE = 0, C_W = 1, C_Q0 = 4,
+    C_IO = 8, C_IB = 9, C_IP = 10,
+    C_AO = 11, C_AB = 12, C_AP = 13,
+    C_LAM = 14, C_U0 = 15, C_MC = 16, C_K = 17,
+    C_N = 18, C_PIC = 19, C_PI0 = 20,
+    C_LN = 21, C_MO = 22, C_MB = 23, C_MP = 24,
+    C_COEF = 25, C_S1 = 26, C_S2 = 27, C_K1 = 28, C_K2 = 29,
+    C_QL = 30, C_QF = 34
+};
+
+/* Python's max(a, b, c) on floats: the first of the largest (an item replaces the maximum when item > max). */
+static double max3(double a, double b, double c)
+{
+    double m = a;
+    if (b > m) m = b;
+    if (c > m) m = c;
+    return m;
+}
+
+static double max4(double a, double b, double c, double d)
+{
+    double m = a;
+    if (b > m) m = b;
+    if (c > m) m = c;
+    if (d > m) m = d;
+    return m;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* special functions (gyrosim.core.elliptic)                                                                  */
+/* ---------------------------------------------------------------------------------------------------------- */
+
+double gs_ellipk(double mc)
+{
+    if (!(mc >= 0.0)) return NAN;
+    if (mc == 0.0) return INFINITY;
+    double a = 1.0;
+    double b = sqrt(mc);
+    for (int it = 0; it < 64; ++it) {
+        if (fabs(a - b) <= 1e-10 * a) break;
+        double an = 0.5 * (a + b);
+        double bn = sqrt(a * b);
+        a = an;
+        b = bn;
+    }
+    return GS_PI / (a + b);
+}
+
+/* Bulirsch's sncndn (Numerical Recipes 6.11) for 0 <= mc <= 1, |u| up to about K. */
+static void sncndn(double u, double mc, double *sn_out, double *cn_out, double *dn_out)
+{
+    if (mc == 0.0) {
+        double e = exp(-fabs(u));
+        double s = 2.0 * e / (1.0 + e * e); /* sech(u) without overflow of cosh */
+        *sn_out = tanh(u);
+        *cn_out = s;
+        *dn_out = s;
+        return;
+    }
+    if (mc == 1.0) {
+        *sn_out = sin(u);
+        *cn_out = cos(u);
+        *dn_out = 1.0;
+        return;
+    }
+    if (fabs(u) < 1e-6) {
+        /* Maclaurin series (the recurrence below would overflow for |u| < 1e-154) */
+        double m = 1.0 - mc;
+        double u2 = u * u;
+        *sn_out = u * (1.0 - (1.0 + m) * u2 / 6.0);
+        *cn_out = 1.0 - 0.5 * u2;
+        *dn_out = 1.0 - 0.5 * m * u2;
+        return;
+    }
+    double em[40];
+    double en[40];
+    double a = 1.0;
+    double dn = 1.0;
+    double emc = mc;
+    double c = 1.0;
+    int last = 0;
+    for (int i = 0; i < 40; ++i) {
+        last = i;
+        em[i] = a;
+        emc = sqrt(emc);
+        en[i] = emc;
+        c = 0.5 * (a + emc);
+        if (fabs(a - emc) <= GS_CA * a) break;
+        emc *= a;
+        a = c;
+    }
+    double v = u * c;
+    double sn = sin(v);
+    double cn = cos(v);
+    if (sn != 0.0) {
+        a = cn / sn;
+        c *= a;
+        for (int ii = last; ii >= 0; --ii) {
+            double b = em[ii];
+            a *= c;
+            c *= dn;
+            dn = (en[ii] + a) / (b + a);
+            a = c / b;
+        }
+        double h = hypot(c, 1.0);
+        sn = copysign(1.0 / h, sn);
+        cn = c * sn;
+    }
+    *sn_out = sn;
+    *cn_out = cn;
+    *dn_out = dn;
+}
+
+void gs_ellipj_reduced(double u, double mc, double K, double *sn_r, double *cn_r, double *dn, double *j)
+{
+    if (mc == 1.0) {
+        /* circular case: no reduction needed (sin reduces exactly) */
+        double jj = floor(u / GS_PI + 0.5);
+        double r = u - jj * GS_PI;
+        double s = sin(u);
+        double c = cos(u);
+        if (fmod(jj, 2.0) != 0.0) {
+            s = -s;
+            c = -c;
+        }
+        if (r == 0.0) s = 0.0; /* sn_r an exact zero where u is an exact multiple of pi (only u = 0) */
+        *sn_r = s;
+        *cn_r = c;
+        *dn = 1.0;
+        *j = jj;
+        return;
+    }
+    double jj, r;
+    if (isinf(K)) {
+        jj = 0.0;
+        r = u;
+    } else {
+        jj = floor(u / (2.0 * K) + 0.5);
+        r = u - jj * (2.0 * K);
+    }
+    sncndn(r, mc, sn_r, cn_r, dn);
+    *j = jj;
+}
+
+double gs_elliprf(double x, double y, double z)
+{
+    if (!(x >= 0.0 && y >= 0.0 && z >= 0.0)) return NAN;
+    int nz = (x == 0.0) + (y == 0.0) + (z == 0.0);
+    if (nz >= 2) return INFINITY;
+    if (isinf(x) || isinf(y) || isinf(z)) return 0.0;
+    double a0 = (x + y + z) / 3.0;
+    double q = pow(3.0 * GS_R_CARLSON, -1.0 / 6.0) * max3(fabs(a0 - x), fabs(a0 - y), fabs(a0 - z));
+    double a = a0;
+    double fac = 1.0;
+    double xm = x, ym = y, zm = z;
+    for (int it = 0; it < 100; ++it) {
+        if (q * fac < fabs(a)) break;
+        double sx = sqrt(xm);
+        double sy = sqrt(ym);
+        double sz = sqrt(zm);
+        double lam = sx * sy + sx * sz + sy * sz;
+        a = 0.25 * (a + lam);
+        xm = 0.25 * (xm + lam);
+        ym = 0.25 * (ym + lam);
+        zm = 0.25 * (zm + lam);
+        fac *= 0.25;
+    }
+    double X = (a0 - x) * fac / a;
+    double Y = (a0 - y) * fac / a;
+    double Z = -(X + Y);
+    double e2 = X * Y - Z * Z;
+    double e3 = X * Y * Z;
+    return (1.0 - e2 / 10.0 + e3 / 14.0 + e2 * e2 / 24.0 - 3.0 * e2 * e3 / 44.0) / sqrt(a);
+}
+
+/* Carlson's degenerate RC(x, y) = RF(x, y, y) for x >= 0, y > 0. */
+static double rc(double x, double y)
+{
+    if (x == y) return 1.0 / sqrt(x);
+    double t = y - x;
+    if (fabs(t) <= 1e-3 * x) {
+        double e = t / x;
+        double s = 0.0;
+        double term = 1.0;
+        for (int k = 0; k < 10; ++k) { /* sum_k (-e)^k / (2k + 1) */
+            s += term / (2.0 * (double)k + 1.0);
+            term *= -e;
+        }
+        return s / sqrt(x);
+    }
+    if (t > 0.0) {
+        if (x == 0.0) return GS_HALF_PI / sqrt(y);
+        return atan(sqrt(t / x)) / sqrt(t);
+    }
+    double r = sqrt(-t);
+    if (y < 0.5 * x) return log((sqrt(x) + r) / sqrt(y)) / r;
+    return atanh(r / sqrt(x)) / r;
+}
+
+double gs_elliprj(double x, double y, double z, double p)
+{
+    if (!(x >= 0.0 && y >= 0.0 && z >= 0.0 && p > 0.0)) return NAN;
+    int nz = (x == 0.0) + (y == 0.0) + (z == 0.0);
+    if (nz >= 2) return INFINITY;
+    double a0 = (x + y + z + 2.0 * p) / 5.0;
+    double q = pow(0.25 * GS_R_CARLSON, -1.0 / 6.0)
+               * max4(fabs(a0 - x), fabs(a0 - y), fabs(a0 - z), fabs(a0 - p));
+    double a = a0;
+    double fac = 1.0;
+    double xm = x, ym = y, zm = z, pm = p;
+    double total = 0.0;
+    for (int it = 0; it < 100; ++it) {
+        if (q * fac < fabs(a)) break;
+        double sx = sqrt(xm);
+        double sy = sqrt(ym);
+        double sz = sqrt(zm);
+        double sp = sqrt(pm);
+        double lam = sx * sy + sx * sz + sy * sz;
+        /* Numerical Recipes' form of the RC term: no cancellation in 1 + e when p << x, y, z */
+        double al = pm * (sx + sy + sz) + sx * sy * sz;
+        double be = sp * (pm + lam);
+        total += 3.0 * fac * rc(al * al, be * be);
+        a = 0.25 * (a + lam);
+        xm = 0.25 * (xm + lam);
+        ym = 0.25 * (ym + lam);
+        zm = 0.25 * (zm + lam);
+        pm = 0.25 * (pm + lam);
+        fac *= 0.25;
+    }
+    double X = (a0 - x) * fac / a;
+    double Y = (a0 - y) * fac / a;
+    double Z = (a0 - z) * fac / a;
+    double P = -0.5 * (X + Y + Z);
+    double xyz = X * Y * Z;
+    double e2 = X * Y + X * Z + Y * Z - 3.0 * P * P;
+    double e3 = xyz + 2.0 * e2 * P + 4.0 * P * P * P;
+    double e4 = (2.0 * xyz + e2 * P + 3.0 * P * P * P) * P;
+    double e5 = xyz * P * P;
+    double series = (1.0 - 3.0 * e2 / 14.0 + e3 / 6.0 + 9.0 * e2 * e2 / 88.0 - 3.0 * e4 / 22.0
+                     - 9.0 * e2 * e3 / 52.0 + 3.0 * e5 / 26.0);
+    return fac * series / (a * sqrt(a)) + total;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* torque-free rigid body (gyrosim.core.analytic)                                                             */
+/* ---------------------------------------------------------------------------------------------------------- */
+
+/* r = a * b (Hamilton product, scalar first) */
+static void qmul(double a0, double a1, double a2, double a3, double b0, double b1, double b2, double b3,
+                 double r[4])
+{
+    r[0] = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3;
+    r[1] = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2;
+    r[2] = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1;
+    r[3] = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0;
+}
+
+/* Quaternion (w, x, y, z) with w >= 0 of a rotation matrix (Shepperd's method). */
+static void mat_to_quat(const double R[3][3], double out[4])
+{
+    double tr = R[0][0] + R[1][1] + R[2][2];
+    double s, w, x, y, z;
+    if (tr >= R[0][0] && tr >= R[1][1] && tr >= R[2][2]) {
+        s = 2.0 * sqrt(1.0 + tr);
+        w = 0.25 * s;
+        x = (R[2][1] - R[1][2]) / s;
+        y = (R[0][2] - R[2][0]) / s;
+        z = (R[1][0] - R[0][1]) / s;
+    } else if (R[0][0] >= R[1][1] && R[0][0] >= R[2][2]) {
+        s = 2.0 * sqrt(1.0 + R[0][0] - R[1][1] - R[2][2]);
+        w = (R[2][1] - R[1][2]) / s;
+        x = 0.25 * s;
+        y = (R[0][1] + R[1][0]) / s;
+        z = (R[0][2] + R[2][0]) / s;
+    } else if (R[1][1] >= R[2][2]) {
+        s = 2.0 * sqrt(1.0 + R[1][1] - R[0][0] - R[2][2]);
+        w = (R[0][2] - R[2][0]) / s;
+        x = (R[0][1] + R[1][0]) / s;
+        y = 0.25 * s;
+        z = (R[1][2] + R[2][1]) / s;
+    } else {
+        s = 2.0 * sqrt(1.0 + R[2][2] - R[0][0] - R[1][1]);
+        w = (R[1][0] - R[0][1]) / s;
+        x = (R[0][2] + R[2][0]) / s;
+        y = (R[1][2] + R[2][1]) / s;
+        z = 0.25 * s;
+    }
+    if (w < 0.0) {
+        out[0] = -w;
+        out[1] = -x;
+        out[2] = -y;
+        out[3] = -z;
+    } else {
+        out[0] = w;
+        out[1] = x;
+        out[2] = y;
+        out[3] = z;
+    }
+}
+
+static void zyz_quat(double phi, double theta, double psi, double out[4])
+{
+    double c = cos(0.5 * theta);
+    double s = sin(0.5 * theta);
+    double sp = 0.5 * (phi + psi);
+    double dm = 0.5 * (phi - psi);
+    out[0] = c * cos(sp);
+    out[1] = -s * sin(dm);
+    out[2] = s * cos(dm);
+    out[3] = c * sin(sp);
+}
+
+/* Continuous atan2(s2 k2 sin(am), s1 k1 cos(am)) (k1, k2 > 0), given sn = sin am, cn = cos am. */
+static double psi_ref(double am, double sn, double cn, double s1, double s2, double k1, double k2)
+{
+    double h = am + atan2((k2 - k1) * sn * cn, k1 * cn * cn + k2 * sn * sn);
+    if (s1 < 0.0) h = GS_PI - h;
+    return s2 * h;
+}
+
+/* G(u_r) = Pi(n; am(u_r)|m) - u_r = n/3 sn^3 RJ(cn^2, dn^2, 1, 1 - n sn^2) for |u_r| <= K. */
+static double g_reduced(double s, double c, double d, double n)
+{
+    if (n == 0.0 || s == 0.0) return 0.0;
+    return n / 3.0 * s * s * s * gs_elliprj(c * c, d * d, 1.0, 1.0 - n * s * s);
+}
+
+/* numpy's sort order for floats (nan last): a < b */
+static int sort_less(double a, double b)
+{
+    return a < b || (b != b && a == a);
+}
+
+void gs_tf_setup(const double I[3], const double w[3], const double q[4], double c[GS_TF_SIZE])
+{
+    for (int k = 0; k < GS_TF_SIZE; ++k) c[k] = 0.0;
+    double qn = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    for (int k = 0; k < 3; ++k) c[C_W + k] = w[k];
+    for (int k = 0; k < 4; ++k) c[C_Q0 + k] = q[k] / qn;
+    double e0 = (I[1] - I[2]) * w[1] * w[2];
+    double e1 = (I[2] - I[0]) * w[2] * w[0];
+    double e2 = (I[0] - I[1]) * w[0] * w[1];
+    if (e0 == 0.0 && e1 == 0.0 && e2 == 0.0) {
+        c[C_MODE] = 0.0; /* steady rotation about a principal axis (or zero omega) */
+        return;
+    }
+    /* np.argsort(I, kind="mergesort"): a stable sort (insertion sort of the indices) */
+    int order[3] = {0, 1, 2};
+    for (int i = 1; i < 3; ++i) {
+        int key = order[i];
+        int k = i - 1;
+        while (k >= 0 && sort_less(I[key], I[order[k]])) {
+            order[k + 1] = order[k];
+            --k;
+        }
+        order[k + 1] = key;
+    }
+    int iA = order[0], iB = order[1], iC = order[2];
+    double A = I[iA], B = I[iB], C = I[iC];
+    double ws = max3(fabs(w[0]), fabs(w[1]), fabs(w[2]));
+    double wA = w[iA] / ws, wB = w[iB] / ws, wC = w[iC] / ws;
+    double XC = A * (C - A) * wA * wA + B * (C - B) * wB * wB; /* 2 E C - L^2 >= 0 */
+    double YA = B * (B - A) * wB * wB + C * (C - A) * wC * wC; /* L^2 - 2 E A >= 0 */
+    double Z = A * (A - B) * wA * wA + C * (C - B) * wC * wC;  /* L^2 - 2 E B */
+    int io, ib, ip;
+    double X, Y;
+    if (Z >= 0.0) { /* rotation about the axis of the largest moment (or the separatrix) */
+        io = iA;
+        ib = iB;
+        ip = iC;
+        X = XC;
+        Y = YA;
+    } else { /* rotation about the axis of the smallest moment */
+        io = iC;
+        ib = iB;
+        ip = iA;
+        X = -YA;
+        Y = -XC;
+    }
+    double Io = I[io], Ib = I[ib], Ip = I[ip];
+    if (X == 0.0 || Y == 0.0 || Ip == Ib) {
+        /* numerically a steady rotation */
+        c[C_MODE] = 0.0;
+        return;
+    }
+    c[C_MODE] = 1.0;
+    /* parity of the permutation (io, ib, ip) of (0, 1, 2) */
+    int inv = 0;
+    int perm[3] = {io, ib, ip};
+    for (int a_ = 0; a_ < 3; ++a_)
+        for (int b_ = a_ + 1; b_ < 3; ++b_)
+            if (perm[a_] > perm[b_]) ++inv;
+    double eps = inv % 2 == 0 ? 1.0 : -1.0;
+    double alpha = sqrt(X / (Io * (Ip - Io)));
+    double beta = sqrt(X / (Ib * (Ip - Ib)));
+    double gamma = sqrt(Y / (Ip * (Ip - Io)));
+    double lam = sqrt((Ip - Ib) * Y / (Io * Ib * Ip));
+    double mc = fabs((Ip - Io) * Z / ((Ip - Ib) * Y));
+    if (mc > 1.0) mc = 1.0;
+    /* omega~ = eps * omega obeys Euler's equations in the cyclic labelling (o, b, p); still scaled by 1/ws */
+    double wo = eps * w[io] / ws, wb = eps * w[ib] / ws, wp = eps * w[ip] / ws;
+    double sgn = Ip > Ib ? 1.0 : -1.0;
+    double s3 = wp >= 0.0 ? 1.0 : -1.0;
+    double s1 = wo >= 0.0 ? 1.0 : -1.0;
+    double s2 = sgn * s3 * s1;
+    double cn0 = s1 * wo / alpha;
+    double sn0 = s2 * wb / beta;
+    double hn = hypot(cn0, sn0);
+    cn0 /= hn;
+    sn0 /= hn;
+    double dn02 = cn0 * cn0 + mc * sn0 * sn0;
+    double u0 = sn0 * gs_elliprf(cn0 * cn0, dn02, 1.0);
+    if (!isfinite(u0)) {
+        /* omega within ~1e-154 (relative) of the unstable rotation about the intermediate axis */
+        c[C_MODE] = 0.0;
+        return;
+    }
+    double K = gs_ellipk(mc);
+    double n = Ip * (Io - Ib) / (Io * (Ip - Ib));
+    if (n > 0.0) n = 0.0;
+    double pic, pi0;
+    if (mc > 0.0) {
+        pic = n != 0.0 ? n / 3.0 * gs_elliprj(0.0, mc, 1.0, 1.0 - n) : 0.0; /* Pi(n|m) - K */
+        pi0 = g_reduced(sn0, cn0, sqrt(dn02), n);
+    } else {
+        /* separatrix: Pi(n; am(u)|1) = (u + r atan(r tanh u))/(1 + r^2), r = sqrt(-n) */
+        pic = 0.0;
+        pi0 = atan(sqrt(-n) * tanh(u0));
+    }
+    /* back to physical rates */
+    alpha *= ws;
+    beta *= ws;
+    gamma *= ws;
+    lam *= ws;
+    wo *= ws;
+    wb *= ws;
+    wp *= ws;
+    double l0 = I[0] * w[0] / ws, l1 = I[1] * w[1] / ws, l2 = I[2] * w[2] / ws;
+    double Ln = ws * sqrt(l0 * l0 + l1 * l1 + l2 * l2);
+    c[C_IO] = (double)io;
+    c[C_IB] = (double)ib;
+    c[C_IP] = (double)ip;
+    c[C_AO] = eps * s1 * alpha;
+    c[C_AB] = eps * s2 * beta;
+    c[C_AP] = eps * s3 * gamma;
+    c[C_LAM] = lam;
+    c[C_U0] = u0;
+    c[C_MC] = mc;
+    c[C_K] = K;
+    c[C_N] = n;
+    c[C_PIC] = pic;
+    c[C_PI0] = pi0;
+    c[C_LN] = Ln;
+    c[C_MO] = Io;
+    c[C_MB] = Ib;
+    c[C_MP] = Ip;
+    c[C_COEF] = Ln * (1.0 / Io - 1.0 / Ip) / lam;
+    /* psi_ref = atan2(kappa2 sn, kappa1 cn) with kappa1 = -eps s1 Io alpha, kappa2 = s2 Ib beta */
+    c[C_S1] = -eps * s1;
+    c[C_S2] = s2;
+    c[C_K1] = Io * alpha;
+    c[C_K2] = Ib * beta;
+    /* frame F = [e_o, eps e_b, e_p] (proper rotation: body <- F coordinates) */
+    double F[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
+    F[io][0] = 1.0;
+    F[ib][1] = eps;
+    F[ip][2] = 1.0;
+    double f[4];
+    mat_to_quat((const double(*)[3])F, f);
+    c[C_QF] = f[0];
+    c[C_QF + 1] = f[1];
+    c[C_QF + 2] = f[2];
+    c[C_QF + 3] = f[3];
+    /* E(0) = zyz(0, theta0, psi0); q_L = q0 * q_F * conj(E(0)) */
+    double Lo = Io * wo * eps, Lb = Ib * wb * eps, Lp = Ip * wp * eps;
+    double th0 = atan2(hypot(Lo, Lb), Lp);
+    double am0 = atan2(sn0, cn0);
+    double ps0 = psi_ref(am0, sn0, cn0, c[C_S1], c[C_S2], c[C_K1], c[C_K2]);
+    double e[4], a[4], l[4];
+    zyz_quat(0.0, th0, ps0, e);
+    qmul(c[C_Q0], c[C_Q0 + 1], c[C_Q0 + 2], c[C_Q0 + 3], f[0], f[1], f[2], f[3], a);
+    qmul(a[0], a[1], a[2], a[3], e[0], -e[1], -e[2], -e[3], l);
+    c[C_QL] = l[0];
+    c[C_QL + 1] = l[1];
+    c[C_QL + 2] = l[2];
+    c[C_QL + 3] = l[3];
+}
+
+void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
+{
+    if (c[C_MODE] == 0.0) {
+        double w0 = c[C_W], w1 = c[C_W + 1], w2 = c[C_W + 2];
+        double wn = sqrt(w0 * w0 + w1 * w1 + w2 * w2);
+        w_out[0] = w0;
+        w_out[1] = w1;
+        w_out[2] = w2;
+        double h = 0.5 * wn * t;
+        double e0, e1, e2, e3;
+        if (wn > 0.0) {
+            double sh = sin(h) / wn;
+            e0 = cos(h);
+            e1 = sh * w0;
+            e2 = sh * w1;
+            e3 = sh * w2;
+        } else {
+            e0 = 1.0;
+            e1 = 0.0;
+            e2 = 0.0;
+            e3 = 0.0;
+        }
+        qmul(c[C_Q0], c[C_Q0 + 1], c[C_Q0 + 2], c[C_Q0 + 3], e0, e1, e2, e3, q_out);
+        return;
+    }
+    int io = (int)c[C_IO], ib = (int)c[C_IB], ip = (int)c[C_IP];
+    double mc = c[C_MC], K = c[C_K], n = c[C_N];
+    double u = c[C_LAM] * t + c[C_U0];
+    double sn_r, cn_r, dn, j;
+    gs_ellipj_reduced(u, mc, K, &sn_r, &cn_r, &dn, &j);
+    double sn, cn;
+    if (fmod(j, 2.0) != 0.0) {
+        sn = -sn_r;
+        cn = -cn_r;
+    } else {
+        sn = sn_r;
+        cn = cn_r;
+    }
+    double wo = c[C_AO] * cn, wb = c[C_AB] * sn, wp = c[C_AP] * dn;
+    w_out[io] = wo;
+    w_out[ib] = wb;
+    w_out[ip] = wp;
+    /* angle about L (precession phi of the Euler angles relative to L) */
+    double dg;
+    if (mc > 0.0) {
+        dg = g_reduced(sn_r, cn_r, dn, n) - c[C_PI0];
+        if (j != 0.0) dg += 2.0 * j * c[C_PIC];
+    } else {
+        double nu = -n;
+        double r = sqrt(nu);
+        dg = (r * (atan(r * tanh(u)) - c[C_PI0]) - nu * c[C_LAM] * t) / (1.0 + nu);
+    }
+    double phi = c[C_LN] * t / c[C_MO] + c[C_COEF] * dg;
+    double Lo = c[C_MO] * wo, Lb = c[C_MB] * wb, Lp = c[C_MP] * wp;
+    double theta = atan2(hypot(Lo, Lb), Lp);
+    double am = atan2(sn_r, cn_r) + j * GS_PI;
+    double psi = psi_ref(am, sn, cn, c[C_S1], c[C_S2], c[C_K1], c[C_K2]);
+    double e[4], a[4];
+    zyz_quat(phi, theta, psi, e);
+    qmul(c[C_QL], c[C_QL + 1], c[C_QL + 2], c[C_QL + 3], e[0], e[1], e[2], e[3], a);
+    qmul(a[0], a[1], a[2], a[3], c[C_QF], -c[C_QF + 1], -c[C_QF + 2], -c[C_QF + 3], q_out);
+}

@@ -1,0 +1,131 @@
+/*
+ * gyrosim engine: the one implementation of the rigid-body dynamics and of every integrator (C11, libm only).
+ *
+ * This header is the engine's contract. The Python extension (gyrosim.core._engine) and every FMU compile the
+ * same sources with the same floating-point flags (no contraction into fused multiply-adds, no fast-math), so a
+ * run of Model.step and a run of an FMU give the same bits.
+ *
+ * Units (SI): kg, m, s, rad, N*m. Frames: body = principal axes, world z up. Quaternion (w, x, y, z), scalar
+ * first, rotating body vectors into the world frame. ZYZ angles R = Rz(phi) Ry(theta) Rz(psi).
+ *
+ * Per body b (arrays of n bodies, row-major):
+ *   y[b*GS_NY + .]  (9)  q_w, q_x, q_y, q_z, omega_1, omega_2, omega_3 (rad/s, body), phi, psi (rad, unwrapped)
+ *   p[b*GS_NP + .]  (8)  I1, I2, I3 (kg*m^2, principal, about the reference point), mgl = mass*g*cm_distance
+ *                        (N*m), damping (N*m*s), tau_1, tau_2, tau_3 (N*m, body frame, held over the step)
+ *   hint[b]              adaptive: the next internal step (s); 0 = choose one (part of the saved state)
+ *   stats[b*3 + .]       accepted internal steps, rejected steps, right-hand-side evaluations (accumulated)
+ *   ex[b*GS_EX_SIZE + .] exact: the constants of the torque-free flow from its anchor state, ex[GS_EX_T0] the
+ *                        anchor time (s) and ex[GS_EX_VALID] 1 when set up (0: set up from y at the next step)
+ *   status[b]            0, or k + 1 when internal step k of body b failed (non-finite or overflowing state);
+ *                        the body's y, hint, stats and ex are then left as they were before the call
+ */
+#ifndef GYROSIM_ENGINE_H
+#define GYROSIM_ENGINE_H
+
+/* No fused multiply-add contraction, whatever the build flags (FMPy's CMake build, -march=native, aarch64). GCC 12's
+ * SLP vectoriser forms fused vfmaddsub from the quaternion products under -march=native even with
+ * fp-contract=off, so it is off too (it also made the rk4 step slower, measured). */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#elif defined(__GNUC__)
+#pragma GCC optimize("fp-contract=off", "no-tree-slp-vectorize")
+#elif defined(_MSC_VER)
+#pragma fp_contract(off)
+#endif
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define GS_ENGINE_VERSION 1
+
+/* terms a scene carries: absent terms cost nothing */
+#define GS_GRAVITY 1
+#define GS_DAMPING 2
+#define GS_TORQUE 4
+
+/* integrators */
+#define GS_EULER 0
+#define GS_RK4 1
+#define GS_SPLITTING 2
+#define GS_SPLITTING4 3
+#define GS_ADAPTIVE 4
+#define GS_EXACT 5
+#define GS_N_METHODS 6
+
+#define GS_NY 9
+#define GS_NP 8
+#define GS_NSTATS 3
+#define GS_NOUT 14
+
+/* the torque-free flow's constants (gs_tf_setup) and, after them, the exact integrator's anchor */
+#define GS_TF_SIZE 40
+#define GS_EX_T0 40
+#define GS_EX_VALID 41
+#define GS_EX_SIZE 42
+
+/* |omega_1| + |omega_2| + |omega_3| at or above which a state counts as blown up (rad/s) */
+#define GS_OMEGA_LIMIT 1e100
+
+/* The integrator names, indexed by code ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact"). */
+extern const char *const gs_method_names[GS_N_METHODS];
+
+/* The code of an integrator name, or -1. */
+int gs_method_code(const char *name);
+
+/* Internal steps a fixed-step integrator takes over a communication step H with max_step (DESIGN.md 4):
+ * max(1, ceil(H / max_step * (1 - 1e-12))); 0 when that is not a finite number below 2^62 (refuse the step). */
+int64_t gs_substeps(double H, double max_step);
+
+/* Advance n bodies over one communication step H (s) from time t (s), in place.
+ * Fixed-step methods take gs_substeps(H, max_step) equal steps; adaptive takes the steps its error control
+ * chooses (relative tolerance rtol, absolute atol, none longer than max_step); exact evaluates the torque-free
+ * flow from its anchor (only for flags == 0). threads: 0 = the default, 1 = serial, k = at most k (OpenMP
+ * builds only; the bits do not depend on it). Returns the number of bodies that failed (see status). */
+size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, double t, double H,
+                  double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
+                  int32_t *status, int threads);
+
+/* Every output per body into out[b*GS_NOUT + .], in the order q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z,
+ * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J). */
+void gs_outputs(size_t n, const double *y, const double *p, double *out);
+
+/* Start a state: q = y[0:4] divided by its norm, then y[7], y[8] = phi, psi of gs_quat_to_euler_zyz(q). */
+void gs_start_state(double y[GS_NY]);
+
+/* Update the unwrapped phi, psi (y[7], y[8]) from the quaternion y[0:4] (continuous through gimbal lock). */
+void gs_unwrap(double y[GS_NY]);
+
+/* ZYZ angles of a quaternion (normalised first): phi, psi wrapped to (-pi, pi], theta in [0, pi]. */
+void gs_quat_to_euler_zyz(const double q[4], double *phi, double *theta, double *psi);
+
+/* sqrt(q0^2 + q1^2 + q2^2 + q3^2), summed left to right. */
+double gs_norm4(const double q[4]);
+
+/* Threads the many-body loop may use (1 without OpenMP). */
+int gs_max_threads(void);
+
+/* ---- the exact torque-free flow (exact.c): Jacobi elliptic functions and Carlson's integrals ---- */
+
+/* Constants c[GS_TF_SIZE] of the torque-free motion from principal moments I (3), body omega (3) and
+ * attitude q (4, normalised here). */
+void gs_tf_setup(const double I[3], const double w[3], const double q[4], double c[GS_TF_SIZE]);
+
+/* Body omega (3) and attitude (4) at time t (s after the setup state). */
+void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4]);
+
+/* Special functions (m = 1 - mc is the parameter): K(m); sn, cn, dn at u reduced to [-K, K] with the integer j
+ * (as a double) such that u = u_r + 2 K j; Carlson's RF and RJ. */
+double gs_ellipk(double mc);
+void gs_ellipj_reduced(double u, double mc, double K, double *sn_r, double *cn_r, double *dn, double *j);
+double gs_elliprf(double x, double y, double z);
+double gs_elliprj(double x, double y, double z, double p);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
