@@ -3,13 +3,12 @@
 The seeds' API (DESIGN.md section 3)::
 
     from gyrosim import RigidBodyDynamics, InertiaTensor, SymmetricTop, Gyroscope
+
+Names are imported on first use (PEP 562), so that ``gyrosim --help`` and the command line start fast.
 """
 
 from __future__ import annotations
 
-from .core.analytic import Gyroscope, SymmetricTop, TorqueFreeSolution
-from .core.inertia import InertiaTensor
-from .core.seeds import RigidBodyDynamics
 from .errors import ConfigError, GyrosimError, IntegrationError, RecordingError, StepError
 
 __version__ = "0.1.0"
@@ -20,14 +19,23 @@ __all__ = [
     "__version__",
 ]
 
+_LAZY = {
+    "RigidBodyDynamics": ".core.seeds", "InertiaTensor": ".core.inertia", "SymmetricTop": ".core.analytic",
+    "Gyroscope": ".core.analytic", "TorqueFreeSolution": ".core.analytic", "Model": ".model",
+    "load_scene": ".scene",
+}
+
 
 def __getattr__(name):
-    if name == "Model":
-        from .model import Model
+    mod = _LAZY.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'gyrosim' has no attribute {name!r}")
+    import importlib
 
-        return Model
-    if name == "load_scene":
-        from .scene import load_scene
+    value = getattr(importlib.import_module(mod, __name__), name)
+    globals()[name] = value
+    return value
 
-        return load_scene
-    raise AttributeError(name)
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -44,7 +44,7 @@ def _coerce(model, name, value):
 
 def cmd_simulate(args) -> int:
     """Run a scene and write one CSV row per output interval."""
-    from tqdm import tqdm
+    import time
 
     from .model import OUTPUT_NAMES, Model
     from .scene import load_scene
@@ -84,12 +84,19 @@ def cmd_simulate(args) -> int:
             return [repr(model.time)] + [repr(float(x)) for x in (a.reshape(-1) if multi else a[0])]
 
         w.writerow(row())
-        with tqdm(total=n, delay=1.0, unit="step", desc=f"simulate {scene.name}", disable=args.quiet,
-                  file=sys.stderr) as bar:
-            for _ in range(n):
-                model.step(dt)
-                w.writerow(row())
+        # a progress bar once the run has taken half a second (tqdm is imported only then: fast start)
+        bar, t0 = None, time.perf_counter()
+        for k in range(n):
+            model.step(dt)
+            w.writerow(row())
+            if bar is not None:
                 bar.update()
+            elif not args.quiet and (k & 255) == 255 and time.perf_counter() - t0 > 0.5:
+                from tqdm import tqdm
+
+                bar = tqdm(total=n, initial=k + 1, unit="step", desc=f"simulate {scene.name}", file=sys.stderr)
+        if bar is not None:
+            bar.close()
     if not args.quiet:
         print(f"wrote {out} ({n + 1} rows, t = 0 .. {model.time:g} s, integrator {model.integrator}, "
               f"{model.stats['steps']} internal steps)", file=sys.stderr)

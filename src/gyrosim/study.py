@@ -49,7 +49,7 @@ __all__ = ["main", "PARTS", "CASES", "EXPECTED_ORDER", "observed_order"]
 
 FIXED = ("euler", "rk4", "splitting", "splitting4")
 INTEGRATORS = FIXED + ("adaptive",)
-PARTS = ("accuracy", "cost", "long", "fmu", "service")
+PARTS = ("accuracy", "cost", "long", "startup", "fmu", "service")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -438,7 +438,7 @@ def _find_baseline_source() -> Path | None:
 
 
 def _arrays(scene):
-    """Engine arrays (y (n, 9), p (n, 8)) of a scene's bodies, as Model builds them."""
+    """Engine arrays (y (n, NY), p (n, NP)) of a scene's bodies, as Model builds them."""
     from .core import _engine
 
     n = len(scene.bodies)
@@ -607,6 +607,50 @@ def run_cost(quick: bool, cbase: CBaseline, bar) -> dict:
             bar.update()
     res["many"]["threading_layer"] = "OpenMP" if _engine.OPENMP else None
     return res
+
+# ===============================================================================================================
+# Part 3b: start-up of the command line
+# ===============================================================================================================
+
+
+def run_startup(quick: bool, work: Path) -> dict:
+    """Wall time of ``gyrosim --help`` and ``gyrosim simulate free_body --stop-time 1``, as ratios to
+    ``python -c "import numpy"`` timed in the same interleaved rounds (best of each); also a first run with no
+    bytecode cached (``PYTHONPYCACHEPREFIX`` pointing at an empty folder, for all three commands)."""
+    import shutil
+    import subprocess
+
+    exe = shutil.which("gyrosim", path=str(Path(sys.executable).parent)) or "gyrosim"
+    csv_out = str(work / "startup.csv")
+    cmds = {"import numpy": [sys.executable, "-c", "import numpy"],
+            "gyrosim --help": [exe, "--help"],
+            "gyrosim simulate free_body --stop-time 1": [exe, "simulate", "free_body", "--stop-time", "1",
+                                                         "--output", csv_out, "-q"]}
+
+    def timed(cmd, env=None):
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True, env=env)
+        return time.perf_counter() - t0
+
+    first = {}
+    for name, cmd in cmds.items():
+        cache = work / f"pycache-{len(first)}"
+        first[name] = timed(cmd, dict(os.environ, PYTHONPYCACHEPREFIX=str(cache)))
+    best = dict.fromkeys(cmds, math.inf)
+    for _ in range(5 if quick else 15):
+        for name, cmd in cmds.items():
+            best[name] = min(best[name], timed(cmd))
+    base, base_first = best["import numpy"], first["import numpy"]
+    return {"rows": [{"command": name, "best_s": best[name], "ratio": best[name] / base,
+                      "first_run_s": first[name], "first_ratio": first[name] / base_first} for name in cmds]}
+
+
+def startup_table(res: dict) -> str:
+    rows = [[f"`{r['command']}`", f"{r['best_s'] * 1e3:.0f}", f"{r['ratio']:.2f}", f"{r['first_run_s'] * 1e3:.0f}",
+             f"{r['first_ratio']:.2f}"] for r in res["rows"]]
+    return ("### Start-up of the command line\n\nWall time, best of interleaved rounds, as a ratio to "
+            "`python -c \"import numpy\"` in the same rounds; first run: no bytecode cached, for every command.\n\n"
+            + md_table(["command", "ms", "ratio to numpy", "first run ms", "first-run ratio"], rows))
 
 
 # ===============================================================================================================
@@ -1095,7 +1139,7 @@ def main(args) -> int:
     n_acc = sum(len(FIXED) * len(c.steps) + len(c.tolerances) + (1 if c.exact else 0) for c in cases.values())
     n_cost = (len(cost_scenes()) * (len(INTEGRATORS) + 1) + 4) if "cost" in parts else 0  # see run_cost
     long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in INTEGRATORS] if "long" in parts else []
-    total = n_acc + n_cost + len(long_runs)
+    total = n_acc + n_cost + len(long_runs) + ("startup" in parts)
     messages = []
     cbase = None
     with tempfile.TemporaryDirectory(prefix="gyrosim-bench-") as tmp, \
@@ -1149,6 +1193,12 @@ def main(args) -> int:
             plan.results["long"] = lrecs
             plan.tables["long_run"] = long_table(lrecs)
             plan.files += plot_long(lrecs, out)
+        if "startup" in parts:
+            bar.set_postfix_str("start-up")
+            res = run_startup(quick, Path(tmp))
+            plan.results["startup"] = res
+            plan.tables["startup"] = startup_table(res)
+            bar.update()
         for part in ("fmu", "service"):
             if part in parts:
                 bar.set_postfix_str(part)

@@ -48,7 +48,9 @@ static double wrap(double a) {
     return a - GS_TWO_PI * floor((a + GS_PI) / GS_TWO_PI);
 }
 
-void gs_unwrap(double y[GS_NY]) {
+/* The unwrapped phi, psi of the attitude y[0:4] nearest the reference angles y[7], y[8] (continuous through gimbal
+ * lock); a pure function of y, so reading the outputs never changes the state. */
+static void unwrapped(const double *y, double *phi, double *psi) {
     const double w = y[0], x = y[1], yy = y[2], z = y[3];
     /* squared: |q| = 1, so nothing overflows, and no hypot on the per-step path */
     const double a2 = w * w + z * z;
@@ -56,14 +58,23 @@ void gs_unwrap(double y[GS_NY]) {
     const double hs = atan2(z, w);
     const double hd = atan2(-x, yy);
     const double phi0 = y[7], psi0 = y[8];
+    *psi = psi0;
     if (b2 < 1e-24 * a2) {          /* theta = 0: only phi + psi is defined; keep psi */
-        y[7] = phi0 + wrap(2.0 * hs - psi0 - phi0);
+        *phi = phi0 + wrap(2.0 * hs - psi0 - phi0);
     } else if (a2 < 1e-24 * b2) {   /* theta = pi: only phi - psi is defined; keep psi */
-        y[7] = phi0 + wrap(2.0 * hd + psi0 - phi0);
+        *phi = phi0 + wrap(2.0 * hd + psi0 - phi0);
     } else {
-        y[7] = phi0 + wrap(hs + hd - phi0);
-        y[8] = psi0 + wrap(hs - hd - psi0);
+        *phi = phi0 + wrap(hs + hd - phi0);
+        *psi = psi0 + wrap(hs - hd - psi0);
     }
+}
+
+void gs_unwrap(double y[GS_NY]) {
+    double phi, psi;
+    unwrapped(y, &phi, &psi);
+    y[7] = phi;
+    y[8] = psi;
+    y[9] = 0.0;
 }
 
 double gs_norm4(const double q[4]) {
@@ -109,6 +120,7 @@ void gs_start_state(double y[GS_NY]) {
     gs_quat_to_euler_zyz(y, &phi, &theta, &psi);
     y[7] = phi;
     y[8] = psi;
+    y[9] = 0.0;
 }
 
 /* ------------------------------------------------------------------------------------------- dynamics */
@@ -285,9 +297,26 @@ static void strang(double L[3], double *q, const double *p, int flags, double h,
 
 /* ------------------------------------------------------------------------------------------- fixed steps */
 
+/* Substeps between updates of the reference angles y[7], y[8] within a step: every floor(1 / (|omega| h)) substeps
+ * when the step turns the body by more than 1 rad (|omega| from the state at the start of the step), else none
+ * (0); the rotation since the last update is kept in y[9]. */
+static int64_t unwrap_stride(double w, double H, double h) {
+    if (!(w * H > 1.0)) return 0;   /* none within the step */
+    const double s = floor(1.0 / (w * h));
+    return s >= 1.0 ? (int64_t)s : 1;
+}
+
+/* the rotation since the last update after n_sub steps (acc0 before them) */
+static inline double after_steps(double acc0, double w, double H, double h, int64_t n_sub, int64_t stride) {
+    if (!stride) return acc0 + w * H;
+    return w * h * (double)(n_sub % stride);
+}
+
+#define DUE(k, stride, n_sub) ((stride) && ((k) + 1) % (stride) == 0)
+
 /* n_sub fixed steps of h; with check, stop at the first step whose state is not ok and return its index + 1 */
 static int64_t fixed_steps(int method, double *y, const double *p, int flags, double h, int64_t n_sub,
-                           int unwrap_each, int check) {
+                           int64_t stride, int check) {
     if (method == GS_SPLITTING || method == GS_SPLITTING4) {
         int s, pp, r;
         double L[3];
@@ -304,13 +333,13 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
             for (int i = 0; i < 3; i++) y[4 + i] = L[i] / p[i];
             normalize_q(y);
             if (check && !ok(y)) return k + 1;
-            if (unwrap_each) gs_unwrap(y);
+            if (DUE(k, stride, n_sub)) gs_unwrap(y);
         }
     } else if (method == GS_EULER) {
         for (int64_t k = 0; k < n_sub; k++) {
             euler_step(y, p, flags, h);
             if (check && !ok(y)) return k + 1;
-            if (unwrap_each) gs_unwrap(y);
+            if (DUE(k, stride, n_sub)) gs_unwrap(y);
         }
     } else {
         /* the flags are constant: one loop per combination lets the compiler drop the absent terms */
@@ -319,7 +348,7 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
             for (int64_t k = 0; k < n_sub; k++) { \
                 rk4_step(y, p, (F), h); \
                 if (check && !ok(y)) return k + 1; \
-                if (unwrap_each) gs_unwrap(y); \
+                if (DUE(k, stride, n_sub)) gs_unwrap(y); \
             } \
             break;
             case 0: RK4_LOOP(0)
@@ -490,30 +519,43 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
 
 /* ------------------------------------------------------------------------------------------- the loop */
 
+/* Before a step: when the rotation since the reference angles were last updated (y[9], rad) and the step's together
+ * could reach 1 rad, update them first, so that the outputs' unwrapping from them stays unambiguous. */
+static inline void rebase(double *y, double w, double H) {
+    if (y[9] + w * H > 1.0) gs_unwrap(y);
+}
+
 static int32_t advance_body(int method, int flags, double *y, const double *p, double t, double H, int64_t n_sub,
                             double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex) {
-    const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
-    const int unwrap_each = w * H > 1.0;
     if (method == GS_EXACT) return exact_advance(y, p, t, H, ex, stats);
+    double save[GS_NY];
+    memcpy(save, y, sizeof(save));
+    const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    rebase(y, w, H);
     if (method == GS_ADAPTIVE) {
+        const int unwrap_each = w * H > 1.0;   /* then after every accepted step */
         int64_t st = dopri_advance(y, p, flags, H, rtol, atol, max_step, hint, stats, unwrap_each);
-        if (st) return clamp_status(st);
-        if (!unwrap_each) gs_unwrap(y);
+        if (st) {
+            memcpy(y, save, sizeof(save));
+            return clamp_status(st);
+        }
+        if (!unwrap_each) y[9] += w * H;
         return 0;
     }
     /* the state is checked once at the end (NaN and inf propagate); only on failure are the steps replayed
      * from the saved state with a check after each, to name the failing step */
-    double save[GS_NY];
-    memcpy(save, y, sizeof(save));
     const double h = H / (double)n_sub;
-    fixed_steps(method, y, p, flags, h, n_sub, unwrap_each, 0);
+    const int64_t stride = unwrap_stride(w, H, h);
+    double start[GS_NY];
+    memcpy(start, y, sizeof(start));
+    fixed_steps(method, y, p, flags, h, n_sub, stride, 0);
     if (!ok(y)) {
-        memcpy(y, save, sizeof(save));
-        const int64_t k = fixed_steps(method, y, p, flags, h, n_sub, unwrap_each, 1);
+        memcpy(y, start, sizeof(start));
+        const int64_t k = fixed_steps(method, y, p, flags, h, n_sub, stride, 1);
         memcpy(y, save, sizeof(save));
         return clamp_status(k);
     }
-    if (!unwrap_each) gs_unwrap(y);
+    y[9] = after_steps(start[9], w, H, h, n_sub, stride);
     stats[0] += n_sub;
     stats[2] += method == GS_EULER ? n_sub : (method == GS_RK4 ? 4 * n_sub : 0);
     return 0;
@@ -626,47 +668,69 @@ static void run_block(int method, Lanes *Y, const Lanes *P, int flags, double h,
     }
 }
 
-/* Advance the GS_BLOCK bodies from b0 (fixed-step euler or rk4) as advance_body would; returns how many failed. */
+/* Advance the GS_BLOCK bodies from b0 (fixed-step euler or rk4) as advance_body would, lane by lane the same
+ * operations and the same unwrap points; returns how many failed. */
 static size_t advance_block(int method, int flags, size_t b0, double *y, const double *p, double t, double H,
                             int64_t n_sub, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                             double *ex, int32_t *status) {
     Lanes Y[7], P[GS_NP];
+    double ang[GS_BLOCK][3], w[GS_BLOCK];
+    int64_t stride[GS_BLOCK];
+    const double h = H / (double)n_sub;
     for (int j = 0; j < GS_BLOCK; j++) {
         const double *yb = y + (b0 + j) * GS_NY, *pb = p + (b0 + j) * GS_NP;
-        /* a body that turns by more than 1 rad in the step unwraps at every substep: the one-body path */
-        if (sqrt(yb[4] * yb[4] + yb[5] * yb[5] + yb[6] * yb[6]) * H > 1.0) goto one_by_one;
-        for (int i = 0; i < 7; i++) Y[i][j] = yb[i];
+        double yr[GS_NY];
+        memcpy(yr, yb, sizeof(yr));
+        w[j] = sqrt(yr[4] * yr[4] + yr[5] * yr[5] + yr[6] * yr[6]);
+        rebase(yr, w[j], H);
+        for (int i = 0; i < 7; i++) Y[i][j] = yr[i];
         for (int i = 0; i < GS_NP; i++) P[i][j] = pb[i];
+        ang[j][0] = yr[7];
+        ang[j][1] = yr[8];
+        ang[j][2] = yr[9];
+        stride[j] = unwrap_stride(w[j], H, h);
     }
-    run_block(method, Y, (const Lanes *)P, flags, H / (double)n_sub, n_sub);
+    for (int64_t k = 0; k < n_sub;) {
+        /* run to the next substep after which some lane updates its reference angles */
+        int64_t next = n_sub;
+        for (int j = 0; j < GS_BLOCK; j++) {
+            if (!stride[j]) continue;
+            const int64_t due = (k / stride[j] + 1) * stride[j];
+            if (due < next) next = due;
+        }
+        run_block(method, Y, (const Lanes *)P, flags, h, next - k);
+        k = next;
+        for (int j = 0; j < GS_BLOCK; j++) {
+            if (stride[j] && k % stride[j] == 0) {
+                double yn[GS_NY];
+                for (int i = 0; i < 7; i++) yn[i] = Y[i][j];
+                yn[7] = ang[j][0];
+                yn[8] = ang[j][1];
+                gs_unwrap(yn);
+                ang[j][0] = yn[7];
+                ang[j][1] = yn[8];
+            }
+        }
+    }
     size_t failed = 0;
     for (int j = 0; j < GS_BLOCK; j++) {
         const size_t b = b0 + j;
         double *yb = y + b * GS_NY;
         double yn[GS_NY];
         for (int i = 0; i < 7; i++) yn[i] = Y[i][j];
-        yn[7] = yb[7];
-        yn[8] = yb[8];
+        yn[7] = ang[j][0];
+        yn[8] = ang[j][1];
+        yn[9] = after_steps(ang[j][2], w[j], H, h, n_sub, stride[j]);
         if (!ok(yn)) {   /* replay this body alone: it names the failing step and keeps the state */
             status[b] = advance_body(method, flags, yb, p + b * GS_NP, t, H, n_sub, rtol, atol, max_step, hint + b,
                                      stats + b * GS_NSTATS, ex ? ex + b * GS_EX_SIZE : NULL);
             failed += status[b] != 0;
             continue;
         }
-        gs_unwrap(yn);
         memcpy(yb, yn, sizeof(yn));
         stats[b * GS_NSTATS] += n_sub;
         stats[b * GS_NSTATS + 2] += method == GS_EULER ? n_sub : 4 * n_sub;
         status[b] = 0;
-    }
-    return failed;
-one_by_one:
-    failed = 0;
-    for (int j = 0; j < GS_BLOCK; j++) {
-        const size_t b = b0 + j;
-        status[b] = advance_body(method, flags, y + b * GS_NY, p + b * GS_NP, t, H, n_sub, rtol, atol, max_step,
-                                 hint + b, stats + b * GS_NSTATS, ex ? ex + b * GS_EX_SIZE : NULL);
-        failed += status[b] != 0;
     }
     return failed;
 }
@@ -734,9 +798,8 @@ void gs_outputs(size_t n, const double *y, const double *p, double *out) {
         const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
         const double o1 = yb[4], o2 = yb[5], o3 = yb[6];
         for (int i = 0; i < 7; i++) o[i] = yb[i];
-        o[7] = yb[7];
+        unwrapped(yb, &o[7], &o[9]);
         o[8] = 2.0 * atan2(hypot(x, yy), hypot(w, z));
-        o[9] = yb[8];
         const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
         o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
         o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;

@@ -9,7 +9,10 @@
  * first, rotating body vectors into the world frame. ZYZ angles R = Rz(phi) Ry(theta) Rz(psi).
  *
  * Per body b (arrays of n bodies, row-major):
- *   y[b*GS_NY + .]  (9)  q_w, q_x, q_y, q_z, omega_1, omega_2, omega_3 (rad/s, body), phi, psi (rad, unwrapped)
+ *   y[b*GS_NY + .] (10)  q_w, q_x, q_y, q_z, omega_1, omega_2, omega_3 (rad/s, body), then the reference angles
+ *                        phi_ref, psi_ref (rad) from which the outputs phi, psi are unwrapped (a pure function of
+ *                        y: reading never changes the state) and the rotation since they were set (rad); the
+ *                        engine moves the reference before the body can turn by 1 rad from it
  *   p[b*GS_NP + .]  (8)  I1, I2, I3 (kg*m^2, principal, about the reference point), mgl = mass*g*cm_distance
  *                        (N*m), damping (N*m*s), tau_1, tau_2, tau_3 (N*m, body frame, held over the step)
  *   hint[b]              adaptive: the next internal step (s); 0 = choose one (part of the saved state)
@@ -56,7 +59,7 @@ extern "C" {
 #define GS_EXACT 5
 #define GS_N_METHODS 6
 
-#define GS_NY 9
+#define GS_NY 10
 #define GS_NP 8
 #define GS_NSTATS 3
 #define GS_NOUT 14
@@ -93,10 +96,10 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
  * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J). */
 void gs_outputs(size_t n, const double *y, const double *p, double *out);
 
-/* Start a state: q = y[0:4] divided by its norm, then y[7], y[8] = phi, psi of gs_quat_to_euler_zyz(q). */
+/* Start a state: q = y[0:4] divided by its norm, then y[7], y[8] = phi, psi of gs_quat_to_euler_zyz(q), y[9] = 0. */
 void gs_start_state(double y[GS_NY]);
 
-/* Update the unwrapped phi, psi (y[7], y[8]) from the quaternion y[0:4] (continuous through gimbal lock). */
+/* Move the reference angles y[7], y[8] to the unwrapped phi, psi of the quaternion y[0:4]; y[9] = 0. */
 void gs_unwrap(double y[GS_NY]);
 
 /* ZYZ angles of a quaternion (normalised first): phi, psi wrapped to (-pi, pi], theta in [0, pi]. */
