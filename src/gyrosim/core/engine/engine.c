@@ -14,6 +14,12 @@
 #include <omp.h>
 #endif
 
+#if defined(__GNUC__)
+#define GS_INLINE inline __attribute__((always_inline))
+#else
+#define GS_INLINE inline
+#endif
+
 #define GS_PI 3.141592653589793
 #define GS_TWO_PI 6.283185307179586
 
@@ -126,7 +132,7 @@ void gs_start_state(double y[GS_NY]) {
 /* ------------------------------------------------------------------------------------------- dynamics */
 
 /* k[0:4] = dq/dt, k[4:7] = domega/dt */
-static inline void rhs(const double *s, const double *p, int flags, double k[7]) {
+static GS_INLINE void rhs(const double *s, const double *p, int flags, double k[7]) {
     const double qw = s[0], qx = s[1], qy = s[2], qz = s[3], o1 = s[4], o2 = s[5], o3 = s[6];
     const double I1 = p[0], I2 = p[1], I3 = p[2];
     double a1 = (I2 - I3) * o2 * o3;
@@ -157,14 +163,14 @@ static inline void rhs(const double *s, const double *p, int flags, double k[7])
     k[6] = a3 / I3;
 }
 
-static inline int ok(const double *y) {
+static GS_INLINE int ok(const double *y) {
     for (int i = 0; i < 7; i++) {
         if (!isfinite(y[i])) return 0;
     }
     return fabs(y[4]) + fabs(y[5]) + fabs(y[6]) < GS_OMEGA_LIMIT;
 }
 
-static inline void normalize_q(double *y) {
+static GS_INLINE void normalize_q(double *y) {
     const double n = sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]);
     if (n > 0.0) {
         y[0] /= n;
@@ -174,14 +180,14 @@ static inline void normalize_q(double *y) {
     }
 }
 
-static inline void euler_step(double *y, const double *p, int flags, double h) {
+static GS_INLINE void euler_step(double *y, const double *p, int flags, double h) {
     double k[7];
     rhs(y, p, flags, k);
     for (int i = 0; i < 7; i++) y[i] += h * k[i];
     normalize_q(y);
 }
 
-static inline void rk4_step(double *y, const double *p, int flags, double h) {
+static GS_INLINE void rk4_step(double *y, const double *p, int flags, double h) {
     const double h2 = 0.5 * h;
     double k1[7], k2[7], k3[7], k4[7], s[7];
     rhs(y, p, flags, k1);
@@ -525,8 +531,9 @@ static inline void rebase(double *y, double w, double H) {
     if (y[9] + w * H > 1.0) gs_unwrap(y);
 }
 
-static int32_t advance_body(int method, int flags, double *y, const double *p, double t, double H, int64_t n_sub,
-                            double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex) {
+static GS_INLINE int32_t advance_body(int method, int flags, double *y, const double *p, double t, double H,
+                                      int64_t n_sub, double rtol, double atol, double max_step, double *hint,
+                                      int64_t *stats, double *ex) {
     if (method == GS_EXACT) return exact_advance(y, p, t, H, ex, stats);
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
@@ -546,16 +553,16 @@ static int32_t advance_body(int method, int flags, double *y, const double *p, d
      * from the saved state with a check after each, to name the failing step */
     const double h = H / (double)n_sub;
     const int64_t stride = unwrap_stride(w, H, h);
-    double start[GS_NY];
-    memcpy(start, y, sizeof(start));
+    const double acc0 = y[9];
     fixed_steps(method, y, p, flags, h, n_sub, stride, 0);
     if (!ok(y)) {
-        memcpy(y, start, sizeof(start));
+        memcpy(y, save, sizeof(save));
+        rebase(y, w, H);
         const int64_t k = fixed_steps(method, y, p, flags, h, n_sub, stride, 1);
         memcpy(y, save, sizeof(save));
         return clamp_status(k);
     }
-    y[9] = after_steps(start[9], w, H, h, n_sub, stride);
+    y[9] = after_steps(acc0, w, H, h, n_sub, stride);
     stats[0] += n_sub;
     stats[2] += method == GS_EULER ? n_sub : (method == GS_RK4 ? 4 * n_sub : 0);
     return 0;
@@ -572,12 +579,6 @@ static int32_t advance_body(int method, int flags, double *y, const double *p, d
 #define GS_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define GS_CLONES
-#endif
-
-#if defined(__GNUC__)
-#define GS_INLINE inline __attribute__((always_inline))
-#else
-#define GS_INLINE inline
 #endif
 
 typedef double Lanes[GS_BLOCK];
@@ -752,6 +753,10 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
             for (size_t b = 0; b < n; b++) status[b] = 1;
             return n;
         }
+    }
+    if (n == 1 && method != GS_ADAPTIVE) {   /* one body, fixed steps or exact: stats change only on success */
+        status[0] = advance_body(method, flags, y, p, t, H, n_sub, rtol, atol, max_step, hint, stats, ex);
+        return status[0] != 0;
     }
     /* units of work: blocks of GS_BLOCK bodies for euler and rk4, single bodies otherwise */
     const int blocked = (method == GS_EULER || method == GS_RK4) && n >= GS_BLOCK;

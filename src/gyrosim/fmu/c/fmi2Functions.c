@@ -20,7 +20,7 @@
     do { \
         if (!c) return fmi2Error; \
         M->fn = (name); \
-        if (!gs_check_state(M, (mask), (name))) return fmi2Error; \
+        if (!(M->d.fmi_state & (mask)) && !gs_check_state(M, (mask), (name))) return fmi2Error; \
     } while (0)
 #define NOT_NULL(p, name, what) \
     do { \

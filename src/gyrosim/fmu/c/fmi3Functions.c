@@ -19,7 +19,7 @@
     do { \
         if (!instance) return fmi3Error; \
         M->fn = (name); \
-        if (!gs_check_state(M, (mask), (name))) return fmi3Error; \
+        if (!(M->d.fmi_state & (mask)) && !gs_check_state(M, (mask), (name))) return fmi3Error; \
     } while (0)
 #define NOT_NULL(p, name, what) \
     do { \

@@ -489,7 +489,7 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
                      num(t).s, num(t + h).s, num(d->stop_time).s);
         return GS_ERROR;
     }
-    if (gs_initialize(m) != GS_OK) return GS_ERROR;
+    if ((!d->initialized || d->state_dirty) && gs_initialize(m) != GS_OK) return GS_ERROR;
     const int method = d->integrator;
     const int64_t n_sub = gs_substeps(h, d->max_step);
     if (method != GS_ADAPTIVE && method != GS_EXACT && n_sub == 0) {
