@@ -11,7 +11,7 @@ settings.register_profile("ci", max_examples=60, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
-#: A C FMI 2.0 / 3.0 host that runs a script of FMI calls (used by the standalone and the Python-backed FMU tests)
+#: A C FMI 2.0 / 3.0 host that runs a script of FMI calls (no Python in its process)
 HOST_SOURCE = Path(__file__).parent / "standalone" / "host" / "fmi_host.c"
 
 

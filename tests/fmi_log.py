@@ -1,4 +1,4 @@
-"""A logger for FMPy's low-level instances, shared by the Python-backed and the standalone FMU tests."""
+"""A logger for FMPy's low-level instances, shared by the FMU tests."""
 
 
 def text(x) -> str:

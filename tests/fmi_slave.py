@@ -1,4 +1,4 @@
-"""One low-level FMPy instance API over FMI 2.0 and 3.0, shared by the Python-backed and the standalone FMU tests."""
+"""One low-level FMPy instance API over FMI 2.0 and 3.0, shared by the FMU tests."""
 
 from __future__ import annotations
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -11,9 +9,6 @@ import pytest
 from fmi_slave import FmiSlave
 
 pytest.importorskip("fmpy")
-
-#: numba's compiled kernels of the FMU's package are cached here across test runs (not in the user's home)
-os.environ.setdefault("GYROSIM_FMU_CACHE", str(Path(tempfile.gettempdir()) / f"gyrosim-fmu-test-cache-{os.getuid()}"))
 
 SCENES = (None, "heavy_top", "free_body", "gyroscope")
 

@@ -1,6 +1,6 @@
-"""valgrind over the FMU's C bridge (slow: about 6 minutes; ``pytest -m slow tests/fmu/test_fmu_valgrind.py``).
+"""valgrind over the FMU's native code (slow; ``pytest -m slow tests/fmu/test_fmu_valgrind.py``).
 
-A Python process instantiates both FMI versions three times each, steps (fast path), gets, serializes and sets
+A Python process instantiates both FMI versions three times each, steps, gets, serializes and sets
 FMU states, steps into an error, resets and frees. No invalid access, use of uninitialised memory or definite
 leak may have a frame in the FMU's binary. (valgrind also reports glibc's loader, CPython and lxml: those
 reports have no frame in the FMU and are not ours.)
@@ -62,7 +62,7 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-def test_no_memory_error_in_the_bridge(build, tmp_path):
+def test_no_memory_error_in_the_fmu(build, tmp_path):
     if shutil.which("valgrind") is None:
         pytest.skip("valgrind is not installed")
     paths = [str(build("heavy_top", v)) for v in (2, 3)]
@@ -73,13 +73,13 @@ def test_no_memory_error_in_the_bridge(build, tmp_path):
     p = subprocess.run(["valgrind", "--error-limit=no", "--num-callers=30", f"--log-file={log}", sys.executable,
                         str(script), *paths], capture_output=True, text=True, timeout=3000, env=env)
     assert p.returncode == 0 and "done" in p.stdout, p.stderr[-2000:]
-    ours = [b for b in re.split(r"\n==\d+== \n", log.read_text()) if _in_bridge(b)]
+    ours = [b for b in re.split(r"\n==\d+== \n", log.read_text()) if _in_fmu(b)]
     assert not ours, "\n\n".join(ours[:3])
 
 
-def _in_bridge(block: str) -> bool:
-    """A valgrind report about the bridge's own code: an access or uninitialised value at one of its first frames
-    (past libc's string functions), or a definite leak allocated by it (not by Python code it called)."""
+def _in_fmu(block: str) -> bool:
+    """A valgrind report about the FMU's own code: an access or uninitialised value at one of its first frames
+    (past libc's string functions), or a definite leak allocated by it."""
     frames = re.findall(r"(?:at|by) 0x[0-9A-F]+: .*", block)
     if re.search(r"Invalid (read|write)|uninitialised", block):
         return any("HeavyTop.so" in f for f in frames[:2])

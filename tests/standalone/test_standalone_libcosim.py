@@ -1,4 +1,4 @@
-"""The FMI 2.0 standalone FMU in libcosim (FMI Library based; an importer we did not write), via libcosimpy.
+"""The FMI 2.0 FMU in libcosim (FMI Library based; an importer we did not write), via libcosimpy.
 
 libcosim takes times in integer nanoseconds; a step of 10_000_000 ns is the communication step 0.01 s.
 """

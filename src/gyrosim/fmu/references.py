@@ -1,4 +1,4 @@
-"""Reference results for the FMU tests (``fmu/reference_*.csv``), from a source independent of gyrosim's kernels.
+"""Reference results for the FMU tests (``fmu/reference_*.csv``), from a source independent of gyrosim's engine.
 
 scipy's ``solve_ivp`` (DOP853, rtol = atol = 1e-12) integrates Euler's equations with the gravity torque
 and the quaternion kinematics written out here, in the conventions of DESIGN.md section 2 (q scalar first,

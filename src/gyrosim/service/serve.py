@@ -283,7 +283,7 @@ class Service:
         return False
 
     def _warm_up(self) -> None:
-        """One step on a saved state, then restore it: compiles (JIT) and warms caches before the clock runs."""
+        """One step on a saved state, then restore it: warms caches (and the CDR encoders) before the clock runs."""
         m = self.model
         try:
             saved = m.get_state()
