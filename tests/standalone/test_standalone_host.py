@@ -210,3 +210,31 @@ def test_state_round_trips_and_reset_in_c_host(version, standalone, host):
         np.testing.assert_array_equal(r, rows[1])  # the same bits after each restore
     np.testing.assert_array_equal(rows[1, 2:], cont)
     np.testing.assert_array_equal(rows[4], rows[0])  # reset: the start values again
+
+
+def test_two_body_scene_in_the_c_host(standalone, host):
+    """The two-gyroscope scene's FMU (every body exported as <body>.<name>) in the C host, torques on the fast body:
+    each body's outputs are the bits of a two-body Model."""
+    from gyrosim.model import Model
+
+    scene = "service/scenes/two_gyros.toml"
+    n, h, every = 2000, 0.01, 500
+    m = Model(scene)
+    ref = {name: [] for name in m.body_names}
+    for k in range(n):
+        for axis, tau in zip("xyz", torque(k)):
+            m.set(f"tau_{axis}", tau, body=0)
+        m.step(h)
+        if (k + 1) % every == 0:
+            for b, name in enumerate(m.body_names):
+                ref[name].append([k + 1, m.time, *m.outputs_array()[b]])
+    for version in (2, 3):
+        fmu = standalone(scene, version)
+        for b, name in enumerate(m.body_names):
+            script = "\n".join([
+                "instantiate two", "setup 0 -", "enter_init", "exit_init",
+                f"run {n} {h!r} {every} " + " ".join(str(fmu.vr[f"{name}.{o}"]) for o in OUTPUT_NAMES)
+                + " -- " + " ".join(str(fmu.vr[f"fast.tau_{a}"]) for a in "xyz"),
+                "terminate", "free", ""])
+            got = parse_rows(host(fmu, script))
+            np.testing.assert_array_equal(got, np.array(ref[name]), err_msg=f"FMI {version} body {name}")
