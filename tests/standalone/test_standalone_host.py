@@ -230,7 +230,7 @@ def test_two_body_scene_in_the_c_host(standalone, host):
                 ref[name].append([k + 1, m.time, *m.outputs_array()[b]])
     for version in (2, 3):
         fmu = standalone(scene, version)
-        for b, name in enumerate(m.body_names):
+        for name in m.body_names:
             script = "\n".join([
                 "instantiate two", "setup 0 -", "enter_init", "exit_init",
                 f"run {n} {h!r} {every} " + " ".join(str(fmu.vr[f"{name}.{o}"]) for o in OUTPUT_NAMES)
