@@ -16,13 +16,13 @@ __version__ = "0.1.0"
 __all__ = [
     "RigidBodyDynamics", "InertiaTensor", "SymmetricTop", "Gyroscope", "TorqueFreeSolution",
     "GyrosimError", "ConfigError", "IntegrationError", "RecordingError", "StepError", "Model", "load_scene",
-    "__version__",
+    "simulate", "__version__",
 ]
 
 _LAZY = {
     "RigidBodyDynamics": ".core.seeds", "InertiaTensor": ".core.inertia", "SymmetricTop": ".core.analytic",
     "Gyroscope": ".core.analytic", "TorqueFreeSolution": ".core.analytic", "Model": ".model",
-    "load_scene": ".scene",
+    "load_scene": ".scene", "simulate": ".trajectory",
 }
 
 

@@ -396,7 +396,7 @@ class Model:
                 self._y, self._hint, self._stats, self._ex = saved
             where = "" if single else f" for body {self.body_names[b]!r}"
             n_sub = _engine.substeps(h, self.max_step)
-            if method == _METHOD_CODES["adaptive"]:
+            if method in (_METHOD_CODES["adaptive"], _METHOD_CODES["dop853"]):
                 detail = f"the adaptive step size fell below its minimum at internal step {k}"
                 advice = "loosen the tolerance or check the parameters (the solution may truly blow up)"
             elif method == _METHOD_CODES["exact"]:
@@ -415,6 +415,74 @@ class Model:
                 f"integrator {self.integrator!r} blew up{where} in the step from t = {t!r} s with "
                 f"h = {h!r} s: {detail} gave a non-finite or overflowing state (|omega| > "
                 f"{_engine.OMEGA_LIMIT:g} rad/s); {advice}")
+
+    def trajectory(self, dt: float, n: int) -> np.ndarray:
+        """Advance ``n`` output intervals of ``dt`` s in one call of the engine; the outputs at every point.
+
+        Fixed-step integrators and ``exact`` give the bits of ``n`` calls of :meth:`step` with ``dt``; ``adaptive``
+        and ``dop853`` take the steps their error control chooses over the whole run and interpolate the output
+        points with their continuous extensions (a step is never cut by the output grid).
+
+        Returns
+        -------
+        (n + 1, n_bodies, 14) ndarray
+            Outputs in the order of :data:`OUTPUT_NAMES` at ``time + k*dt``, ``k = 0..n``.
+
+        Raises
+        ------
+        StepError
+            ``dt`` not finite or <= 0, ``n`` < 0, or the run would end after the stop time.
+        IntegrationError
+            A body blew up; the model keeps its state from before the call, and the error carries the rows
+            computed before the failing interval (``error.rows``).
+        """
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            raise StepError(f"output interval dt = {dt!r} is not allowed: a finite number > 0 in s") from None
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise StepError(f"output interval dt = {dt!r} is not allowed: a finite number > 0 in s")
+        if not (isinstance(n, (int, np.integer)) and n >= 0):
+            raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
+        n = int(n)
+        t = self.time
+        t_end = t + n * dt
+        if self.stop_time is not None and t_end > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
+            raise StepError(f"a run of {n} intervals of {dt!r} s from t = {t!r} s ends at {t_end!r} s, after the "
+                            f"stop time {self.stop_time!r} s")
+        if not self._initialized or self._state_dirty:
+            self.initialize()
+        method = _METHOD_CODES[self.integrator]
+        if method not in (_METHOD_CODES["adaptive"], _METHOD_CODES["dop853"], _METHOD_CODES["exact"]) and \
+                _engine.substeps(dt, self.max_step) == 0:
+            raise StepError(f"a step of dt = {dt!r} s with max_step = {self.max_step!r} s needs "
+                            f"{dt / self.max_step:.3g} internal steps: too many (at most 4.6e18)")
+        out = np.empty((n + 1, self.n_bodies, len(OUTPUT_NAMES)))
+        saved = (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
+        status = np.zeros(self.n_bodies, dtype=np.int32)
+        failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t, dt, n, self.tolerance,
+                                    self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out)
+        if failed:
+            self._y, self._hint, self._stats, self._ex = saved
+            b = int(np.flatnonzero(status)[0])
+            k = int(status[b])
+            where = "" if self.n_bodies == 1 else f" for body {self.body_names[b]!r}"
+            err = IntegrationError(
+                f"integrator {self.integrator!r} blew up{where} in the output interval from t = {t + (k - 1) * dt!r} "
+                f"s to {t + k * dt!r} s (interval {k} of {n}): a non-finite or overflowing state (|omega| > "
+                f"{_engine.OMEGA_LIMIT:g} rad/s); use a smaller max_step (now {self.max_step:.6g} s) or another "
+                "integrator")
+            err.rows = out[:k]
+            raise err
+        if n:
+            if dt == self._h:
+                self._n += n
+            else:
+                self._t_base = t
+                self._n = n
+                self._h = dt
+        self._out = None
+        return out
 
     def _outputs_array(self) -> np.ndarray:
         if self._out is None:

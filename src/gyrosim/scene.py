@@ -9,7 +9,7 @@ File format (every key optional unless said)::
     [scene]
     name = "my_scene"            # required in files
     description = "..."
-    integrator = "rk4"           # euler, rk4, splitting, splitting4, adaptive, exact
+    integrator = "rk4"           # euler, rk4, splitting, splitting4, adaptive, dop853, exact
     max_step = 1e-3              # s
     tolerance = 1e-8             # relative and absolute tolerance of adaptive
     output_interval = 0.01       # s, default communication step of `gyrosim simulate`
@@ -58,7 +58,7 @@ from .errors import ConfigError
 __all__ = ["Scene", "BodySpec", "load_scene", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
 
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope")
-INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact")
+INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact")
 G_DEFAULT = 9.81
 
 _SCENE_KEYS = ("name", "description", "integrator", "max_step", "tolerance", "output_interval", "stop_time", "g")

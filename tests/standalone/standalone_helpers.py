@@ -10,7 +10,7 @@ import numpy as np
 from fmi_slave import FmiSlave
 
 SCENES = (None, "free_body", "heavy_top", "gyroscope")
-INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact")
+INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact")
 
 
 @dataclass

@@ -97,6 +97,54 @@ fail:
     return NULL;
 }
 
+/* trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out)
+ * -> failed bodies; out (n_out + 1, n, 14) */
+static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 16) {
+        PyErr_SetString(PyExc_TypeError, "trajectory() takes 16 arguments");
+        return NULL;
+    }
+    const int method = (int)PyLong_AsLong(args[0]);
+    const int flags = (int)PyLong_AsLong(args[1]);
+    const double t0 = PyFloat_AsDouble(args[4]);
+    const double dt = PyFloat_AsDouble(args[5]);
+    const long long n_out = PyLong_AsLongLong(args[6]);
+    const double rtol = PyFloat_AsDouble(args[7]);
+    const double atol = PyFloat_AsDouble(args[8]);
+    const double max_step = PyFloat_AsDouble(args[9]);
+    const int threads = (int)PyLong_AsLong(args[14]);
+    if (PyErr_Occurred()) return NULL;
+    if (n_out < 0) {
+        PyErr_SetString(PyExc_ValueError, "n_out: a count >= 0 is needed");
+        return NULL;
+    }
+    Buf b[7] = {{0}};
+    if (get_buf(args[2], &b[0], "y", 'd', -1, 1) < 0) goto fail;
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
+        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
+        goto fail;
+    }
+    if (get_buf(args[3], &b[1], "p", 'd', n * GS_NP, 0) < 0) goto fail;
+    if (get_buf(args[10], &b[2], "hint", 'd', n, 1) < 0) goto fail;
+    if (get_buf(args[11], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) goto fail;
+    if (get_buf(args[12], &b[4], "ex", 'd', n * GS_EX_SIZE, 1) < 0) goto fail;
+    if (get_buf(args[13], &b[5], "status", 'i', n, 1) < 0) goto fail;
+    if (get_buf(args[15], &b[6], "out", 'd', (Py_ssize_t)(n_out + 1) * n * GS_NOUT, 1) < 0) goto fail;
+    size_t failed;
+    Py_BEGIN_ALLOW_THREADS
+    failed = gs_trajectory(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0, dt,
+                           (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf, (int64_t *)b[3].view.buf,
+                           (double *)b[4].view.buf, (int32_t *)b[5].view.buf, threads, (double *)b[6].view.buf);
+    Py_END_ALLOW_THREADS
+    release(b, 7);
+    return PyLong_FromSize_t(failed);
+fail:
+    release(b, 7);
+    return NULL;
+}
+
 /* outputs(y, p, out): every output per body (n, 14) */
 static PyObject *py_outputs(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
@@ -181,6 +229,8 @@ static PyMethodDef methods[] = {
     {"advance", (PyCFunction)(void (*)(void))py_advance, METH_FASTCALL,
      "advance(method, flags, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, threads) -> failed bodies"},
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
+    {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
+     "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out)"},
     {"start_state", py_start_state, METH_O, "start_state(y): each row's q normalised, phi and psi from it"},
     {"substeps", (PyCFunction)(void (*)(void))py_substeps, METH_FASTCALL,
      "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},

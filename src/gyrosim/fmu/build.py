@@ -37,7 +37,7 @@ DEFAULT_OUTPUT = Path("fmu") / "dist"
 C_FLAGS = (*resources.files("gyrosim.core").joinpath("engine", "cflags.txt").read_text().split(),
            "-Wall", "-Wextra", "-fPIC", "-fvisibility=hidden")
 
-_ENGINE = ("gyrosim_engine.h", "engine.c", "exact.c", "cflags.txt")
+_ENGINE = ("gyrosim_engine.h", "rk_tables.h", "engine.c", "exact.c", "dense.c", "cflags.txt")
 _GLUE = ("gyrosim_model.h", "gyrosim_model.c")
 #: Scene-wide variables (not per body) of a multi-body FMU.
 SCENE_VARIABLES = ("integrator", "max_step")
@@ -60,6 +60,13 @@ _LOG_CATEGORIES = (("logStatusWarning", "Log messages with status Warning (this 
                    ("logStatusError", "Log messages with status Error: illegal calls, invalid values, failed steps."),
                    ("logStatusFatal", "Log messages with status Fatal (this FMU has none)."),
                    ("logEvents", "Log instantiation."))
+
+
+def _engine_methods() -> tuple[str, ...]:
+    """The engine's integrator names by code (the FMU's integrator codes)."""
+    from ..core import _engine
+
+    return _engine.METHODS
 
 
 def engine_sources() -> dict[str, str]:
@@ -157,7 +164,7 @@ def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, in
         "#define GS_VR_KINDS {" + ", ".join(kinds) + "}",
         "#define GS_VR_BODIES {" + ", ".join(bodies) + "}",
         "#define GS_BODY_NAMES {" + ", ".join(_c_string(b.name) for b in sc.bodies) + "}", "",
-        f"#define GS_START_INTEGRATOR_CODE {INTEGRATORS.index(integrator)}   /* {integrator} */",
+        f"#define GS_START_INTEGRATOR_CODE {_engine_methods().index(integrator)}   /* {integrator} */",
         f"#define GS_START_MAX_STEP {_hexf(sc.max_step)}   /* {_fmt(sc.max_step)} */",
         f"#define GS_START_TOLERANCE {_hexf(sc.tolerance)}   /* {_fmt(sc.tolerance)} */",
         "/* per body: I1, I2, I3, mass, cm_distance, g, damping, q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z */",
@@ -295,7 +302,7 @@ def _build_description(ident: str, sources) -> str:
 def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None = None) -> list[str]:
     """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources)."""
     cc = cc or os.environ.get("CC", "gcc")
-    srcs = ["engine.c", "exact.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
+    srcs = ["engine.c", "exact.c", "dense.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
     return [cc, *C_FLAGS, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 

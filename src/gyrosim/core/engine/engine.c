@@ -24,7 +24,11 @@
 #define GS_TWO_PI 6.283185307179586
 
 const char *const gs_method_names[GS_N_METHODS] = {"euler", "rk4", "splitting", "splitting4", "adaptive",
-                                                   "exact"};
+                                                   "exact", "dop853"};
+
+/* engine-internal, shared with dense.c */
+int64_t gs_engine_dop853(double *y, const double *p, int flags, double H, double rtol, double atol, double max_step,
+                         double *hint, int64_t *stats);
 
 int gs_method_code(const char *name) {
     if (!name) return -1;
@@ -539,6 +543,14 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
     memcpy(save, y, sizeof(save));
     const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
     rebase(y, w, H);
+    if (method == GS_DOP853) {   /* moves the reference angles itself, after accepted steps */
+        const int64_t st = gs_engine_dop853(y, p, flags, H, rtol, atol, max_step, hint, stats);
+        if (st) {
+            memcpy(y, save, sizeof(save));
+            return clamp_status(st);
+        }
+        return 0;
+    }
     if (method == GS_ADAPTIVE) {
         const int unwrap_each = w * H > 1.0;   /* then after every accepted step */
         int64_t st = dopri_advance(y, p, flags, H, rtol, atol, max_step, hint, stats, unwrap_each);
@@ -747,14 +759,14 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
         return n;
     }
     int64_t n_sub = 1;
-    if (method != GS_ADAPTIVE && method != GS_EXACT) {
+    if (method != GS_ADAPTIVE && method != GS_EXACT && method != GS_DOP853) {
         n_sub = gs_substeps(H, max_step);
         if (n_sub == 0) {
             for (size_t b = 0; b < n; b++) status[b] = 1;
             return n;
         }
     }
-    if (n == 1 && method != GS_ADAPTIVE) {   /* one body, fixed steps or exact: stats change only on success */
+    if (n == 1 && method != GS_ADAPTIVE && method != GS_DOP853) {   /* one body, fixed steps or exact: stats change only on success */
         status[0] = advance_body(method, flags, y, p, t, H, n_sub, rtol, atol, max_step, hint, stats, ex);
         return status[0] != 0;
     }
@@ -811,4 +823,19 @@ void gs_outputs(size_t n, const double *y, const double *p, double *out) {
         o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
         o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
     }
+}
+
+/* ------------------------------------------------------------------------------------------- for dense.c */
+
+int gs_engine_advance_one(int method, int flags, double *y, const double *p, double t, double H, int64_t n_sub,
+                          double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex) {
+    return advance_body(method, flags, y, p, t, H, n_sub, rtol, atol, max_step, hint, stats, ex);
+}
+
+void gs_engine_rhs(const double *s, const double *p, int flags, double k[7]) {
+    rhs(s, p, flags, k);
+}
+
+int gs_engine_ok(const double *y) {
+    return ok(y);
 }

@@ -57,7 +57,8 @@ extern "C" {
 #define GS_SPLITTING4 3
 #define GS_ADAPTIVE 4
 #define GS_EXACT 5
-#define GS_N_METHODS 6
+#define GS_DOP853 6
+#define GS_N_METHODS 7
 
 #define GS_NY 10
 #define GS_NP 8
@@ -73,7 +74,8 @@ extern "C" {
 /* |omega_1| + |omega_2| + |omega_3| at or above which a state counts as blown up (rad/s) */
 #define GS_OMEGA_LIMIT 1e100
 
-/* The integrator names, indexed by code ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact"). */
+/* The integrator names, indexed by code ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact",
+ * "dop853"). adaptive is Dormand-Prince 5(4), dop853 Dormand-Prince 8(5,3); both take rtol and atol. */
 extern const char *const gs_method_names[GS_N_METHODS];
 
 /* The code of an integrator name, or -1. */
@@ -91,6 +93,17 @@ int64_t gs_substeps(double H, double max_step);
 size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, double t, double H,
                   double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
                   int32_t *status, int threads);
+
+/* A trajectory in one call: n bodies from time t0 over n_out output intervals of dt, the outputs (as gs_outputs)
+ * at t0 + k*dt, k = 0..n_out, into out[(k*n + b)*GS_NOUT + .]. Fixed-step methods and exact advance from output
+ * point to output point as gs_advance does (the same bits as a loop of gs_advance); adaptive and dop853 take the
+ * steps their error control chooses over the whole run and interpolate the output points with their continuous
+ * extensions (orders 4 and 7; the quaternion renormalised). y, hint, stats, ex end at t0 + n_out*dt. A body that
+ * fails gets status[b] = the output interval (1-based) in which it failed and NaN rows from there; returns the
+ * number of bodies that failed. */
+size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, double dt,
+                     int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                     double *ex, int32_t *status, int threads, double *out);
 
 /* Every output per body into out[b*GS_NOUT + .], in the order q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z,
  * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J). */

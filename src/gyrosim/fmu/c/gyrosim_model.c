@@ -492,7 +492,7 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
     if ((!d->initialized || d->state_dirty) && gs_initialize(m) != GS_OK) return GS_ERROR;
     const int method = d->integrator;
     const int64_t n_sub = gs_substeps(h, d->max_step);
-    if (method != GS_ADAPTIVE && method != GS_EXACT && n_sub == 0) {
+    if (method != GS_ADAPTIVE && method != GS_EXACT && method != GS_DOP853 && n_sub == 0) {
         gs_log_error(m, "a step of h = %s s with max_step = %s s needs %.3g internal steps: too many (at most "
                      "4.6e18); raise max_step or take shorter steps", num(h).s, num(d->max_step).s, h / d->max_step);
         return GS_ERROR;
@@ -521,7 +521,7 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         memcpy(d, m->scratch, sizeof(GsData));
 #endif
         char detail[200], advice[200];
-        if (method == GS_ADAPTIVE) {
+        if (method == GS_ADAPTIVE || method == GS_DOP853) {
             snprintf(detail, sizeof(detail), "the adaptive step size fell below its minimum at internal step %d", k);
             snprintf(advice, sizeof(advice), "loosen the tolerance or check the parameters (the solution may "
                      "truly blow up)");

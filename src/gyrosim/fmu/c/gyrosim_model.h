@@ -107,7 +107,7 @@ int gs_check_state_data(GsInstance *m, const GsData *d);
 void gs_restore(GsInstance *m, const GsData *d);
 
 /* the integrators this FMU offers, for messages */
-#define GS_INTEGRATOR_LIST "euler, rk4, splitting, splitting4, adaptive" GS_EXACT_LIST
+#define GS_INTEGRATOR_LIST "euler, rk4, splitting, splitting4, adaptive, dop853" GS_EXACT_LIST
 #if GS_FLAGS == 0
 #define GS_EXACT_LIST ", exact"
 #else
