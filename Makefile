@@ -26,12 +26,21 @@ test: $(STAMP) lint
 demo: $(STAMP)
 	$(PY) -m gyrosim.demo
 
-bench: $(STAMP)
+BENCH_VENV := .venv-bench
+
+$(BENCH_VENV)/.installed: pyproject.toml $(ENGINE)
+	$(PYTHON) -m venv $(BENCH_VENV)
+	$(BENCH_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(BENCH_VENV)/bin/python -m pip install --quiet -e ".[test,bench]"
+	touch $(BENCH_VENV)/.installed
+
+# the slow tests in the project's venv; the study in .venv-bench (with the benchmark-only peers: CyRK, numba)
+bench: $(STAMP) $(BENCH_VENV)/.installed
 	$(PY) -m pytest -q -m slow
-	$(VENV)/bin/gyrosim bench --output docs/study
+	$(BENCH_VENV)/bin/gyrosim bench --output docs/study
 
 docs: $(STAMP)
 	$(VENV)/bin/gyrosim bench --output docs/study
 
 clean:
-	rm -rf $(VENV) .pytest_cache fmu/dist out build src/gyrosim/core/*.so
+	rm -rf $(VENV) $(BENCH_VENV) .pytest_cache fmu/dist out build src/gyrosim/core/*.so

@@ -47,8 +47,7 @@ setup(
     ext_modules=[
         Extension(
             "gyrosim.core._engine",
-            sources=["src/gyrosim/core/_enginemodule.c", str(ENGINE / "engine.c"), str(ENGINE / "exact.c"),
-                     str(ENGINE / "dense.c")],
+            sources=["src/gyrosim/core/_enginemodule.c", str(ENGINE / "engine.c"), str(ENGINE / "exact.c")],
             depends=[str(ENGINE / "gyrosim_engine.h"), str(ENGINE / "rk_tables.h"), str(ENGINE / "cflags.txt")],
             extra_compile_args=list(CFLAGS),
             libraries=["m"],

@@ -97,6 +97,46 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
     return {v.name: v for v in V}
 
 
+_VARIABLES: dict[int, tuple[Scene, dict[str, Variable]]] = {}
+
+
+def _variables_cached(scene: Scene) -> dict[str, Variable]:
+    """variables_for(scene) for body 0, computed once per scene object (scenes are frozen; Variables too)."""
+    hit = _VARIABLES.get(id(scene))
+    if hit is None or hit[0] is not scene:
+        if len(_VARIABLES) > 64:
+            _VARIABLES.clear()
+        hit = (scene, variables_for(scene))
+        _VARIABLES[id(scene)] = hit
+    return hit[1]
+
+
+_SLOTS: dict[int, tuple[dict, dict]] = {}
+
+
+def _slots_cached(variables: dict[str, Variable]) -> dict[str, tuple]:
+    """Where each variable lives in a Model: (kind, index) by name, computed once per variables dict."""
+    hit = _SLOTS.get(id(variables))
+    if hit is None or hit[0] is not variables:
+        slots = {}
+        for name, var in variables.items():
+            if var.causality == "output":
+                slots[name] = (0, OUTPUT_NAMES.index(name))
+            elif name in ("I1", "I2", "I3"):
+                slots[name] = (1, int(name[1]) - 1)
+            elif name in ("tau_x", "tau_y", "tau_z"):
+                slots[name] = (2, "xyz".index(name[-1]))
+            elif name in Model._BODY_ARRAYS:
+                slots[name] = (3, Model._BODY_ARRAYS[name])
+            else:
+                slots[name] = (4, name)
+        if len(_SLOTS) > 64:
+            _SLOTS.clear()
+        hit = (variables, slots)
+        _SLOTS[id(variables)] = hit
+    return hit[1]
+
+
 @dataclass
 class ModelState:
     """An exact snapshot of a :class:`Model` (arrays copied; picklable)."""
@@ -134,7 +174,7 @@ class Model:
     def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
                  stop_time: float | None = None, tolerance: float | None = None):
         self.scene = load_scene(scene)
-        self.variables = variables_for(self.scene)
+        self.variables = _variables_cached(self.scene)
         n = len(self.scene.bodies)
         self.body_names = self.scene.body_names
         self._index = {name: i for i, name in enumerate(self.body_names)}
@@ -166,18 +206,7 @@ class Model:
         self._out = None
         self._outbuf = np.empty((n, len(OUTPUT_NAMES)))
         self._status = np.zeros(n, dtype=np.int32)
-        self._slots = {}
-        for name, var in self.variables.items():
-            if var.causality == "output":
-                self._slots[name] = (0, OUTPUT_NAMES.index(name))
-            elif name in ("I1", "I2", "I3"):
-                self._slots[name] = (1, int(name[1]) - 1)
-            elif name in ("tau_x", "tau_y", "tau_z"):
-                self._slots[name] = (2, "xyz".index(name[-1]))
-            elif name in self._BODY_ARRAYS:
-                self._slots[name] = (3, self._BODY_ARRAYS[name])
-            else:
-                self._slots[name] = (4, name)
+        self._slots = _slots_cached(self.variables)
         for k, v in (parameters or {}).items():
             self.set(k, v)
 
@@ -335,7 +364,7 @@ class Model:
             self._p = self._params()
         if self._state_dirty:
             q = self._y[:, 0:4]
-            nq = np.linalg.norm(q, axis=1)
+            nq = np.sqrt(np.einsum("ij,ij->i", q, q))
             bad = np.flatnonzero(~(np.abs(nq - 1.0) <= 1e-6))
             if bad.size:
                 b = int(bad[0])
@@ -416,12 +445,14 @@ class Model:
                 f"h = {h!r} s: {detail} gave a non-finite or overflowing state (|omega| > "
                 f"{_engine.OMEGA_LIMIT:g} rad/s); {advice}")
 
-    def trajectory(self, dt: float, n: int) -> np.ndarray:
+    def trajectory(self, dt: float, n: int, *, angles: bool = True) -> np.ndarray:
         """Advance ``n`` output intervals of ``dt`` s in one call of the engine; the outputs at every point.
 
         Fixed-step integrators and ``exact`` give the bits of ``n`` calls of :meth:`step` with ``dt``; ``adaptive``
         and ``dop853`` take the steps their error control chooses over the whole run and interpolate the output
         points with their continuous extensions (a step is never cut by the output grid).
+
+        ``angles=False`` leaves phi, theta, psi out (NaN): they cost most of an output row.
 
         Returns
         -------
@@ -461,7 +492,8 @@ class Model:
         saved = (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
         status = np.zeros(self.n_bodies, dtype=np.int32)
         failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t, dt, n, self.tolerance,
-                                    self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out)
+                                    self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
+                                    bool(angles))
         if failed:
             self._y, self._hint, self._stats, self._ex = saved
             b = int(np.flatnonzero(status)[0])

@@ -35,6 +35,7 @@ File format (every key optional unless said)::
 from __future__ import annotations
 
 import difflib
+import functools
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -363,6 +364,13 @@ def full_scene() -> Scene:
                  description="Full rigid-body model with every variable")
 
 
+@functools.cache
+def _embedded_scene(name: str) -> Scene:
+    """An embedded scene, parsed once per process (scenes are frozen; Model copies their arrays)."""
+    text = resources.files(__package__).joinpath("scenes", f"{name}.toml").read_text()
+    return scene_from_dict(tomllib.loads(text), f"<embedded scene {name}>")
+
+
 def load_scene(scene: str | Path | Scene | None) -> Scene:
     """Load a scene by embedded name, TOML path, or pass a :class:`Scene` through; ``None`` = the full model.
 
@@ -378,8 +386,7 @@ def load_scene(scene: str | Path | Scene | None) -> Scene:
         return scene
     s = str(scene)
     if s in EMBEDDED_SCENES:
-        text = resources.files(__package__).joinpath("scenes", f"{s}.toml").read_text()
-        source = f"<embedded scene {s}>"
+        return _embedded_scene(s)
     elif s == "full":
         return full_scene()
     else:

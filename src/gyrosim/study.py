@@ -49,7 +49,7 @@ __all__ = ["main", "PARTS", "CASES", "EXPECTED_ORDER", "observed_order"]
 
 FIXED = ("euler", "rk4", "splitting", "splitting4")
 INTEGRATORS = FIXED + ("adaptive",)
-PARTS = ("accuracy", "cost", "long", "startup", "fmu", "service")
+PARTS = ("accuracy", "cost", "long", "startup", "peers", "fmu", "service")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1141,7 +1141,7 @@ def main(args) -> int:
     n_acc = sum(len(FIXED) * len(c.steps) + len(c.tolerances) + (1 if c.exact else 0) for c in cases.values())
     n_cost = (len(cost_scenes()) * (len(INTEGRATORS) + 1) + 4) if "cost" in parts else 0  # see run_cost
     long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in INTEGRATORS] if "long" in parts else []
-    total = n_acc + n_cost + len(long_runs) + ("startup" in parts)
+    total = n_acc + n_cost + len(long_runs) + ("startup" in parts) + ("peers" in parts)
     messages = []
     cbase = None
     with tempfile.TemporaryDirectory(prefix="gyrosim-bench-") as tmp, \
@@ -1200,6 +1200,17 @@ def main(args) -> int:
             res = run_startup(quick, Path(tmp))
             plan.results["startup"] = res
             plan.tables["startup"] = startup_table(res)
+            bar.update()
+        if "peers" in parts:
+            from .peers import peers_table, plot_peers, run_peers
+
+            bar.set_postfix_str("trajectories against CyRK and scipy")
+            res = run_peers(quick)
+            plan.results["peers"] = res
+            plan.tables["peers"] = peers_table(res)
+            plan.files.append(plot_peers(res, out))
+            if res.get("note"):
+                messages.append(f"peers: {res['note']}")
             bar.update()
         for part in ("fmu", "service"):
             if part in parts:

@@ -127,7 +127,7 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
         return res
 
     try:
-        out = model.trajectory(dt, n)
+        out = model.trajectory(dt, n, angles=any(o.rsplit(".", 1)[-1] in ("phi", "theta", "psi") for o in picked))
     except IntegrationError as e:
         e.rows = pack(e.rows)
         raise

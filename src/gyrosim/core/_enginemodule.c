@@ -97,12 +97,12 @@ fail:
     return NULL;
 }
 
-/* trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out)
- * -> failed bodies; out (n_out + 1, n, 14) */
+/* trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out,
+ * angles) -> failed bodies; out (n_out + 1, n, 14) */
 static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
-    if (nargs != 16) {
-        PyErr_SetString(PyExc_TypeError, "trajectory() takes 16 arguments");
+    if (nargs != 17) {
+        PyErr_SetString(PyExc_TypeError, "trajectory() takes 17 arguments");
         return NULL;
     }
     const int method = (int)PyLong_AsLong(args[0]);
@@ -114,6 +114,7 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     const double atol = PyFloat_AsDouble(args[8]);
     const double max_step = PyFloat_AsDouble(args[9]);
     const int threads = (int)PyLong_AsLong(args[14]);
+    const int angles = PyObject_IsTrue(args[16]);
     if (PyErr_Occurred()) return NULL;
     if (n_out < 0) {
         PyErr_SetString(PyExc_ValueError, "n_out: a count >= 0 is needed");
@@ -136,7 +137,8 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     Py_BEGIN_ALLOW_THREADS
     failed = gs_trajectory(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0, dt,
                            (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf, (int64_t *)b[3].view.buf,
-                           (double *)b[4].view.buf, (int32_t *)b[5].view.buf, threads, (double *)b[6].view.buf);
+                           (double *)b[4].view.buf, (int32_t *)b[5].view.buf, threads, (double *)b[6].view.buf,
+                           angles);
     Py_END_ALLOW_THREADS
     release(b, 7);
     return PyLong_FromSize_t(failed);
@@ -230,7 +232,8 @@ static PyMethodDef methods[] = {
      "advance(method, flags, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, threads) -> failed bodies"},
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
     {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
-     "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out)"},
+     "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out, "
+     "angles)"},
     {"start_state", py_start_state, METH_O, "start_state(y): each row's q normalised, phi and psi from it"},
     {"substeps", (PyCFunction)(void (*)(void))py_substeps, METH_FASTCALL,
      "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},

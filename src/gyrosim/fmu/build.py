@@ -37,7 +37,7 @@ DEFAULT_OUTPUT = Path("fmu") / "dist"
 C_FLAGS = (*resources.files("gyrosim.core").joinpath("engine", "cflags.txt").read_text().split(),
            "-Wall", "-Wextra", "-fPIC", "-fvisibility=hidden")
 
-_ENGINE = ("gyrosim_engine.h", "rk_tables.h", "engine.c", "exact.c", "dense.c", "cflags.txt")
+_ENGINE = ("gyrosim_engine.h", "rk_tables.h", "engine.c", "exact.c", "cflags.txt")
 _GLUE = ("gyrosim_model.h", "gyrosim_model.c")
 #: Scene-wide variables (not per body) of a multi-body FMU.
 SCENE_VARIABLES = ("integrator", "max_step")
@@ -302,7 +302,7 @@ def _build_description(ident: str, sources) -> str:
 def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None = None) -> list[str]:
     """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources)."""
     cc = cc or os.environ.get("CC", "gcc")
-    srcs = ["engine.c", "exact.c", "dense.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
+    srcs = ["engine.c", "exact.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
     return [cc, *C_FLAGS, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 
