@@ -363,15 +363,21 @@ class Model:
             self._initialized = True
             self._p = self._params()
         if self._state_dirty:
-            q = self._y[:, 0:4]
-            nq = np.sqrt(np.einsum("ij,ij->i", q, q))
+            if self.n_bodies == 1:  # plain floats: cheaper than numpy for one row
+                row = self._y[0, 0:7].tolist()
+                nq = np.array([math.sqrt(row[0] ** 2 + row[1] ** 2 + row[2] ** 2 + row[3] ** 2)])
+                w_ok = all(math.isfinite(v) for v in row[4:7])
+            else:
+                q = self._y[:, 0:4]
+                nq = np.sqrt(np.einsum("ij,ij->i", q, q))
+                w_ok = bool(np.all(np.isfinite(self._y[:, 4:7])))
             bad = np.flatnonzero(~(np.abs(nq - 1.0) <= 1e-6))
             if bad.size:
                 b = int(bad[0])
                 raise ConfigError("q", self._y[b, 0:4].tolist(), "a unit quaternion (q_w, q_x, q_y, q_z) with "
                                   f"|q| = 1 within 1e-6; its norm is {nq[b]:.9g}")
-            w = self._y[:, 4:7]
-            if not np.all(np.isfinite(w)):
+            if not w_ok:
+                w = self._y[:, 4:7]
                 raise ConfigError("omega", w[~np.isfinite(w).all(axis=1)][0].tolist(), "finite rates in rad/s")
             _engine.start_state(self._y)  # q /= |q|; phi, psi from q (as the FMUs do)
             self._state_dirty = False

@@ -514,9 +514,12 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
     const double tau0 = t - ex[GS_EX_T0];
+    const double turn = wmag * H / (double)m;   /* rotation per sample, at most 1 rad */
     for (int64_t k = 1; k <= m; k++) {
+        /* move the reference angles before the rotation from them could pass 1 rad (|omega| is conserved) */
+        if (y[9] + turn > 1.0) gs_unwrap(y);
         gs_tf_eval(ex, tau0 + H * (double)k / (double)m, y + 4, y);
-        gs_unwrap(y);
+        y[9] += turn;
     }
     if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8])) {
         memcpy(y, save, sizeof(save));

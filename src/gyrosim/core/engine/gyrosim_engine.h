@@ -65,11 +65,13 @@ extern "C" {
 #define GS_NSTATS 3
 #define GS_NOUT 14
 
-/* the torque-free flow's constants (gs_tf_setup) and, after them, the exact integrator's anchor */
-#define GS_TF_SIZE 40
-#define GS_EX_T0 40
-#define GS_EX_VALID 41
-#define GS_EX_SIZE 42
+/* the torque-free flow's constants (gs_tf_setup: 40, then a Chebyshev series of the angle about L of up to
+ * GS_TF_NCHEB terms) and, after them, the exact integrator's anchor */
+#define GS_TF_NCHEB 64
+#define GS_TF_SIZE (40 + GS_TF_NCHEB)
+#define GS_EX_T0 GS_TF_SIZE
+#define GS_EX_VALID (GS_TF_SIZE + 1)
+#define GS_EX_SIZE (GS_TF_SIZE + 2)
 
 /* |omega_1| + |omega_2| + |omega_3| at or above which a state counts as blown up (rad/s) */
 #define GS_OMEGA_LIMIT 1e100
