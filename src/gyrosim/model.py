@@ -451,14 +451,15 @@ class Model:
                 f"h = {h!r} s: {detail} gave a non-finite or overflowing state (|omega| > "
                 f"{_engine.OMEGA_LIMIT:g} rad/s); {advice}")
 
-    def trajectory(self, dt: float, n: int, *, angles: bool = True) -> np.ndarray:
+    def trajectory(self, dt: float, n: int, *, angles: bool = True, momentum: bool = True) -> np.ndarray:
         """Advance ``n`` output intervals of ``dt`` s in one call of the engine; the outputs at every point.
 
         Fixed-step integrators and ``exact`` give the bits of ``n`` calls of :meth:`step` with ``dt``; ``adaptive``
         and ``dop853`` take the steps their error control chooses over the whole run and interpolate the output
         points with their continuous extensions (a step is never cut by the output grid).
 
-        ``angles=False`` leaves phi, theta, psi out (NaN): they cost most of an output row.
+        ``angles=False`` leaves phi, theta, psi out (NaN): they cost most of an output row; ``momentum=False``
+        leaves L_x, L_y, L_z and energy out (NaN).
 
         Returns
         -------
@@ -499,7 +500,7 @@ class Model:
         status = np.zeros(self.n_bodies, dtype=np.int32)
         failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t, dt, n, self.tolerance,
                                     self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
-                                    bool(angles))
+                                    (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0))
         if failed:
             self._y, self._hint, self._stats, self._ex = saved
             b = int(np.flatnonzero(status)[0])

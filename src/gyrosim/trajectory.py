@@ -116,18 +116,20 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
                 raise ConfigError("output", o, f"an output of scene {sc.name!r}{did_you_mean(o, names)}: "
                                   + ", ".join(names[:20]))
     index = {name: i for i, name in enumerate(names)}
+    columns = [index[o] for o in picked]
     dtype = np.dtype([("time", np.float64)] + [(o, np.float64) for o in picked])
+    bare = {o.rsplit(".", 1)[-1] for o in picked}
 
-    def pack(block: np.ndarray, k0: int = 0) -> np.ndarray:
+    def pack(block: np.ndarray) -> np.ndarray:
         flat = block.reshape(block.shape[0], -1)
-        res = np.empty(block.shape[0], dtype=dtype)
-        res["time"] = t0 + (np.arange(block.shape[0]) + k0) * dt
-        for o in picked:
-            res[o] = flat[:, index[o]]
-        return res
+        res = np.empty((block.shape[0], 1 + len(columns)))
+        res[:, 0] = t0 + np.arange(block.shape[0]) * dt
+        res[:, 1:] = flat[:, columns]
+        return res.view(dtype).reshape(-1)
 
     try:
-        out = model.trajectory(dt, n, angles=any(o.rsplit(".", 1)[-1] in ("phi", "theta", "psi") for o in picked))
+        out = model.trajectory(dt, n, angles=bool(bare & {"phi", "theta", "psi"}),
+                               momentum=bool(bare & {"L_x", "L_y", "L_z", "energy"}))
     except IntegrationError as e:
         e.rows = pack(e.rows)
         raise

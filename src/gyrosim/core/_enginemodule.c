@@ -98,7 +98,7 @@ fail:
 }
 
 /* trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out,
- * angles) -> failed bodies; out (n_out + 1, n, 14) */
+ * want) -> failed bodies; out (n_out + 1, n, 14); want: OUT_ANGLES | OUT_MOMENTUM */
 static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
     if (nargs != 17) {
@@ -114,7 +114,7 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     const double atol = PyFloat_AsDouble(args[8]);
     const double max_step = PyFloat_AsDouble(args[9]);
     const int threads = (int)PyLong_AsLong(args[14]);
-    const int angles = PyObject_IsTrue(args[16]);
+    const int want = (int)PyLong_AsLong(args[16]);
     if (PyErr_Occurred()) return NULL;
     if (n_out < 0) {
         PyErr_SetString(PyExc_ValueError, "n_out: a count >= 0 is needed");
@@ -138,7 +138,7 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     failed = gs_trajectory(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0, dt,
                            (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf, (int64_t *)b[3].view.buf,
                            (double *)b[4].view.buf, (int32_t *)b[5].view.buf, threads, (double *)b[6].view.buf,
-                           angles);
+                           want);
     Py_END_ALLOW_THREADS
     release(b, 7);
     return PyLong_FromSize_t(failed);
@@ -233,7 +233,7 @@ static PyMethodDef methods[] = {
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
     {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
      "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out, "
-     "angles)"},
+     "want)"},
     {"start_state", py_start_state, METH_O, "start_state(y): each row's q normalised, phi and psi from it"},
     {"substeps", (PyCFunction)(void (*)(void))py_substeps, METH_FASTCALL,
      "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},
@@ -259,6 +259,8 @@ PyMODINIT_FUNC PyInit__engine(void) {
     PyModule_AddIntConstant(m, "DAMPING", GS_DAMPING);
     PyModule_AddIntConstant(m, "TORQUE", GS_TORQUE);
     PyModule_AddIntConstant(m, "ENGINE_VERSION", GS_ENGINE_VERSION);
+    PyModule_AddIntConstant(m, "OUT_ANGLES", GS_OUT_ANGLES);
+    PyModule_AddIntConstant(m, "OUT_MOMENTUM", GS_OUT_MOMENTUM);
     PyModule_AddObject(m, "OMEGA_LIMIT", PyFloat_FromDouble(GS_OMEGA_LIMIT));
     PyObject *names = PyTuple_New(GS_N_METHODS);
     for (int i = 0; i < GS_N_METHODS; i++) PyTuple_SET_ITEM(names, i, PyUnicode_FromString(gs_method_names[i]));

@@ -810,10 +810,10 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
 /* ------------------------------------------------------------------------------------------- outputs */
 
 void gs_outputs(size_t n, const double *y, const double *p, double *out) {
-    gs_outputs_select(n, y, p, out, 1);
+    gs_outputs_select(n, y, p, out, GS_OUT_ANGLES | GS_OUT_MOMENTUM);
 }
 
-void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int angles) {
+void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want) {
     for (size_t b = 0; b < n; b++) {
         const double *yb = y + b * GS_NY, *pb = p + b * GS_NP;
         double *o = out + b * GS_NOUT;
@@ -821,11 +821,15 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
         const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
         const double o1 = yb[4], o2 = yb[5], o3 = yb[6];
         for (int i = 0; i < 7; i++) o[i] = yb[i];
-        if (angles) {
+        if (want & GS_OUT_ANGLES) {
             unwrapped(yb, &o[7], &o[9]);
             o[8] = 2.0 * atan2(hypot(x, yy), hypot(w, z));
         } else {
             o[7] = o[8] = o[9] = NAN;
+        }
+        if (!(want & GS_OUT_MOMENTUM)) {
+            o[10] = o[11] = o[12] = o[13] = NAN;
+            continue;
         }
         const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
         o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
@@ -1005,7 +1009,7 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
  * (step mode). Returns 0, or the failing step's index + 1 (y is then unchanged). */
 static int64_t erk_run(int method, double *y, const double *p, int flags, double T, double rtol, double atol,
                        double max_step, double *hint, int64_t *stats, double dt, int64_t n_out, double *out,
-                       size_t ostride, int64_t *fail_row, int angles) {
+                       size_t ostride, int64_t *fail_row, int want) {
     Step s;
     double yc[GS_NY];
     memcpy(yc, y, sizeof(yc));
@@ -1080,8 +1084,8 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             yi[7] = yc[7];
             yi[8] = yc[8];
             yi[9] = 0.0;
-            gs_outputs_select(1, yi, p, out + (size_t)(k_next - 1) * ostride, angles);
-            if (angles) {   /* the reference angles follow the outputs */
+            gs_outputs_select(1, yi, p, out + (size_t)(k_next - 1) * ostride, want);
+            if (want & GS_OUT_ANGLES) {   /* the reference angles follow the outputs */
                 yc[7] = out[(size_t)(k_next - 1) * ostride + 7];
                 yc[8] = out[(size_t)(k_next - 1) * ostride + 9];
                 yc[9] = w * (t1 - tk);
@@ -1109,7 +1113,8 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
 static int64_t gs_engine_dop853(double *y, const double *p, int flags, double H, double rtol, double atol,
                                 double max_step, double *hint, int64_t *stats) {
     int64_t row = 0;
-    return erk_run(GS_DOP853, y, p, flags, H, rtol, atol, max_step, hint, stats, 0.0, 0, NULL, 0, &row, 1);
+    return erk_run(GS_DOP853, y, p, flags, H, rtol, atol, max_step, hint, stats, 0.0, 0, NULL, 0, &row,
+                   GS_OUT_ANGLES | GS_OUT_MOMENTUM);
 }
 
 static void nan_rows(double *out, size_t n, size_t b, int64_t from, int64_t n_out) {
@@ -1121,7 +1126,7 @@ static void nan_rows(double *out, size_t n, size_t b, int64_t from, int64_t n_ou
 
 size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, double dt,
                      int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
-                     double *ex, int32_t *status, int threads, double *out, int angles) {
+                     double *ex, int32_t *status, int threads, double *out, int want) {
     int64_t n_sub = 1;
     if (method < 0 || method >= GS_N_METHODS || !(dt > 0.0) || n_out < 0) {
         for (size_t b = 0; b < n; b++) status[b] = 1;
@@ -1134,7 +1139,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
             return n;
         }
     }
-    gs_outputs_select(n, y, p, out, angles);   /* row 0: the start */
+    gs_outputs_select(n, y, p, out, want);   /* row 0: the start */
     size_t failed = 0;
     const long long nn = (long long)n;
 #ifdef _OPENMP
@@ -1152,7 +1157,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
         if (method == GS_ADAPTIVE || method == GS_DOP853) {
             int64_t row = 0;
             const int64_t st = erk_run(method, yb, pb, flags, (double)n_out * dt, rtol, atol, max_step, hint + b, sb,
-                                       dt, n_out, out + (n + b) * GS_NOUT, n * GS_NOUT, &row, angles);
+                                       dt, n_out, out + (n + b) * GS_NOUT, n * GS_NOUT, &row, want);
             if (st) {
                 status[b] = (int32_t)(row > 2147483647 ? 2147483647 : row);
                 nan_rows(out, n, b, row, n_out);
@@ -1169,7 +1174,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                 failed += 1;
                 break;
             }
-            gs_outputs_select(1, yb, pb, out + ((size_t)(k + 1) * n + b) * GS_NOUT, angles);
+            gs_outputs_select(1, yb, pb, out + ((size_t)(k + 1) * n + b) * GS_NOUT, want);
         }
     }
     return failed;

@@ -102,18 +102,22 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
  * steps their error control chooses over the whole run and interpolate the output points with their continuous
  * extensions (orders 4 and 7; the quaternion renormalised). y, hint, stats, ex end at t0 + n_out*dt. A body that
  * fails gets status[b] = the output interval (1-based) in which it failed and NaN rows from there; returns the
- * number of bodies that failed. angles = 0 leaves phi, theta, psi out of the rows (NaN; they cost most of an
- * output row). */
+ * number of bodies that failed. want selects the derived outputs computed (GS_OUT_ANGLES, GS_OUT_MOMENTUM); the
+ * others are NaN (the angles cost most of an output row). */
 size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, double dt,
                      int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
-                     double *ex, int32_t *status, int threads, double *out, int angles);
+                     double *ex, int32_t *status, int threads, double *out, int want);
 
 /* Every output per body into out[b*GS_NOUT + .], in the order q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z,
  * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J). */
 void gs_outputs(size_t n, const double *y, const double *p, double *out);
 
-/* gs_outputs, with the Euler angles (phi, theta, psi: the costly part) only when angles != 0 (NaN otherwise). */
-void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int angles);
+/* Derived outputs to compute: phi, theta, psi (the costly part); L_x, L_y, L_z and energy. */
+#define GS_OUT_ANGLES 1
+#define GS_OUT_MOMENTUM 2
+
+/* gs_outputs with only the derived outputs in want (q and omega always; the others NaN). */
+void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want);
 
 /* Start a state: q = y[0:4] divided by its norm, then y[7], y[8] = phi, psi of gs_quat_to_euler_zyz(q), y[9] = 0. */
 void gs_start_state(double y[GS_NY]);
