@@ -97,6 +97,17 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
     return {v.name: v for v in V}
 
 
+def _positive_step(h, what: str) -> float:
+    """``h`` as a finite float > 0 (s), or a StepError naming ``what`` and the value."""
+    try:
+        x = float(h)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not (math.isfinite(x) and x > 0.0):
+        raise StepError(f"{what} = {h!r} is not allowed: a finite number > 0 in s")
+    return x
+
+
 _VARIABLES: dict[int, tuple[Scene, dict[str, Variable]]] = {}
 
 
@@ -394,12 +405,7 @@ class Model:
             The integrator produced a non-finite or exploding state; the model keeps its state from before the
             step, so a smaller ``max_step`` or another integrator can retry it.
         """
-        try:
-            h = float(h)
-        except (TypeError, ValueError):
-            raise StepError(f"communication step h = {h!r} is not allowed: a finite number > 0 in s") from None
-        if not (math.isfinite(h) and h > 0.0):
-            raise StepError(f"communication step h = {h!r} is not allowed: a finite number > 0 in s")
+        h = _positive_step(h, "communication step h")
         t = self.time
         if self.stop_time is not None and t + h > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
             raise StepError(f"a step of h = {h!r} s from t = {t!r} s ends at {t + h!r} s, after the stop time "
@@ -474,12 +480,7 @@ class Model:
             A body blew up; the model keeps its state from before the call, and the error carries the rows
             computed before the failing interval (``error.rows``).
         """
-        try:
-            dt = float(dt)
-        except (TypeError, ValueError):
-            raise StepError(f"output interval dt = {dt!r} is not allowed: a finite number > 0 in s") from None
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise StepError(f"output interval dt = {dt!r} is not allowed: a finite number > 0 in s")
+        dt = _positive_step(dt, "output interval dt")
         if not (isinstance(n, (int, np.integer)) and n >= 0):
             raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
         n = int(n)

@@ -863,16 +863,6 @@ static const double D5_A[7][7] = {
 static const double D5_E[7] = {71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0,
                                22.0 / 525.0, -1.0 / 40.0};
 
-static inline void normalize4(double *y) {  /* as normalize_q */
-    const double n = sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]);
-    if (n > 0.0) {
-        y[0] /= n;
-        y[1] /= n;
-        y[2] /= n;
-        y[3] /= n;
-    }
-}
-
 typedef struct {
     double K[16][7];   /* stages (dop853 uses 13 + 3 for dense output; dopri5 7) */
     double y0[7];      /* state at the start of the step */
@@ -1080,7 +1070,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             } else {
                 erk_dense(method, &s, p, flags, (tk - t) / h, yi, stats);
             }
-            normalize4(yi);
+            normalize_q(yi);
             yi[7] = yc[7];
             yi[8] = yc[8];
             yi[9] = 0.0;
@@ -1093,7 +1083,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             k_next += 1;
         }
         memcpy(yc, ynew, 7 * sizeof(double));
-        normalize4(yc);
+        normalize_q(yc);
         memcpy(s.K[0], method == GS_ADAPTIVE ? s.K[6] : s.K[12], sizeof(s.K[0]));
         stats[0] += 1;
         yc[9] += w * h;
