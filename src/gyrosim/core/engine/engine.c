@@ -753,6 +753,17 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
 /* bodies from which the loop runs on several threads */
 #define GS_PARALLEL_FROM 64
 
+int32_t gs_advance_one(int method, int flags, double *y, const double *p, double t, double H, int64_t n_sub,
+                       double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex) {
+    if (method == GS_ADAPTIVE || method == GS_DOP853) {   /* they change stats as they go: keep them on failure */
+        int64_t st[GS_NSTATS] = {stats[0], stats[1], stats[2]};
+        const int32_t k = advance_body(method, flags, y, p, t, H, n_sub, rtol, atol, max_step, hint, st, ex);
+        if (!k) memcpy(stats, st, sizeof(st));
+        return k;
+    }
+    return advance_body(method, flags, y, p, t, H, n_sub, rtol, atol, max_step, hint, stats, ex);
+}
+
 size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, double t, double H,
                   double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
                   int32_t *status, int threads) {

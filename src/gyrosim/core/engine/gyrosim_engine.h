@@ -108,6 +108,12 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                      int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                      double *ex, int32_t *status, int threads, double *out, int want);
 
+/* One body over one communication step: what gs_advance does for n = 1, with the substep count given
+ * (gs_substeps(H, max_step) for fixed-step methods; ignored by adaptive, dop853 and exact). Returns 0 or the
+ * failing internal step + 1 (the body's y, hint, stats and ex are then as before the call). */
+int32_t gs_advance_one(int method, int flags, double *y, const double *p, double t, double H, int64_t n_sub,
+                       double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex);
+
 /* Every output per body into out[b*GS_NOUT + .], in the order q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z,
  * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J). */
 void gs_outputs(size_t n, const double *y, const double *p, double *out);

@@ -475,7 +475,8 @@ int gs_set_string(GsInstance *m, uint32_t vr, const char *value) {
 int gs_do_step(GsInstance *m, double current_time, double h) {
     GsData *d = &m->d;
     const double t = gs_time(m);
-    if (!(isfinite(current_time) && fabs(current_time - t) <= 1e-9 * fmax(1.0, fabs(t)))) {
+    const double at = fabs(t);
+    if (!(isfinite(current_time) && fabs(current_time - t) <= 1e-9 * (at > 1.0 ? at : 1.0))) {
         gs_log_error(m, "currentCommunicationPoint = %s s is not allowed: the FMU's time is %s s (a step must "
                      "start where the previous one ended)", num(current_time).s, num(t).s);
         return GS_ERROR;
@@ -484,7 +485,7 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         gs_log_error(m, "communication step h = %s is not allowed: a finite number > 0 in s", num(h).s);
         return GS_ERROR;
     }
-    if (d->stop_defined && t + h > d->stop_time + 1e-9 * fmax(1.0, fabs(d->stop_time))) {
+    if (d->stop_defined && t + h > d->stop_time + 1e-9 * (fabs(d->stop_time) > 1.0 ? fabs(d->stop_time) : 1.0)) {
         gs_log_error(m, "a step of h = %s s from t = %s s ends at %s s, after the stop time %s s", num(h).s,
                      num(t).s, num(t + h).s, num(d->stop_time).s);
         return GS_ERROR;
@@ -509,10 +510,14 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         return GS_ERROR;
     }
     memcpy(m->scratch, d, sizeof(GsData));
-#endif
     const size_t failed = gs_advance(method, GS_FLAGS, GS_N_BODIES, &d->y[0][0], &d->p[0][0], t, h, d->tolerance,
                                      d->tolerance, d->max_step, d->hint, &d->stats[0][0], &d->ex[0][0], m->status,
                                      1);
+#else   /* one body: the engine's one-body entry (what gs_advance calls for n = 1), the substeps counted once */
+    m->status[0] = gs_advance_one(method, GS_FLAGS, d->y[0], d->p[0], t, h, n_sub, d->tolerance, d->tolerance,
+                                  d->max_step, d->hint, d->stats[0], d->ex[0]);
+    const size_t failed = m->status[0] != 0;
+#endif
     if (failed) {
         int b = 0;
         while (b < GS_N_BODIES - 1 && !m->status[b]) b++;
