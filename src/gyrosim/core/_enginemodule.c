@@ -5,6 +5,8 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include <string.h>
+
 #include "engine/gyrosim_engine.h"
 
 typedef struct {
@@ -21,6 +23,10 @@ static void release(Buf *b, int n) {
 
 /* A C-contiguous buffer of `count` items of `fmt` ('d' float64, 'q' int64, 'i' int32); count < 0: any. */
 static int get_buf(PyObject *obj, Buf *b, const char *name, char fmt, Py_ssize_t count, int writable) {
+    if (obj == Py_None && strcmp(name, "ex") != 0) {   /* only the exact integrator's anchor is optional */
+        PyErr_Format(PyExc_TypeError, "%s: an array is needed, got None", name);
+        return -1;
+    }
     if (obj == Py_None) {
         b->held = 0;
         b->view.buf = NULL;
@@ -130,8 +136,16 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     if (get_buf(args[3], &b[1], "p", 'd', n * GS_NP, 0) < 0) goto fail;
     if (get_buf(args[10], &b[2], "hint", 'd', n, 1) < 0) goto fail;
     if (get_buf(args[11], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) goto fail;
-    if (get_buf(args[12], &b[4], "ex", 'd', n * GS_EX_SIZE, 1) < 0) goto fail;
+    if (get_buf(args[12], &b[4], "ex", 'd', args[12] == Py_None ? -1 : n * GS_EX_SIZE, 1) < 0) goto fail;
     if (get_buf(args[13], &b[5], "status", 'i', n, 1) < 0) goto fail;
+    if (method == GS_EXACT && !b[4].held) {
+        PyErr_SetString(PyExc_ValueError, "ex: the exact integrator needs its anchor array");
+        goto fail;
+    }
+    if (n > 0 && n_out + 1 > PY_SSIZE_T_MAX / (n * GS_NOUT)) {
+        PyErr_SetString(PyExc_ValueError, "n_out: too many output points for memory");
+        goto fail;
+    }
     if (get_buf(args[15], &b[6], "out", 'd', (Py_ssize_t)(n_out + 1) * n * GS_NOUT, 1) < 0) goto fail;
     size_t failed;
     Py_BEGIN_ALLOW_THREADS

@@ -427,6 +427,7 @@ static int64_t dopri_advance(double *y, const double *p, int flags, double H, do
         d1 = sqrt(d1 / 7.0);
         h = (d0 > 1e-5 && d1 > 1e-5) ? 0.01 * d0 / d1 : 1e-6;
     }
+    if (!(h > 0.0 && isfinite(h))) h = 1e-6;   /* an overflowing derivative: start small, the control adapts */
     h = fmin(fmin(h, max_step), H);
     rhs(y, p, flags, K[0]);
     stats[2] += 1;
@@ -475,6 +476,7 @@ static int64_t dopri_advance(double *y, const double *p, int flags, double H, do
             continue;
         }
         if (err <= 1.0) {
+            if (!clipped && h < h_min) return nstep;   /* the step size collapsed: a failure, not a crawl */
             t = clipped ? H : t + h;
             for (int i = 0; i < 7; i++) {
                 yn[i] = yt[i];
@@ -501,30 +503,34 @@ static int64_t dopri_advance(double *y, const double *p, int flags, double H, do
 /* ------------------------------------------------------------------------------------------- exact */
 
 static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
-    if (ex[GS_EX_VALID] != 1.0) {
-        gs_tf_setup(p, y + 4, y, ex);
-        ex[GS_EX_T0] = t;
-        ex[GS_EX_VALID] = 1.0;
-    }
     const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
-    /* sample often enough that phi and psi move less than 1 rad between unwrap points */
-    double mf = ceil(wmag * H);
-    if (!(mf < 1e9)) return 1;
+    /* sample often enough that phi and psi move less than 1 rad between unwrap points; bounded work per call */
+    const double mf = ceil(wmag * H);
+    if (!(mf <= 1e6)) return 1;
+    double local[GS_EX_SIZE];
+    double *c = ex;
+    if (ex[GS_EX_VALID] != 1.0) {   /* set up into a copy: the anchor changes only when the step succeeds */
+        gs_tf_setup(p, y + 4, y, local);
+        local[GS_EX_T0] = t;
+        local[GS_EX_VALID] = 1.0;
+        c = local;
+    }
     const int64_t m = mf > 1.0 ? (int64_t)mf : 1;
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
-    const double tau0 = t - ex[GS_EX_T0];
+    const double tau0 = t - c[GS_EX_T0];
     const double turn = wmag * H / (double)m;   /* rotation per sample, at most 1 rad */
     for (int64_t k = 1; k <= m; k++) {
         /* move the reference angles before the rotation from them could pass 1 rad (|omega| is conserved) */
         if (y[9] + turn > 1.0) gs_unwrap(y);
-        gs_tf_eval(ex, tau0 + H * (double)k / (double)m, y + 4, y);
+        gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
         y[9] += turn;
     }
     if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8])) {
         memcpy(y, save, sizeof(save));
         return 1;
     }
+    if (c == local) memcpy(ex, local, sizeof(local));
     stats[0] += 1;
     return 0;
 }
@@ -1030,6 +1036,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
         d1 = sqrt(d1 / 7.0);
         h = (d0 > 1e-5 && d1 > 1e-5) ? 0.01 * d0 / d1 : 1e-6;
     }
+    if (!(h > 0.0 && isfinite(h))) h = 1e-6;   /* an overflowing derivative: start small, the control adapts */
     h = fmin(fmin(h, max_step), T);
     double t = 0.0, last_h = h;
     const double h_min = 1e-14 * fmax(1.0, T);
@@ -1069,6 +1076,10 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
                 return nstep;
             }
             continue;
+        }
+        if (!clipped && h < h_min) {   /* the step size collapsed: a failure, not a crawl */
+            *fail_row = k_next;
+            return nstep;
         }
         const double t1 = clipped ? T : t + h;
         const double w = sqrt(yc[4] * yc[4] + yc[5] * yc[5] + yc[6] * yc[6]);

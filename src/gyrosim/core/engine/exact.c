@@ -657,3 +657,18 @@ void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_
     qmul(c[C_QL], c[C_QL + 1], c[C_QL + 2], c[C_QL + 3], e[0], e[1], e[2], e[3], a);
     qmul(a[0], a[1], a[2], a[3], c[C_QF], -c[C_QF + 1], -c[C_QF + 2], -c[C_QF + 3], q_out);
 }
+
+int gs_tf_valid(const double c[GS_TF_SIZE])
+{
+    if (c[C_MODE] == 0.0) return 1;
+    if (c[C_MODE] != 1.0) return 0;
+    const double nc = c[C_NCHEB];
+    if (!(nc >= 0.0 && nc <= (double)GS_TF_NCHEB && nc == floor(nc))) return 0;
+    int seen = 0;
+    for (int k = C_IO; k <= C_IP; k++) {
+        const double v = c[k];
+        if (!(v == 0.0 || v == 1.0 || v == 2.0)) return 0;
+        seen |= 1 << (int)v;
+    }
+    return seen == 7;
+}

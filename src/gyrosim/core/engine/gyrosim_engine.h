@@ -146,6 +146,9 @@ int gs_max_threads(void);
  * attitude q (4, normalised here). */
 void gs_tf_setup(const double I[3], const double w[3], const double q[4], double c[GS_TF_SIZE]);
 
+/* 1 when c holds constants gs_tf_setup could have written (index fields in range): a check for foreign states. */
+int gs_tf_valid(const double c[GS_TF_SIZE]);
+
 /* Body omega (3) and attitude (4) at time t (s after the setup state). */
 void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4]);
 

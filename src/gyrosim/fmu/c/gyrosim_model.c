@@ -616,5 +616,19 @@ int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *
         return GS_ERROR;
     }
     memcpy(out, in + sizeof(h), sizeof(GsData));
+    /* the bytes may have been altered: check every field that indexes or divides before the state is used */
+    int ok = (out->fmi_state == GS_INSTANTIATED || out->fmi_state == GS_INIT || out->fmi_state == GS_STEP ||
+              out->fmi_state == GS_TERMINATED) &&
+             out->integrator >= 0 && out->integrator < GS_N_METHODS &&
+             (out->integrator != GS_EXACT || GS_FLAGS == 0) &&
+             isfinite(out->max_step) && out->max_step > 0.0 && isfinite(out->tolerance) && out->tolerance > 0.0 &&
+             out->n >= 0;
+    for (int b = 0; ok && b < GS_N_BODIES; b++) {
+        if (out->ex[b][GS_EX_VALID] == 1.0 && !gs_tf_valid(out->ex[b])) ok = 0;
+    }
+    if (!ok) {
+        gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU (inconsistent content)");
+        return GS_ERROR;
+    }
     return GS_OK;
 }
