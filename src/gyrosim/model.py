@@ -499,9 +499,12 @@ class Model:
         out = np.empty((n + 1, self.n_bodies, len(OUTPUT_NAMES)))
         saved = (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
         status = np.zeros(self.n_bodies, dtype=np.int32)
-        failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t, dt, n, self.tolerance,
+        # continue the clock of a run of equal steps (t_base + n*h) as step() would, for the same bits
+        t_base, k0 = (self._t_base, self._n) if dt == self._h else (t, 0)
+        failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t_base, dt, n, self.tolerance,
                                     self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
-                                    (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0))
+                                    (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0),
+                                    k0)
         if failed:
             self._y, self._hint, self._stats, self._ex = saved
             b = int(np.flatnonzero(status)[0])

@@ -108,3 +108,43 @@ def test_bad_buffers_are_refused_with_the_name_of_the_array():
         call(status=np.zeros(2))
     with pytest.raises(ValueError, match="ex: the exact integrator needs"):
         _engine.advance(5, 0, y, p, 0.0, 0.01, 1e-8, 1e-8, 1e-3, ok["hint"], ok["stats"], None, ok["status"], 1)
+
+
+def test_trajectory_continues_the_clock_of_equal_steps():
+    """After some steps of dt, a trajectory of dt gives the bits of further steps (exact: its time argument
+    matters, so the clock t_base + n*h must be the same one)."""
+    a = Model("free_body", parameters={"integrator": "exact"})
+    b = Model("free_body", parameters={"integrator": "exact"})
+    for _ in range(7):
+        a.step(0.1)
+        b.step(0.1)
+    out = a.trajectory(0.1, 40)
+    rows = []
+    for _ in range(40):
+        b.step(0.1)
+        rows.append(b.outputs_array()[0])
+    np.testing.assert_array_equal(out[1:, 0, :], np.array(rows))
+    assert a.time == b.time
+
+
+@pytest.mark.parametrize("integrator", ["adaptive", "dop853", "exact"])
+def test_an_absurd_rate_fails_at_once_and_keeps_the_state(integrator):
+    """omega = 1e73 rad/s: the adaptive drivers fail (the step size collapses) instead of crawling to their step
+    cap, exact refuses more than 1e6 samples in a call; the state (exact: its anchor too) is as before."""
+    from gyrosim.errors import IntegrationError
+
+    m = Model("free_body", parameters={"integrator": integrator, "omega_x": 1e73})
+    m.initialize()
+    before = (m._y.copy(), m._ex.copy(), dict(m.stats))
+    with pytest.raises(IntegrationError, match="blew up"):
+        m.step(0.01)
+    np.testing.assert_array_equal(m._y, before[0])
+    np.testing.assert_array_equal(m._ex, before[1])
+    assert m.stats == before[2]
+
+
+def test_none_where_an_array_is_needed_is_refused():
+    y = np.zeros((1, _engine.NY))
+    with pytest.raises(TypeError, match="p: an array is needed"):
+        _engine.advance(1, 0, y, None, 0.0, 0.01, 1e-8, 1e-8, 1e-3, np.zeros(1), np.zeros((1, 3), dtype=np.int64),
+                        None, np.zeros(1, dtype=np.int32), 1)

@@ -156,6 +156,11 @@ def test_unknown_value_reference_and_bad_state_blob(slave, v):
     # right size, wrong header: refused
     junk = b"GYROSIM1" + bytes(len(good) - 8)
     expect_error(lambda: s.deserialize(junk), log, "wrong header")
+    # right header and token, an integrator code out of range (bytes 20-23: header 8, token hash 8, FMI state 4)
+    import struct
+
+    bad = good[:20] + struct.pack("<i", 100000) + good[24:]
+    expect_error(lambda: s.deserialize(bad), log, "inconsistent content")
     s.do_step(0.0, 0.01)
     s.close()
 

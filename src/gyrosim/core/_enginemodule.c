@@ -104,11 +104,11 @@ fail:
 }
 
 /* trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out,
- * want) -> failed bodies; out (n_out + 1, n, 14); want: OUT_ANGLES | OUT_MOMENTUM */
+ * want, k0) -> failed bodies; out (n_out + 1, n, 14); want: OUT_ANGLES | OUT_MOMENTUM; interval k from t0+(k0+k)dt */
 static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
-    if (nargs != 17) {
-        PyErr_SetString(PyExc_TypeError, "trajectory() takes 17 arguments");
+    if (nargs != 18) {
+        PyErr_SetString(PyExc_TypeError, "trajectory() takes 18 arguments");
         return NULL;
     }
     const int method = (int)PyLong_AsLong(args[0]);
@@ -116,6 +116,7 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     const double t0 = PyFloat_AsDouble(args[4]);
     const double dt = PyFloat_AsDouble(args[5]);
     const long long n_out = PyLong_AsLongLong(args[6]);
+    const long long k0 = PyLong_AsLongLong(args[17]);
     const double rtol = PyFloat_AsDouble(args[7]);
     const double atol = PyFloat_AsDouble(args[8]);
     const double max_step = PyFloat_AsDouble(args[9]);
@@ -149,7 +150,8 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     if (get_buf(args[15], &b[6], "out", 'd', (Py_ssize_t)(n_out + 1) * n * GS_NOUT, 1) < 0) goto fail;
     size_t failed;
     Py_BEGIN_ALLOW_THREADS
-    failed = gs_trajectory(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0, dt,
+    failed = gs_trajectory(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0,
+                           (int64_t)k0, dt,
                            (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf, (int64_t *)b[3].view.buf,
                            (double *)b[4].view.buf, (int32_t *)b[5].view.buf, threads, (double *)b[6].view.buf,
                            want);
@@ -247,7 +249,7 @@ static PyMethodDef methods[] = {
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
     {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
      "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out, "
-     "want)"},
+     "want, k0)"},
     {"start_state", py_start_state, METH_O, "start_state(y): each row's q normalised, phi and psi from it"},
     {"substeps", (PyCFunction)(void (*)(void))py_substeps, METH_FASTCALL,
      "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},

@@ -1136,7 +1136,7 @@ static void nan_rows(double *out, size_t n, size_t b, int64_t from, int64_t n_ou
     }
 }
 
-size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, double dt,
+size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, int64_t k0, double dt,
                      int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                      double *ex, int32_t *status, int threads, double *out, int want) {
     int64_t n_sub = 1;
@@ -1178,7 +1178,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
             continue;
         }
         for (int64_t k = 0; k < n_out; k++) {
-            const int st = advance_body(method, flags, yb, pb, t0 + (double)k * dt, dt, n_sub, rtol, atol,
+            const int st = advance_body(method, flags, yb, pb, t0 + (double)(k0 + k) * dt, dt, n_sub, rtol, atol,
                                                  max_step, hint + b, sb, ex ? ex + b * GS_EX_SIZE : NULL);
             if (st) {
                 status[b] = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);

@@ -96,15 +96,15 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
                   double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
                   int32_t *status, int threads);
 
-/* A trajectory in one call: n bodies from time t0 over n_out output intervals of dt, the outputs (as gs_outputs)
- * at t0 + k*dt, k = 0..n_out, into out[(k*n + b)*GS_NOUT + .]. Fixed-step methods and exact advance from output
+/* A trajectory in one call: n bodies from time t0 + k0*dt over n_out output intervals of dt (interval k starts at
+ * t0 + (k0 + k)*dt: the clock of a run of equal steps), the outputs (as gs_outputs) at those points, k = 0..n_out, into out[(k*n + b)*GS_NOUT + .]. Fixed-step methods and exact advance from output
  * point to output point as gs_advance does (the same bits as a loop of gs_advance); adaptive and dop853 take the
  * steps their error control chooses over the whole run and interpolate the output points with their continuous
  * extensions (orders 4 and 7; the quaternion renormalised). y, hint, stats, ex end at t0 + n_out*dt. A body that
  * fails gets status[b] = the output interval (1-based) in which it failed and NaN rows from there; returns the
  * number of bodies that failed. want selects the derived outputs computed (GS_OUT_ANGLES, GS_OUT_MOMENTUM); the
  * others are NaN (the angles cost most of an output row). */
-size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, double dt,
+size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, int64_t k0, double dt,
                      int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                      double *ex, int32_t *status, int threads, double *out, int want);
 
