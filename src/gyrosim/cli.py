@@ -48,8 +48,9 @@ def cmd_simulate(args) -> int:
     import numpy as np
 
     from .errors import IntegrationError
-    from .model import OUTPUT_NAMES, Model
+    from .model import Model
     from .scene import load_scene
+    from .trajectory import field_names, output_intervals
 
     scene = load_scene(args.scene)
     stop = scene.stop_time if args.stop_time is None else args.stop_time
@@ -66,12 +67,8 @@ def cmd_simulate(args) -> int:
     for k, v in params.items():
         model.set(k, _coerce(model, k, v))
     model.initialize()
-    n = max(1, round(stop / dt))
-    if abs(n * dt - stop) > 1e-9 * max(1.0, stop):
-        n = math.floor(stop / dt + 1e-9)
-    multi = model.n_bodies > 1
-    header = ["time"] + ([f"{b}.{o}" for b in model.body_names for o in OUTPUT_NAMES] if multi
-                         else list(OUTPUT_NAMES))
+    n = output_intervals(stop, dt, stop)
+    header = ["time", *field_names(model)]
     out = Path(args.output)
     try:
         fh = out.open("w", newline="")

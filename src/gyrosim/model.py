@@ -108,44 +108,36 @@ def _positive_step(h, what: str) -> float:
     return x
 
 
-_VARIABLES: dict[int, tuple[Scene, dict[str, Variable]]] = {}
+def _slots(variables: dict[str, Variable]) -> dict[str, tuple]:
+    """Where each variable lives in a Model: (kind, index) by name."""
+    slots = {}
+    for name, var in variables.items():
+        if var.causality == "output":
+            slots[name] = (0, OUTPUT_NAMES.index(name))
+        elif name in ("I1", "I2", "I3"):
+            slots[name] = (1, int(name[1]) - 1)
+        elif name in ("tau_x", "tau_y", "tau_z"):
+            slots[name] = (2, "xyz".index(name[-1]))
+        elif name in Model._BODY_ARRAYS:
+            slots[name] = (3, Model._BODY_ARRAYS[name])
+        else:
+            slots[name] = (4, name)
+    return slots
 
 
-def _variables_cached(scene: Scene) -> dict[str, Variable]:
-    """variables_for(scene) for body 0, computed once per scene object (scenes are frozen; Variables too)."""
-    hit = _VARIABLES.get(id(scene))
+_LAYOUT: dict[int, tuple[Scene, dict[str, Variable], dict[str, tuple]]] = {}
+
+
+def _layout(scene: Scene) -> tuple[dict[str, Variable], dict[str, tuple]]:
+    """variables_for(scene) for body 0 and their slots, computed once per scene object (scenes are frozen)."""
+    hit = _LAYOUT.get(id(scene))
     if hit is None or hit[0] is not scene:
-        if len(_VARIABLES) > 64:
-            _VARIABLES.clear()
-        hit = (scene, variables_for(scene))
-        _VARIABLES[id(scene)] = hit
-    return hit[1]
-
-
-_SLOTS: dict[int, tuple[dict, dict]] = {}
-
-
-def _slots_cached(variables: dict[str, Variable]) -> dict[str, tuple]:
-    """Where each variable lives in a Model: (kind, index) by name, computed once per variables dict."""
-    hit = _SLOTS.get(id(variables))
-    if hit is None or hit[0] is not variables:
-        slots = {}
-        for name, var in variables.items():
-            if var.causality == "output":
-                slots[name] = (0, OUTPUT_NAMES.index(name))
-            elif name in ("I1", "I2", "I3"):
-                slots[name] = (1, int(name[1]) - 1)
-            elif name in ("tau_x", "tau_y", "tau_z"):
-                slots[name] = (2, "xyz".index(name[-1]))
-            elif name in Model._BODY_ARRAYS:
-                slots[name] = (3, Model._BODY_ARRAYS[name])
-            else:
-                slots[name] = (4, name)
-        if len(_SLOTS) > 64:
-            _SLOTS.clear()
-        hit = (variables, slots)
-        _SLOTS[id(variables)] = hit
-    return hit[1]
+        if len(_LAYOUT) > 64:
+            _LAYOUT.clear()
+        variables = variables_for(scene)
+        hit = (scene, variables, _slots(variables))
+        _LAYOUT[id(scene)] = hit
+    return hit[1], hit[2]
 
 
 @dataclass
@@ -185,7 +177,7 @@ class Model:
     def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
                  stop_time: float | None = None, tolerance: float | None = None):
         self.scene = load_scene(scene)
-        self.variables = _variables_cached(self.scene)
+        self.variables, self._slots = _layout(self.scene)
         n = len(self.scene.bodies)
         self.body_names = self.scene.body_names
         self._index = {name: i for i, name in enumerate(self.body_names)}
@@ -217,7 +209,6 @@ class Model:
         self._out = None
         self._outbuf = np.empty((n, len(OUTPUT_NAMES)))
         self._status = np.zeros(n, dtype=np.int32)
-        self._slots = _slots_cached(self.variables)
         for k, v in (parameters or {}).items():
             self.set(k, v)
 

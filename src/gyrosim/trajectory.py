@@ -14,7 +14,7 @@ import numpy as np
 from .errors import ConfigError
 from .model import OUTPUT_NAMES, Model
 
-__all__ = ["simulate", "field_names"]
+__all__ = ["simulate", "field_names", "output_intervals"]
 
 
 def field_names(model: Model) -> list[str]:
@@ -22,6 +22,15 @@ def field_names(model: Model) -> list[str]:
     if model.n_bodies == 1:
         return list(OUTPUT_NAMES)
     return [f"{b}.{o}" for b in model.body_names for o in OUTPUT_NAMES]
+
+
+def output_intervals(span: float, dt: float, end: float) -> int:
+    """Output intervals of ``dt`` s in ``span`` s ending at ``end`` s: ``span / dt`` rounded when it is whole to
+    1e-9 of ``max(1, |end|)``, else the whole intervals that fit (at least 1)."""
+    n = max(1, round(span / dt))
+    if abs(n * dt - span) > 1e-9 * max(1.0, abs(end)):
+        n = math.floor(span / dt + 1e-9)
+    return n
 
 
 def _apply_start_values(model: Model, start_values: dict) -> None:
@@ -101,9 +110,7 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
         model.set("integrator", integrator)
     if max_step is not None:
         model.set("max_step", max_step)
-    n = max(1, round((stop - t0) / dt))
-    if abs(n * dt - (stop - t0)) > 1e-9 * max(1.0, abs(stop)):
-        n = math.floor((stop - t0) / dt + 1e-9)
+    n = output_intervals(stop - t0, dt, stop)
     names = field_names(model)
     if output is None:
         picked = names

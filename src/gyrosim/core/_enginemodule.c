@@ -58,6 +58,28 @@ static int get_buf(PyObject *obj, Buf *b, const char *name, char fmt, Py_ssize_t
     return 0;
 }
 
+/* The body arrays of advance() and trajectory(): y (n, NY) into b[0], then p, hint, stats, ex (optional but for
+ * exact), status into b[1..5], from the argument objects at the given positions. Returns n, or -1 with an error. */
+static Py_ssize_t get_bodies(PyObject *const *args, const int at[6], int method, Buf *b) {
+    if (get_buf(args[at[0]], &b[0], "y", 'd', -1, 1) < 0) return -1;
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
+        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
+        return -1;
+    }
+    PyObject *ex = args[at[4]];
+    if (get_buf(args[at[1]], &b[1], "p", 'd', n * GS_NP, 0) < 0) return -1;
+    if (get_buf(args[at[2]], &b[2], "hint", 'd', n, 1) < 0) return -1;
+    if (get_buf(args[at[3]], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) return -1;
+    if (get_buf(ex, &b[4], "ex", 'd', ex == Py_None ? -1 : n * GS_EX_SIZE, 1) < 0) return -1;
+    if (get_buf(args[at[5]], &b[5], "status", 'i', n, 1) < 0) return -1;
+    if (method == GS_EXACT && !b[4].held) {
+        PyErr_SetString(PyExc_ValueError, "ex: the exact integrator needs its anchor array");
+        return -1;
+    }
+    return n;
+}
+
 /* advance(method, flags, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, threads) -> failed bodies */
 static PyObject *py_advance(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
@@ -75,21 +97,9 @@ static PyObject *py_advance(PyObject *self, PyObject *const *args, Py_ssize_t na
     const int threads = (int)PyLong_AsLong(args[13]);
     if (PyErr_Occurred()) return NULL;
     Buf b[6] = {{0}};
-    if (get_buf(args[2], &b[0], "y", 'd', -1, 1) < 0) goto fail;
-    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
-    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
-        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
-        goto fail;
-    }
-    if (get_buf(args[3], &b[1], "p", 'd', n * GS_NP, 0) < 0) goto fail;
-    if (get_buf(args[9], &b[2], "hint", 'd', n, 1) < 0) goto fail;
-    if (get_buf(args[10], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) goto fail;
-    if (get_buf(args[11], &b[4], "ex", 'd', args[11] == Py_None ? -1 : n * GS_EX_SIZE, 1) < 0) goto fail;
-    if (get_buf(args[12], &b[5], "status", 'i', n, 1) < 0) goto fail;
-    if (method == GS_EXACT && !b[4].held) {
-        PyErr_SetString(PyExc_ValueError, "ex: the exact integrator needs its anchor array");
-        goto fail;
-    }
+    static const int at[6] = {2, 3, 9, 10, 11, 12};
+    const Py_ssize_t n = get_bodies(args, at, method, b);
+    if (n < 0) goto fail;
     size_t failed;
     Py_BEGIN_ALLOW_THREADS
     failed = gs_advance(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t, H, rtol,
@@ -128,21 +138,9 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
         return NULL;
     }
     Buf b[7] = {{0}};
-    if (get_buf(args[2], &b[0], "y", 'd', -1, 1) < 0) goto fail;
-    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
-    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
-        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
-        goto fail;
-    }
-    if (get_buf(args[3], &b[1], "p", 'd', n * GS_NP, 0) < 0) goto fail;
-    if (get_buf(args[10], &b[2], "hint", 'd', n, 1) < 0) goto fail;
-    if (get_buf(args[11], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) goto fail;
-    if (get_buf(args[12], &b[4], "ex", 'd', args[12] == Py_None ? -1 : n * GS_EX_SIZE, 1) < 0) goto fail;
-    if (get_buf(args[13], &b[5], "status", 'i', n, 1) < 0) goto fail;
-    if (method == GS_EXACT && !b[4].held) {
-        PyErr_SetString(PyExc_ValueError, "ex: the exact integrator needs its anchor array");
-        goto fail;
-    }
+    static const int at[6] = {2, 3, 10, 11, 12, 13};
+    const Py_ssize_t n = get_bodies(args, at, method, b);
+    if (n < 0) goto fail;
     if (n > 0 && n_out + 1 > PY_SSIZE_T_MAX / (n * GS_NOUT)) {
         PyErr_SetString(PyExc_ValueError, "n_out: too many output points for memory");
         goto fail;

@@ -26,8 +26,8 @@
 const char *const gs_method_names[GS_N_METHODS] = {"euler", "rk4", "splitting", "splitting4", "adaptive",
                                                    "exact", "dop853"};
 
-static int64_t gs_engine_dop853(double *y, const double *p, int flags, double H, double rtol, double atol,
-                                double max_step, double *hint, int64_t *stats);
+static int64_t erk_step_mode(int method, double *y, const double *p, int flags, double H, double rtol,
+                             double atol, double max_step, double *hint, int64_t *stats);
 
 int gs_method_code(const char *name) {
     if (!name) return -1;
@@ -375,131 +375,6 @@ static int32_t clamp_status(int64_t k) {
     return (int32_t)(k > 2147483647 ? 2147483647 : (k < 1 ? 1 : k));
 }
 
-/* ------------------------------------------------------------------------------------------- adaptive */
-/* Dormand-Prince 5(4) with FSAL, error per component scaled by atol + rtol*max(|y|, |y_new|), RMS norm. */
-
-#define C_A21 (1.0 / 5.0)
-#define C_A31 (3.0 / 40.0)
-#define C_A32 (9.0 / 40.0)
-#define C_A41 (44.0 / 45.0)
-#define C_A42 (-56.0 / 15.0)
-#define C_A43 (32.0 / 9.0)
-#define C_A51 (19372.0 / 6561.0)
-#define C_A52 (-25360.0 / 2187.0)
-#define C_A53 (64448.0 / 6561.0)
-#define C_A54 (-212.0 / 729.0)
-#define C_A61 (9017.0 / 3168.0)
-#define C_A62 (-355.0 / 33.0)
-#define C_A63 (46732.0 / 5247.0)
-#define C_A64 (49.0 / 176.0)
-#define C_A65 (-5103.0 / 18656.0)
-#define C_B1 (35.0 / 384.0)
-#define C_B3 (500.0 / 1113.0)
-#define C_B4 (125.0 / 192.0)
-#define C_B5 (-2187.0 / 6784.0)
-#define C_B6 (11.0 / 84.0)
-#define C_E1 (71.0 / 57600.0)
-#define C_E3 (-71.0 / 16695.0)
-#define C_E4 (71.0 / 1920.0)
-#define C_E5 (-17253.0 / 339200.0)
-#define C_E6 (22.0 / 525.0)
-#define C_E7 (-1.0 / 40.0)
-
-/* Advance y over H with error control; returns 0 or the failing step index + 1 (y is then unchanged). */
-static int64_t dopri_advance(double *y, const double *p, int flags, double H, double rtol, double atol,
-                             double max_step, double *hint, int64_t *stats, int unwrap) {
-    double K[7][7], yt[GS_NY], yn[GS_NY];
-    memcpy(yt, y, sizeof(yt));
-    memcpy(yn, y, sizeof(yn));
-    double t = 0.0;
-    double h = *hint;
-    if (!(h > 0.0)) {
-        /* starting step from the scale of the derivative (Hairer, Norsett, Wanner) */
-        rhs(y, p, flags, K[0]);
-        stats[2] += 1;
-        double d0 = 0.0, d1 = 0.0;
-        for (int i = 0; i < 7; i++) {
-            const double sc = atol + rtol * fabs(y[i]);
-            d0 += (y[i] / sc) * (y[i] / sc);
-            d1 += (K[0][i] / sc) * (K[0][i] / sc);
-        }
-        d0 = sqrt(d0 / 7.0);
-        d1 = sqrt(d1 / 7.0);
-        h = (d0 > 1e-5 && d1 > 1e-5) ? 0.01 * d0 / d1 : 1e-6;
-    }
-    if (!(h > 0.0 && isfinite(h))) h = 1e-6;   /* an overflowing derivative: start small, the control adapts */
-    h = fmin(fmin(h, max_step), H);
-    rhs(y, p, flags, K[0]);
-    stats[2] += 1;
-    int64_t nstep = 0;
-    const double h_min = 1e-14 * fmax(1.0, H);
-    double last_h = h;
-    while (t < H) {
-        nstep += 1;
-        if (nstep > 50000000) return nstep;
-        const double remaining = H - t;
-        int clipped = 0;
-        if (h >= remaining * (1.0 - 1e-12)) {
-            h = remaining;
-            clipped = 1;
-        }
-        for (int i = 0; i < 7; i++) yt[i] = yn[i] + h * C_A21 * K[0][i];
-        rhs(yt, p, flags, K[1]);
-        for (int i = 0; i < 7; i++) yt[i] = yn[i] + h * (C_A31 * K[0][i] + C_A32 * K[1][i]);
-        rhs(yt, p, flags, K[2]);
-        for (int i = 0; i < 7; i++) yt[i] = yn[i] + h * (C_A41 * K[0][i] + C_A42 * K[1][i] + C_A43 * K[2][i]);
-        rhs(yt, p, flags, K[3]);
-        for (int i = 0; i < 7; i++)
-            yt[i] = yn[i] + h * (C_A51 * K[0][i] + C_A52 * K[1][i] + C_A53 * K[2][i] + C_A54 * K[3][i]);
-        rhs(yt, p, flags, K[4]);
-        for (int i = 0; i < 7; i++)
-            yt[i] = yn[i] + h * (C_A61 * K[0][i] + C_A62 * K[1][i] + C_A63 * K[2][i] + C_A64 * K[3][i]
-                                 + C_A65 * K[4][i]);
-        rhs(yt, p, flags, K[5]);
-        for (int i = 0; i < 7; i++)
-            yt[i] = yn[i] + h * (C_B1 * K[0][i] + C_B3 * K[2][i] + C_B4 * K[3][i] + C_B5 * K[4][i]
-                                 + C_B6 * K[5][i]);
-        rhs(yt, p, flags, K[6]);
-        stats[2] += 6;
-        double err = 0.0;
-        for (int i = 0; i < 7; i++) {
-            const double e = h * (C_E1 * K[0][i] + C_E3 * K[2][i] + C_E4 * K[3][i] + C_E5 * K[4][i]
-                                  + C_E6 * K[5][i] + C_E7 * K[6][i]);
-            const double sc = atol + rtol * fmax(fabs(yn[i]), fabs(yt[i]));
-            err += (e / sc) * (e / sc);
-        }
-        err = sqrt(err / 7.0);
-        if (!(isfinite(err) && ok(yt))) {
-            if (h <= h_min) return nstep;
-            h *= 0.2;
-            stats[1] += 1;
-            continue;
-        }
-        if (err <= 1.0) {
-            if (!clipped && h < h_min) return nstep;   /* the step size collapsed: a failure, not a crawl */
-            t = clipped ? H : t + h;
-            for (int i = 0; i < 7; i++) {
-                yn[i] = yt[i];
-                K[0][i] = K[6][i];
-            }
-            normalize_q(yn);
-            if (unwrap) gs_unwrap(yn);
-            stats[0] += 1;
-            const double fac = err == 0.0 ? 5.0 : fmin(5.0, fmax(0.2, 0.9 * pow(err, -0.2)));
-            if (!clipped) last_h = h;
-            h = fmin(h * fac, max_step);
-            if (clipped) last_h = fmax(last_h, h);
-        } else {
-            stats[1] += 1;
-            h *= fmax(0.2, 0.9 * pow(err, -0.2));
-            if (h < h_min) return nstep;
-        }
-    }
-    *hint = fmin(last_h, max_step);
-    memcpy(y, yn, sizeof(yn));
-    return 0;
-}
-
 /* ------------------------------------------------------------------------------------------- exact */
 
 static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
@@ -551,22 +426,12 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
     memcpy(save, y, sizeof(save));
     const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
     rebase(y, w, H);
-    if (method == GS_DOP853) {   /* moves the reference angles itself, after accepted steps */
-        const int64_t st = gs_engine_dop853(y, p, flags, H, rtol, atol, max_step, hint, stats);
+    if (method == GS_ADAPTIVE || method == GS_DOP853) {   /* they move the reference angles themselves */
+        const int64_t st = erk_step_mode(method, y, p, flags, H, rtol, atol, max_step, hint, stats);
         if (st) {
             memcpy(y, save, sizeof(save));
             return clamp_status(st);
         }
-        return 0;
-    }
-    if (method == GS_ADAPTIVE) {
-        const int unwrap_each = w * H > 1.0;   /* then after every accepted step */
-        int64_t st = dopri_advance(y, p, flags, H, rtol, atol, max_step, hint, stats, unwrap_each);
-        if (st) {
-            memcpy(y, save, sizeof(save));
-            return clamp_status(st);
-        }
-        if (!unwrap_each) y[9] += w * H;
         return 0;
     }
     /* the state is checked once at the end (NaN and inf propagate); only on failure are the steps replayed
@@ -785,10 +650,6 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
             return n;
         }
     }
-    if (n == 1 && method != GS_ADAPTIVE && method != GS_DOP853) {   /* one body, fixed steps or exact: stats change only on success */
-        status[0] = advance_body(method, flags, y, p, t, H, n_sub, rtol, atol, max_step, hint, stats, ex);
-        return status[0] != 0;
-    }
     /* units of work: blocks of GS_BLOCK bodies for euler and rk4, single bodies otherwise */
     const int blocked = (method == GS_EULER || method == GS_RK4) && n >= GS_BLOCK;
     const size_t per = blocked ? GS_BLOCK : 1;
@@ -809,16 +670,9 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
         }
         const size_t b1 = b0 + per < n ? b0 + per : n;
         for (size_t b = b0; b < b1; b++) {
-            int64_t st[GS_NSTATS] = {stats[b * 3], stats[b * 3 + 1], stats[b * 3 + 2]};
-            status[b] = advance_body(method, flags, y + b * GS_NY, p + b * GS_NP, t, H, n_sub, rtol, atol,
-                                     max_step, hint + b, st, ex ? ex + b * GS_EX_SIZE : NULL);
-            if (status[b]) {
-                failed += 1;
-            } else {
-                stats[b * 3] = st[0];
-                stats[b * 3 + 1] = st[1];
-                stats[b * 3 + 2] = st[2];
-            }
+            status[b] = gs_advance_one(method, flags, y + b * GS_NY, p + b * GS_NP, t, H, n_sub, rtol, atol,
+                                       max_step, hint + b, stats + b * GS_NSTATS, ex ? ex + b * GS_EX_SIZE : NULL);
+            failed += status[b] != 0;
         }
     }
     return failed;
@@ -868,7 +722,7 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
 #include "rk_tables.h"
 
 
-/* Dormand-Prince 5(4) tableau (the same numbers as engine.c's step mode) */
+/* Dormand-Prince 5(4) tableau (adaptive: step mode and dense output) */
 static const double D5_A[7][7] = {
     {0.0},
     {1.0 / 5.0},
@@ -1121,11 +975,11 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
     return 0;
 }
 
-/* dop853 in step mode (Model.step, doStep): the last step ends at H. */
-static int64_t gs_engine_dop853(double *y, const double *p, int flags, double H, double rtol, double atol,
-                                double max_step, double *hint, int64_t *stats) {
+/* adaptive or dop853 in step mode (Model.step, doStep): the last step ends at H. */
+static int64_t erk_step_mode(int method, double *y, const double *p, int flags, double H, double rtol,
+                             double atol, double max_step, double *hint, int64_t *stats) {
     int64_t row = 0;
-    return erk_run(GS_DOP853, y, p, flags, H, rtol, atol, max_step, hint, stats, 0.0, 0, NULL, 0, &row,
+    return erk_run(method, y, p, flags, H, rtol, atol, max_step, hint, stats, 0.0, 0, NULL, 0, &row,
                    GS_OUT_ANGLES | GS_OUT_MOMENTUM);
 }
 
