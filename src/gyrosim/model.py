@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .core import _engine
-from .core.inertia import check_principal_moments
+from .core.inertia import TRIANGLE_RTOL, check_principal_moments
 from .core.rotations import quat_to_euler_zyz
 from .errors import ConfigError, IntegrationError, StepError
 from .scene import INTEGRATORS, Scene, did_you_mean, load_scene
@@ -128,16 +128,44 @@ def _slots(variables: dict[str, Variable]) -> dict[str, tuple]:
 _LAYOUT: dict[int, tuple[Scene, dict[str, Variable], dict[str, tuple]]] = {}
 
 
-def _layout(scene: Scene) -> tuple[dict[str, Variable], dict[str, tuple]]:
-    """variables_for(scene) for body 0 and their slots, computed once per scene object (scenes are frozen)."""
+def _moments_plainly_valid(moments: np.ndarray) -> bool:
+    """Every row finite, > 0 and within the triangle inequality (as :func:`check_principal_moments` has it)."""
+    if moments.shape[0] == 1:
+        a, b, c = moments[0].tolist()
+        if not (0 < a < math.inf and 0 < b < math.inf and 0 < c < math.inf):
+            return False
+        k = 1.0 - TRIANGLE_RTOL
+        return a + b >= c * k and a + c >= b * k and b + c >= a * k
+    with np.errstate(all="ignore"):
+        others = moments[:, [1, 2, 0]] + moments[:, [2, 0, 1]]
+        return bool(np.all((moments > 0) & (moments < math.inf) & (others >= moments * (1.0 - TRIANGLE_RTOL))))
+
+
+def _layout(scene: Scene) -> tuple[dict[str, Variable], dict[str, tuple], dict[str, np.ndarray]]:
+    """variables_for(scene) for body 0, their slots and the scene's start arrays (copied by each model), computed
+    once per scene object (scenes are frozen)."""
     hit = _LAYOUT.get(id(scene))
     if hit is None or hit[0] is not scene:
         if len(_LAYOUT) > 64:
             _LAYOUT.clear()
         variables = variables_for(scene)
-        hit = (scene, variables, _slots(variables))
+        bs = scene.bodies
+        n = len(bs)
+        y = np.zeros((n, _engine.NY))
+        y[:, 0:4] = [b.q0 for b in bs]
+        y[:, 4:7] = [b.omega0 for b in bs]
+        arrays = {"_moments": np.array([b.moments for b in bs], dtype=float).reshape(n, 3),
+                  "_mass": np.array([b.mass for b in bs], dtype=float),
+                  "_cm": np.array([b.cm_distance for b in bs], dtype=float),
+                  "_g": np.full(n, scene.g if scene.gravity else 0.0),
+                  "_damping": np.array([b.damping for b in bs], dtype=float),
+                  "_tau": np.zeros((n, 3)), "_y": y, "_hint": np.zeros(n),
+                  "_stats": np.zeros((n, 3), dtype=np.int64),
+                  "_ex": np.zeros((n, _engine.EX_SIZE)),  # the exact integrator's anchor (EX_VALID = 0: none)
+                  "_outbuf": np.empty((n, len(OUTPUT_NAMES))), "_status": np.zeros(n, dtype=np.int32)}
+        hit = (scene, variables, _slots(variables), arrays)
         _LAYOUT[id(scene)] = hit
-    return hit[1], hit[2]
+    return hit[1], hit[2], hit[3]
 
 
 @dataclass
@@ -177,24 +205,13 @@ class Model:
     def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
                  stop_time: float | None = None, tolerance: float | None = None):
         self.scene = load_scene(scene)
-        self.variables, self._slots = _layout(self.scene)
+        self.variables, self._slots, arrays = _layout(self.scene)
         n = len(self.scene.bodies)
         self.body_names = self.scene.body_names
-        self._index = {name: i for i, name in enumerate(self.body_names)}
+        self._index = {name: i for i, name in enumerate(self.body_names)} if n > 1 else {self.body_names[0]: 0}
         self.n_bodies = n
-        bs = self.scene.bodies
-        self._moments = np.array([b.moments for b in bs], dtype=float).reshape(n, 3)
-        self._mass = np.array([b.mass for b in bs], dtype=float)
-        self._cm = np.array([b.cm_distance for b in bs], dtype=float)
-        self._g = np.full(n, self.scene.g if self.scene.gravity else 0.0)
-        self._damping = np.array([b.damping for b in bs], dtype=float)
-        self._tau = np.zeros((n, 3))
-        self._y = np.zeros((n, _engine.NY))
-        self._y[:, 0:4] = [b.q0 for b in bs]
-        self._y[:, 4:7] = [b.omega0 for b in bs]
-        self._hint = np.zeros(n)
-        self._stats = np.zeros((n, 3), dtype=np.int64)
-        self._ex = np.zeros((n, _engine.EX_SIZE))  # the exact integrator's anchor (EX_VALID = 0: none)
+        for k, a in arrays.items():  # _moments, _mass, _cm, _g, _damping, _tau, _y, _hint, _stats, _ex, ...
+            setattr(self, k, a.copy())
         self.integrator = self.scene.integrator
         self.max_step = float(self.scene.max_step)
         self.tolerance = float(self.scene.tolerance if tolerance is None else tolerance)
@@ -207,8 +224,6 @@ class Model:
         self._initialized = False
         self._state_dirty = True
         self._out = None
-        self._outbuf = np.empty((n, len(OUTPUT_NAMES)))
-        self._status = np.zeros(n, dtype=np.int32)
         for k, v in (parameters or {}).items():
             self.set(k, v)
 
@@ -357,31 +372,27 @@ class Model:
             Moments breaking the triangle inequality, a non-unit quaternion (|q| not within 1e-6 of 1), ...
         """
         if not self._initialized:
-            for b in range(self.n_bodies):
-                where = None if self.n_bodies == 1 else f"body {self.body_names[b]!r}"
-                check_principal_moments(*self._moments[b], where=where)
-                if self.scene.gravity and self._cm[b] > 0 and self._mass[b] <= 0:
-                    raise ConfigError("mass", float(self._mass[b]), "a number > 0", where=where)
+            if not _moments_plainly_valid(self._moments):  # the detailed check names the rule that failed
+                for b in range(self.n_bodies):
+                    check_principal_moments(*self._moments[b],
+                                            where=None if self.n_bodies == 1 else f"body {self.body_names[b]!r}")
+            if self.scene.gravity:
+                bad = np.flatnonzero((self._cm > 0) & ~(self._mass > 0))
+                if bad.size:
+                    b = int(bad[0])
+                    raise ConfigError("mass", float(self._mass[b]), "a number > 0",
+                                      where=None if self.n_bodies == 1 else f"body {self.body_names[b]!r}")
             self._initialized = True
             self._p = self._params()
         if self._state_dirty:
-            if self.n_bodies == 1:  # plain floats: cheaper than numpy for one row
-                row = self._y[0, 0:7].tolist()
-                nq = np.array([math.sqrt(row[0] ** 2 + row[1] ** 2 + row[2] ** 2 + row[3] ** 2)])
-                w_ok = all(math.isfinite(v) for v in row[4:7])
-            else:
-                q = self._y[:, 0:4]
-                nq = np.sqrt(np.einsum("ij,ij->i", q, q))
-                w_ok = bool(np.all(np.isfinite(self._y[:, 4:7])))
-            bad = np.flatnonzero(~(np.abs(nq - 1.0) <= 1e-6))
-            if bad.size:
-                b = int(bad[0])
-                raise ConfigError("q", self._y[b, 0:4].tolist(), "a unit quaternion (q_w, q_x, q_y, q_z) with "
-                                  f"|q| = 1 within 1e-6; its norm is {nq[b]:.9g}")
-            if not w_ok:
-                w = self._y[:, 4:7]
-                raise ConfigError("omega", w[~np.isfinite(w).all(axis=1)][0].tolist(), "finite rates in rad/s")
-            _engine.start_state(self._y)  # q /= |q|; phi, psi from q (as the FMUs do)
+            b = _engine.start_state(self._y)  # q /= |q|; phi, psi from q (as the FMUs do); or the first bad row
+            if b >= 0:
+                q, w = self._y[b, 0:4].tolist(), self._y[b, 4:7].tolist()
+                nq = math.sqrt(sum(v * v for v in q))
+                if not abs(nq - 1.0) <= 1e-6:
+                    raise ConfigError("q", q, "a unit quaternion (q_w, q_x, q_y, q_z) with |q| = 1 within 1e-6; its "
+                                      f"norm is {nq:.9g}")
+                raise ConfigError("omega", w, "finite rates in rad/s")
             self._state_dirty = False
             self._out = None
 

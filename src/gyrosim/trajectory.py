@@ -11,8 +11,10 @@ import math
 
 import numpy as np
 
-from .errors import ConfigError
+from .core import _engine
+from .errors import ConfigError, IntegrationError
 from .model import OUTPUT_NAMES, Model
+from .scene import did_you_mean, load_scene
 
 __all__ = ["simulate", "field_names", "output_intervals"]
 
@@ -91,9 +93,6 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     >>> r.dtype.names, len(r)
     (('time', 'omega_x'), 11)
     """
-    from .errors import IntegrationError
-    from .scene import load_scene
-
     sc = load_scene(scene)
     t0 = float(start_time)
     if not math.isfinite(t0):
@@ -105,39 +104,56 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     if not (math.isfinite(stop) and stop > t0):
         raise ConfigError("stop_time", stop_time, f"a finite number > start_time = {t0!r} s")
     model = Model(sc, start_time=t0, stop_time=stop, tolerance=relative_tolerance)
-    _apply_start_values(model, dict(start_values or {}))
+    if start_values:
+        _apply_start_values(model, dict(start_values))
     if integrator is not None:
         model.set("integrator", integrator)
     if max_step is not None:
         model.set("max_step", max_step)
     n = output_intervals(stop - t0, dt, stop)
-    names = field_names(model)
-    if output is None:
-        picked = names
-    else:
-        picked = list(output)
-        for o in picked:
-            if o not in names:
-                from .scene import did_you_mean
-
-                raise ConfigError("output", o, f"an output of scene {sc.name!r}{did_you_mean(o, names)}: "
-                                  + ", ".join(names[:20]))
-    index = {name: i for i, name in enumerate(names)}
-    columns = [index[o] for o in picked]
-    dtype = np.dtype([("time", np.float64)] + [(o, np.float64) for o in picked])
-    bare = {o.rsplit(".", 1)[-1] for o in picked}
+    picked, columns, dtype, angles, momentum = _selection(sc, model.n_bodies, model.body_names,
+                                                          None if output is None else tuple(output))
 
     def pack(block: np.ndarray) -> np.ndarray:
-        flat = block.reshape(block.shape[0], -1)
         res = np.empty((block.shape[0], 1 + len(columns)))
-        res[:, 0] = t0 + np.arange(block.shape[0]) * dt
-        res[:, 1:] = flat[:, columns]
+        _engine.pack(block, columns, t0, dt, res)
         return res.view(dtype).reshape(-1)
 
     try:
-        out = model.trajectory(dt, n, angles=bool(bare & {"phi", "theta", "psi"}),
-                               momentum=bool(bare & {"L_x", "L_y", "L_z", "energy"}))
+        out = model.trajectory(dt, n, angles=angles, momentum=momentum)
     except IntegrationError as e:
         e.rows = pack(e.rows)
         raise
     return pack(out)
+
+
+_SELECTIONS: dict = {}
+
+
+def _selection(sc, n_bodies: int, body_names: list, output: tuple | None):
+    """The picked output names, their columns in the engine's rows, the result dtype and whether angles and
+    momentum are needed; cached per scene and selection."""
+    key = (id(sc), output)
+    hit = _SELECTIONS.get(key)
+    if hit is not None and hit[0] is sc:
+        return hit[1]
+    names = list(OUTPUT_NAMES) if n_bodies == 1 else [f"{b}.{o}" for b in body_names for o in OUTPUT_NAMES]
+    if output is None:
+        picked = names
+    else:
+        picked = list(output)
+        known = set(names)
+        for o in picked:
+            if o not in known:
+                raise ConfigError("output", o, f"an output of scene {sc.name!r}{did_you_mean(o, names)}: "
+                                  + ", ".join(names[:20]))
+    index = {name: i for i, name in enumerate(names)}
+    columns = np.array([index[o] for o in picked], dtype=np.int64)
+    dtype = np.dtype([("time", np.float64)] + [(o, np.float64) for o in picked])
+    bare = {o.rsplit(".", 1)[-1] for o in picked}
+    value = (picked, columns, dtype, bool(bare & {"phi", "theta", "psi"}),
+             bool(bare & {"L_x", "L_y", "L_z", "energy"}))
+    if len(_SELECTIONS) > 256:
+        _SELECTIONS.clear()
+    _SELECTIONS[key] = (sc, value)
+    return value

@@ -9,6 +9,8 @@
 
 #include "engine/gyrosim_engine.h"
 
+#include <math.h>
+
 typedef struct {
     Py_buffer view;
     int held;
@@ -181,7 +183,7 @@ fail:
     return NULL;
 }
 
-/* start_state(y): every row's q normalised, its phi, psi from q */
+/* start_state(y) -> -1: every row's q normalised, its phi, psi from q; or the index of the first bad row */
 static PyObject *py_start_state(PyObject *self, PyObject *arg) {
     (void)self;
     Buf b = {0};
@@ -190,9 +192,19 @@ static PyObject *py_start_state(PyObject *self, PyObject *arg) {
         return NULL;
     }
     const Py_ssize_t n = b.view.len / (Py_ssize_t)sizeof(double) / GS_NY;
-    for (Py_ssize_t i = 0; i < n; i++) gs_start_state((double *)b.view.buf + i * GS_NY);
+    double *y = (double *)b.view.buf;
+    /* checked first, changed only when every row is good: |q| within 1e-6 of 1, finite omega */
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const double *r = y + i * GS_NY;
+        const double nq = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
+        if (!(fabs(nq - 1.0) <= 1e-6) || !isfinite(r[4]) || !isfinite(r[5]) || !isfinite(r[6])) {
+            release(&b, 1);
+            return PyLong_FromSsize_t(i);
+        }
+    }
+    for (Py_ssize_t i = 0; i < n; i++) gs_start_state(y + i * GS_NY);
     release(&b, 1);
-    Py_RETURN_NONE;
+    return PyLong_FromLong(-1);
 }
 
 /* substeps(H, max_step) -> int (0: too many) */
@@ -241,14 +253,61 @@ static PyObject *py_max_threads(PyObject *self, PyObject *unused) {
     return PyLong_FromLong(gs_max_threads());
 }
 
+/* pack(out(rows, width), columns(k) int64, t0, dt, res(rows, 1 + k)): res[r] = (t0 + r*dt, out[r, columns]) */
+static PyObject *py_pack(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "pack() takes 5 arguments");
+        return NULL;
+    }
+    const double t0 = PyFloat_AsDouble(args[2]);
+    const double dt = PyFloat_AsDouble(args[3]);
+    if (PyErr_Occurred()) return NULL;
+    Buf b[3] = {{0}};
+    PyObject *res = NULL;
+    if (get_buf(args[0], &b[0], "out", 'd', -1, 0) < 0 || get_buf(args[1], &b[1], "columns", 'q', -1, 0) < 0 ||
+        get_buf(args[4], &b[2], "res", 'd', -1, 1) < 0)
+        goto done;
+    const Py_ssize_t k = b[1].view.len / 8, cells = b[2].view.len / 8;
+    if (b[2].view.ndim != 2 || b[2].view.shape[1] != 1 + k || b[0].view.ndim < 1 || b[0].view.shape[0] != cells / (1 + k)) {
+        PyErr_SetString(PyExc_ValueError, "pack: res must be (rows of out, 1 + len(columns))");
+        goto done;
+    }
+    const Py_ssize_t rows = cells / (1 + k), width = rows ? b[0].view.len / 8 / rows : 0;
+    const int64_t *col = (const int64_t *)b[1].view.buf;
+    for (Py_ssize_t j = 0; j < k; j++)
+        if (col[j] < 0 || col[j] >= width) {
+            PyErr_Format(PyExc_ValueError, "pack: column %lld is outside the %zd columns of out", (long long)col[j],
+                         width);
+            goto done;
+        }
+    const double *o = (const double *)b[0].view.buf;
+    double *r = (double *)b[2].view.buf;
+    for (Py_ssize_t i = 0; i < rows; i++) {
+        double *ri = r + i * (1 + k);
+        const double *oi = o + i * width;
+        ri[0] = t0 + (double)i * dt;
+        for (Py_ssize_t j = 0; j < k; j++) ri[1 + j] = oi[col[j]];
+    }
+    res = Py_None;
+    Py_INCREF(res);
+done:
+    release(b, 3);
+    return res;
+}
+
 static PyMethodDef methods[] = {
+    {"pack", (PyCFunction)(void (*)(void))py_pack, METH_FASTCALL,
+     "pack(out(rows, width), columns int64, t0, dt, res(rows, 1 + k)): res[r] = (t0 + r*dt, out[r, columns])"},
     {"advance", (PyCFunction)(void (*)(void))py_advance, METH_FASTCALL,
      "advance(method, flags, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, threads) -> failed bodies"},
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
     {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
      "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out, "
      "want, k0)"},
-    {"start_state", py_start_state, METH_O, "start_state(y): each row's q normalised, phi and psi from it"},
+    {"start_state", py_start_state, METH_O,
+     "start_state(y) -> -1, each row's q normalised and phi, psi from it; or the first row with |q| not within "
+     "1e-6 of 1 or a non-finite omega (y unchanged)"},
     {"substeps", (PyCFunction)(void (*)(void))py_substeps, METH_FASTCALL,
      "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},
     {"tf_eval", (PyCFunction)(void (*)(void))py_tf_eval, METH_FASTCALL,

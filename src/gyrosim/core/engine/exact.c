@@ -32,8 +32,20 @@ enum {
     C_COEF = 25, C_S1 = 26, C_S2 = 27, C_K1 = 28, C_K2 = 29,
     C_QL = 30, C_QF = 34,
     C_NCHEB = 38,          /* terms of the Chebyshev expansion of G on [-K, K] (0: evaluate G with Carlson's RJ) */
-    C_CHEB = 40            /* its coefficients, up to GS_TF_NCHEB */
+    C_CHEB = 40,           /* its coefficients, up to GS_TF_NCHEB */
+    /* the fast evaluation (C_NF > 0): sn_r, cn_r, dn and the angle P on [-K, K] as Chebyshev series */
+    C_NF = 40 + GS_TF_NCHEB, /* terms per series (0: not set up) */
+    C_LO, C_LB, C_LP,      /* L = |L| (C_LO cn, C_LB sn, C_LP dn) in body axes o, b, p */
+    C_JSTEP, C_OFF,        /* phi + psi = |L| t / Io + j C_JSTEP + P(u_r) + C_OFF */
+    C_KAPPA, C_SIG,        /* kappa = k1 / k2 of psi_ref, sigma = sign of C_S1 */
+    C_RK,                  /* 1 / K */
+    C_FS = 40 + GS_TF_NCHEB + 12,  /* odd series of sn_r: coefficients of T_1, T_3, ... */
+    C_FC = C_FS + GS_TF_NFAST,     /* even series of cn_r: T_0 (halved), T_2, ... */
+    C_FD = C_FC + GS_TF_NFAST,     /* even series of dn */
+    C_FP = C_FD + GS_TF_NFAST      /* odd series of P = coef G + s2 sigma H */
 };
+
+_Static_assert(C_FP + GS_TF_NFAST == GS_TF_SIZE && C_RK < C_FS, "the layout of the torque-free constants");
 
 /* Parity of an integer-valued double (j of the reduced argument). */
 static int odd(double j)
@@ -436,6 +448,211 @@ static int sort_less(double a, double b)
     return a < b || (b != b && a == a);
 }
 
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* the fast evaluation: for the reduced argument u_r in [-K, K], sn_r and P are odd and cn_r and dn even
+ * analytic functions of x = u_r / K, expanded in Chebyshev series (geometric convergence, slower near the
+ * separatrix). P(u_r) = coef G(u_r) + s2 sigma H(u_r) collects the periodic parts of phi + psi, with
+ * H = am_r + atan2((1 - kappa) sn cn, kappa cn^2 + sn^2) the periodic part of psi_ref. A point then costs four
+ * Clenshaw sums, one sincos and a few square roots, and stays a pure function of t (the bits of stepping).  */
+
+/* H(u_r): am_r = atan2(sn_r, cn_r) (cn_r >= 0 on [-K, K]) plus the bounded part of psi_ref */
+static double h_reduced(double s, double cc, double kappa)
+{
+    return atan2(s, cc) + atan2((1.0 - kappa) * s * cc, kappa * cc * cc + s * s);
+}
+
+/* The four series from N first-kind nodes (their positive half: the functions are odd or even). G comes from
+ * the series of its derivative n sn^2 / (1 - n sn^2) (even), integrated term by term (no elliptic integral at
+ * the nodes). Returns 1 when every series converged to round-off within N/2 terms, 0 otherwise. */
+static int fast_setup_n(double *c, int N, double mc, double K, double n, double coef)
+{
+    enum { NMAX = 2 * GS_TF_NFAST, NS = 5 };
+    const int half = N / 2;
+    /* series 0 sn (odd), 1 cn (even), 2 dn (even), 3 H (odd), 4 G' (even) */
+    double f[NS][NMAX / 2];
+    double T[NMAX][NMAX / 2];   /* T[j][k] = T_j(x_k) = cos(j th_k), by the three-term recurrence */
+    double fmax[NS] = {0.0, 0.0, 0.0, 0.0, 0.0};
+    const double kappa = c[C_KAPPA], sh = c[C_S2] * c[C_SIG];
+    for (int k = 0; k < half; k++) {
+        T[0][k] = 1.0;
+        T[1][k] = cos(GS_PI * ((double)k + 0.5) / (double)N);   /* the node x_k */
+        double sn, cn, dn, j;
+        gs_ellipj_reduced(K * T[1][k], mc, K, &sn, &cn, &dn, &j);
+        if (j != 0.0) return 0;
+        f[0][k] = sn;
+        f[1][k] = cn;
+        f[2][k] = dn;
+        f[3][k] = h_reduced(sn, cn, kappa);
+        f[4][k] = n * sn * sn / (1.0 - n * sn * sn);
+        for (int s = 0; s < NS; s++) {
+            if (!(fabs(f[s][k]) <= 1e300)) return 0;
+            if (fabs(f[s][k]) > fmax[s]) fmax[s] = fabs(f[s][k]);
+        }
+    }
+    /* a_j = (2/N) sum over all N nodes f(x_k) T_j(x_k) = (4/N) sum over the positive half, for j of the
+     * function's parity (the other terms vanish); T_j(x_k) = cos(j th_k) */
+    double a[NS][NMAX / 2 + 1];
+    for (int jn = 2; jn < N; jn++)
+        for (int k = 0; k < half; k++) T[jn][k] = 2.0 * T[1][k] * T[jn - 1][k] - T[jn - 2][k];
+    for (int i = 0; i < half; i++) {
+        const double *te = T[2 * i], *to = T[2 * i + 1];
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0;
+        for (int k = 0; k < half; k++) {
+            s0 += f[0][k] * to[k];
+            s3 += f[3][k] * to[k];
+            s1 += f[1][k] * te[k];
+            s2 += f[2][k] * te[k];
+            s4 += f[4][k] * te[k];
+        }
+        a[0][i] = s0;
+        a[1][i] = s1;
+        a[2][i] = s2;
+        a[3][i] = s3;
+        a[4][i] = s4;
+    }
+    for (int s = 0; s < NS; s++) a[s][half] = 0.0;
+    for (int s = 0; s < NS; s++)
+        for (int i = 0; i < half; i++) a[s][i] *= 4.0 / (double)N;
+    /* P = coef G + sh H, G(x) = K int_0^x G': the T_{2i+1} coefficient of the integral is
+     * (b_{2i} - b_{2i+2}) / (2 (2i + 1)) for G' = b_0 / 2 + sum b_k T_k (and G(0) = 0) */
+    for (int i = 0; i < half; i++) {
+        const double g = K * (a[4][i] - a[4][i + 1]) / (2.0 * (2.0 * (double)i + 1.0));
+        a[3][i] = coef * g + sh * a[3][i];
+    }
+    fmax[3] = fabs(coef) * K * fmax[4] + fmax[3];   /* a bound of |P|, for its round-off */
+    int used = 1;
+    for (int s = 0; s < 4; s++) {
+        /* converged: the last three terms (six Chebyshev degrees) at the round-off of the sums, relative to the
+         * function's size (the angle P in rad, at least 1); the coefficients of an analytic function fall
+         * geometrically, so the degrees aliased from beyond N are smaller still */
+        const double eps = 8e-15 * (s == 3 ? (fmax[s] > 1.0 ? fmax[s] : 1.0) : (fmax[s] > 0.0 ? fmax[s] : 1.0));
+        for (int i = half - 3; i < half; i++)
+            if (fabs(a[s][i]) > eps) return 0;
+        int u = half;
+        while (u > 1 && fabs(a[s][u - 1]) <= eps) u--;
+        if (u > used) used = u;
+    }
+    a[1][0] *= 0.5;   /* the T_0 terms enter halved */
+    a[2][0] *= 0.5;
+    for (int i = 0; i < GS_TF_NFAST; i++) {
+        c[C_FS + i] = i < used ? a[0][i] : 0.0;
+        c[C_FC + i] = i < used ? a[1][i] : 0.0;
+        c[C_FD + i] = i < used ? a[2][i] : 0.0;
+        c[C_FP + i] = i < used ? a[3][i] : 0.0;
+    }
+    c[C_NF] = (double)used;
+    return 1;
+}
+
+/* The four series at x = u_r / K in [-1, 1], one Clenshaw recurrence each in y = 2 x^2 - 1 (odd series: sum
+ * a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1, W_1 = 2y - 1, W_{i+1} = 2y W_i - W_{i-1}). */
+static void fast_series(const double *c, double x, double *sn, double *cn, double *dn, double *p)
+{
+    const int nf = (int)c[C_NF];
+    const double y2 = 2.0 * (2.0 * x * x - 1.0);
+    double s1 = 0.0, s2 = 0.0, c1 = 0.0, c2 = 0.0, d1 = 0.0, d2 = 0.0, p1 = 0.0, p2 = 0.0;
+    for (int i = nf - 1; i >= 1; i--) {
+        const double s0 = y2 * s1 - s2 + c[C_FS + i];
+        const double c0 = y2 * c1 - c2 + c[C_FC + i];
+        const double d0 = y2 * d1 - d2 + c[C_FD + i];
+        const double p0 = y2 * p1 - p2 + c[C_FP + i];
+        s2 = s1;
+        s1 = s0;
+        c2 = c1;
+        c1 = c0;
+        d2 = d1;
+        d1 = d0;
+        p2 = p1;
+        p1 = p0;
+    }
+    const double y = 0.5 * y2;
+    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
+    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
+    *cn = c[C_FC] + c1 * y - c2;
+    *dn = c[C_FD] + d1 * y - d2;
+}
+
+/* Set up the fast evaluation (after every other constant): 40 nodes, else 64, else none. ps0 = psi at t = 0
+ * (phi = 0 there). */
+static void fast_setup(double *c, double u0, double ps0)
+{
+    const double mc = c[C_MC], K = c[C_K], n = c[C_N];
+    c[C_NF] = 0.0;
+    if (!(mc > 1e-6) || !isfinite(K)) return;
+    c[C_LO] = c[C_MO] * c[C_AO] / c[C_LN];
+    c[C_LB] = c[C_MB] * c[C_AB] / c[C_LN];
+    c[C_LP] = c[C_MP] * c[C_AP] / c[C_LN];
+    c[C_KAPPA] = c[C_K1] / c[C_K2];
+    c[C_RK] = 1.0 / K;
+    c[C_SIG] = c[C_S1] < 0.0 ? -1.0 : 1.0;
+    c[C_JSTEP] = 2.0 * c[C_COEF] * c[C_PIC] + c[C_S2] * c[C_SIG] * GS_PI;
+    if (!(isfinite(c[C_LO]) && isfinite(c[C_LB]) && isfinite(c[C_LP]) && c[C_KAPPA] > 0.0 &&
+          isfinite(c[C_KAPPA]) && isfinite(c[C_JSTEP])))
+        return;
+    if (!fast_setup_n(c, 40, mc, K, n, c[C_COEF]) && !fast_setup_n(c, 2 * GS_TF_NFAST, mc, K, n, c[C_COEF]))
+        return;
+    double sn_r, cn_r, dn, j;
+    gs_ellipj_reduced(u0, mc, K, &sn_r, &cn_r, &dn, &j);
+    double s, cc, d, p;
+    fast_series(c, (u0 - j * (2.0 * K)) / K, &s, &cc, &d, &p);
+    c[C_OFF] = ps0 - (j * c[C_JSTEP] + p);
+    if (!isfinite(c[C_OFF])) c[C_NF] = 0.0;
+}
+
+/* gs_tf_eval with the fast series (C_NF > 0) */
+static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
+{
+    const double K = c[C_K], rk = c[C_RK];
+    const double u = c[C_LAM] * t + c[C_U0];
+    const double j = floor(0.5 * rk * u + 0.5);
+    const double u_r = u - j * (2.0 * K);
+    double x = u_r * rk;
+    if (x > 1.0) x = 1.0;
+    if (x < -1.0) x = -1.0;
+    double sn_r, cn_r, dn, p;
+    fast_series(c, x, &sn_r, &cn_r, &dn, &p);
+    if (c[C_MC] == 1.0) {   /* circular (a symmetric body): libm's own reduction of u is exact, 2K = pi is not */
+        const double s = sin(u), cc = cos(u);
+        sn_r = odd(j) ? -s : s;
+        cn_r = odd(j) ? -cc : cc;
+        dn = 1.0;
+    }
+    const double sg = odd(j) ? -1.0 : 1.0;
+    const double sn = sg * sn_r, cn = sg * cn_r;
+    w_out[(int)c[C_IO]] = c[C_AO] * cn;
+    w_out[(int)c[C_IB]] = c[C_AB] * sn;
+    w_out[(int)c[C_IP]] = c[C_AP] * dn;
+    /* direction of L in the frame (o, b, p): theta from cos = lp, sin = |(lo, lb)| (half angles without trig) */
+    const double lo = c[C_LO] * cn, lb = c[C_LB] * sn, lp = c[C_LP] * dn;
+    const double ro2 = lo * lo + lb * lb, il = 1.0 / sqrt(ro2 + lp * lp);
+    const double ct = lp * il, st = sqrt(ro2) * il;
+    double ch, shh;
+    if (ct >= 0.0) {
+        ch = sqrt(0.5 * (1.0 + ct));
+        shh = 0.5 * st / ch;
+    } else {
+        shh = sqrt(0.5 * (1.0 - ct));
+        ch = 0.5 * st / shh;
+    }
+    /* psi = s2 h, h = sigma (j pi + am_r + A) (+ pi when sigma < 0): cos and sin from sn_r, cn_r */
+    const double kappa = c[C_KAPPA];
+    const double X = kappa * cn_r * cn_r + sn_r * sn_r, Y = (1.0 - kappa) * sn_r * cn_r;
+    const double ir = 1.0 / sqrt(X * X + Y * Y);
+    const double ca = X * ir, sa = Y * ir;
+    double cg = sg * (cn_r * ca - sn_r * sa), sgn_ = sg * (sn_r * ca + cn_r * sa);   /* cos, sin (j pi + H) */
+    if (c[C_SIG] < 0.0) cg = -cg;   /* h = pi - (j pi + H) */
+    const double cpsi = cg, spsi = c[C_S2] * sgn_;
+    /* phi + psi, then the ZYZ quaternion (c cos sp, -s sin dm, s cos dm, c sin sp) with dm = sp - psi */
+    const double sp = 0.5 * (c[C_LN] * t / c[C_MO] + j * c[C_JSTEP] + p + c[C_OFF]);
+    const double csp = cos(sp), ssp = sin(sp);
+    const double cdm = csp * cpsi + ssp * spsi, sdm = ssp * cpsi - csp * spsi;
+    const double e0 = ch * csp, e1 = -shh * sdm, e2 = shh * cdm, e3 = ch * ssp;
+    double a[4];
+    qmul(c[C_QL], c[C_QL + 1], c[C_QL + 2], c[C_QL + 3], e0, e1, e2, e3, a);
+    qmul(a[0], a[1], a[2], a[3], c[C_QF], -c[C_QF + 1], -c[C_QF + 2], -c[C_QF + 3], q_out);
+}
+
 void gs_tf_setup(const double I[3], const double w[3], const double q[4], double c[GS_TF_SIZE])
 {
     for (int k = 0; k < GS_TF_SIZE; ++k) c[k] = 0.0;
@@ -527,10 +744,7 @@ void gs_tf_setup(const double I[3], const double w[3], const double q[4], double
     c[C_NCHEB] = 0.0;
     if (mc > 0.0) {
         pic = n != 0.0 ? n / 3.0 * gs_elliprj(0.0, mc, 1.0, 1.0 - n) : 0.0; /* Pi(n|m) - K */
-        c[C_K] = K;
-        c[C_N] = n;
-        cheb_setup(c, mc, K, n);
-        pi0 = g_eval(c, u0, sn0, cn0, sqrt(dn02));
+        pi0 = 0.0;   /* set at the end, when the fast series do not converge */
     } else {
         /* separatrix: Pi(n; am(u)|1) = (u + r atan(r tanh u))/(1 + r^2), r = sqrt(-n) */
         pic = 0.0;
@@ -593,6 +807,13 @@ void gs_tf_setup(const double I[3], const double w[3], const double q[4], double
     c[C_QL + 1] = l[1];
     c[C_QL + 2] = l[2];
     c[C_QL + 3] = l[3];
+    if (mc > 0.0) {
+        fast_setup(c, u0, ps0);
+        if (c[C_NF] == 0.0) {
+            cheb_setup(c, mc, K, n);
+            c[C_PI0] = g_eval(c, u0, sn0, cn0, sqrt(dn02));
+        }
+    }
 }
 
 void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
@@ -618,6 +839,10 @@ void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_
             e3 = 0.0;
         }
         qmul(c[C_Q0], c[C_Q0 + 1], c[C_Q0 + 2], c[C_Q0 + 3], e0, e1, e2, e3, q_out);
+        return;
+    }
+    if (c[C_NF] > 0.0) {
+        fast_eval(c, t, w_out, q_out);
         return;
     }
     int io = (int)c[C_IO], ib = (int)c[C_IB], ip = (int)c[C_IP];
@@ -664,6 +889,9 @@ int gs_tf_valid(const double c[GS_TF_SIZE])
     if (c[C_MODE] != 1.0) return 0;
     const double nc = c[C_NCHEB];
     if (!(nc >= 0.0 && nc <= (double)GS_TF_NCHEB && nc == floor(nc))) return 0;
+    const double nf = c[C_NF];
+    if (!(nf >= 0.0 && nf <= (double)GS_TF_NFAST && nf == floor(nf))) return 0;
+    if (nf > 0.0 && !(c[C_K] > 0.0 && isfinite(c[C_K]) && c[C_KAPPA] > 0.0)) return 0;
     int seen = 0;
     for (int k = C_IO; k <= C_IP; k++) {
         const double v = c[k];
