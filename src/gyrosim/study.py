@@ -48,14 +48,17 @@ import numpy as np
 __all__ = ["main", "PARTS", "CASES", "EXPECTED_ORDER", "observed_order"]
 
 FIXED = ("euler", "rk4", "splitting", "splitting4")
-INTEGRATORS = FIXED + ("adaptive",)
+ADAPTIVE = ("adaptive", "dop853")
+INTEGRATORS = FIXED + ADAPTIVE
+#: Nominal order of the adaptive pairs (their error against the number of steps).
+ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
 PARTS = ("accuracy", "cost", "long", "startup", "peers", "fmu", "service")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
 COLORS = {"euler": "tab:red", "rk4": "tab:blue", "splitting": "tab:green", "splitting4": "tab:olive",
-          "adaptive": "tab:purple", "exact": "black"}
-MARKERS = {"euler": "v", "rk4": "o", "splitting": "s", "splitting4": "D", "adaptive": "^", "exact": "*"}
+          "adaptive": "tab:purple", "dop853": "tab:cyan", "exact": "black"}
+MARKERS = {"euler": "v", "rk4": "o", "splitting": "s", "splitting4": "D", "adaptive": "^", "dop853": "P", "exact": "*"}
 
 # The heavy top of the study (the embedded heavy_top scene, spun faster).
 TOP = {"I1": 1.75e-3, "I3": 1.0e-3, "mass": 0.5, "cm_distance": 0.05, "g": 9.81, "theta0": 0.3, "spin": 100.0}
@@ -273,7 +276,7 @@ def run_accuracy(case: Case, integrator: str, h: float | None, tol: float | None
     from .model import OUTPUT_NAMES
 
     ref = case.reference
-    dt_out = case.T / ADAPTIVE_OUTPUTS if integrator == "adaptive" else case.dt_out
+    dt_out = case.T / ADAPTIVE_OUTPUTS if integrator in ADAPTIVE else case.dt_out
     n_out = round(case.T / dt_out)
     max_step = h if h is not None else case.T
     tol_ = tol if tol is not None else 1e-8
@@ -315,7 +318,7 @@ def run_accuracy(case: Case, integrator: str, h: float | None, tol: float | None
         rec["bounds_excess"] = float(max(0.0, np.max(ref.theta_min - theta), np.max(theta - ref.theta_max)))
         rec["p_phi_drift"] = float(np.max(np.abs(Lw[:, 2] - ref.p_phi)) / abs(ref.p_psi))
         rec["p_psi_drift"] = float(np.max(np.abs(ref.I3 * w[:, 2] - ref.p_psi)) / abs(ref.p_psi))
-    if integrator in ("adaptive", "exact"):
+    if integrator in (*ADAPTIVE, "exact"):
         rec["wall"] = min(wall, _min_time(lambda: sampled()[2], quick))
         rec["ns_per_step"] = rec["wall"] / max(1, st["steps"]) * 1e9
         return rec
@@ -360,7 +363,8 @@ def observed_order(xs, errs, hi=0.1, floor_factor=100.0):
     pts.sort(key=lambda p: -p[0] if slope0 > 0 else p[0])
     k_min = int(np.argmin([p[1] for p in pts]))
     (x1, e1), (x2, e2) = pts[-2], pts[-1]
-    stalled = abs(math.log(e1 / e2) / math.log(x1 / x2)) < 0.5  # the last point gained less than order 1/2
+    # the last point gained less than order 1/2 (or took the same steps as the one before)
+    stalled = x1 == x2 or abs(math.log(e1 / e2) / math.log(x1 / x2)) < 0.5
     lo = pts[k_min][1] * floor_factor if (k_min < len(pts) - 1 or stalled) else 0.0
     use = [p for p in pts[:k_min + 1] if p[1] <= hi and p[1] >= lo]
     if len(use) < 3:
@@ -376,11 +380,12 @@ def case_orders(case: Case, recs: list[dict]) -> dict:
         p, n = observed_order([r["h"] for r in rr], [r[key] for r in rr])
         po, _ = observed_order([r["h"] for r in rr], [r["omega_error"] for r in rr])
         out[integ] = {"order": p, "order_omega": po, "points": n, "expected": EXPECTED_ORDER[integ]}
-    rr = [r for r in recs if r["integrator"] == "adaptive" and not r["blew_up"]]
-    p_tol, n = observed_order([r["tol"] for r in rr], [r[key] for r in rr])
-    p_steps, _ = observed_order([r["steps"] for r in rr], [r[key] for r in rr])
-    out["adaptive"] = {"order_tol": p_tol, "order_steps": -p_steps if np.isfinite(p_steps) else p_steps,
-                       "points": n, "expected": 5}
+    for integ in ADAPTIVE:
+        rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
+        p_tol, n = observed_order([r["tol"] for r in rr], [r[key] for r in rr])
+        p_steps, _ = observed_order([r["steps"] for r in rr], [r[key] for r in rr])
+        out[integ] = {"order_tol": p_tol, "order_steps": -p_steps if np.isfinite(p_steps) else p_steps,
+                      "points": n, "expected": ADAPTIVE_ORDER[integ]}
     return out
 
 
@@ -501,7 +506,7 @@ def _kernel_runner(integrator, scene, h, n, bodies=1, threads=0):
     stats = np.zeros((bodies, 3), dtype=np.int64)
     status = np.zeros(bodies, dtype=np.int32)
     ex = np.zeros((bodies, _engine.EX_SIZE))
-    max_step = h if integrator != "adaptive" else n * h
+    max_step = h if integrator not in ADAPTIVE else n * h
     y = y0.copy()
 
     def go():
@@ -688,10 +693,10 @@ def run_long(case_name: str, integrator: str, quick: bool) -> dict:
     T = n_steps * h
     H = T / n_out
     tol = 1e-10
-    m = _model(scene, integrator, h if integrator != "adaptive" else H, tol)
+    m = _model(scene, integrator, h if integrator not in ADAPTIVE else H, tol)
     ts, rows = [], []
     rec = {"case": case_name, "integrator": integrator, "h": h, "n_steps": n_steps, "T": T,
-           "tol": tol if integrator == "adaptive" else None, "blew_up": False}
+           "tol": tol if integrator in ADAPTIVE else None, "blew_up": False}
     wall = 0.0
     for _ in range(n_out):
         try:
@@ -778,17 +783,17 @@ def accuracy_table(case: Case, recs: list[dict]) -> str:
 
 
 def orders_table(orders: dict) -> str:
-    head = ["case"] + [f"{i} (expected {EXPECTED_ORDER[i]})" for i in FIXED] + ["adaptive: err vs tol",
-                                                                                 "adaptive: err vs steps"]
+    head = (["case"] + [f"{i} (expected {EXPECTED_ORDER[i]})" for i in FIXED]
+            + [f"{i}: err vs {x}" for i in ADAPTIVE for x in ("tol", "steps")])
     rows = []
     for case, o in orders.items():
         rows.append([case] + [f"{fmt(o[i]['order'])} ({o[i]['points']} pts)" for i in FIXED]
-                    + [fmt(o["adaptive"]["order_tol"]), fmt(o["adaptive"]["order_steps"])])
+                    + [fmt(o[i][k]) for i in ADAPTIVE for k in ("order_tol", "order_steps")])
     return ("### Observed order of convergence\n\nLeast-squares slope of log(attitude error) against log(h) over "
             "the ladder's asymptotic range: errors <= 0.1 (not saturated) down to the smallest error of the ladder; "
             "where the error stalls or rises again at smaller steps (round-off has taken over), the points within a "
             "factor 100 of that floor are left out. Adaptive: slope against the tolerance, and minus the slope "
-            "against the number of steps (5 for Dormand-Prince 5(4)).\n\n"
+            "against the number of steps (5 for Dormand-Prince 5(4), 8 for Dormand-Prince 8(5,3)).\n\n"
             + md_table(head, rows))
 
 
@@ -881,7 +886,7 @@ def long_table(recs: list[dict]) -> str:
         note = ""
         if r["blew_up"]:
             note = f"blew up near t = {r['blow_up_time']:.4g} s (step ~{r['blow_up_time'] / r['h']:,.0f})"
-        if r["integrator"] == "adaptive":
+        if r["integrator"] in ADAPTIVE:
             note = (note + "; " if note else "") + f"tol {r['tol']:g}"
         rows.append([r["case"], r["integrator"], r["steps"], fmt(r["wall"]), fmt(r["ns_per_step"], 1),
                      fmt(r.get("energy_drift")), fmt(r.get("L_drift")), fmt(r.get("L_drift_final")),
@@ -938,15 +943,18 @@ def plot_case(case: Case, recs: list[dict], orders: dict, out: Path) -> list[str
     a1.set_title("fixed step", fontsize=10)
     a1.grid(True, which="both", alpha=0.3)
     a1.legend(fontsize=8)
-    rr = [r for r in recs if r["integrator"] == "adaptive" and not r["blew_up"]]
-    if rr:
-        a2.loglog([r["tol"] for r in rr], [max(r["attitude_error"], 1e-17) for r in rr], marker="^",
-                  color=COLORS["adaptive"], label="attitude error")
-        a2.loglog([r["tol"] for r in rr], [max(r["omega_error"], 1e-17) for r in rr], marker="^", ls="--",
-                  color="tab:pink", label="omega error (rel)")
-        a2.loglog([r["tol"] for r in rr], [r["tol"] for r in rr], color="gray", lw=0.8, label="error = tol")
+    for integ in ADAPTIVE:
+        rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
+        if rr:
+            a2.loglog([r["tol"] for r in rr], [max(r["attitude_error"], 1e-17) for r in rr], marker=MARKERS[integ],
+                      color=COLORS[integ], label=f"{integ}: attitude error")
+            a2.loglog([r["tol"] for r in rr], [max(r["omega_error"], 1e-17) for r in rr], marker=MARKERS[integ],
+                      ls="--", color=COLORS[integ], alpha=0.5, label=f"{integ}: omega error (rel)")
+    tols = sorted({r["tol"] for r in recs if r["integrator"] in ADAPTIVE and not r["blew_up"]})
+    if tols:
+        a2.loglog(tols, tols, color="gray", lw=0.8, label="error = tol")
     a2.set_xlabel("tolerance")
-    a2.set_title("adaptive (Dormand-Prince 5(4))", fontsize=10)
+    a2.set_title("adaptive: Dormand-Prince 5(4); dop853: 8(5,3)", fontsize=10)
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize=8)
     fig.suptitle(case.title, fontsize=9)
@@ -1154,7 +1162,8 @@ def main(args) -> int:
     plan.results["environment"] = env
 
     cases = make_cases(quick) if "accuracy" in parts else {}
-    n_acc = sum(len(FIXED) * len(c.steps) + len(c.tolerances) + (1 if c.exact else 0) for c in cases.values())
+    n_acc = sum(len(FIXED) * len(c.steps) + len(ADAPTIVE) * len(c.tolerances) + (1 if c.exact else 0)
+                for c in cases.values())
     n_cost = (len(cost_scenes()) * (len(INTEGRATORS) + 1) + 4) if "cost" in parts else 0  # see run_cost
     long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in INTEGRATORS] if "long" in parts else []
     total = n_acc + n_cost + len(long_runs) + ("startup" in parts) + ("peers" in parts)
@@ -1172,10 +1181,11 @@ def main(args) -> int:
                         bar.set_postfix_str(f"{case.name} {integ} h={h:g}")
                         recs.append(run_accuracy(case, integ, h, None, quick))
                         bar.update()
-                for tol in case.tolerances:
-                    bar.set_postfix_str(f"{case.name} adaptive tol={tol:g}")
-                    recs.append(run_accuracy(case, "adaptive", None, tol, quick))
-                    bar.update()
+                for integ in ADAPTIVE:
+                    for tol in case.tolerances:
+                        bar.set_postfix_str(f"{case.name} {integ} tol={tol:g}")
+                        recs.append(run_accuracy(case, integ, None, tol, quick))
+                        bar.update()
                 if case.exact:
                     bar.set_postfix_str(f"{case.name} exact")
                     recs.append(run_accuracy(case, "exact", None, None, quick))

@@ -377,7 +377,10 @@ static int32_t clamp_status(int64_t k) {
 
 /* ------------------------------------------------------------------------------------------- exact */
 
-static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
+/* pw, pq (or NULL): the flow at the end of the step from the anchor in ex, computed beforehand (gs_tf_eval_lanes);
+ * used where the step takes one sample from that anchor, the bits of gs_tf_eval. */
+static int32_t exact_advance_pre(double *y, const double *p, double t, double H, double *ex, int64_t *stats,
+                                 const double *pw, const double *pq) {
     const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
     /* sample often enough that phi and psi move less than 1 rad between unwrap points; bounded work per call */
     const double mf = ceil(wmag * H);
@@ -398,7 +401,12 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
     for (int64_t k = 1; k <= m; k++) {
         /* move the reference angles before the rotation from them could pass 1 rad (|omega| is conserved) */
         if (y[9] + turn > 1.0) gs_unwrap(y);
-        gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
+        if (pw && m == 1 && c == ex) {
+            memcpy(y + 4, pw, 3 * sizeof(double));
+            memcpy(y, pq, 4 * sizeof(double));
+        } else {
+            gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
+        }
         y[9] += turn;
     }
     if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8])) {
@@ -408,6 +416,10 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
     if (c == local) memcpy(ex, local, sizeof(local));
     stats[0] += 1;
     return 0;
+}
+
+static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
+    return exact_advance_pre(y, p, t, H, ex, stats, NULL, NULL);
 }
 
 /* ------------------------------------------------------------------------------------------- the loop */
@@ -876,6 +888,10 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
     memcpy(yc, y, sizeof(yc));
     const double expo = method == GS_ADAPTIVE ? -0.2 : -0.125;
     const double fmax_grow = method == GS_ADAPTIVE ? 5.0 : 10.0;
+    if (method == GS_ADAPTIVE) {   /* the 5(4) pair's local tolerance, calibrated to its global error (header) */
+        rtol *= GS_ADAPTIVE_TOL_SCALE;
+        atol *= GS_ADAPTIVE_TOL_SCALE;
+    }
     double h = *hint;
     rhs(yc, p, flags, s.K[0]);
     stats[2] += 1;
@@ -1031,9 +1047,28 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
             }
             continue;
         }
+        double *eb = ex ? ex + b * GS_EX_SIZE : NULL;
+        double lw[GS_TF_LANES][3], lq[GS_TF_LANES][4];
+        int64_t lanes_from = 0, lanes_n = 0;   /* output steps k in [from, from + n) have lw, lq */
         for (int64_t k = 0; k < n_out; k++) {
-            const int st = advance_body(method, flags, yb, pb, t0 + (double)(k0 + k) * dt, dt, n_sub, rtol, atol,
-                                                 max_step, hint + b, sb, ex ? ex + b * GS_EX_SIZE : NULL);
+            const double tk = t0 + (double)(k0 + k) * dt;
+            int st;
+            if (method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0) {
+                /* the grid's flow GS_TF_LANES points at a time: the times exact_advance would sample */
+                if (k >= lanes_from + lanes_n) {
+                    double tl[GS_TF_LANES];
+                    for (int l = 0; l < GS_TF_LANES; l++) {
+                        const int64_t kl = k + l < n_out ? k + l : n_out - 1;
+                        tl[l] = (t0 + (double)(k0 + kl) * dt - eb[GS_EX_T0]) + dt * 1.0 / 1.0;
+                    }
+                    lanes_from = k;
+                    lanes_n = gs_tf_eval_lanes(eb, tl, lw, lq) ? GS_TF_LANES : 0;
+                }
+                const int64_t l = k - lanes_from;
+                st = exact_advance_pre(yb, pb, tk, dt, eb, sb, l < lanes_n ? lw[l] : NULL, l < lanes_n ? lq[l] : NULL);
+            } else {
+                st = advance_body(method, flags, yb, pb, tk, dt, n_sub, rtol, atol, max_step, hint + b, sb, eb);
+            }
             if (st) {
                 status[b] = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
                 nan_rows(out, n, b, k + 1, n_out);

@@ -75,6 +75,11 @@ extern "C" {
 #define GS_EX_VALID (GS_TF_SIZE + 1)
 #define GS_EX_SIZE (GS_TF_SIZE + 2)
 
+/* adaptive (Dormand-Prince 5(4)) controls its local error against GS_ADAPTIVE_TOL_SCALE times the tolerance: with
+ * the tolerance as given, its global attitude error over 100 s of the study's free body was 77-350 times the
+ * tolerance; with a quarter, 12-60 times over 1e-3..1e-12 (docs/accuracy.md), at 1.3 times the steps. */
+#define GS_ADAPTIVE_TOL_SCALE 0.25
+
 /* |omega_1| + |omega_2| + |omega_3| at or above which a state counts as blown up (rad/s) */
 #define GS_OMEGA_LIMIT 1e100
 
@@ -153,6 +158,12 @@ int gs_tf_valid(const double c[GS_TF_SIZE]);
 
 /* Body omega (3) and attitude (4) at time t (s after the setup state). */
 void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4]);
+
+/* gs_tf_eval at GS_TF_LANES times at once, to the same bits, where the flow has its fast series (returns 1); 0 and
+ * nothing written otherwise. */
+#define GS_TF_LANES 8
+int gs_tf_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                     double q_out[GS_TF_LANES][4]);
 
 /* Special functions (m = 1 - mc is the parameter): K(m); sn, cn, dn at u reduced to [-K, K] with the integer j
  * (as a double) such that u = u_r + 2 K j; Carlson's RF and RJ. */
