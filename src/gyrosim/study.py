@@ -356,7 +356,7 @@ def observed_order(xs, errs, hi=0.1, floor_factor=100.0):
     Returns (slope, points used); nan with fewer than 3 points.
     """
     pts = [(float(x), float(e)) for x, e in zip(xs, errs) if e is not None and np.isfinite(e) and e > 0.0]
-    if len(pts) < 3:
+    if len({p[0] for p in pts}) < 3:   # fewer than 3 distinct steps (an adaptive pair at loose tolerances)
         return float("nan"), len(pts)
     # order along the ladder: towards smaller errors in the ideal case (decreasing h or tol, increasing steps)
     slope0 = np.polyfit(np.log10([p[0] for p in pts]), np.log10([p[1] for p in pts]), 1)[0]
