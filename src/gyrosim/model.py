@@ -70,7 +70,8 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
         V.append(Variable("damping", "parameter", "fixed", "Real", "N.m.s", "viscous torque -damping*omega",
                           float(b.damping)))
     V += [Variable("integrator", "parameter", "fixed", "String", "",
-                   "integrator: " + ", ".join(i for i in INTEGRATORS if i != "exact" or scene.torque_free),
+                   "integrator: " + ", ".join(INTEGRATORS) + ("" if scene.torque_free else
+                                                               " (exact: while the body is torque-free)"),
                    scene.integrator),
           Variable("max_step", "parameter", "fixed", "Real", "s",
                    "largest internal step; fixed-step integrators take ceil(h/max_step) substeps",
@@ -272,11 +273,6 @@ class Model:
                 if value not in INTEGRATORS:
                     raise ConfigError("integrator", value, "one of " + ", ".join(INTEGRATORS)
                                       + did_you_mean(value, INTEGRATORS))
-                if value == "exact" and not self.scene.torque_free:
-                    raise ConfigError("integrator", value, "a general integrator: 'exact' solves torque-free "
-                                      f"scenes only, and scene {self.scene.name!r} has "
-                                      + ", ".join(t for t in ("gravity", "damping", "torque")
-                                                  if getattr(self.scene, t)) + " terms")
                 if value != self.integrator:
                     self._hint[:] = 0.0
                     self._ex[:, _engine.EX_VALID] = 0.0
@@ -396,6 +392,32 @@ class Model:
             self._state_dirty = False
             self._out = None
 
+    def _torque(self) -> str | None:
+        """What exerts a torque on a body now (for 'exact', which solves the torque-free body), or None."""
+        p = self._p
+        for col, what, unit in ((3, "mass*g*cm_distance", "N*m"), (4, "damping", "N*m*s/rad"),
+                                (5, "tau_x", "N*m"), (6, "tau_y", "N*m"), (7, "tau_z", "N*m")):
+            nz = np.flatnonzero(p[:, col] != 0.0)
+            if nz.size:
+                b = int(nz[0])
+                where = f" of body {self.body_names[b]!r}" if self.n_bodies > 1 else ""
+                return f"{what}{where} = {p[b, col]:.6g} {unit}"
+        return None
+
+    def _check_call(self, h: float, what: str) -> None:
+        """Refuse at once a call the engine would refuse: more internal steps than one call may take, or
+        'exact' on a body that is not torque-free."""
+        if self.integrator == "exact":
+            torque = self._torque()
+            if torque is not None:
+                raise ConfigError("integrator", "exact", "a torque-free body: 'exact' solves the torque-free flow, "
+                                  f"and {torque} now; set it to 0 or choose another integrator ('adaptive', "
+                                  "'dop853', 'rk4', 'splitting')")
+        elif _engine.substeps(h, self.max_step) == 0:
+            raise StepError(f"a {what} of {h!r} s with max_step = {self.max_step!r} s needs {h / self.max_step:.3g} "
+                            f"internal steps, more than the {_engine.MAX_WORK:,} one call may take; raise max_step "
+                            "or take shorter steps")
+
     def step(self, h: float) -> None:
         """Advance one communication step of ``h`` s, holding the inputs.
 
@@ -414,6 +436,8 @@ class Model:
                             f"{self.stop_time!r} s")
         if not self._initialized or self._state_dirty:
             self.initialize()
+        if self.integrator == "exact" or h > self.max_step * 1e6:
+            self._check_call(h, "communication step h")
         self._step_engine(h, t)
         if h == self._h:
             self._n += 1
@@ -440,15 +464,12 @@ class Model:
             where = "" if single else f" for body {self.body_names[b]!r}"
             n_sub = _engine.substeps(h, self.max_step)
             if method in (_METHOD_CODES["adaptive"], _METHOD_CODES["dop853"]):
-                detail = f"the adaptive step size fell below its minimum at internal step {k}"
+                detail = (f"the adaptive step size fell below its minimum, or the step needed more than "
+                          f"{_engine.MAX_WORK:,} internal steps, at internal step {k}")
                 advice = "loosen the tolerance or check the parameters (the solution may truly blow up)"
             elif method == _METHOD_CODES["exact"]:
                 detail = "the exact torque-free solution"
                 advice = "check the parameters and the state (the rates may be beyond double precision)"
-            elif n_sub == 0:
-                raise StepError(f"a step of h = {h!r} s with max_step = {self.max_step!r} s needs "
-                                f"{h / self.max_step:.3g} internal steps: too many (at most 4.6e18); "
-                                "raise max_step or take shorter steps")
             else:
                 detail = f"internal step {k} of {n_sub} (internal step {h / n_sub:.6g} s)"
                 others = [n for n in ("splitting", "adaptive") if n != self.integrator]
@@ -494,10 +515,7 @@ class Model:
         if not self._initialized or self._state_dirty:
             self.initialize()
         method = _METHOD_CODES[self.integrator]
-        if method not in (_METHOD_CODES["adaptive"], _METHOD_CODES["dop853"], _METHOD_CODES["exact"]) and \
-                _engine.substeps(dt, self.max_step) == 0:
-            raise StepError(f"a step of dt = {dt!r} s with max_step = {self.max_step!r} s needs "
-                            f"{dt / self.max_step:.3g} internal steps: too many (at most 4.6e18)")
+        self._check_call(dt, "output interval dt")
         out = np.empty((n + 1, self.n_bodies, len(OUTPUT_NAMES)))
         saved = (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
         status = np.zeros(self.n_bodies, dtype=np.int32)

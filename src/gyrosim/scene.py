@@ -134,6 +134,17 @@ class Scene:
         """True when no term can exert a torque (gravity, damping and inputs all absent)."""
         return not (self.gravity or self.damping or self.torque)
 
+    def torque_free_start(self) -> str | None:
+        """None when every body starts torque-free with its parameters (mass*g*cm_distance = 0 where there is
+        gravity, damping = 0; torque inputs start at 0), else what exerts a torque (for a message)."""
+        for b in self.bodies:
+            where = f" (body {b.name!r})" if len(self.bodies) > 1 else ""
+            if self.gravity and b.mass * self.g * b.cm_distance != 0.0:
+                return f"mass*g*cm_distance = {b.mass * self.g * b.cm_distance:.6g} N*m{where}"
+            if self.damping and b.damping != 0.0:
+                return f"damping = {b.damping:.6g} N*m*s/rad{where}"
+        return None
+
 
 def did_you_mean(word, allowed, cutoff: float = 0.6) -> str:
     """``" (did you mean 'x'?)"`` for the closest of ``allowed`` to ``word``, or ``""``."""
@@ -350,9 +361,9 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source)
-    if integ == "exact" and not scene.torque_free:
-        raise ConfigError("integrator", integ, "a general integrator: 'exact' solves torque-free scenes only "
-                          "(this scene has gravity, damping or torque inputs)", where=where)
+    if integ == "exact" and scene.torque_free_start() is not None:
+        raise ConfigError("integrator", integ, "a general integrator: 'exact' solves a torque-free body only, and "
+                          f"this scene has {scene.torque_free_start()}", where=where)
     return scene
 
 

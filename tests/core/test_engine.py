@@ -83,12 +83,19 @@ def test_exact_flow_in_c_agrees_with_the_python_oracle(moments, omega):
 
 
 def test_substep_rule():
-    """max(1, ceil(h/max_step*(1-1e-12))): a ratio a hair above an integer from round-off does not add a step."""
+    """ceil(h/max_step), except that a ratio within 1e-9 (relative) of a whole number is that number, at least 1;
+    0 (refuse the step) beyond MAX_WORK."""
     assert _engine.substeps(0.01, 1e-3) == 10
     assert _engine.substeps(0.025, 0.01) == 3
     assert _engine.substeps(0.003, 0.0003) == 10  # 10.000000000000002 in floating point
+    assert _engine.substeps(0.0100000000000017, 1e-3) == 10  # FMU Compliance Checker's accumulated last step
+    assert _engine.substeps(0.01 * (1 + 2e-9), 1e-3) == 11  # beyond the tolerance: one more step
+    assert _engine.substeps(0.0105, 1e-3) == 11
     assert _engine.substeps(1e-5, 1e-3) == 1
-    assert _engine.substeps(1e300, 1e-300) == 0  # too many: the caller refuses the step
+    assert _engine.substeps(_engine.MAX_WORK * 1e-3, 1e-3) == _engine.MAX_WORK
+    assert _engine.substeps(1e9, 1e-3) == 0  # 1e12 steps: more than one call may take
+    assert _engine.substeps(1e300, 1e-300) == 0
+    assert _engine.substeps(float("nan"), 1e-3) == 0
 
 
 def test_bad_buffers_are_refused_with_the_name_of_the_array():

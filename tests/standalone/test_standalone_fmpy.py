@@ -177,7 +177,6 @@ def test_error_paths_leave_the_host_running(version, standalone):
     expect_error(lambda: s.set("mass", 0.0), s.log, "mass = 0 is not allowed: a number > 0 in kg")
     expect_error(lambda: s.set("damping", -0.1), s.log, "damping = -0.1 is not allowed")
     expect_error(lambda: s.set("max_step", 0.0), s.log, "max_step = 0 is not allowed")
-    expect_error(lambda: s.set("integrator", "exact"), s.log, "'exact' solves torque-free scenes only")
     expect_error(lambda: s.set("integrator", "runge"), s.log, "one of euler, rk4, splitting, splitting4, adaptive")
     expect_error(lambda: s.set("theta", 1.0), s.log, "derived output")
     s.setup(0.0, 1.0)
@@ -251,3 +250,50 @@ def test_sources_rebuild_with_fmpy(version, standalone, tmp_path, monkeypatch):
     for n in OUTPUT_NAMES:
         np.testing.assert_array_equal(a[n], b[n])
 
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_health_of_the_step_call(version, standalone):
+    """Issue 13 from an importer: exact runs on the full model while the body is torque-free (and a torque input
+    then gives Error naming it, the instance usable after it is set back); a doStep of 1e9 s with max_step 1e-3
+    (1e12 internal steps) is refused at once; a host that accumulates 0.01 + 0.01 + ... gets the bits of one that
+    computes k * 0.01."""
+    import time
+
+    fmu = standalone(None, version)
+    s = Slave(fmu)
+    s.setup(0.0, 2e9)
+    for n, v in (("cm_distance", 0.0), ("damping", 0.0), ("integrator", "exact")):
+        s.set(n, v)
+    s.fmu.exitInitializationMode()
+    m = Model(None, parameters={"cm_distance": 0.0, "damping": 0.0, "integrator": "exact"})
+    s.do_step(0.0, 0.01)
+    m.step(0.01)
+    np.testing.assert_array_equal(s.get(*OUTPUT_NAMES), m.outputs_array()[0])
+    s.set("tau_x", 0.5)
+    expect_error(lambda: s.do_step(0.01, 0.01), s.log, "torque-free body only")
+    s.set("tau_x", 0.0)
+    s.do_step(0.01, 0.01)
+    s.fmu.terminate()
+    s.fmu.freeInstance()
+
+    s = Slave(fmu, name="work")
+    s.setup(0.0, 2e9)
+    s.set("max_step", 1e-3)
+    s.fmu.exitInitializationMode()
+    t0 = time.monotonic()
+    expect_error(lambda: s.do_step(0.0, 1e9), s.log, "more than the 10000000 one doStep may take")
+    assert time.monotonic() - t0 < 1.0
+    t, exact_rows, acc_rows = 0.0, [], []
+    for k in range(40):   # 0.01 + 0.01 + ...: steps like 0.010000000000000009 s (11 substeps before issue 13)
+        h = round((k + 1) * 0.01, 12) - t
+        s.do_step(t, h)
+        t += h
+        acc_rows.append(s.get(*OUTPUT_NAMES))
+    s.fmu.terminate()
+    s.fmu.freeInstance()
+    m = Model(None, parameters={"max_step": 1e-3})
+    for _ in range(40):
+        m.step(0.01)
+        exact_rows.append(m.outputs_array()[0].tolist())
+    np.testing.assert_allclose(acc_rows, exact_rows, rtol=0, atol=1e-12)

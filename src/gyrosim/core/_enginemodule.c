@@ -327,6 +327,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
     PyModule_AddIntConstant(m, "NP", GS_NP);
     PyModule_AddIntConstant(m, "NOUT", GS_NOUT);
     PyModule_AddIntConstant(m, "EX_SIZE", GS_EX_SIZE);
+    PyModule_AddIntConstant(m, "MAX_WORK", GS_MAX_WORK);
     PyModule_AddIntConstant(m, "EX_VALID", GS_EX_VALID);
     PyModule_AddIntConstant(m, "GRAVITY", GS_GRAVITY);
     PyModule_AddIntConstant(m, "DAMPING", GS_DAMPING);

@@ -176,14 +176,14 @@ def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, in
 
 def _variable_description(name: str, v, sc: Scene) -> str:
     if name == "integrator":
-        return "integrator: " + ", ".join(i for i in INTEGRATORS if i != "exact" or sc.torque_free)
+        return v.description
     return v.description
 
 
 def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources) -> str:
     from .. import __version__
 
-    integ = [i for i in INTEGRATORS if i != "exact" or sc.torque_free]
+    integ = [i if i != "exact" or sc.torque_free else "exact (a torque-free body only)" for i in INTEGRATORS]
     desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
             f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python); "
             f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + ".")
@@ -342,9 +342,11 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise ConfigError("fmi_version", fmi_version, "2 or 3")
     sc = load_scene(scene)
     integrator = sc.integrator if integrator is None else integrator
-    allowed = [i for i in INTEGRATORS if i != "exact" or sc.torque_free]
-    if integrator not in allowed:
-        raise ConfigError("integrator", integrator, "one of " + ", ".join(allowed))
+    if integrator not in INTEGRATORS:
+        raise ConfigError("integrator", integrator, "one of " + ", ".join(INTEGRATORS))
+    if integrator == "exact" and sc.torque_free_start() is not None:
+        raise ConfigError("integrator", integrator, "a general integrator: 'exact' solves a torque-free body only, "
+                          f"and scene {sc.name!r} starts with {sc.torque_free_start()}")
     ident = model_identifier(scene)
     rows = fmu_variables(sc)
     texts = engine_sources()

@@ -37,9 +37,17 @@ int gs_method_code(const char *name) {
     return -1;
 }
 
+int gs_torque_free(int flags, const double p[GS_NP]) {
+    return !((flags & GS_GRAVITY) && p[3] != 0.0) && !((flags & GS_DAMPING) && p[4] != 0.0) &&
+           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
+}
+
 int64_t gs_substeps(double H, double max_step) {
-    const double n = ceil(H / max_step * (1.0 - 1e-12));
-    if (!(n < 4.6e18)) return 0;
+    const double r = H / max_step;
+    if (!(r <= (double)GS_MAX_WORK * 2.0)) return 0;   /* also NaN */
+    const double k = floor(r + 0.5);
+    double n = (k >= 1.0 && fabs(r - k) <= 1e-9 * k) ? k : ceil(r);
+    if (!(n <= (double)GS_MAX_WORK)) return 0;
     return n > 1.0 ? (int64_t)n : 1;
 }
 
@@ -433,7 +441,7 @@ static inline void rebase(double *y, double w, double H) {
 static GS_INLINE int32_t advance_body(int method, int flags, double *y, const double *p, double t, double H,
                                       int64_t n_sub, double rtol, double atol, double max_step, double *hint,
                                       int64_t *stats, double *ex) {
-    if (method == GS_EXACT) return exact_advance(y, p, t, H, ex, stats);
+    if (method == GS_EXACT) return gs_torque_free(flags, p) ? exact_advance(y, p, t, H, ex, stats) : 1;
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
     const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
@@ -913,7 +921,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
     int64_t nstep = 0, k_next = 1;
     while (t < T) {
         nstep += 1;
-        if (nstep > 50000000) {
+        if (nstep > (n_out > 0 ? 50000000 : GS_MAX_WORK)) {   /* bounded work: a step call, GS_MAX_WORK */
             *fail_row = k_next;
             return nstep;
         }
@@ -1053,7 +1061,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
         for (int64_t k = 0; k < n_out; k++) {
             const double tk = t0 + (double)(k0 + k) * dt;
             int st;
-            if (method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0) {
+            if (method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0 && gs_torque_free(flags, pb)) {
                 /* the grid's flow GS_TF_LANES points at a time: the times exact_advance would sample */
                 if (k >= lanes_from + lanes_n) {
                     double tl[GS_TF_LANES];

@@ -90,9 +90,20 @@ extern const char *const gs_method_names[GS_N_METHODS];
 /* The code of an integrator name, or -1. */
 int gs_method_code(const char *name);
 
-/* Internal steps a fixed-step integrator takes over a communication step H with max_step (DESIGN.md 4):
- * max(1, ceil(H / max_step * (1 - 1e-12))); 0 when that is not a finite number below 2^62 (refuse the step). */
+/* The most internal steps one body takes in one call of gs_advance (a doStep, Model.step): a call that would take
+ * more is refused at once (gs_substeps returns 0; adaptive and dop853 fail when their error control needs more). */
+#define GS_MAX_WORK 10000000
+
+/* Internal steps a fixed-step integrator takes over a communication step H with max_step (DESIGN.md 4): r =
+ * H / max_step rounded up, except that r within a relative 1e-9 of a whole number k >= 1 is k (a host that
+ * accumulates its time, 0.1 + 0.1 + ..., takes the steps of one that does not); at least 1. 0 when that is more than
+ * GS_MAX_WORK or not finite: refuse the step. The same count is the least number of steps adaptive and dop853 take
+ * (their steps are at most max_step). */
 int64_t gs_substeps(double H, double max_step);
+
+/* 1 when the parameters p exert no torque (mass*g*cm_distance, damping and the input torque zero where the flags
+ * carry them): the body is torque-free and exact applies; exact fails on a body that is not. */
+int gs_torque_free(int flags, const double p[GS_NP]);
 
 /* Advance n bodies over one communication step H (s) from time t (s), in place.
  * Fixed-step methods take gs_substeps(H, max_step) equal steps; adaptive takes the steps its error control

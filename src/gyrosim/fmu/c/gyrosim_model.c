@@ -450,11 +450,6 @@ int gs_set_string(GsInstance *m, uint32_t vr, const char *value) {
         return GS_ERROR;
     }
     const int code = gs_method_code(value);
-    if (code == GS_EXACT && GS_FLAGS != 0) {
-        gs_log_error(m, "integrator = 'exact' is not allowed: a general integrator: 'exact' solves torque-free "
-                     "scenes only, and scene '" GS_SCENE_NAME "' has gravity, damping or torque terms");
-        return GS_ERROR;
-    }
     if (code < 0) {
         gs_log_error(m, "integrator = '%.64s' is not allowed: one of " GS_INTEGRATOR_LIST, value);
         return GS_ERROR;
@@ -493,15 +488,24 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
     if ((!d->initialized || d->state_dirty) && gs_initialize(m) != GS_OK) return GS_ERROR;
     const int method = d->integrator;
     const int64_t n_sub = gs_substeps(h, d->max_step);
-    if (method != GS_ADAPTIVE && method != GS_EXACT && method != GS_DOP853 && n_sub == 0) {
-        gs_log_error(m, "a step of h = %s s with max_step = %s s needs %.3g internal steps: too many (at most "
-                     "4.6e18); raise max_step or take shorter steps", num(h).s, num(d->max_step).s, h / d->max_step);
+    if (method != GS_EXACT && n_sub == 0) {   /* bounded work: refused at once */
+        gs_log_error(m, "a step of h = %s s with max_step = %s s needs %.3g internal steps, more than the %d one "
+                     "doStep may take; raise max_step or take shorter steps", num(h).s, num(d->max_step).s,
+                     h / d->max_step, GS_MAX_WORK);
         return GS_ERROR;
     }
     for (int b = 0; b < GS_N_BODIES; b++) {
         d->p[b][5] = d->tau[b][0];
         d->p[b][6] = d->tau[b][1];
         d->p[b][7] = d->tau[b][2];
+        if (method == GS_EXACT && !gs_torque_free(GS_FLAGS, d->p[b])) {
+            gs_log_error(m, "integrator 'exact' solves a torque-free body only, and %s%s%s has mass*g*cm_distance = "
+                         "%s N*m, damping = %s N*m*s/rad, torque = (%s, %s, %s) N*m; set them to 0 or choose another "
+                         "integrator ('adaptive', 'dop853', 'rk4', 'splitting')", GS_N_BODIES > 1 ? "body '" : "the body",
+                         where(b), GS_N_BODIES > 1 ? "'" : "", num(d->p[b][3]).s, num(d->p[b][4]).s,
+                         num(d->tau[b][0]).s, num(d->tau[b][1]).s, num(d->tau[b][2]).s);
+            return GS_ERROR;
+        }
     }
 #if GS_N_BODIES > 1
     if (!m->scratch) m->scratch = (GsData *)malloc(sizeof(GsData));
@@ -527,7 +531,8 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
 #endif
         char detail[200], advice[200];
         if (method == GS_ADAPTIVE || method == GS_DOP853) {
-            snprintf(detail, sizeof(detail), "the adaptive step size fell below its minimum at internal step %d", k);
+            snprintf(detail, sizeof(detail), "the adaptive step size fell below its minimum, or the step needed more "
+                     "than %d internal steps, at internal step %d", GS_MAX_WORK, k);
             snprintf(advice, sizeof(advice), "loosen the tolerance or check the parameters (the solution may "
                      "truly blow up)");
         } else if (method == GS_EXACT) {
