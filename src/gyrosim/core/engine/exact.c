@@ -545,8 +545,26 @@ static int fast_setup_n(double *c, int N, double mc, double K, double n, double 
     return 1;
 }
 
-/* The four series at x = u_r / K in [-1, 1], one Clenshaw recurrence each in y = 2 x^2 - 1 (odd series: sum
- * a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1, W_1 = 2y - 1, W_{i+1} = 2y W_i - W_{i-1}). */
+#if defined(__GNUC__)
+#define GS_TF_INLINE inline __attribute__((always_inline))
+#else
+#define GS_TF_INLINE inline
+#endif
+
+/* The last step of the four Clenshaw sums at x (y2 = 2 (2 x^2 - 1)) from the recurrences' b1, b2 of each series:
+ * odd series sum a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1, W_1 = 2y - 1; even ones sum a_i T_i(y). */
+static GS_TF_INLINE void fast_sums(const double *c, double x, double y2, double s1, double s2, double c1, double c2,
+                             double d1, double d2, double p1, double p2, double *sn, double *cn, double *dn, double *p)
+{
+    const double y = 0.5 * y2;
+    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
+    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
+    *cn = c[C_FC] + c1 * y - c2;
+    *dn = c[C_FD] + d1 * y - d2;
+}
+
+/* The four series at x = u_r / K in [-1, 1], one Clenshaw recurrence each in y = 2 x^2 - 1 (W_{i+1} = 2y W_i -
+ * W_{i-1} for the odd ones). */
 static void fast_series(const double *c, double x, double *sn, double *cn, double *dn, double *p)
 {
     const int nf = (int)c[C_NF];
@@ -566,11 +584,7 @@ static void fast_series(const double *c, double x, double *sn, double *cn, doubl
         p2 = p1;
         p1 = p0;
     }
-    const double y = 0.5 * y2;
-    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
-    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
-    *cn = c[C_FC] + c1 * y - c2;
-    *dn = c[C_FD] + d1 * y - d2;
+    fast_sums(c, x, y2, s1, s2, c1, c2, d1, d2, p1, p2, sn, cn, dn, p);
 }
 
 /* Set up the fast evaluation (after every other constant): 40 nodes, else 64, else none. ps0 = psi at t = 0
@@ -600,23 +614,26 @@ static void fast_setup(double *c, double u0, double ps0)
     if (!isfinite(c[C_OFF])) c[C_NF] = 0.0;
 }
 
-/* gs_tf_eval with the fast series (C_NF > 0) */
-static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
+/* The fast evaluation in three pieces, shared by fast_eval (one time) and fast_eval_lanes (GS_TF_LANES times, the
+ * series recurrence across the lanes), so that both give the same bits: fast_reduce (the reduced argument),
+ * fast_angles (omega, and the half angles of theta, psi and phi + psi before the sincos), fast_quat (the attitude). */
+
+/* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
+static GS_TF_INLINE void fast_reduce(const double *c, double t, double *u, double *j, double *x, double *y2, double *sg)
 {
-    const double K = c[C_K], rk = c[C_RK];
-    const double u = c[C_LAM] * t + c[C_U0];
-    const double j = floor(0.5 * rk * u + 0.5);
-    const double u_r = u - j * (2.0 * K);
-    const double x = fmin(fmax(u_r * rk, -1.0), 1.0);
-    double sn_r, cn_r, dn, p;
-    fast_series(c, x, &sn_r, &cn_r, &dn, &p);
-    if (c[C_MC] == 1.0) {   /* circular (a symmetric body): libm's own reduction of u is exact, 2K = pi is not */
-        const double s = sin(u), cc = cos(u);
-        sn_r = odd(j) ? -s : s;
-        cn_r = odd(j) ? -cc : cc;
-        dn = 1.0;
-    }
-    const double sg = 1.0 - 2.0 * (j - 2.0 * floor(0.5 * j));   /* (-1)^j */
+    *u = c[C_LAM] * t + c[C_U0];
+    *j = floor(0.5 * c[C_RK] * *u + 0.5);
+    const double u_r = *u - *j * (2.0 * c[C_K]);
+    *x = fmin(fmax(u_r * c[C_RK], -1.0), 1.0);
+    *y2 = 2.0 * (2.0 * *x * *x - 1.0);
+    *sg = 1.0 - 2.0 * (*j - 2.0 * floor(0.5 * *j));
+}
+
+/* omega into w_out; the half angles of theta (ch, shh), cos and sin of psi, and (phi + psi) / 2 */
+static GS_TF_INLINE void fast_angles(const double *c, double t, double j, double sg, double sn_r, double cn_r, double dn,
+                               double p, double w_out[3], double *sp, double *ch, double *shh, double *cpsi,
+                               double *spsi)
+{
     const double sn = sg * sn_r, cn = sg * cn_r;
     w_out[(int)c[C_IO]] = c[C_AO] * cn;
     w_out[(int)c[C_IB]] = c[C_AB] * sn;
@@ -625,13 +642,12 @@ static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], dou
     const double lo = c[C_LO] * cn, lb = c[C_LB] * sn, lp = c[C_LP] * dn;
     const double ro2 = lo * lo + lb * lb, il = 1.0 / sqrt(ro2 + lp * lp);
     const double ct = lp * il, st = sqrt(ro2) * il;
-    double ch, shh;
     if (ct >= 0.0) {
-        ch = sqrt(0.5 * (1.0 + ct));
-        shh = 0.5 * st / ch;
+        *ch = sqrt(0.5 * (1.0 + ct));
+        *shh = 0.5 * st / *ch;
     } else {
-        shh = sqrt(0.5 * (1.0 - ct));
-        ch = 0.5 * st / shh;
+        *shh = sqrt(0.5 * (1.0 - ct));
+        *ch = 0.5 * st / *shh;
     }
     /* psi = s2 h, h = sigma (j pi + am_r + A) (+ pi when sigma < 0): cos and sin from sn_r, cn_r */
     const double kappa = c[C_KAPPA];
@@ -639,22 +655,43 @@ static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], dou
     const double ir = 1.0 / sqrt(X * X + Y * Y);
     const double ca = X * ir, sa = Y * ir;
     const double cg = sg * (cn_r * ca - sn_r * sa), sgn_ = sg * (sn_r * ca + cn_r * sa);   /* cos, sin (j pi + H) */
-    const double cpsi = (c[C_SIG] < 0.0 ? -1.0 : 1.0) * cg, spsi = c[C_S2] * sgn_;   /* sigma < 0: h = pi - (j pi + H) */
-    /* phi + psi, then the ZYZ quaternion (c cos sp, -s sin dm, s cos dm, c sin sp) with dm = sp - psi */
-    const double sp = 0.5 * (c[C_LN] * t / c[C_MO] + j * c[C_JSTEP] + p + c[C_OFF]);
-    const double csp = cos(sp), ssp = sin(sp);
+    *cpsi = (c[C_SIG] < 0.0 ? -1.0 : 1.0) * cg;   /* sigma < 0: h = pi - (j pi + H) */
+    *spsi = c[C_S2] * sgn_;
+    *sp = 0.5 * (c[C_LN] * t / c[C_MO] + j * c[C_JSTEP] + p + c[C_OFF]);
+}
+
+/* q = q_L * zyz(phi, theta, psi) * conj(q_F), the ZYZ quaternion (ch cos sp, -shh sin dm, shh cos dm, ch sin sp)
+ * with dm = sp - psi */
+static GS_TF_INLINE void fast_quat(const double *c, double csp, double ssp, double ch, double shh, double cpsi,
+                             double spsi, double q_out[4])
+{
     const double cdm = csp * cpsi + ssp * spsi, sdm = ssp * cpsi - csp * spsi;
-    const double e0 = ch * csp, e1 = -shh * sdm, e2 = shh * cdm, e3 = ch * ssp;
     double a[4];
-    qmul(c[C_QL], c[C_QL + 1], c[C_QL + 2], c[C_QL + 3], e0, e1, e2, e3, a);
+    qmul(c[C_QL], c[C_QL + 1], c[C_QL + 2], c[C_QL + 3], ch * csp, -shh * sdm, shh * cdm, ch * ssp, a);
     qmul(a[0], a[1], a[2], a[3], c[C_QF], -c[C_QF + 1], -c[C_QF + 2], -c[C_QF + 3], q_out);
 }
 
-/* fast_eval on GS_TF_LANES times at once (the exact integrator's output grid): lane l does exactly the operations
- * of fast_eval at t[l], in the same order, so the bits are fast_eval's; the loops over lanes are what the compiler
- * vectorises (no FMA), the sincos stays a call per lane. */
+/* gs_tf_eval with the fast series (C_NF > 0) */
+static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
+{
+    double u, j, x, y2, sg, sn_r, cn_r, dn, p;
+    fast_reduce(c, t, &u, &j, &x, &y2, &sg);
+    fast_series(c, x, &sn_r, &cn_r, &dn, &p);
+    if (c[C_MC] == 1.0) {   /* circular (a symmetric body): libm's own reduction of u is exact, 2K = pi is not */
+        const double s = sin(u), cc = cos(u);
+        sn_r = sg * s;
+        cn_r = sg * cc;
+        dn = 1.0;
+    }
+    double sp, ch, shh, cpsi, spsi;
+    fast_angles(c, t, j, sg, sn_r, cn_r, dn, p, w_out, &sp, &ch, &shh, &cpsi, &spsi);
+    fast_quat(c, cos(sp), sin(sp), ch, shh, cpsi, spsi, q_out);
+}
+
+/* fast_eval on GS_TF_LANES times at once (the exact integrator's output grid): the pieces above per lane, the
+ * series recurrence across the lanes (what the compiler vectorises; no FMA), so the bits are fast_eval's. */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && !defined(GS_NO_CLONES)
-#define GS_TF_CLONES __attribute__((target_clones("avx2", "default"), optimize("no-trapping-math")))
+#define GS_TF_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define GS_TF_CLONES
 #endif
@@ -663,18 +700,9 @@ enum { L = GS_TF_LANES };
 GS_TF_CLONES static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[L], double w_out[L][3],
                                          double q_out[L][4])
 {
-    const double K = c[C_K], rk = c[C_RK], lam = c[C_LAM], u0c = c[C_U0];
     const int nf = (int)c[C_NF];
-    double u[L], j[L], x[L], y2[L], sg[L];
-    for (int l = 0; l < L; l++) {
-        u[l] = lam * t[l] + u0c;
-        j[l] = floor(0.5 * rk * u[l] + 0.5);
-        const double u_r = u[l] - j[l] * (2.0 * K);
-        const double xl = fmin(fmax(u_r * rk, -1.0), 1.0);
-        x[l] = xl;
-        y2[l] = 2.0 * (2.0 * xl * xl - 1.0);
-        sg[l] = 1.0 - 2.0 * (j[l] - 2.0 * floor(0.5 * j[l]));   /* (-1)^j */
-    }
+    double u, j[L], x[L], y2[L], sg[L];
+    for (int l = 0; l < L; l++) fast_reduce(c, t[l], &u, &j[l], &x[l], &y2[l], &sg[l]);
     double s1[L], s2[L], c1[L], c2[L], d1[L], d2[L], p1[L], p2[L];
     for (int l = 0; l < L; l++) s1[l] = s2[l] = c1[l] = c2[l] = d1[l] = d2[l] = p1[l] = p2[l] = 0.0;
     for (int i = nf - 1; i >= 1; i--) {
@@ -694,58 +722,13 @@ GS_TF_CLONES static void fast_eval_lanes(const double c[GS_TF_SIZE], const doubl
             p1[l] = p0;
         }
     }
-    const double kappa = c[C_KAPPA], LO = c[C_LO], LB = c[C_LB], LP = c[C_LP], AO = c[C_AO], AB = c[C_AB],
-                 AP = c[C_AP], S2 = c[C_S2], rate = c[C_LN], MO = c[C_MO], JS = c[C_JSTEP], OFF = c[C_OFF];
-    const double flip = c[C_SIG] < 0.0 ? -1.0 : 1.0;
-    double sp[L], ch[L], shh[L], cpsi[L], spsi[L], wo[L], wb[L], wp[L];
+    double sp[L], ch[L], shh[L], cpsi[L], spsi[L];
     for (int l = 0; l < L; l++) {
-        const double yy = 0.5 * y2[l];
-        const double sn_r = x[l] * (c[C_FS] + s1[l] * (y2[l] - 1.0) - s2[l]);
-        const double p = x[l] * (c[C_FP] + p1[l] * (y2[l] - 1.0) - p2[l]);
-        const double cn_r = c[C_FC] + c1[l] * yy - c2[l];
-        const double dn = c[C_FD] + d1[l] * yy - d2[l];
-        const double sn = sg[l] * sn_r, cn = sg[l] * cn_r;
-        wo[l] = AO * cn;
-        wb[l] = AB * sn;
-        wp[l] = AP * dn;
-        const double lo = LO * cn, lb = LB * sn, lp = LP * dn;
-        const double ro2 = lo * lo + lb * lb, il = 1.0 / sqrt(ro2 + lp * lp);
-        const double ct = lp * il, st = sqrt(ro2) * il;
-        const double a1 = sqrt(0.5 * (1.0 + ct)), b1 = 0.5 * st / a1;
-        const double a2 = sqrt(0.5 * (1.0 - ct)), b2 = 0.5 * st / a2;
-        ch[l] = ct >= 0.0 ? a1 : b2;
-        shh[l] = ct >= 0.0 ? b1 : a2;
-        const double X = kappa * cn_r * cn_r + sn_r * sn_r, Y = (1.0 - kappa) * sn_r * cn_r;
-        const double ir = 1.0 / sqrt(X * X + Y * Y);
-        const double ca = X * ir, sa = Y * ir;
-        const double cg = sg[l] * (cn_r * ca - sn_r * sa), sgn_ = sg[l] * (sn_r * ca + cn_r * sa);
-        cpsi[l] = flip * cg;
-        spsi[l] = S2 * sgn_;
-        sp[l] = 0.5 * (rate * t[l] / MO + j[l] * JS + p + OFF);
+        double sn_r, cn_r, dn, p;
+        fast_sums(c, x[l], y2[l], s1[l], s2[l], c1[l], c2[l], d1[l], d2[l], p1[l], p2[l], &sn_r, &cn_r, &dn, &p);
+        fast_angles(c, t[l], j[l], sg[l], sn_r, cn_r, dn, p, w_out[l], &sp[l], &ch[l], &shh[l], &cpsi[l], &spsi[l]);
     }
-    double csp[L], ssp[L];
-    for (int l = 0; l < L; l++) {
-        csp[l] = cos(sp[l]);
-        ssp[l] = sin(sp[l]);
-    }
-    const double ql0 = c[C_QL], ql1 = c[C_QL + 1], ql2 = c[C_QL + 2], ql3 = c[C_QL + 3];
-    const double f0 = c[C_QF], f1 = -c[C_QF + 1], f2 = -c[C_QF + 2], f3 = -c[C_QF + 3];
-    const int io = (int)c[C_IO], ib = (int)c[C_IB], ip = (int)c[C_IP];
-    for (int l = 0; l < L; l++) {
-        const double cdm = csp[l] * cpsi[l] + ssp[l] * spsi[l], sdm = ssp[l] * cpsi[l] - csp[l] * spsi[l];
-        const double e0 = ch[l] * csp[l], e1 = -shh[l] * sdm, e2 = shh[l] * cdm, e3 = ch[l] * ssp[l];
-        const double a0 = ql0 * e0 - ql1 * e1 - ql2 * e2 - ql3 * e3;
-        const double a1 = ql0 * e1 + ql1 * e0 + ql2 * e3 - ql3 * e2;
-        const double a2 = ql0 * e2 - ql1 * e3 + ql2 * e0 + ql3 * e1;
-        const double a3 = ql0 * e3 + ql1 * e2 - ql2 * e1 + ql3 * e0;
-        q_out[l][0] = a0 * f0 - a1 * f1 - a2 * f2 - a3 * f3;
-        q_out[l][1] = a0 * f1 + a1 * f0 + a2 * f3 - a3 * f2;
-        q_out[l][2] = a0 * f2 - a1 * f3 + a2 * f0 + a3 * f1;
-        q_out[l][3] = a0 * f3 + a1 * f2 - a2 * f1 + a3 * f0;
-        w_out[l][io] = wo[l];
-        w_out[l][ib] = wb[l];
-        w_out[l][ip] = wp[l];
-    }
+    for (int l = 0; l < L; l++) fast_quat(c, cos(sp[l]), sin(sp[l]), ch[l], shh[l], cpsi[l], spsi[l], q_out[l]);
 }
 
 int gs_tf_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
