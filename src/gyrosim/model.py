@@ -209,7 +209,7 @@ class Model:
         self.variables, self._slots, arrays = _layout(self.scene)
         n = len(self.scene.bodies)
         self.body_names = self.scene.body_names
-        self._index = {name: i for i, name in enumerate(self.body_names)} if n > 1 else {self.body_names[0]: 0}
+        self._index = {name: i for i, name in enumerate(self.body_names)}
         self.n_bodies = n
         for k, a in arrays.items():  # _moments, _mass, _cm, _g, _damping, _tau, _y, _hint, _stats, _ex, ...
             setattr(self, k, a.copy())
@@ -394,9 +394,11 @@ class Model:
 
     def _torque(self) -> str | None:
         """What exerts a torque on a body now (for 'exact', which solves the torque-free body), or None."""
-        p = self._p
-        for col, what, unit in ((3, "mass*g*cm_distance", "N*m"), (4, "damping", "N*m*s/rad"),
-                                (5, "tau_x", "N*m"), (6, "tau_y", "N*m"), (7, "tau_z", "N*m")):
+        p, sc = self._p, self.scene
+        terms = (((3, "mass*g*cm_distance", "N*m"),) if sc.gravity else ()) + \
+            (((4, "damping", "N*m*s/rad"),) if sc.damping else ()) + \
+            (((5, "tau_x", "N*m"), (6, "tau_y", "N*m"), (7, "tau_z", "N*m")) if sc.torque else ())
+        for col, what, unit in terms:  # the terms the engine carries (gs_torque_free)
             nz = np.flatnonzero(p[:, col] != 0.0)
             if nz.size:
                 b = int(nz[0])

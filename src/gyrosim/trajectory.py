@@ -21,9 +21,13 @@ __all__ = ["simulate", "field_names", "output_intervals"]
 
 def field_names(model: Model) -> list[str]:
     """The output names of ``model``: ``<body>.<name>`` in multi-body scenes, the bare names otherwise."""
-    if model.n_bodies == 1:
+    return _names(model.body_names)
+
+
+def _names(body_names: list) -> list[str]:
+    if len(body_names) == 1:
         return list(OUTPUT_NAMES)
-    return [f"{b}.{o}" for b in model.body_names for o in OUTPUT_NAMES]
+    return [f"{b}.{o}" for b in body_names for o in OUTPUT_NAMES]
 
 
 def output_intervals(span: float, dt: float, end: float) -> int:
@@ -111,8 +115,7 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     if max_step is not None:
         model.set("max_step", max_step)
     n = output_intervals(stop - t0, dt, stop)
-    picked, columns, dtype, angles, momentum = _selection(sc, model.n_bodies, model.body_names,
-                                                          None if output is None else tuple(output))
+    picked, columns, dtype, angles, momentum = _selection(sc, None if output is None else tuple(output))
 
     def pack(block: np.ndarray) -> np.ndarray:
         res = np.empty((block.shape[0], 1 + len(columns)))
@@ -130,14 +133,14 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
 _SELECTIONS: dict = {}
 
 
-def _selection(sc, n_bodies: int, body_names: list, output: tuple | None):
+def _selection(sc, output: tuple | None):
     """The picked output names, their columns in the engine's rows, the result dtype and whether angles and
     momentum are needed; cached per scene and selection."""
     key = (id(sc), output)
     hit = _SELECTIONS.get(key)
     if hit is not None and hit[0] is sc:
         return hit[1]
-    names = list(OUTPUT_NAMES) if n_bodies == 1 else [f"{b}.{o}" for b in body_names for o in OUTPUT_NAMES]
+    names = _names(sc.body_names)
     if output is None:
         picked = names
     else:

@@ -1067,7 +1067,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                     double tl[GS_TF_LANES];
                     for (int l = 0; l < GS_TF_LANES; l++) {
                         const int64_t kl = k + l < n_out ? k + l : n_out - 1;
-                        tl[l] = (t0 + (double)(k0 + kl) * dt - eb[GS_EX_T0]) + dt * 1.0 / 1.0;
+                        tl[l] = (t0 + (double)(k0 + kl) * dt - eb[GS_EX_T0]) + dt;   /* tau0 + H*k/m, k = m = 1 */
                     }
                     lanes_from = k;
                     lanes_n = gs_tf_eval_lanes(eb, tl, lw, lq) ? GS_TF_LANES : 0;
