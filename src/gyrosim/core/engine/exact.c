@@ -12,6 +12,7 @@
 #include "gyrosim_engine.h"
 
 #include <math.h>
+#include <string.h>
 
 /* math.pi and 0.5 * math.pi */
 static const double GS_PI = 3.14159265358979323846;
@@ -551,24 +552,134 @@ static int fast_setup_n(double *c, int N, double mc, double K, double n, double 
 #define GS_TF_INLINE inline
 #endif
 
-/* The last step of the four Clenshaw sums at x (y2 = 2 (2 x^2 - 1)) from the recurrences' b1, b2 of each series:
- * odd series sum a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1, W_1 = 2y - 1; even ones sum a_i T_i(y). */
-static GS_TF_INLINE void fast_sums(const double *c, double x, double y2, double s1, double s2, double c1, double c2,
-                             double d1, double d2, double p1, double p2, double *sn, double *cn, double *dn, double *p)
+/* The fast evaluation is written once, on vectors of GS_VW times (GCC's and Clang's vector extensions): the
+ * exact integrator's output grid fills every lane, one time (gs_tf_eval) fills lane 0 and copies it. Every
+ * operation is an IEEE add, multiply, divide, square root or floor, element by element, with no contraction
+ * (-ffp-contract=off): a lane gives the same bits whichever lanes are beside it and whatever instruction set the
+ * compiler picks (SSE2 pairs or AVX2). */
+#define GS_VW 4
+typedef double vd __attribute__((vector_size(GS_VW * sizeof(double))));
+typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
+
+/* (macros, not functions: a vector passed by value would make GCC note an ABI change) */
+#define VSPLAT(a) ((vd){(a), (a), (a), (a)})
+/* a where m, else b (m from a vector comparison: all bits set or none) */
+#define VSEL(m, a, b) ((vd)(((vm)(a) & (m)) | ((vm)(b) & ~(m))))
+/* f element by element */
+#define VMAP(f, a)                                                  \
+    __extension__({                                                 \
+        const vd a_ = (a);                                          \
+        vd r_;                                                      \
+        for (int i_ = 0; i_ < GS_VW; i_++) r_[i_] = f(a_[i_]);      \
+        r_;                                                         \
+    })
+
+/* The flow at the GS_VW times tp (relative to the anchor) with the fast series (C_NF > 0); circular (mc == 1, a
+ * symmetric body) takes sn, cn from libm's sin and cos of u, whose own reduction of u is exact (2K = pi is not). */
+static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circular, double w_out[][3],
+                                  double q_out[][4])
 {
-    const double y = 0.5 * y2;
-    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
-    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
-    *cn = c[C_FC] + c1 * y - c2;
-    *dn = c[C_FD] + d1 * y - d2;
+    vd t;
+    memcpy(&t, tp, sizeof(t));
+    /* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
+    const vd u = VSPLAT(c[C_LAM]) * t + c[C_U0];
+    const vd j = VMAP(floor, 0.5 * c[C_RK] * u + 0.5);
+    const vd u_r = u - j * (2.0 * c[C_K]);
+    vd x = u_r * c[C_RK];
+    x = VSEL(x < -1.0, VSPLAT(-1.0), VSEL(x > 1.0, VSPLAT(1.0), x));
+    const vd y2 = 2.0 * (2.0 * x * x - 1.0);
+    const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
+
+    /* The four series at x, one Clenshaw recurrence each in y = 2 x^2 - 1 (W_{i+1} = 2y W_i - W_{i-1} for the odd
+     * ones): odd series sum a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1, W_1 = 2y - 1; even ones sum a_i T_i(y). */
+    const int nf = (int)c[C_NF];
+    vd s1 = VSPLAT(0.0), s2 = s1, c1 = s1, c2 = s1, d1 = s1, d2 = s1, p1 = s1, p2 = s1;
+    for (int i = nf - 1; i >= 1; i--) {
+        const vd s0 = y2 * s1 - s2 + c[C_FS + i];
+        const vd c0 = y2 * c1 - c2 + c[C_FC + i];
+        const vd d0 = y2 * d1 - d2 + c[C_FD + i];
+        const vd p0 = y2 * p1 - p2 + c[C_FP + i];
+        s2 = s1;
+        s1 = s0;
+        c2 = c1;
+        c1 = c0;
+        d2 = d1;
+        d1 = d0;
+        p2 = p1;
+        p1 = p0;
+    }
+    const vd y = 0.5 * y2;
+    vd sn_r = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
+    const vd p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
+    vd cn_r = c[C_FC] + c1 * y - c2;
+    vd dn = c[C_FD] + d1 * y - d2;
+    if (circular) {
+        for (int i = 0; i < GS_VW; i++) {
+            sn_r[i] = sg[i] * sin(u[i]);
+            cn_r[i] = sg[i] * cos(u[i]);
+        }
+        dn = VSPLAT(1.0);
+    }
+
+    /* omega */
+    const vd sn = sg * sn_r, cn = sg * cn_r;
+    const vd wo = c[C_AO] * cn, wb = c[C_AB] * sn, wp = c[C_AP] * dn;
+    const int io = (int)c[C_IO], ib = (int)c[C_IB], ip = (int)c[C_IP];
+    for (int i = 0; i < GS_VW; i++) {
+        w_out[i][io] = wo[i];
+        w_out[i][ib] = wb[i];
+        w_out[i][ip] = wp[i];
+    }
+    /* direction of L in the frame (o, b, p): theta from cos = lp, sin = |(lo, lb)|, its half angles without trig */
+    const vd lo = c[C_LO] * cn, lb = c[C_LB] * sn, lp = c[C_LP] * dn;
+    const vd ro2 = lo * lo + lb * lb, il = 1.0 / VMAP(sqrt, ro2 + lp * lp);
+    const vd ct = lp * il, st = VMAP(sqrt, ro2) * il;
+    const vm pos = ct >= 0.0;
+    const vd big = VMAP(sqrt, 0.5 * (1.0 + VSEL(pos, ct, -ct)));   /* the larger of cos and sin of theta / 2 */
+    const vd small = 0.5 * st / big;
+    const vd ch = VSEL(pos, big, small), shh = VSEL(pos, small, big);
+    /* psi = s2 h, h = sigma (j pi + am_r + A) (+ pi when sigma < 0): cos and sin from sn_r, cn_r */
+    const double kappa = c[C_KAPPA];
+    const vd X = kappa * cn_r * cn_r + sn_r * sn_r, Y = (1.0 - kappa) * sn_r * cn_r;
+    const vd ir = 1.0 / VMAP(sqrt, X * X + Y * Y);
+    const vd ca = X * ir, sa = Y * ir;
+    const vd cg = sg * (cn_r * ca - sn_r * sa), sgn_ = sg * (sn_r * ca + cn_r * sa);   /* cos, sin (j pi + H) */
+    const vd cpsi = (c[C_SIG] < 0.0 ? -1.0 : 1.0) * cg;   /* sigma < 0: h = pi - (j pi + H) */
+    const vd spsi = c[C_S2] * sgn_;
+    /* (phi + psi) / 2 */
+    const vd sp = 0.5 * (c[C_LN] * t / c[C_MO] + j * c[C_JSTEP] + p + c[C_OFF]);
+    vd csp, ssp;
+    for (int i = 0; i < GS_VW; i++) {
+        csp[i] = cos(sp[i]);
+        ssp[i] = sin(sp[i]);
+    }
+    /* q = q_L * zyz(phi, theta, psi) * conj(q_F), the ZYZ quaternion (ch cos sp, -shh sin dm, shh cos dm,
+     * ch sin sp) with dm = sp - psi */
+    const vd cdm = csp * cpsi + ssp * spsi, sdm = ssp * cpsi - csp * spsi;
+    const vd b0 = ch * csp, b1 = -shh * sdm, b2 = shh * cdm, b3 = ch * ssp;
+    const double a0 = c[C_QL], a1 = c[C_QL + 1], a2 = c[C_QL + 2], a3 = c[C_QL + 3];
+    const vd r0 = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3;
+    const vd r1 = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2;
+    const vd r2 = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1;
+    const vd r3 = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0;
+    const double f0 = c[C_QF], f1 = -c[C_QF + 1], f2 = -c[C_QF + 2], f3 = -c[C_QF + 3];
+    const vd q0 = r0 * f0 - r1 * f1 - r2 * f2 - r3 * f3;
+    const vd q1 = r0 * f1 + r1 * f0 + r2 * f3 - r3 * f2;
+    const vd q2 = r0 * f2 - r1 * f3 + r2 * f0 + r3 * f1;
+    const vd q3 = r0 * f3 + r1 * f2 - r2 * f1 + r3 * f0;
+    for (int i = 0; i < GS_VW; i++) {
+        q_out[i][0] = q0[i];
+        q_out[i][1] = q1[i];
+        q_out[i][2] = q2[i];
+        q_out[i][3] = q3[i];
+    }
 }
 
-/* The four series at x = u_r / K in [-1, 1], one Clenshaw recurrence each in y = 2 x^2 - 1 (W_{i+1} = 2y W_i -
- * W_{i-1} for the odd ones). */
+/* The four series at one x (the set-up's anchor): lane 0 of the recurrence above */
 static void fast_series(const double *c, double x, double *sn, double *cn, double *dn, double *p)
 {
     const int nf = (int)c[C_NF];
-    const double y2 = 2.0 * (2.0 * x * x - 1.0);
+    const double y2 = 2.0 * (2.0 * x * x - 1.0), y = 0.5 * y2;
     double s1 = 0.0, s2 = 0.0, c1 = 0.0, c2 = 0.0, d1 = 0.0, d2 = 0.0, p1 = 0.0, p2 = 0.0;
     for (int i = nf - 1; i >= 1; i--) {
         const double s0 = y2 * s1 - s2 + c[C_FS + i];
@@ -584,7 +695,10 @@ static void fast_series(const double *c, double x, double *sn, double *cn, doubl
         p2 = p1;
         p1 = p0;
     }
-    fast_sums(c, x, y2, s1, s2, c1, c2, d1, d2, p1, p2, sn, cn, dn, p);
+    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
+    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
+    *cn = c[C_FC] + c1 * y - c2;
+    *dn = c[C_FD] + d1 * y - d2;
 }
 
 /* Set up the fast evaluation (after every other constant): 40 nodes, else 64, else none. ps0 = psi at t = 0
@@ -614,127 +728,35 @@ static void fast_setup(double *c, double u0, double ps0)
     if (!isfinite(c[C_OFF])) c[C_NF] = 0.0;
 }
 
-/* The fast evaluation in three pieces, shared by fast_eval (one time) and fast_eval_lanes (GS_TF_LANES times, the
- * series recurrence across the lanes), so that both give the same bits: fast_reduce (the reduced argument),
- * fast_angles (omega, and the half angles of theta, psi and phi + psi before the sincos), fast_quat (the attitude). */
-
-/* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
-static GS_TF_INLINE void fast_reduce(const double *c, double t, double *u, double *j, double *x, double *y2, double *sg)
-{
-    *u = c[C_LAM] * t + c[C_U0];
-    *j = floor(0.5 * c[C_RK] * *u + 0.5);
-    const double u_r = *u - *j * (2.0 * c[C_K]);
-    *x = fmin(fmax(u_r * c[C_RK], -1.0), 1.0);
-    *y2 = 2.0 * (2.0 * *x * *x - 1.0);
-    *sg = 1.0 - 2.0 * (*j - 2.0 * floor(0.5 * *j));
-}
-
-/* omega into w_out; the half angles of theta (ch, shh), cos and sin of psi, and (phi + psi) / 2 */
-static GS_TF_INLINE void fast_angles(const double *c, double t, double j, double sg, double sn_r, double cn_r, double dn,
-                               double p, double w_out[3], double *sp, double *ch, double *shh, double *cpsi,
-                               double *spsi)
-{
-    const double sn = sg * sn_r, cn = sg * cn_r;
-    w_out[(int)c[C_IO]] = c[C_AO] * cn;
-    w_out[(int)c[C_IB]] = c[C_AB] * sn;
-    w_out[(int)c[C_IP]] = c[C_AP] * dn;
-    /* direction of L in the frame (o, b, p): theta from cos = lp, sin = |(lo, lb)| (half angles without trig) */
-    const double lo = c[C_LO] * cn, lb = c[C_LB] * sn, lp = c[C_LP] * dn;
-    const double ro2 = lo * lo + lb * lb, il = 1.0 / sqrt(ro2 + lp * lp);
-    const double ct = lp * il, st = sqrt(ro2) * il;
-    if (ct >= 0.0) {
-        *ch = sqrt(0.5 * (1.0 + ct));
-        *shh = 0.5 * st / *ch;
-    } else {
-        *shh = sqrt(0.5 * (1.0 - ct));
-        *ch = 0.5 * st / *shh;
-    }
-    /* psi = s2 h, h = sigma (j pi + am_r + A) (+ pi when sigma < 0): cos and sin from sn_r, cn_r */
-    const double kappa = c[C_KAPPA];
-    const double X = kappa * cn_r * cn_r + sn_r * sn_r, Y = (1.0 - kappa) * sn_r * cn_r;
-    const double ir = 1.0 / sqrt(X * X + Y * Y);
-    const double ca = X * ir, sa = Y * ir;
-    const double cg = sg * (cn_r * ca - sn_r * sa), sgn_ = sg * (sn_r * ca + cn_r * sa);   /* cos, sin (j pi + H) */
-    *cpsi = (c[C_SIG] < 0.0 ? -1.0 : 1.0) * cg;   /* sigma < 0: h = pi - (j pi + H) */
-    *spsi = c[C_S2] * sgn_;
-    *sp = 0.5 * (c[C_LN] * t / c[C_MO] + j * c[C_JSTEP] + p + c[C_OFF]);
-}
-
-/* q = q_L * zyz(phi, theta, psi) * conj(q_F), the ZYZ quaternion (ch cos sp, -shh sin dm, shh cos dm, ch sin sp)
- * with dm = sp - psi */
-static GS_TF_INLINE void fast_quat(const double *c, double csp, double ssp, double ch, double shh, double cpsi,
-                             double spsi, double q_out[4])
-{
-    const double cdm = csp * cpsi + ssp * spsi, sdm = ssp * cpsi - csp * spsi;
-    double a[4];
-    qmul(c[C_QL], c[C_QL + 1], c[C_QL + 2], c[C_QL + 3], ch * csp, -shh * sdm, shh * cdm, ch * ssp, a);
-    qmul(a[0], a[1], a[2], a[3], c[C_QF], -c[C_QF + 1], -c[C_QF + 2], -c[C_QF + 3], q_out);
-}
-
-/* gs_tf_eval with the fast series (C_NF > 0) */
+/* gs_tf_eval with the fast series (C_NF > 0): lane 0 of fast_vec */
 static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
 {
-    double u, j, x, y2, sg, sn_r, cn_r, dn, p;
-    fast_reduce(c, t, &u, &j, &x, &y2, &sg);
-    fast_series(c, x, &sn_r, &cn_r, &dn, &p);
-    if (c[C_MC] == 1.0) {   /* circular (a symmetric body): libm's own reduction of u is exact, 2K = pi is not */
-        const double s = sin(u), cc = cos(u);
-        sn_r = sg * s;
-        cn_r = sg * cc;
-        dn = 1.0;
-    }
-    double sp, ch, shh, cpsi, spsi;
-    fast_angles(c, t, j, sg, sn_r, cn_r, dn, p, w_out, &sp, &ch, &shh, &cpsi, &spsi);
-    fast_quat(c, cos(sp), sin(sp), ch, shh, cpsi, spsi, q_out);
+    double w[GS_VW][3], q[GS_VW][4], tv[GS_VW];
+    for (int i = 0; i < GS_VW; i++) tv[i] = t;
+    fast_vec(c, tv, c[C_MC] == 1.0, w, q);
+    memcpy(w_out, w[0], sizeof(w[0]));
+    memcpy(q_out, q[0], sizeof(q[0]));
 }
 
-/* fast_eval on GS_TF_LANES times at once (the exact integrator's output grid): the pieces above per lane, the
- * series recurrence across the lanes (what the compiler vectorises; no FMA), so the bits are fast_eval's. */
+/* fast_vec over GS_TF_LANES times (the exact integrator's output grid), compiled for AVX2 too where it helps */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && !defined(GS_NO_CLONES)
 #define GS_TF_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define GS_TF_CLONES
 #endif
-enum { L = GS_TF_LANES };
+_Static_assert(GS_TF_LANES % GS_VW == 0, "the lanes are whole vectors");
 
-GS_TF_CLONES static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[L], double w_out[L][3],
-                                         double q_out[L][4])
+GS_TF_CLONES static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
+                                         double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
 {
-    const int nf = (int)c[C_NF];
-    double u, j[L], x[L], y2[L], sg[L];
-    for (int l = 0; l < L; l++) fast_reduce(c, t[l], &u, &j[l], &x[l], &y2[l], &sg[l]);
-    double s1[L], s2[L], c1[L], c2[L], d1[L], d2[L], p1[L], p2[L];
-    for (int l = 0; l < L; l++) s1[l] = s2[l] = c1[l] = c2[l] = d1[l] = d2[l] = p1[l] = p2[l] = 0.0;
-    for (int i = nf - 1; i >= 1; i--) {
-        const double fs = c[C_FS + i], fc = c[C_FC + i], fd = c[C_FD + i], fp = c[C_FP + i];
-        for (int l = 0; l < L; l++) {
-            const double s0 = y2[l] * s1[l] - s2[l] + fs;
-            const double c0 = y2[l] * c1[l] - c2[l] + fc;
-            const double d0 = y2[l] * d1[l] - d2[l] + fd;
-            const double p0 = y2[l] * p1[l] - p2[l] + fp;
-            s2[l] = s1[l];
-            s1[l] = s0;
-            c2[l] = c1[l];
-            c1[l] = c0;
-            d2[l] = d1[l];
-            d1[l] = d0;
-            p2[l] = p1[l];
-            p1[l] = p0;
-        }
-    }
-    double sp[L], ch[L], shh[L], cpsi[L], spsi[L];
-    for (int l = 0; l < L; l++) {
-        double sn_r, cn_r, dn, p;
-        fast_sums(c, x[l], y2[l], s1[l], s2[l], c1[l], c2[l], d1[l], d2[l], p1[l], p2[l], &sn_r, &cn_r, &dn, &p);
-        fast_angles(c, t[l], j[l], sg[l], sn_r, cn_r, dn, p, w_out[l], &sp[l], &ch[l], &shh[l], &cpsi[l], &spsi[l]);
-    }
-    for (int l = 0; l < L; l++) fast_quat(c, cos(sp[l]), sin(sp[l]), ch[l], shh[l], cpsi[l], spsi[l], q_out[l]);
+    const int circular = c[C_MC] == 1.0;
+    for (int l = 0; l < GS_TF_LANES; l += GS_VW) fast_vec(c, t + l, circular, w_out + l, q_out + l);
 }
 
 int gs_tf_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                      double q_out[GS_TF_LANES][4])
 {
-    if (c[C_MODE] != 1.0 || !(c[C_NF] > 0.0) || c[C_MC] == 1.0) return 0;
+    if (c[C_MODE] != 1.0 || !(c[C_NF] > 0.0)) return 0;
     fast_eval_lanes(c, t, w_out, q_out);
     return 1;
 }
