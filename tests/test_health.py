@@ -83,10 +83,10 @@ def test_the_engine_refuses_exact_on_a_body_with_torque():
     y = np.zeros((1, _engine.NY))
     y[0, 0] = 1.0
     y[0, 4:7] = (1.0, 0.1, 0.1)
-    _engine.start_state(y)
     p = np.zeros((1, _engine.NP))
     p[0, 0:3] = (1.0, 2.0, 3.0)
     p[0, 5] = 0.1  # tau_x
+    _engine.start_state(y, p)
     status = np.zeros(1, dtype=np.int32)
     failed = _engine.advance(_engine.METHODS.index("exact"), sc.flags, y, p, 0.0, 0.01, 1e-8, 1e-8, 1e-3,
                              np.zeros(1), np.zeros((1, 3), dtype=np.int64), np.zeros((1, _engine.EX_SIZE)), status, 0)

@@ -18,7 +18,7 @@ def vars_of(scene):
 
 
 def test_scenes_carry_only_their_terms():
-    core = {"I1", "I2", "I3", "integrator", "max_step", *OUTPUT_NAMES}
+    core = {"I1", "I2", "I3", "integrator", "max_step", "max_drift", *OUTPUT_NAMES}
     assert vars_of("free_body") == core
     assert vars_of("heavy_top") == core | {"mass", "cm_distance", "g"}
     assert vars_of("gyroscope") == core | {"mass", "cm_distance", "g", "damping", "tau_x", "tau_y", "tau_z"}
@@ -122,13 +122,17 @@ def test_integration_error_keeps_state_and_advises():
     m.set("omega_x", 1e3)
     m.set("omega_y", 1e2)
     before = m.outputs_array()
-    with pytest.raises(IntegrationError, match=r"smaller max_step .*'splitting'") as e:
+    # the first step of h*|omega| = 1e3 drifts the energy balance beyond max_drift: the message names the step,
+    # the quantity and its drift, the fastest rate, and integrators other than the one that failed
+    with pytest.raises(IntegrationError, match=r"in the step from t = 0.0 s with h = 1.0 s: the energy balance "
+                       r"drifted by .*\|omega\| = 1005 rad/s.*'rk4' with max_step <= 0.000221 s, or 'splitting'") as e:
         for _ in range(200):
             m.step(1.0)
-    assert "internal step 1 of 1" in str(e.value)
+    assert "'euler' with" not in str(e.value)
     t_fail = m.time
     assert np.all(np.isfinite(m.outputs_array()))
     m.set("integrator", "splitting")
+    m.set("max_step", 1e-4)  # the advice: h*|omega| = 0.1
     m.step(1.0)  # still usable
     assert m.time == pytest.approx(t_fail + 1.0)
     assert before.shape == m.outputs_array().shape

@@ -145,14 +145,21 @@ def test_long_run_splitting_keeps_L_and_bounded_energy():
 
 
 def test_long_run_explicit_euler_blows_up_with_an_integration_error():
-    # explicit Euler at h = 0.01 on I = (1, 2, 3) amplifies the gyroscopic term each step and diverges; the
-    # model must raise IntegrationError naming the step, never hand out NaN or inf
+    # explicit Euler at h = 0.01 on I = (1, 2, 3) amplifies the gyroscopic term each step and diverges: with the
+    # health monitor off it overflows (the step named), with it on (the default) the drift of |L| and the energy
+    # beyond max_drift stops it long before; the model never hands out NaN or inf and keeps its state
     m = Model(free_scene(integrator="euler", max_step=0.01))
-    with pytest.raises(IntegrationError, match=r"internal step \d+ of 10000 .*smaller max_step"):
+    m.set("max_drift", 0.0)
+    with pytest.raises(IntegrationError, match=r"non-finite or overflowed.*'rk4' with max_step <= "):
         for _ in range(100):
             m.step(100.0)
             assert np.all(np.isfinite(m.outputs_array()))
     assert np.all(np.isfinite(m.outputs_array()))
+    m = Model(free_scene(integrator="euler", max_step=0.01))
+    with pytest.raises(IntegrationError, match=r"from t = 0.0 s with h = 100.0 s: (\|L\||the energy balance) "
+                       r"drifted by 0.0\d+ of its scale"):
+        m.step(100.0)
+    assert m.time == 0.0 and np.all(np.isfinite(m.outputs_array()))
 
 
 @pytest.mark.parametrize("integrator", ["euler", "rk4"])
@@ -164,10 +171,19 @@ def test_huge_steps_of_explicit_schemes_raise(integrator):
 
 
 def test_huge_steps_of_splitting_stay_finite_and_keep_L():
+    # h*|omega| = 354: the splitting's Poisson maps keep |L| to round-off and every value finite (health monitor
+    # off), but the energy is off by tens of percent: with the monitor on (the default), that is a blow-up whose
+    # message computes a max_step from h*|omega| and the stability map, and names another integrator
     m = Model(free_scene(omega=(50.0, 40.0, 30.0), integrator="splitting", max_step=1e3))
+    m.set("max_drift", 0.0)
     L0 = np.linalg.norm(np.multiply((1.0, 2.0, 3.0), (50.0, 40.0, 30.0)))
     for _ in range(50):
         m.step(5.0)
     o = m.outputs()
     assert np.all(np.isfinite(m.outputs_array()))
     assert abs(np.linalg.norm([o["L_x"], o["L_y"], o["L_z"]]) - L0) < 1e-12 * L0
+    m = Model(free_scene(omega=(50.0, 40.0, 30.0), integrator="splitting", max_step=1e3))
+    with pytest.raises(IntegrationError, match=r"the energy balance drifted by .*\|omega\| = 70.71 rad/s, so "
+                       r"h\*rate = 354 .*beyond splitting's stable h\*rate <= 1.15 .*max_step <= 0.00813 s, or the "
+                       r"integrator 'dop853'"):
+        m.step(5.0)

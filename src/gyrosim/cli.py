@@ -137,7 +137,8 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bench", help="the speed/accuracy study: tables to stdout, plots to a folder")
     b.add_argument("--output", "-o", default="docs/study", help="folder for plots and tables")
     b.add_argument("--quick", action="store_true", help="a short ladder (seconds, for a smoke test)")
-    b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, fmu, service)")
+    b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, "
+                   "startup, peers, fmu, service), merged into the folder's earlier results")
     b.set_defaults(func=cmd_bench)
     for mod in _PLUGINS:
         try:

@@ -48,7 +48,7 @@ class Variable:
 _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 
 OUTPUT_NAMES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "phi", "theta", "psi",
-                "L_x", "L_y", "L_z", "energy")
+                "L_x", "L_y", "L_z", "energy", "energy_error")
 _STATE_NAMES = OUTPUT_NAMES[:7]
 
 
@@ -74,8 +74,12 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
                                                                " (exact: while the body is torque-free)"),
                    scene.integrator),
           Variable("max_step", "parameter", "fixed", "Real", "s",
-                   "largest internal step; fixed-step integrators take ceil(h/max_step) substeps",
-                   float(scene.max_step))]
+                   "largest internal step; fixed-step integrators take h/max_step substeps rounded up (a ratio within "
+                   f"1e-9 of a whole number takes it), at most {_engine.MAX_WORK:,} per step",
+                   float(scene.max_step)),
+          Variable("max_drift", "parameter", "fixed", "Real", "1",
+                   "relative drift of the energy balance and the invariants beyond which a step counts as blown up "
+                   "(0: off)", float(scene.max_drift))]
     for n, v, d in zip(("q_w", "q_x", "q_y", "q_z"), b.q0, ("scalar", "x", "y", "z")):
         V.append(Variable(n, "output", "continuous", "Real", "1",
                           f"attitude quaternion, {d} part (body to world)", float(v)))
@@ -95,7 +99,16 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
                           f"world-frame angular momentum about the reference point, {n[-1]}", None))
     V.append(Variable("energy", "output", "continuous", "Real", "J",
                       "kinetic plus potential energy 0.5*omega.I.omega + mass*g*cm_distance*(R e3).z", None))
+    V.append(Variable("energy_error", "output", "continuous", "Real", "J",
+                      "work-energy balance E(t) - E(0) - W_torque(t) + W_damping(t); 0 for the exact flow", None))
     return {v.name: v for v in V}
+
+
+def _energy_error(y: np.ndarray, p: np.ndarray, flags: int) -> float:
+    """The energy_error output of one body's state y (GS_NY) with parameters p (J)."""
+    out = np.empty((1, len(OUTPUT_NAMES)))
+    _engine.outputs(y.reshape(1, -1), p.reshape(1, -1), out)
+    return float(out[0, -1])
 
 
 def _positive_step(h, what: str) -> float:
@@ -215,6 +228,7 @@ class Model:
             setattr(self, k, a.copy())
         self.integrator = self.scene.integrator
         self.max_step = float(self.scene.max_step)
+        self.max_drift = float(self.scene.max_drift)
         self.tolerance = float(self.scene.tolerance if tolerance is None else tolerance)
         self._check_positive("tolerance", self.tolerance)
         self.start_time = float(start_time)
@@ -297,6 +311,12 @@ class Model:
         elif name == "max_step":
             self._check_positive(name, x)
             self.max_step = x
+        elif name == "max_drift":
+            if x < 0:
+                raise ConfigError(name, value, "a number >= 0 (0: the health monitor off)")
+            self.max_drift = x
+            if self._initialized:
+                self._p[:, 8] = x
         elif name in ("tau_x", "tau_y", "tau_z"):
             k = "xyz".index(name[-1])
             self._tau[i, k] = x
@@ -331,7 +351,7 @@ class Model:
             return float(self._tau[i, k])
         if kind == 3:
             return float(getattr(self, k)[i])
-        return self.integrator if name == "integrator" else self.max_step
+        return self.integrator if name == "integrator" else float(getattr(self, name))
 
     def outputs(self, body=0) -> dict[str, float]:
         """Every output of one body by name."""
@@ -357,6 +377,7 @@ class Model:
         p[:, 3] = self._mass * self._g * self._cm
         p[:, 4] = self._damping
         p[:, 5:8] = self._tau
+        p[:, 8] = self.max_drift
         return p
 
     def initialize(self) -> None:
@@ -381,7 +402,8 @@ class Model:
             self._initialized = True
             self._p = self._params()
         if self._state_dirty:
-            b = _engine.start_state(self._y)  # q /= |q|; phi, psi from q (as the FMUs do); or the first bad row
+            b = _engine.start_state(self._y, self._p)  # q /= |q|; phi, psi from q (as the FMUs do), the health
+            # monitor started; or the first bad row
             if b >= 0:
                 q, w = self._y[b, 0:4].tolist(), self._y[b, 4:7].tolist()
                 nq = math.sqrt(sum(v * v for v in q))
@@ -452,35 +474,95 @@ class Model:
     def _step_engine(self, h: float, t: float) -> None:
         method = _METHOD_CODES[self.integrator]
         single = self.n_bodies == 1  # one body: the engine itself leaves the row untouched on failure
-        if not single:
-            saved = (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
+        saved = None if single else (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
         status = self._status
         failed = _engine.advance(method, self.scene.flags, self._y, self._p, t, h, self.tolerance, self.tolerance,
                                  self.max_step, self._hint, self._stats, self._ex, status, 0)
         if failed:
             b = int(np.flatnonzero(status)[0])
-            k = int(status[b])
             status[:] = 0
             if not single:
                 self._y, self._hint, self._stats, self._ex = saved
-            where = "" if single else f" for body {self.body_names[b]!r}"
-            n_sub = _engine.substeps(h, self.max_step)
-            if method in (_METHOD_CODES["adaptive"], _METHOD_CODES["dop853"]):
-                detail = (f"the adaptive step size fell below its minimum, or the step needed more than "
-                          f"{_engine.MAX_WORK:,} internal steps, at internal step {k}")
-                advice = "loosen the tolerance or check the parameters (the solution may truly blow up)"
-            elif method == _METHOD_CODES["exact"]:
-                detail = "the exact torque-free solution"
-                advice = "check the parameters and the state (the rates may be beyond double precision)"
-            else:
-                detail = f"internal step {k} of {n_sub} (internal step {h / n_sub:.6g} s)"
-                others = [n for n in ("splitting", "adaptive") if n != self.integrator]
-                advice = (f"use a smaller max_step (now {self.max_step:.6g} s) or the integrator "
-                          f"{others[0]!r}")
-            raise IntegrationError(
-                f"integrator {self.integrator!r} blew up{where} in the step from t = {t!r} s with "
-                f"h = {h!r} s: {detail} gave a non-finite or overflowing state (|omega| > "
-                f"{_engine.OMEGA_LIMIT:g} rad/s); {advice}")
+            start = (self._y, self._hint, self._stats, self._ex)
+            raise IntegrationError(self._blowup(b, start, t, h, 0, 1, f"the step from t = {t!r} s with h = {h!r} s"))
+
+    # ----------------------------------------------------------------------------------------------- blow-ups
+    def _rerun(self, b: int, start: tuple, t_base: float, dt: float, k0: int, k: int):
+        """Body ``b`` from ``start`` (y, hint, stats, ex of every body) over ``k`` intervals of ``dt``, the first
+        starting at ``t_base + k0*dt`` (the clock of the failed run), with the health monitor off: the state before
+        the last interval, the state after it (None when it failed too) and the drifts there."""
+        method = _METHOD_CODES[self.integrator]
+        y, hint, stats, ex = (a[b:b + 1].copy() for a in start)
+        p = self._p[b:b + 1].copy()
+        p[:, 8] = 0.0
+        status = np.zeros(1, dtype=np.int32)
+        done = 0
+        while done < k - 1:  # the intervals before the failing one, in chunks (the outputs are not kept)
+            m = min(k - 1 - done, 4096)
+            out = np.empty((m + 1, 1, len(OUTPUT_NAMES)))
+            if _engine.trajectory(method, self.scene.flags, y, p, t_base, dt, m, self.tolerance, self.tolerance,
+                                  self.max_step, hint, stats, ex, status, 0, out, 0, k0 + done):
+                return y[0].copy(), None, None
+            done += m
+        before = y[0].copy()
+        out = np.empty((2, 1, len(OUTPUT_NAMES)))
+        if _engine.trajectory(method, self.scene.flags, y, p, t_base, dt, 1, self.tolerance, self.tolerance,
+                              self.max_step, hint, stats, ex, status, 0, out, 0, k0 + done):
+            return before, None, None
+        d = np.empty((1, _engine.NDRIFT))
+        _engine.drift(self.scene.flags, y, p, d)
+        return before, y[0].copy(), d[0]
+
+    def _blowup(self, b: int, start: tuple, t_base: float, dt: float, k0: int, k: int, where: str) -> str:
+        """The message for body ``b`` failing in interval ``k`` (1-based) of a run of ``dt`` from ``start`` (as
+        :meth:`_rerun`): the time, the step, what drifted and by how much, and advice the user is not already
+        following."""
+        integ = self.integrator
+        who = "" if self.n_bodies == 1 else f" for body {self.body_names[b]!r}"
+        before, after, d = self._rerun(b, start, t_base, dt, k0, k)
+        p = self._p[b]
+        if integ in ("adaptive", "dop853") and after is None:
+            cause = ("the adaptive step size fell below its minimum, or the step needed more than "
+                     f"{_engine.MAX_WORK:,} internal steps (the solution may truly blow up, or the rates are beyond "
+                     "double precision)")
+        elif after is None:
+            cause = (f"the state became non-finite or overflowed (|omega| > {_engine.OMEGA_LIMIT:g} rad/s)")
+        else:
+            names = ("the energy balance", "|L|", "L_z", "L_3")
+            i = int(np.nanargmax(d))
+            val = f"energy_error = {_energy_error(after, p, self.scene.flags):.4g} J" if i == 0 else None
+            cause = (f"{names[i]} drifted by {d[i]:.3g} of its scale ({val + '; ' if val else ''}"
+                     f"max_drift = {self.max_drift:g}, the health monitor's bound)")
+        return (f"integrator {integ!r} blew up{who} in {where}: {cause}; "
+                + self._advice(before, p, dt))
+
+    def _advice(self, y: np.ndarray, p: np.ndarray, dt: float) -> str:
+        """A max_step from the fastest rate in the state and the study's stability map, or another integrator."""
+        integ = self.integrator
+        alt = {"euler": "rk4", "rk4": "splitting", "splitting": "dop853", "splitting4": "dop853",
+               "adaptive": "splitting", "dop853": "splitting", "exact": "dop853"}[integ]
+        rate = _engine.fastest_rate(self.scene.flags, y, p)
+        w = math.sqrt(float(y[4] ** 2 + y[5] ** 2 + y[6] ** 2))
+        what = "|omega|" if rate <= w else "the nutation frequency I3*|omega_3|/sqrt(I1*I2) (or the pendulum's)"
+        x_max = _engine.STABLE_X[_METHOD_CODES[integ]]
+        if integ in ("adaptive", "dop853", "exact"):
+            return f"loosen the tolerance, check the parameters, or try the integrator {alt!r}"
+        n_sub = max(1, _engine.substeps(dt, self.max_step))
+        h = dt / n_sub
+        x = h * rate
+        if x_max == 0.0:
+            x_rk4 = _engine.STABLE_X[_METHOD_CODES["rk4"]]
+            return (f"the fastest rate in the state is {what} = {rate:.4g} rad/s, so h*rate = {x:.3g} with internal "
+                    f"steps of {h:.4g} s; {integ}'s energy grows by a factor 1 + (h*rate)^2 every step at any step "
+                    f"size: use the integrator 'rk4' with max_step <= {0.5 * x_rk4 / rate:.3g} s, or 'splitting'")
+        h_rec = 0.5 * x_max / rate if rate > 0 else math.inf
+        if h_rec < h:
+            return (f"the fastest rate in the state is {what} = {rate:.4g} rad/s, so h*rate = {x:.3g} with internal "
+                    f"steps of {h:.4g} s, beyond {integ}'s stable h*rate <= {x_max:g} (docs/accuracy.md, the "
+                    f"stability map): use max_step <= {h_rec:.3g} s, or the integrator {alt!r}")
+        return (f"h*rate = {x:.3g} ({what} = {rate:.4g} rad/s, internal steps of {h:.4g} s) is within {integ}'s "
+                f"stable h*rate <= {x_max:g}: the parameters may make the motion truly grow; check them, or try the "
+                f"integrator {alt!r}")
 
     def trajectory(self, dt: float, n: int, *, angles: bool = True, momentum: bool = True) -> np.ndarray:
         """Advance ``n`` output intervals of ``dt`` s in one call of the engine; the outputs at every point.
@@ -531,12 +613,9 @@ class Model:
             self._y, self._hint, self._stats, self._ex = saved
             b = int(np.flatnonzero(status)[0])
             k = int(status[b])
-            where = "" if self.n_bodies == 1 else f" for body {self.body_names[b]!r}"
-            err = IntegrationError(
-                f"integrator {self.integrator!r} blew up{where} in the output interval from t = {t + (k - 1) * dt!r} "
-                f"s to {t + k * dt!r} s (interval {k} of {n}): a non-finite or overflowing state (|omega| > "
-                f"{_engine.OMEGA_LIMIT:g} rad/s); use a smaller max_step (now {self.max_step:.6g} s) or another "
-                "integrator")
+            where = (f"the output interval from t = {t + (k - 1) * dt!r} s to {t + k * dt!r} s (interval {k} of {n}, "
+                     f"step {k0 + k} from t = {t_base!r} s)")
+            err = IntegrationError(self._blowup(b, saved, t_base, dt, k0, k, where))
             err.rows = out[:k]
             raise err
         if n:
@@ -568,8 +647,8 @@ class Model:
     _BODY_ARRAYS = {"mass": "_mass", "cm_distance": "_cm", "g": "_g", "damping": "_damping"}
 
     _STATE_FIELDS = ("_moments", "_mass", "_cm", "_g", "_damping", "_tau", "_y", "_hint", "_stats", "integrator",
-                     "max_step", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h", "_initialized",
-                     "_state_dirty", "_ex")
+                     "max_step", "max_drift", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h",
+                     "_initialized", "_state_dirty", "_ex")
 
     def get_state(self) -> ModelState:
         """Snapshot of the whole state, integrator history included, exact to the bit."""

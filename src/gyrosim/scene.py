@@ -11,6 +11,7 @@ File format (every key optional unless said)::
     description = "..."
     integrator = "rk4"           # euler, rk4, splitting, splitting4, adaptive, dop853, exact
     max_step = 1e-3              # s
+    max_drift = 0.02             # health monitor: relative drift of the invariants counted as a blow-up (0: off)
     tolerance = 1e-8             # relative and absolute tolerance of adaptive
     output_interval = 0.01       # s, default communication step of `gyrosim simulate`
     stop_time = 10.0             # s
@@ -62,7 +63,8 @@ EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact")
 G_DEFAULT = 9.81
 
-_SCENE_KEYS = ("name", "description", "integrator", "max_step", "tolerance", "output_interval", "stop_time", "g")
+_SCENE_KEYS = ("name", "description", "integrator", "max_step", "max_drift", "tolerance", "output_interval",
+               "stop_time", "g")
 _BODY_KEYS = ("name", "count", "inertia", "mass", "cm_distance", "damping", "torque_input", "attitude", "rates",
               "spread")
 _SHAPES = {"sphere": ("mass", "radius"), "cylinder": ("mass", "radius", "height"),
@@ -112,6 +114,7 @@ class Scene:
     torque: bool = True
     integrator: str = "rk4"
     max_step: float = 1e-3
+    max_drift: float = _engine.MAX_DRIFT
     tolerance: float = 1e-8
     output_interval: float = 0.01
     stop_time: float = 10.0
@@ -357,6 +360,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
         name=name, bodies=tuple(bodies), gravity="gravity" in terms, damping="damping" in terms,
         torque="torque" in terms, integrator=integ,
         max_step=_num(sc, "max_step", where, 1e-3, lo=0.0, lo_open=True),
+        max_drift=_num(sc, "max_drift", where, _engine.MAX_DRIFT, lo=0.0, lo_open=False),
         tolerance=_num(sc, "tolerance", where, 1e-8, lo=0.0, lo_open=True),
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),

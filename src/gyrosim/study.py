@@ -12,19 +12,26 @@ Every error is measured against an exact solution, never against gyrosim's own o
   psi(t) are the quadratures of their closed-form rates along the exact theta(t) (16-point Gauss-Legendre on
   panels of 1/16 of a nutation period, converged to round-off), which gives the exact attitude and omega too.
 * ``long``: 1e6 steps (2e4 with ``--quick``) of the free body and of the heavy top, |L| and energy drift.
+* ``stability``: the stability map of the fixed-step integrators (largest stable h |omega| / h omega_n over inertia
+  ratios, spin axes, spins and tops) and the evidence for the engine's ``max_drift`` default (:mod:`gyrosim.stability`).
 
 Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and integrator, Model.step overhead,
-10,000-body throughput, all against a C baseline compiled with ``gcc -O2`` in the same run), ``long``, and
-``fmu`` / ``service`` (the FMU and service benches, when those packages provide ``bench.run(out_dir)``).
+10,000-body throughput, all against a C baseline compiled with ``gcc -O2`` in the same run), ``long``,
+``stability``, ``startup``, ``peers``, and ``fmu`` / ``service`` (the FMU and service benches, when those packages
+provide ``bench.run(out_dir)``).
+
+``--only`` merges into the folder's earlier results: the parts it runs replace theirs in ``results.json`` and
+``summary.md``, the other parts' stay (a run of every part starts afresh).
 
 Times: single-threaded work (one body, Model.step, the C baseline) is timed with the calling thread's CPU time
 (best of repeats), which on this shared machine is the wall time on an idle core; the 10,000-body runs, which use
 every core, with the wall clock.
 
 Outputs in the folder given by ``--output`` (default ``docs/study``): one markdown table per part
-(``accuracy_<case>.md``, ``orders.md``, ``cost.md``, ``throughput.md``, ``long_run.md``), ``summary.md`` with all
-of them, ``results.json`` with every number, and the PNG plots (``wp_<case>.png`` work-precision,
-``step_<case>.png`` error against step/tolerance, ``long_<case>.png`` drift against time, ``cost.png``).
+(``accuracy_<case>.md``, ``orders.md``, ``choose.md``, ``cost.md``, ``throughput.md``, ``long_run.md``,
+``stability.md``), ``summary.md`` with all of them, ``results.json`` with every number, and the PNG plots
+(``wp_<case>.png`` work-precision, ``step_<case>.png`` error against step/tolerance, ``long_<case>.png`` drift
+against time, ``cost.png``, ``stability.png``).
 """
 
 from __future__ import annotations
@@ -52,7 +59,7 @@ ADAPTIVE = ("adaptive", "dop853")
 INTEGRATORS = FIXED + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
-PARTS = ("accuracy", "cost", "long", "startup", "peers", "fmu", "service")
+PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "service")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -252,10 +259,13 @@ cpu_clock = time.thread_time
 # ===============================================================================================================
 # Part 1: accuracy ladders
 # ===============================================================================================================
-def _model(scene, integrator, max_step, tol):
+def _model(scene, integrator, max_step, tol, max_drift=None):
     from .model import Model
 
-    m = Model(scene, parameters={"integrator": integrator, "max_step": max_step}, tolerance=tol)
+    params = {"integrator": integrator, "max_step": max_step}
+    if max_drift is not None:
+        params["max_drift"] = max_drift
+    m = Model(scene, parameters=params, tolerance=tol)
     m.initialize()
     return m
 
@@ -323,8 +333,8 @@ def run_accuracy(case: Case, integrator: str, h: float | None, tol: float | None
         rec["ns_per_step"] = rec["wall"] / max(1, st["steps"]) * 1e9
         return rec
 
-    def whole():
-        mm = _model(case.scene, integrator, max_step, tol_)
+    def whole():  # timing only (the run above judged the accuracy and the health): the monitor off
+        mm = _model(case.scene, integrator, max_step, tol_, max_drift=0.0)
         t0 = cpu_clock()
         mm.step(case.T)
         return cpu_clock() - t0
@@ -455,7 +465,7 @@ def _arrays(scene):
         p[i, 0:3] = b.moments
         p[i, 3] = b.mass * (scene.g if scene.gravity else 0.0) * b.cm_distance
         p[i, 4] = b.damping
-    _engine.start_state(y)
+    _engine.start_state(y, p)  # p[:, 8] = 0: the health monitor (max_drift) off
     return y, p
 
 
@@ -539,7 +549,8 @@ def _c_runner(cbase, scene, h, n, bodies=1):
 
 
 def _model_runner(integrator, scene, H, n_sub, calls):
-    m = _model(scene, integrator, H / n_sub, 1e-8)
+    # timing only, with the health monitor off: euler grows at any step (the cost of a step is what is measured)
+    m = _model(scene, integrator, H / n_sub, 1e-8, max_drift=0.0)
     m.step(H)
 
     def go():
@@ -800,8 +811,11 @@ def orders_table(orders: dict) -> str:
 TARGETS = (1e-3, 1e-6, 1e-9)
 
 
-def choose_table(cases: dict, acc: dict) -> str:
-    """For each case and target attitude error, the cheapest run of each integrator that reaches it."""
+def choose_table(cases: dict, acc: dict, stability: dict | None = None) -> str:
+    """For each case and target attitude error, the cheapest run of each integrator that reaches it; with the
+    stability part's results, the largest stable step of each integrator too (:func:`stable_steps_table`).
+
+    ``cases``: name -> :class:`Case` or name -> its time span T (s)."""
     head = ["case", "integrator"] + [f"error <= {t:g} rad: time (ms), step" for t in TARGETS]
     rows = []
     for name, recs in acc.items():
@@ -820,11 +834,55 @@ def choose_table(cases: dict, acc: dict) -> str:
                         f"tol {fmt(r['tol'])}" if r["tol"] is not None else "")
                 row.append(f"{fmt(r['wall'] * 1e3)} ({step})".replace(" ()", ""))
             rows.append(row)
-    spans = ", ".join(f"{c.name} {c.T:g} s" for c in cases.values())
-    return ("### Which integrator is cheapest for an accuracy\n\nThe cheapest measured run of each integrator whose "
-            f"maximum attitude error over the run ({spans}) is within the target, with its time (thread CPU) and "
-            "step or tolerance (from the ladders above; 'not reached': no step of the ladder got there).\n\n"
-            + md_table(head, rows))
+    spans = ", ".join(f"{name} {getattr(c, 'T', c):g} s" for name, c in cases.items())
+    out = ("### Which integrator is cheapest for an accuracy\n\nThe cheapest measured run of each integrator whose "
+           f"maximum attitude error over the run ({spans}) is within the target, with its time (thread CPU) and "
+           "step or tolerance (from the ladders above; 'not reached': no step of the ladder got there).\n\n"
+           + md_table(head, rows))
+    if stability:
+        out += "\n" + stable_steps_table(stability)
+    return out
+
+
+def stable_steps_table(stability: dict) -> str:
+    """The largest stable internal step of each integrator, from the stability map (gyrosim.stability)."""
+    from .stability import FIXED as MAPPED
+    from .stability import fmt_x, safe_steps
+
+    safe = safe_steps(stability)
+    st = stability["settings"]
+    longer = {(s["integrator"], s["group"]): s.get("x_longer") for s in stability["summary"]}
+
+    def cell(integ, group, rate):
+        if group not in safe.get(integ, {}):
+            return "-"
+        x, capped = safe[integ][group]
+        if capped == "above":
+            return f"no limit found (>= {fmt(x)} / {rate})"
+        return f"{fmt_x(x, capped)} / {rate}"
+
+    rows = []
+    for integ in MAPPED:
+        note = {"euler": "unstable at any h on a rotation: growth ~ (1 + x²)^(n/2); the bound falls as n^(-1/2) "
+                         f"(at {st['longer']}x the steps: {fmt(longer.get((integ, 'free')))} / \\|omega\\|)",
+                "rk4": "growth beyond 2√2 on the imaginary axis; below it, damping of the fast modes of ~x⁶/144 per "
+                       "step sets the bound where they carry \\|L\\| or E (at "
+                       f"{st['longer']}x the steps: {fmt(longer.get((integ, 'free')))} / \\|omega\\|)",
+                "splitting": "\\|L\\|, L_z, L_3 exact at any h; E bounded, but an asymmetric body leaves its "
+                             "axis (a resonance of the splitting) beyond the bound; exact for symmetric bodies",
+                "splitting4": "as splitting; its substeps are 1.35 h and -1.70 h, so the bound is no higher",
+                }.get(integ, "")
+        rows.append([integ, cell(integ, "free", "\\|omega\\|"), cell(integ, "top", "omega_n"),
+                     cell(integ, "slow_top", "omega_n"), note])
+    for integ, note in (("adaptive", "no step limit: the controller picks h; drift set by the tolerance"),
+                        ("dop853", "no step limit: the controller picks h; drift set by the tolerance"),
+                        ("exact", "no step limit (torque-free bodies only)")):
+        rows.append([integ, "-", "-", "-", note])
+    return ("### Largest stable step\n\nFrom the stability map (stability.md): every invariant within "
+            f"{st['bound']:g} of its start over {st['n_steps']} steps at every case of the grid. \\|omega\\|: "
+            "the body's rate (rad/s); omega_n = I3 omega_3 / I1, the nutation frequency of a symmetric top on a "
+            "pivot (fast top: (I3 omega_3)² >= 4 I1 M g l; slow: below).\n\n"
+            + md_table(["integrator", "free body: h <=", "fast top: h <=", "slow top: h <=", "why"], rows))
 
 
 def cost_table(res: dict, cbase: CBaseline) -> str:
@@ -1146,123 +1204,250 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
     return msgs
 
 
+#: results.json keys that each part writes (fmu and service leave their own files)
+PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
+             "stability": ("stability",), "startup": ("startup",), "peers": ("peers",), "fmu": (), "service": ()}
+#: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
+SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
+
+
+def _plot_part(name: str) -> str | None:
+    """The part that wrote a plot of the study (by its name)."""
+    for prefix, part in (("wp_", "accuracy"), ("step_", "accuracy"), ("cost", "cost"), ("long_", "long"),
+                         ("stability", "stability"), ("peers", "peers")):
+        if name.startswith(prefix):
+            return part
+    return None
+
+
+def _legacy_blocks(out: Path, old: dict) -> dict:
+    """summary.md blocks of a results.json written before blocks were kept: rebuilt from the tables' files."""
+    names = {"cost": ["cost", "throughput"], "long": ["long_run"], "stability": ["stability"],
+             "startup": ["startup"], "peers": ["peers"],
+             "accuracy": [f"accuracy_{c}" for c in old.get("accuracy", {})] + ["orders"]}
+    for m in old.get("messages", []):  # fmu / service: the markdown files their message says they wrote
+        part = m.split(":", 1)[0]
+        if part in ("fmu", "service") and "(wrote " in m:
+            files = m.split("(wrote ", 1)[1].split(")", 1)[0].split(", ")
+            names[part] = [f[:-3] for f in files if f.endswith(".md")]
+    blocks = {}
+    for part in old.get("parts", []):
+        texts = [(out / f"{n}.md").read_text() for n in names.get(part, []) if (out / f"{n}.md").is_file()]
+        if texts:
+            blocks[part] = "\n".join(texts)
+    return blocks
+
+
+def _previous(out: Path, parts: list[str]) -> dict | None:
+    """The folder's earlier results.json, or None (absent or unreadable)."""
+    f = out / "results.json"
+    try:
+        old = json.loads(f.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(old, dict):
+        return None
+    if "summary_blocks" not in old:
+        old["summary_blocks"] = _legacy_blocks(out, old)
+    if "runs" not in old:
+        env = old.get("environment", {})
+        old["runs"] = [{"command": env.get("command", "gyrosim bench"), "runtime_s": env.get("runtime_s"),
+                        "date": env.get("date"), "parts": list(old.get("parts", []))}]
+    if "part_files" not in old:
+        pf = {}
+        for name in old.get("files", []):
+            pf.setdefault(_plot_part(name) or "other", []).append(name)
+        old["part_files"] = pf
+    return old
+
+
+def _accuracy_spans(results: dict, quick_default: bool) -> dict:
+    """{case: T} of the accuracy ladders in ``results`` (from the run that made them)."""
+    if "accuracy_spans" in results:
+        return results["accuracy_spans"]
+    cmd = next((r.get("command", "") for r in results.get("runs", []) if "accuracy" in r.get("parts", [])),
+               results.get("environment", {}).get("command", ""))
+    quick = "--quick" in cmd if cmd else quick_default
+    return {name: c.T for name, c in make_cases(quick).items() if name in results.get("accuracy", {})}
+
+
 def main(args) -> int:
-    """Run the study: ``args.output`` (folder), ``args.quick`` (bool), ``args.only`` (part names or None)."""
+    """Run the study: ``args.output`` (folder), ``args.quick`` (bool), ``args.only`` (part names or None).
+
+    With ``--only``, the results of the other parts already in the folder (results.json, summary.md) are kept and
+    the parts run replace theirs; without it, the folder's summary and results are written afresh."""
     from tqdm import tqdm
 
     t_start = time.perf_counter()
     out = Path(getattr(args, "output", None) or "docs/study")
     quick = bool(getattr(args, "quick", False))
-    parts = _parse_only(getattr(args, "only", None))
+    only = getattr(args, "only", None)
+    parts = _parse_only(only)
     out.mkdir(parents=True, exist_ok=True)
     plan = Plan(parts, quick, out)
     env = _environment()
     env["command"] = "gyrosim bench --output " + str(out) + (" --quick" if quick else "") + (
-        "".join(f" --only {p}" for p in parts) if getattr(args, "only", None) else "")
+        "".join(f" --only {p}" for p in parts) if only else "")
     plan.results["environment"] = env
+    old = _previous(out, parts) if only else None
 
     cases = make_cases(quick) if "accuracy" in parts else {}
     n_acc = sum(len(FIXED) * len(c.steps) + len(ADAPTIVE) * len(c.tolerances) + (1 if c.exact else 0)
                 for c in cases.values())
     n_cost = (len(cost_scenes()) * (len(INTEGRATORS) + 1) + 4) if "cost" in parts else 0  # see run_cost
     long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in INTEGRATORS] if "long" in parts else []
-    total = n_acc + n_cost + len(long_runs) + ("startup" in parts) + ("peers" in parts)
+    total = n_acc + n_cost + len(long_runs) + sum(p in parts for p in ("stability", "startup", "peers"))
     messages = []
+    part_tables = {}
+    part_files = {}
     cbase = None
     with tempfile.TemporaryDirectory(prefix="gyrosim-bench-") as tmp, \
             tqdm(total=total, desc="gyrosim bench", unit="run", file=sys.stderr, delay=0.5) as bar:
-        if "accuracy" in parts:
-            all_orders = {}
-            acc = {}
-            for case in cases.values():
-                recs = []
-                for integ in FIXED:
-                    for h in case.steps:
-                        bar.set_postfix_str(f"{case.name} {integ} h={h:g}")
-                        recs.append(run_accuracy(case, integ, h, None, quick))
+        for part in [p for p in PARTS if p in parts]:
+            before_t, before_f, before_e = set(plan.tables), len(plan.files), set(plan.external)
+            if part == "accuracy":
+                all_orders = {}
+                acc = {}
+                for case in cases.values():
+                    recs = []
+                    for integ in FIXED:
+                        for h in case.steps:
+                            bar.set_postfix_str(f"{case.name} {integ} h={h:g}")
+                            recs.append(run_accuracy(case, integ, h, None, quick))
+                            bar.update()
+                    for integ in ADAPTIVE:
+                        for tol in case.tolerances:
+                            bar.set_postfix_str(f"{case.name} {integ} tol={tol:g}")
+                            recs.append(run_accuracy(case, integ, None, tol, quick))
+                            bar.update()
+                    if case.exact:
+                        bar.set_postfix_str(f"{case.name} exact")
+                        recs.append(run_accuracy(case, "exact", None, None, quick))
                         bar.update()
-                for integ in ADAPTIVE:
-                    for tol in case.tolerances:
-                        bar.set_postfix_str(f"{case.name} {integ} tol={tol:g}")
-                        recs.append(run_accuracy(case, integ, None, tol, quick))
-                        bar.update()
-                if case.exact:
-                    bar.set_postfix_str(f"{case.name} exact")
-                    recs.append(run_accuracy(case, "exact", None, None, quick))
+                    orders = case_orders(case, recs)
+                    all_orders[case.name] = orders
+                    acc[case.name] = recs
+                    plan.tables[f"accuracy_{case.name}"] = accuracy_table(case, recs)
+                    plan.files += plot_case(case, recs, orders, out)
+                plan.tables["orders"] = orders_table(all_orders)
+                plan.results["accuracy"] = acc
+                plan.results["orders"] = all_orders
+                plan.results["accuracy_spans"] = {name: c.T for name, c in cases.items()}
+            elif part == "cost":
+                bar.set_postfix_str("compiling the C baseline")
+                cbase = CBaseline(Path(tmp))
+                if cbase.lib is None:
+                    messages.append(f"cost: C baseline skipped: {cbase.reason}")
+                bar.set_postfix_str("cost per step")
+                res = run_cost(quick, cbase, bar)
+                res["quick"] = quick
+                res["c_compiler"] = cbase.compiler
+                plan.results["cost"] = res
+                plan.tables["cost"] = cost_table(res, cbase)
+                plan.tables["throughput"] = throughput_table(res)
+                plan.files.append(plot_cost(res, out))
+            elif part == "long":
+                lrecs = []
+                for c, i in long_runs:
+                    bar.set_postfix_str(f"long {c} {i}")
+                    lrecs.append(run_long(c, i, quick))
                     bar.update()
-                orders = case_orders(case, recs)
-                all_orders[case.name] = orders
-                acc[case.name] = recs
-                plan.tables[f"accuracy_{case.name}"] = accuracy_table(case, recs)
-                plan.files += plot_case(case, recs, orders, out)
-            plan.tables["orders"] = orders_table(all_orders)
-            plan.tables["choose"] = choose_table(cases, acc)
-            plan.results["accuracy"] = acc
-            plan.results["orders"] = all_orders
-        if "cost" in parts:
-            bar.set_postfix_str("compiling the C baseline")
-            cbase = CBaseline(Path(tmp))
-            if cbase.lib is None:
-                messages.append(f"cost: C baseline skipped: {cbase.reason}")
-            bar.set_postfix_str("cost per step")
-            res = run_cost(quick, cbase, bar)
-            res["quick"] = quick
-            res["c_compiler"] = cbase.compiler
-            plan.results["cost"] = res
-            plan.tables["cost"] = cost_table(res, cbase)
-            plan.tables["throughput"] = throughput_table(res)
-            plan.files.append(plot_cost(res, out))
-        if "long" in parts:
-            lrecs = []
-            for c, i in long_runs:
-                bar.set_postfix_str(f"long {c} {i}")
-                lrecs.append(run_long(c, i, quick))
-                bar.update()
-            plan.results["long"] = lrecs
-            plan.tables["long_run"] = long_table(lrecs)
-            plan.files += plot_long(lrecs, out)
-        if "startup" in parts:
-            bar.set_postfix_str("start-up")
-            res = run_startup(quick, Path(tmp))
-            plan.results["startup"] = res
-            plan.tables["startup"] = startup_table(res)
-            bar.update()
-        if "peers" in parts:
-            from .peers import peers_table, plot_peers, run_peers
+                plan.results["long"] = lrecs
+                plan.tables["long_run"] = long_table(lrecs)
+                plan.files += plot_long(lrecs, out)
+            elif part == "stability":
+                from .stability import plot_stability, run_stability, stability_table
 
-            bar.set_postfix_str("trajectories against CyRK and scipy")
-            res = run_peers(quick)
-            plan.results["peers"] = res
-            plan.tables["peers"] = peers_table(res)
-            plan.files.append(plot_peers(res, out))
-            if res.get("note"):
-                messages.append(f"peers: {res['note']}")
-            bar.update()
-        for part in ("fmu", "service"):
-            if part in parts:
+                bar.set_postfix_str("stability map")
+                res = run_stability(quick, bar)
+                plan.results["stability"] = res
+                plan.tables["stability"] = stability_table(res)
+                plan.files.append(plot_stability(res, out))
+                bar.update()
+            elif part == "startup":
+                bar.set_postfix_str("start-up")
+                res = run_startup(quick, Path(tmp))
+                plan.results["startup"] = res
+                plan.tables["startup"] = startup_table(res)
+                bar.update()
+            elif part == "peers":
+                from .peers import peers_table, plot_peers, run_peers
+
+                bar.set_postfix_str("trajectories against CyRK and scipy")
+                res = run_peers(quick)
+                plan.results["peers"] = res
+                plan.tables["peers"] = peers_table(res)
+                plan.files.append(plot_peers(res, out))
+                if res.get("note"):
+                    messages.append(f"peers: {res['note']}")
+                bar.update()
+            elif part in ("fmu", "service"):
                 bar.set_postfix_str(part)
                 try:
                     messages += _external_bench(part, out, quick, plan.external)
                 except Exception as e:  # noqa: BLE001 - one part failing must not lose the others
                     messages.append(f"{part}: failed: {type(e).__name__}: {e}")
+            part_tables[part] = [plan.tables[k] for k in plan.tables if k not in before_t] + \
+                [plan.external[k] for k in plan.external if k not in before_e]
+            part_files[part] = plan.files[before_f:]
     runtime = time.perf_counter() - t_start
     env["runtime_s"] = round(runtime, 1)
+
+    # merge with the folder's earlier results: the parts run now replace theirs
+    results = {}
+    blocks = {p: "\n".join(t) for p, t in part_tables.items() if t}
+    runs = [{"command": env["command"], "runtime_s": env["runtime_s"], "date": env["date"], "parts": parts,
+             "quick": quick}]
+    if old is not None:
+        for part in PARTS:
+            if part in parts:
+                continue
+            for k in PART_KEYS.get(part, ()):
+                if k in old:
+                    results[k] = old[k]
+            if part in old["summary_blocks"]:
+                blocks[part] = old["summary_blocks"][part]
+            if old["part_files"].get(part):
+                part_files[part] = old["part_files"][part]
+        messages = [m for m in old.get("messages", []) if m.split(":", 1)[0] not in parts] + messages
+        kept = [dict(r, parts=[p for p in r.get("parts", []) if p not in parts]) for r in old["runs"]]
+        runs = [r for r in kept if r["parts"]] + runs
+    results.update({k: v for k, v in plan.results.items()})
+    done = [p for p in PARTS if p in parts or (old is not None and p in old.get("parts", []))]
+
+    # the recommendation: the accuracy ladders' cheapest runs and the stability map's largest steps
+    if "accuracy" in results:
+        spans = results.get("accuracy_spans") or _accuracy_spans(dict(results, runs=runs), quick)
+        plan.tables["choose"] = blocks["choose"] = choose_table(spans, results["accuracy"], results.get("stability"))
     for name, text in plan.tables.items():
         (out / f"{name}.md").write_text(text)
-    head = (f"# gyrosim speed/accuracy study\n\nProduced by `{env['command']}` in {runtime:.0f} s on "
+    if len(runs) == 1:
+        made = f"Produced by `{env['command']}` in {runtime:.0f} s"
+    else:
+        made = "Produced by " + ", then ".join(
+            f"`{r['command']}` ({', '.join(r['parts'])}; {r['runtime_s']:.0f} s, {r.get('date', '?')})"
+            if r.get("runtime_s") is not None else f"`{r['command']}` ({', '.join(r['parts'])})" for r in runs)
+    head = (f"# gyrosim speed/accuracy study\n\n{made} on "
             f"{env.get('cpu', platform.machine())} ({env['cpus']} CPUs), Python {env['python']}, numpy "
             f"{env['numpy']}, {env['engine']}, {env['date']}."
-            + (" Quick ladders (a smoke test, not the study)." if quick else "") + "\n\n")
-    tables = list(plan.tables.values()) + list(plan.external.values())
-    summary = head + "\n".join(tables) + "\n" + "".join(f"![{f}]({f})\n\n" for f in plan.files)
+            + (" Quick ladders (a smoke test, not the study)." if quick and len(runs) == 1 else "") + "\n\n")
+    files = [f for p in PARTS for f in part_files.get(p, [])]
+    summary = head + "\n".join(blocks[p] for p in SUMMARY_ORDER if p in blocks) + "\n" + \
+        "".join(f"![{f}]({f})\n\n" for f in files)
     (out / "summary.md").write_text(summary)
-    plan.results["messages"] = messages
-    plan.results["parts"] = parts
-    plan.results["files"] = plan.files
-    (out / "results.json").write_text(json.dumps(plan.results, indent=1, default=_json_default))
+    results["messages"] = messages
+    results["parts"] = done
+    results["files"] = files
+    results["part_files"] = {p: part_files[p] for p in PARTS if part_files.get(p)}
+    results["summary_blocks"] = {p: blocks[p] for p in SUMMARY_ORDER if p in blocks}
+    results["runs"] = runs
+    (out / "results.json").write_text(json.dumps(results, indent=1, default=_json_default))
     print(head.strip() + "\n")
-    for text in tables:
-        print(text)
+    for part in parts:
+        for text in part_tables.get(part, []):
+            print(text)
+    if "choose" in plan.tables:
+        print(plan.tables["choose"])
     for m in messages:
         print(m)
     print(f"tables and plots in {out}/ (summary.md, results.json); {runtime:.1f} s")

@@ -30,6 +30,7 @@ def test_many_bodies_give_the_bits_of_each_body_alone(integrator, H):
     floor(1/(|omega| h)) substeps, at points that differ from body to body (their rates differ)."""
     sc = _field(integrator)
     many = Model(sc)
+    many.set("max_drift", 0.0)  # euler drifts beyond the monitor's bound here: the bits are what is compared
     for k in range(many.n_bodies):
         many.set("tau_x", 0.001 * k, body=k)
     for _ in range(20):
@@ -41,6 +42,7 @@ def test_many_bodies_give_the_bits_of_each_body_alone(integrator, H):
                                                "attitude": {"q": body.q0.tolist()},
                                                "rates": {"omega": body.omega0.tolist()}}]}))
         one.set("tau_x", 0.001 * k)
+        one.set("max_drift", 0.0)
         for _ in range(20):
             one.step(H)
         np.testing.assert_array_equal(many.outputs_array()[k], one.outputs_array()[0], err_msg=f"body {k}")

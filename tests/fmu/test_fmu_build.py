@@ -35,7 +35,7 @@ def test_model_description_maps_model_variables_one_to_one(build, scene, v):
             assert x.description == var.description
         assert (x.unit or "") == ("" if var.unit in ("",) else var.unit)
         assert x.type == ("String" if var.type == "String" else ("Real" if v == 2 else "Float64"))
-        derived = name in ("phi", "theta", "psi", "L_x", "L_y", "L_z", "energy")
+        derived = name in ("phi", "theta", "psi", "L_x", "L_y", "L_z", "energy", "energy_error")
         start = var.start  # the declared start (q is normalised at initialisation, so an output may differ by 1 ulp)
         if var.type == "String":
             assert x.start == start

@@ -48,6 +48,8 @@ def _compare(scene, integrator, standalone, host, n, every=100):
         got = parse_rows(out)
         assert step_failure(out) == ref_fail, (version, out[-500:])
         assert got.shape == ref.shape, (version, got.shape, ref.shape)
+        if ref.size == 0:   # the health monitor stopped both in the same step, before the first row
+            continue
         np.testing.assert_array_equal(got[:, 0], ref[:, 0])
         # one engine, compiled with the same flags into the extension and the FMU: the same bits
         np.testing.assert_array_equal(got[:, 1:], ref[:, 1:], err_msg=f"FMI {version} {scene} {integrator}")

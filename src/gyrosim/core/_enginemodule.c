@@ -183,28 +183,90 @@ fail:
     return NULL;
 }
 
-/* start_state(y) -> -1: every row's q normalised, its phi, psi from q; or the index of the first bad row */
-static PyObject *py_start_state(PyObject *self, PyObject *arg) {
+/* start_state(y, p) -> -1: every row's q normalised, its phi, psi from q, the health monitor started; or the
+ * index of the first bad row */
+static PyObject *py_start_state(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
-    Buf b = {0};
-    if (get_buf(arg, &b, "y", 'd', -1, 1) < 0) {
-        release(&b, 1);
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "start_state() takes 2 arguments");
         return NULL;
     }
-    const Py_ssize_t n = b.view.len / (Py_ssize_t)sizeof(double) / GS_NY;
-    double *y = (double *)b.view.buf;
+    Buf b[2] = {{0}, {0}};
+    if (get_buf(args[0], &b[0], "y", 'd', -1, 1) < 0) {
+        release(b, 2);
+        return NULL;
+    }
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
+        release(b, 2);
+        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
+        return NULL;
+    }
+    if (get_buf(args[1], &b[1], "p", 'd', n * GS_NP, 0) < 0) {
+        release(b, 2);
+        return NULL;
+    }
+    double *y = (double *)b[0].view.buf;
+    const double *p = (const double *)b[1].view.buf;
     /* checked first, changed only when every row is good: |q| within 1e-6 of 1, finite omega */
     for (Py_ssize_t i = 0; i < n; i++) {
         const double *r = y + i * GS_NY;
         const double nq = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
         if (!(fabs(nq - 1.0) <= 1e-6) || !isfinite(r[4]) || !isfinite(r[5]) || !isfinite(r[6])) {
-            release(&b, 1);
+            release(b, 2);
             return PyLong_FromSsize_t(i);
         }
     }
-    for (Py_ssize_t i = 0; i < n; i++) gs_start_state(y + i * GS_NY);
-    release(&b, 1);
+    for (Py_ssize_t i = 0; i < n; i++) gs_start_state(y + i * GS_NY, p + i * GS_NP);
+    release(b, 2);
     return PyLong_FromLong(-1);
+}
+
+/* fastest_rate(flags, y(NY), p(NP)) -> rad/s (gs_fastest_rate) */
+static PyObject *py_fastest_rate(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "fastest_rate() takes 3 arguments");
+        return NULL;
+    }
+    const long flags = PyLong_AsLong(args[0]);
+    if (flags == -1 && PyErr_Occurred()) return NULL;
+    Buf b[2] = {{0}, {0}};
+    if (get_buf(args[1], &b[0], "y", 'd', GS_NY, 0) < 0 || get_buf(args[2], &b[1], "p", 'd', GS_NP, 0) < 0) {
+        release(b, 2);
+        return NULL;
+    }
+    const double r = gs_fastest_rate((int)flags, (const double *)b[0].view.buf, (const double *)b[1].view.buf);
+    release(b, 2);
+    return PyFloat_FromDouble(r);
+}
+
+/* drift(flags, y, p, d) : d[i] = the health monitor's drifts of body i (gs_drift) */
+static PyObject *py_drift(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "drift() takes 4 arguments");
+        return NULL;
+    }
+    const long flags = PyLong_AsLong(args[0]);
+    if (flags == -1 && PyErr_Occurred()) return NULL;
+    Buf b[3] = {{0}, {0}, {0}};
+    if (get_buf(args[1], &b[0], "y", 'd', -1, 0) < 0) goto fail;
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
+        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
+        goto fail;
+    }
+    if (get_buf(args[2], &b[1], "p", 'd', n * GS_NP, 0) < 0) goto fail;
+    if (get_buf(args[3], &b[2], "d", 'd', n * GS_NDRIFT, 1) < 0) goto fail;
+    for (Py_ssize_t i = 0; i < n; i++)
+        gs_drift((int)flags, (const double *)b[0].view.buf + i * GS_NY, (const double *)b[1].view.buf + i * GS_NP,
+                 (double *)b[2].view.buf + i * GS_NDRIFT);
+    release(b, 3);
+    Py_RETURN_NONE;
+fail:
+    release(b, 3);
+    return NULL;
 }
 
 /* substeps(H, max_step) -> int (0: too many) */
@@ -305,9 +367,13 @@ static PyMethodDef methods[] = {
     {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
      "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out, "
      "want, k0)"},
-    {"start_state", py_start_state, METH_O,
-     "start_state(y) -> -1, each row's q normalised and phi, psi from it; or the first row with |q| not within "
-     "1e-6 of 1 or a non-finite omega (y unchanged)"},
+    {"start_state", (PyCFunction)(void (*)(void))py_start_state, METH_FASTCALL,
+     "start_state(y, p) -> -1, each row's q normalised, phi, psi from it and the health monitor started; or the "
+     "first row with |q| not within 1e-6 of 1 or a non-finite omega (y unchanged)"},
+    {"fastest_rate", (PyCFunction)(void (*)(void))py_fastest_rate, METH_FASTCALL,
+     "fastest_rate(flags, y, p) -> the fastest rate of one body's state (rad/s)"},
+    {"drift", (PyCFunction)(void (*)(void))py_drift, METH_FASTCALL,
+     "drift(flags, y, p, d(n, NDRIFT)): the health monitor's relative drifts (energy balance, |L|, L_z, L_3)"},
     {"substeps", (PyCFunction)(void (*)(void))py_substeps, METH_FASTCALL,
      "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},
     {"tf_eval", (PyCFunction)(void (*)(void))py_tf_eval, METH_FASTCALL,
@@ -326,6 +392,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
     PyModule_AddIntConstant(m, "NY", GS_NY);
     PyModule_AddIntConstant(m, "NP", GS_NP);
     PyModule_AddIntConstant(m, "NOUT", GS_NOUT);
+    PyModule_AddIntConstant(m, "NDRIFT", GS_NDRIFT);
     PyModule_AddIntConstant(m, "EX_SIZE", GS_EX_SIZE);
     PyModule_AddIntConstant(m, "MAX_WORK", GS_MAX_WORK);
     PyModule_AddIntConstant(m, "EX_VALID", GS_EX_VALID);
@@ -336,6 +403,10 @@ PyMODINIT_FUNC PyInit__engine(void) {
     PyModule_AddIntConstant(m, "OUT_ANGLES", GS_OUT_ANGLES);
     PyModule_AddIntConstant(m, "OUT_MOMENTUM", GS_OUT_MOMENTUM);
     PyModule_AddObject(m, "OMEGA_LIMIT", PyFloat_FromDouble(GS_OMEGA_LIMIT));
+    PyModule_AddObject(m, "MAX_DRIFT", PyFloat_FromDouble(GS_MAX_DRIFT_DEFAULT));
+    PyObject *sx = PyTuple_New(GS_N_METHODS);
+    for (int i = 0; i < GS_N_METHODS; i++) PyTuple_SET_ITEM(sx, i, PyFloat_FromDouble(gs_stable_x[i]));
+    PyModule_AddObject(m, "STABLE_X", sx);
     PyObject *names = PyTuple_New(GS_N_METHODS);
     for (int i = 0; i < GS_N_METHODS; i++) PyTuple_SET_ITEM(names, i, PyUnicode_FromString(gs_method_names[i]));
     PyModule_AddObject(m, "METHODS", names);

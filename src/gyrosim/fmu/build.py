@@ -40,15 +40,17 @@ C_FLAGS = (*resources.files("gyrosim.core").joinpath("engine", "cflags.txt").rea
 _ENGINE = ("gyrosim_engine.h", "rk_tables.h", "engine.c", "exact.c", "cflags.txt")
 _GLUE = ("gyrosim_model.h", "gyrosim_model.c")
 #: Scene-wide variables (not per body) of a multi-body FMU.
-SCENE_VARIABLES = ("integrator", "max_step")
+SCENE_VARIABLES = ("integrator", "max_step", "max_drift")
 _KINDS = {"I1": "GS_V_I1", "I2": "GS_V_I2", "I3": "GS_V_I3", "mass": "GS_V_MASS", "cm_distance": "GS_V_CM",
           "g": "GS_V_G", "damping": "GS_V_DAMPING", "integrator": "GS_V_INTEGRATOR", "max_step": "GS_V_MAX_STEP",
+          "max_drift": "GS_V_MAX_DRIFT",
           "q_w": "GS_V_QW", "q_x": "GS_V_QX", "q_y": "GS_V_QY", "q_z": "GS_V_QZ", "omega_x": "GS_V_OX",
           "omega_y": "GS_V_OY", "omega_z": "GS_V_OZ", "tau_x": "GS_V_TX", "tau_y": "GS_V_TY", "tau_z": "GS_V_TZ",
           "phi": "GS_V_PHI", "theta": "GS_V_THETA", "psi": "GS_V_PSI", "L_x": "GS_V_LX", "L_y": "GS_V_LY",
-          "L_z": "GS_V_LZ", "energy": "GS_V_ENERGY"}
+          "L_z": "GS_V_LZ", "energy": "GS_V_ENERGY",
+          "energy_error": "GS_V_ENERGY_ERROR"}
 #: Derived outputs: computed at initialisation (initial="calculated"), not settable.
-_DERIVED = ("phi", "theta", "psi", "L_x", "L_y", "L_z", "energy")
+_DERIVED = ("phi", "theta", "psi", "L_x", "L_y", "L_z", "energy", "energy_error")
 _UNITS = {  # unit -> SI base-unit exponents
     "kg.m2": {"kg": 1, "m": 2}, "kg": {"kg": 1}, "m": {"m": 1}, "m/s2": {"m": 1, "s": -2},
     "N.m.s": {"kg": 1, "m": 2, "s": -1}, "s": {"s": 1}, "1": {}, "rad/s": {"rad": 1, "s": -1},
@@ -166,6 +168,7 @@ def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, in
         "#define GS_BODY_NAMES {" + ", ".join(_c_string(b.name) for b in sc.bodies) + "}", "",
         f"#define GS_START_INTEGRATOR_CODE {_engine_methods().index(integrator)}   /* {integrator} */",
         f"#define GS_START_MAX_STEP {_hexf(sc.max_step)}   /* {_fmt(sc.max_step)} */",
+        f"#define GS_START_MAX_DRIFT {_hexf(sc.max_drift)}   /* {_fmt(sc.max_drift)} */",
         f"#define GS_START_TOLERANCE {_hexf(sc.tolerance)}   /* {_fmt(sc.tolerance)} */",
         "/* per body: I1, I2, I3, mass, cm_distance, g, damping, q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z */",
         "#define GS_START_BODIES {" + ", \\\n    ".join(starts) + "}",

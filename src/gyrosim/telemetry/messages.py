@@ -199,6 +199,8 @@ BODY_STATE_JSON_SCHEMA: dict = {
             "description": "world-frame angular momentum about the reference point, kg*m^2/s",
         },
         "energy": {**_NUM_OR_NULL, "description": "total energy, J"},
+        "energy_error": {**_NUM_OR_NULL, "description": "work-energy balance E(t) - E(0) - W_torque(t) + "
+                         "W_damping(t), J: 0 for the exact flow, the integrator's error otherwise"},
         "inputs": {
             "type": "object", "additionalProperties": _NUM,
             "description": "inputs held over the last step (tau_x, tau_y, tau_z: body-frame torque, N*m)",
@@ -260,6 +262,8 @@ class BodyState:
         World-frame angular momentum, kg*m^2/s.
     energy : float or None
         Total energy, J.
+    energy_error : float or None
+        Work-energy balance ``E(t) - E(0) - W_torque(t) + W_damping(t)``, J (0 for the exact flow).
     inputs : dict
         Inputs held over the last step (``tau_x``, ``tau_y``, ``tau_z``, N*m).
     scene, body : str
@@ -277,6 +281,7 @@ class BodyState:
     psi: float | None = None
     L: tuple | None = None
     energy: float | None = None
+    energy_error: float | None = None
     inputs: dict = field(default_factory=dict)
     scene: str = ""
     body: str = ""
@@ -295,6 +300,7 @@ class BodyState:
             q=(float(o["q_w"]), float(o["q_x"]), float(o["q_y"]), float(o["q_z"])),
             omega=(float(o["omega_x"]), float(o["omega_y"]), float(o["omega_z"])),
             phi=o.get("phi"), theta=o.get("theta"), psi=o.get("psi"), L=L, energy=o.get("energy"),
+            energy_error=o.get("energy_error"),
             inputs={k: float(v) for k, v in (inputs or {}).items()},
             scene=scene, body=body, wall_ns=wall_ns,
         )
@@ -308,6 +314,7 @@ class BodyState:
             "psi": _finite_or_none(self.psi),
             "L": None if self.L is None else [_finite_or_none(v) for v in self.L],
             "energy": _finite_or_none(self.energy),
+            "energy_error": _finite_or_none(self.energy_error),
             "inputs": {k: v for k, v in self.inputs.items() if math.isfinite(v)},
         }
         if self.wall_ns is not None:

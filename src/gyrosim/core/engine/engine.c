@@ -37,6 +37,19 @@ int gs_method_code(const char *name) {
     return -1;
 }
 
+/* the study's stability map (docs/accuracy.md) */
+const double gs_stable_x[GS_N_METHODS] = {0.0, 0.445, 1.15, 1.21, INFINITY, INFINITY, INFINITY};
+
+double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]) {
+    double r = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    if ((flags & GS_GRAVITY) && p[3] != 0.0) {
+        const double nut = p[2] * fabs(y[6]) / sqrt(p[0] * p[1]);
+        const double pend = sqrt(fabs(p[3]) / fmin(p[0], p[1]));
+        r = fmax(r, fmax(nut, pend));
+    }
+    return r;
+}
+
 int gs_torque_free(int flags, const double p[GS_NP]) {
     return !((flags & GS_GRAVITY) && p[3] != 0.0) && !((flags & GS_DAMPING) && p[4] != 0.0) &&
            !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
@@ -130,7 +143,28 @@ void gs_quat_to_euler_zyz(const double q_in[4], double *phi, double *theta, doub
     *psi = wrap_angle(ps);
 }
 
-void gs_start_state(double y[GS_NY]) {
+/* kinetic energy, potential energy and the largest moment */
+static GS_INLINE double kinetic(const double *y, const double *p) {
+    return 0.5 * (p[0] * y[4] * y[4] + p[1] * y[5] * y[5] + p[2] * y[6] * y[6]);
+}
+
+static GS_INLINE double potential(const double *y, const double *p) {   /* mgl (R e3).z */
+    return p[3] * (1.0 - 2.0 * (y[1] * y[1] + y[2] * y[2]));
+}
+
+/* L_z (world) of the body's L = I omega */
+static GS_INLINE double l_world_z(const double *y, const double *p) {
+    const double w = y[0], x = y[1], yy = y[2], z = y[3];
+    return 2.0 * (x * z - w * yy) * p[0] * y[4] + 2.0 * (yy * z + w * x) * p[1] * y[5] +
+           (1.0 - 2.0 * (x * x + yy * yy)) * p[2] * y[6];
+}
+
+static GS_INLINE double l_norm(const double *y, const double *p) {
+    const double a = p[0] * y[4], b = p[1] * y[5], c = p[2] * y[6];
+    return sqrt(a * a + b * b + c * c);
+}
+
+void gs_start_state(double y[GS_NY], const double p[GS_NP]) {
     const double nq = gs_norm4(y);
     for (int i = 0; i < 4; i++) y[i] = y[i] / nq;
     double phi, theta, psi;
@@ -138,12 +172,61 @@ void gs_start_state(double y[GS_NY]) {
     y[7] = phi;
     y[8] = psi;
     y[9] = 0.0;
+    const double T = kinetic(y, p);
+    y[10] = T + potential(y, p);
+    y[11] = T + fabs(p[3]);
+    y[12] = l_norm(y, p);
+    y[13] = l_world_z(y, p);
+    y[14] = p[2] * y[6];
+}
+
+/* the symmetric top on a pivot: L_z and L_3 conserved */
+static GS_INLINE int pivoted_top(int flags, const double *p) {
+    return (flags & GS_GRAVITY) && p[3] != 0.0 && p[0] == p[1] && !((flags & GS_DAMPING) && p[4] != 0.0) &&
+           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
+}
+
+double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double d[GS_NDRIFT]) {
+    const double mgl = fabs(p[3]);
+    const double V = (flags & GS_GRAVITY) ? potential(y, p) : 0.0;
+    const double E = kinetic(y, p) + V;
+    const double es = fmax(y[11], fabs(y[10] - V) + mgl);
+    const double de = fabs(E - y[10]);
+    d[0] = de == 0.0 ? 0.0 : de / es;   /* a body at rest: 0 / 0 */
+    d[1] = d[2] = d[3] = 0.0;
+    /* |L0|, or for a top that starts slow the momentum its fall can give it, sqrt(2 max(I) |mgl|) */
+    const double ls = fmax(y[12], sqrt(2.0 * fmax(p[0], fmax(p[1], p[2])) * mgl));
+    if (gs_torque_free(flags, p)) {
+        const double dl = fabs(l_norm(y, p) - y[12]);
+        d[1] = dl == 0.0 ? 0.0 : dl / ls;
+    } else if (pivoted_top(flags, p)) {
+        const double dz = fabs(l_world_z(y, p) - y[13]), d3 = fabs(p[2] * y[6] - y[14]);
+        d[2] = dz == 0.0 ? 0.0 : dz / ls;
+        d[3] = d3 == 0.0 ? 0.0 : d3 / ls;
+    }
+    double m = d[0];
+    for (int i = 1; i < GS_NDRIFT; i++) m = (d[i] > m || isnan(d[i])) ? d[i] : m;
+    return isnan(d[0]) ? d[0] : m;
+}
+
+/* the health monitor's verdict: 1 when max_drift (p[8]) is on and a drift is beyond it or not a number */
+static GS_INLINE int drifted(int flags, const double *y, const double *p) {
+    const double bound = p[8];
+    if (!(bound > 0.0) || isinf(bound)) return 0;
+    double d[GS_NDRIFT];
+    const double m = gs_drift(flags, y, p, d);
+    return !(m <= bound);
 }
 
 /* ------------------------------------------------------------------------------------------- dynamics */
 
 /* k[0:4] = dq/dt, k[4:7] = domega/dt */
-static GS_INLINE void rhs(const double *s, const double *p, int flags, double k[7]) {
+/* the terms whose work the health monitor integrates (the input torque's and the damping's) */
+#define GS_WORK (GS_DAMPING | GS_TORQUE)
+
+/* k[0:4] = dq/dt, k[4:7] = domega/dt and, where the scene has GS_WORK terms, k[7] = their power tau.omega -
+ * damping |omega|^2 (W), integrated alongside the state by the same method */
+static GS_INLINE void rhs(const double *s, const double *p, int flags, double k[8]) {
     const double qw = s[0], qx = s[1], qy = s[2], qz = s[3], o1 = s[4], o2 = s[5], o3 = s[6];
     const double I1 = p[0], I2 = p[1], I3 = p[2];
     double a1 = (I2 - I3) * o2 * o3;
@@ -172,6 +255,12 @@ static GS_INLINE void rhs(const double *s, const double *p, int flags, double k[
     k[4] = a1 / I1;
     k[5] = a2 / I2;
     k[6] = a3 / I3;
+    if (flags & GS_WORK) {
+        double pw = 0.0;
+        if (flags & GS_TORQUE) pw += p[5] * o1 + p[6] * o2 + p[7] * o3;
+        if (flags & GS_DAMPING) pw -= p[4] * (o1 * o1 + o2 * o2 + o3 * o3);
+        k[7] = pw;
+    }
 }
 
 static GS_INLINE int ok(const double *y) {
@@ -192,15 +281,16 @@ static GS_INLINE void normalize_q(double *y) {
 }
 
 static GS_INLINE void euler_step(double *y, const double *p, int flags, double h) {
-    double k[7];
+    double k[8];
     rhs(y, p, flags, k);
     for (int i = 0; i < 7; i++) y[i] += h * k[i];
+    if (flags & GS_WORK) y[10] += h * k[7];
     normalize_q(y);
 }
 
 static GS_INLINE void rk4_step(double *y, const double *p, int flags, double h) {
     const double h2 = 0.5 * h;
-    double k1[7], k2[7], k3[7], k4[7], s[7];
+    double k1[8], k2[8], k3[8], k4[8], s[7];
     rhs(y, p, flags, k1);
     for (int i = 0; i < 7; i++) s[i] = y[i] + h2 * k1[i];
     rhs(s, p, flags, k2);
@@ -210,6 +300,7 @@ static GS_INLINE void rk4_step(double *y, const double *p, int flags, double h) 
     rhs(s, p, flags, k4);
     const double h6 = h / 6.0;
     for (int i = 0; i < 7; i++) y[i] += h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+    if (flags & GS_WORK) y[10] += h6 * (k1[7] + 2.0 * (k2[7] + k3[7]) + k4[7]);
     normalize_q(y);
 }
 
@@ -257,9 +348,18 @@ static void spherical_flow(const double L[3], double *q, double Ip, double h) {
     qmul_right(q, cos(0.5 * ang), s * L[0], s * L[1], s * L[2]);
 }
 
-static void kick(double L[3], const double *q, const double *p, int flags, double h, int damping_first) {
+/* kinetic energy of L_body */
+static GS_INLINE double kinetic_l(const double L[3], const double *p) {
+    return 0.5 * (L[0] * L[0] / p[0] + L[1] * L[1] / p[1] + L[2] * L[2] / p[2]);
+}
+
+/* the kicks; *W gains the work of the damping and torque kicks, each the exact flow of its term with q fixed, so
+ * their work is the kinetic energy they change */
+static void kick(double L[3], const double *q, const double *p, int flags, double h, int damping_first, double *W) {
     if (damping_first && (flags & GS_DAMPING)) {
+        const double t0 = kinetic_l(L, p);
         for (int i = 0; i < 3; i++) L[i] *= exp(-p[4] * h / p[i]);
+        *W += kinetic_l(L, p) - t0;
     }
     if (flags & GS_GRAVITY) {
         const double zb0 = 2.0 * (q[1] * q[3] - q[0] * q[2]);
@@ -268,12 +368,16 @@ static void kick(double L[3], const double *q, const double *p, int flags, doubl
         L[1] -= h * p[3] * zb0;
     }
     if (flags & GS_TORQUE) {
+        const double t0 = kinetic_l(L, p);
         L[0] += h * p[5];
         L[1] += h * p[6];
         L[2] += h * p[7];
+        *W += kinetic_l(L, p) - t0;
     }
     if (!damping_first && (flags & GS_DAMPING)) {
+        const double t0 = kinetic_l(L, p);
         for (int i = 0; i < 3; i++) L[i] *= exp(-p[4] * h / p[i]);
+        *W += kinetic_l(L, p) - t0;
     }
 }
 
@@ -296,16 +400,17 @@ static void split_axes(const double *p, int *s_out, int *p_out, int *r_out) {
     *r_out = r_best;
 }
 
+/* q: the body's state y (the attitude y[0:4]; the kicks' work goes to y[10]) */
 static void strang(double L[3], double *q, const double *p, int flags, double h, int s, int pp, int r) {
     const int kicks = flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE);
-    if (kicks) kick(L, q, p, flags, 0.5 * h, 1);
+    if (kicks) kick(L, q, p, flags, 0.5 * h, 1, q + 10);
     const double cr = 1.0 / p[r] - 1.0 / p[pp];
     const double cs = 1.0 / p[s] - 1.0 / p[pp];
     if (cr != 0.0) axis_flow(L, q, r, cr, 0.5 * h);
     spherical_flow(L, q, p[pp], h);
     if (cs != 0.0) axis_flow(L, q, s, cs, h);
     if (cr != 0.0) axis_flow(L, q, r, cr, 0.5 * h);
-    if (kicks) kick(L, q, p, flags, 0.5 * h, 0);
+    if (kicks) kick(L, q, p, flags, 0.5 * h, 0, q + 10);
 }
 
 /* Yoshida's triple jump: the symmetric second-order step composed into a fourth-order one */
@@ -417,7 +522,7 @@ static int32_t exact_advance_pre(double *y, const double *p, double t, double H,
         }
         y[9] += turn;
     }
-    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8])) {
+    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(0, y, p)) {   /* torque-free: flags 0 */
         memcpy(y, save, sizeof(save));
         return 1;
     }
@@ -448,9 +553,9 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
     rebase(y, w, H);
     if (method == GS_ADAPTIVE || method == GS_DOP853) {   /* they move the reference angles themselves */
         const int64_t st = erk_step_mode(method, y, p, flags, H, rtol, atol, max_step, hint, stats);
-        if (st) {
+        if (st || drifted(flags, y, p)) {
             memcpy(y, save, sizeof(save));
-            return clamp_status(st);
+            return st ? clamp_status(st) : 1;
         }
         return 0;
     }
@@ -468,6 +573,10 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
         return clamp_status(k);
     }
     y[9] = after_steps(acc0, w, H, h, n_sub, stride);
+    if (drifted(flags, y, p)) {   /* the health monitor, once per communication step */
+        memcpy(y, save, sizeof(save));
+        return clamp_status(n_sub);
+    }
     stats[0] += n_sub;
     stats[2] += method == GS_EULER ? n_sub : (method == GS_RK4 ? 4 * n_sub : 0);
     return 0;
@@ -522,6 +631,12 @@ static GS_INLINE void rhs_block(const Lanes *S, const Lanes *P, int flags, Lanes
         K[4][j] = a1 / I1;
         K[5][j] = a2 / I2;
         K[6][j] = a3 / I3;
+        if (flags & GS_WORK) {   /* rhs's k[7], the same operations */
+            double pw = 0.0;
+            if (flags & GS_TORQUE) pw += P[5][j] * o1 + P[6][j] * o2 + P[7][j] * o3;
+            if (flags & GS_DAMPING) pw -= P[4][j] * (o1 * o1 + o2 * o2 + o3 * o3);
+            K[7][j] = pw;
+        }
     }
 }
 
@@ -537,7 +652,7 @@ static GS_INLINE void normalize_block(Lanes *Y) {
 }
 
 static GS_INLINE void steps_block(int method, Lanes *Y, const Lanes *P, int flags, double h, int64_t n_sub) {
-    Lanes K1[7], K2[7], K3[7], K4[7], S[7];
+    Lanes K1[8], K2[8], K3[8], K4[8], S[7];
     const double h2 = 0.5 * h;
     const double h6 = h / 6.0;
     for (int64_t k = 0; k < n_sub; k++) {
@@ -545,6 +660,8 @@ static GS_INLINE void steps_block(int method, Lanes *Y, const Lanes *P, int flag
         if (method == GS_EULER) {
             for (int i = 0; i < 7; i++)
                 for (int j = 0; j < GS_BLOCK; j++) Y[i][j] += h * K1[i][j];
+            if (flags & GS_WORK)
+                for (int j = 0; j < GS_BLOCK; j++) Y[7][j] += h * K1[7][j];
         } else {
             for (int i = 0; i < 7; i++)
                 for (int j = 0; j < GS_BLOCK; j++) S[i][j] = Y[i][j] + h2 * K1[i][j];
@@ -557,6 +674,8 @@ static GS_INLINE void steps_block(int method, Lanes *Y, const Lanes *P, int flag
             rhs_block((const Lanes *)S, P, flags, K4);
             for (int i = 0; i < 7; i++)
                 for (int j = 0; j < GS_BLOCK; j++) Y[i][j] += h6 * (K1[i][j] + 2.0 * (K2[i][j] + K3[i][j]) + K4[i][j]);
+            if (flags & GS_WORK)
+                for (int j = 0; j < GS_BLOCK; j++) Y[7][j] += h6 * (K1[7][j] + 2.0 * (K2[7][j] + K3[7][j]) + K4[7][j]);
         }
         normalize_block(Y);
     }
@@ -579,7 +698,7 @@ static void run_block(int method, Lanes *Y, const Lanes *P, int flags, double h,
 static size_t advance_block(int method, int flags, size_t b0, double *y, const double *p, double t, double H,
                             int64_t n_sub, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                             double *ex, int32_t *status) {
-    Lanes Y[7], P[GS_NP];
+    Lanes Y[8], P[GS_NP];   /* Y[7]: y[10], the energy the balance expects */
     double ang[GS_BLOCK][3], w[GS_BLOCK];
     int64_t stride[GS_BLOCK];
     const double h = H / (double)n_sub;
@@ -590,6 +709,7 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
         w[j] = sqrt(yr[4] * yr[4] + yr[5] * yr[5] + yr[6] * yr[6]);
         rebase(yr, w[j], H);
         for (int i = 0; i < 7; i++) Y[i][j] = yr[i];
+        Y[7][j] = yr[10];
         for (int i = 0; i < GS_NP; i++) P[i][j] = pb[i];
         ang[j][0] = yr[7];
         ang[j][1] = yr[8];
@@ -623,11 +743,14 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
         const size_t b = b0 + j;
         double *yb = y + b * GS_NY;
         double yn[GS_NY];
+        memcpy(yn, yb, sizeof(yn));
         for (int i = 0; i < 7; i++) yn[i] = Y[i][j];
         yn[7] = ang[j][0];
         yn[8] = ang[j][1];
         yn[9] = after_steps(ang[j][2], w[j], H, h, n_sub, stride[j]);
-        if (!ok(yn)) {   /* replay this body alone: it names the failing step and keeps the state */
+        yn[10] = Y[7][j];
+        if (!ok(yn) || drifted(flags, yn, p + b * GS_NP)) {   /* replay this body alone: it names the failing step
+                                                                  and keeps the state */
             status[b] = advance_body(method, flags, yb, p + b * GS_NP, t, H, n_sub, rtol, atol, max_step, hint + b,
                                      stats + b * GS_NSTATS, ex ? ex + b * GS_EX_SIZE : NULL);
             failed += status[b] != 0;
@@ -719,7 +842,7 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
             o[7] = o[8] = o[9] = NAN;
         }
         if (!(want & GS_OUT_MOMENTUM)) {
-            o[10] = o[11] = o[12] = o[13] = NAN;
+            o[10] = o[11] = o[12] = o[13] = o[14] = NAN;
             continue;
         }
         const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
@@ -727,6 +850,7 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
         o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
         o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
         o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
+        o[14] = o[13] - yb[10];
     }
 }
 
@@ -755,21 +879,34 @@ static const double D5_E[7] = {71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920
                                22.0 / 525.0, -1.0 / 40.0};
 
 typedef struct {
-    double K[16][7];   /* stages (dop853 uses 13 + 3 for dense output; dopri5 7) */
-    double y0[7];      /* state at the start of the step */
-    double y1[7];      /* state at the end (before the quaternion's renormalisation) */
+    double K[16][8];   /* stages (dop853 uses 13 + 3 for dense output; dopri5 7) */
+    double y0[8];      /* state at the start of the step: q, omega and, with GS_WORK terms, y[10] */
+    double y1[8];      /* state at the end (before the quaternion's renormalisation) */
     double h;
+    int nv;            /* components integrated: 7, or 8 with the energy the balance expects (GS_WORK terms) */
     int dense_ready;   /* dop853's extra stages computed for this step */
-    double F[7][7];    /* dop853's interpolation polynomial */
+    double F[7][8];    /* dop853's interpolation polynomial */
 } Step;
+
+/* a state y (GS_NY) into a step's components and back */
+static GS_INLINE void to_step(const double *y, double *v) {
+    memcpy(v, y, 7 * sizeof(double));
+    v[7] = y[10];
+}
+
+static GS_INLINE void from_step(const double *v, int nv, double *y) {
+    memcpy(y, v, 7 * sizeof(double));
+    if (nv == 8) y[10] = v[7];
+}
 
 /* One step of h from s.y0 with s.K[0] = f(y0): s.y1, s.K[last] = f(y1); returns the scaled error norm. */
 static double erk_step(int method, Step *s, const double *p, int flags, double h, double rtol, double atol,
                        int64_t *stats) {
-    double yt[7];
+    double yt[8];
+    const int nv = s->nv;
     if (method == GS_ADAPTIVE) {
         for (int st = 1; st < 7; st++) {
-            for (int i = 0; i < 7; i++) {
+            for (int i = 0; i < nv; i++) {
                 double acc = 0.0;
                 for (int j = 0; j < st; j++) acc += D5_A[st][j] * s->K[j][i];
                 yt[i] = s->y0[i] + h * acc;
@@ -790,23 +927,23 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     }
     /* dop853: 12 stages, then f(y1) as the 13th (FSAL); error as scipy's DOP853 (E5 with an E3 correction) */
     for (int st = 1; st < 12; st++) {
-        double acc[7] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+        double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
         for (int j = 0; j < st; j++) {   /* the tableau is sparse: skip its zeros */
             const double a = D8_A[st][j];
             if (a == 0.0) continue;
-            for (int i = 0; i < 7; i++) acc[i] += a * s->K[j][i];
+            for (int i = 0; i < nv; i++) acc[i] += a * s->K[j][i];
         }
-        for (int i = 0; i < 7; i++) yt[i] = s->y0[i] + h * acc[i];
+        for (int i = 0; i < nv; i++) yt[i] = s->y0[i] + h * acc[i];
         rhs(yt, p, flags, s->K[st]);
     }
     {
-        double acc[7] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+        double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
         for (int j = 0; j < 12; j++) {
             const double bj = D8_B[j];
             if (bj == 0.0) continue;
-            for (int i = 0; i < 7; i++) acc[i] += bj * s->K[j][i];
+            for (int i = 0; i < nv; i++) acc[i] += bj * s->K[j][i];
         }
-        for (int i = 0; i < 7; i++) s->y1[i] = s->y0[i] + h * acc[i];
+        for (int i = 0; i < nv; i++) s->y1[i] = s->y0[i] + h * acc[i];
     }
     rhs(s->y1, p, flags, s->K[12]);
     stats[2] += 12;
@@ -830,12 +967,13 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * 7.0);
 }
 
-/* The continuous extension at x in [0, 1] of the step (7 components; q not normalised). */
+/* The continuous extension at x in [0, 1] of the step (s->nv components; q not normalised). */
 static void erk_dense(int method, Step *s, const double *p, int flags, double x, double *out, int64_t *stats) {
     const double h = s->h;
+    const int nv = s->nv;
     if (method == GS_ADAPTIVE) {
         const double x2 = x * x, x3 = x2 * x, x4 = x3 * x;
-        for (int i = 0; i < 7; i++) {
+        for (int i = 0; i < nv; i++) {
             double acc = 0.0;
             for (int j = 0; j < 7; j++) {
                 acc += s->K[j][i] * (D5_P[j][0] * x + D5_P[j][1] * x2 + D5_P[j][2] * x3 + D5_P[j][3] * x4);
@@ -845,19 +983,19 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
         return;
     }
     if (!s->dense_ready) {
-        double yt[7];
+        double yt[8];
         for (int st = 13; st < 16; st++) {
-            double acc[7] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+            double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
             for (int j = 0; j < st; j++) {
                 const double a = D8_A[st][j];
                 if (a == 0.0) continue;
-                for (int i = 0; i < 7; i++) acc[i] += a * s->K[j][i];
+                for (int i = 0; i < nv; i++) acc[i] += a * s->K[j][i];
             }
-            for (int i = 0; i < 7; i++) yt[i] = s->y0[i] + h * acc[i];
+            for (int i = 0; i < nv; i++) yt[i] = s->y0[i] + h * acc[i];
             rhs(yt, p, flags, s->K[st]);
         }
         stats[2] += 3;
-        for (int i = 0; i < 7; i++) {
+        for (int i = 0; i < nv; i++) {
             const double dy = s->y1[i] - s->y0[i];
             s->F[0][i] = dy;
             s->F[1][i] = h * s->K[0][i] - dy;
@@ -873,7 +1011,7 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
         s->dense_ready = 1;
     }
     const double xm = 1.0 - x;
-    for (int i = 0; i < 7; i++) {   /* scipy's Dop853DenseOutput: alternately times x and (1 - x) */
+    for (int i = 0; i < nv; i++) {   /* scipy's Dop853DenseOutput: alternately times x and (1 - x) */
         double v = s->F[6][i] * x;
         v = (v + s->F[5][i]) * xm;
         v = (v + s->F[4][i]) * x;
@@ -892,6 +1030,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
                        double max_step, double *hint, int64_t *stats, double dt, int64_t n_out, double *out,
                        size_t ostride, int64_t *fail_row, int want) {
     Step s;
+    s.nv = (flags & GS_WORK) ? 8 : 7;
     double yc[GS_NY];
     memcpy(yc, y, sizeof(yc));
     const double expo = method == GS_ADAPTIVE ? -0.2 : -0.125;
@@ -931,12 +1070,13 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             h = remaining;
             clipped = 1;
         }
-        memcpy(s.y0, yc, sizeof(s.y0));
+        to_step(yc, s.y0);
         s.h = h;
         s.dense_ready = 0;
         const double err = erk_step(method, &s, p, flags, h, rtol, atol, stats);
         double ynew[GS_NY];
-        memcpy(ynew, s.y1, sizeof(s.y1));
+        memcpy(ynew, yc, sizeof(ynew));
+        from_step(s.y1, s.nv, ynew);
         if (!(isfinite(err) && ok(ynew))) {
             if (h <= h_min) {
                 *fail_row = k_next;
@@ -965,15 +1105,20 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
         while (n_out > 0 && k_next <= n_out && (double)k_next * dt <= t1 * (1.0 + 1e-15)) {
             const double tk = k_next == n_out ? T : (double)k_next * dt;
             double yi[GS_NY];
+            memcpy(yi, yc, sizeof(yi));   /* the reference angles and the monitor's start values */
             if (k_next == n_out && clipped) {
-                memcpy(yi, s.y1, sizeof(s.y1));
+                from_step(s.y1, s.nv, yi);
             } else {
-                erk_dense(method, &s, p, flags, (tk - t) / h, yi, stats);
+                double v[8];
+                erk_dense(method, &s, p, flags, (tk - t) / h, v, stats);
+                from_step(v, s.nv, yi);
             }
             normalize_q(yi);
-            yi[7] = yc[7];
-            yi[8] = yc[8];
             yi[9] = 0.0;
+            if (drifted(flags, yi, p)) {   /* the health monitor at every output point */
+                *fail_row = k_next;
+                return nstep;
+            }
             gs_outputs_select(1, yi, p, out + (size_t)(k_next - 1) * ostride, want);
             if (want & GS_OUT_ANGLES) {   /* the reference angles follow the outputs */
                 yc[7] = out[(size_t)(k_next - 1) * ostride + 7];
@@ -982,7 +1127,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             }
             k_next += 1;
         }
-        memcpy(yc, ynew, 7 * sizeof(double));
+        from_step(s.y1, s.nv, yc);
         normalize_q(yc);
         memcpy(s.K[0], method == GS_ADAPTIVE ? s.K[6] : s.K[12], sizeof(s.K[0]));
         stats[0] += 1;

@@ -9,17 +9,25 @@
  * first, rotating body vectors into the world frame. ZYZ angles R = Rz(phi) Ry(theta) Rz(psi).
  *
  * Per body b (arrays of n bodies, row-major):
- *   y[b*GS_NY + .] (10)  q_w, q_x, q_y, q_z, omega_1, omega_2, omega_3 (rad/s, body), then the reference angles
+ *   y[b*GS_NY + .] (15)  q_w, q_x, q_y, q_z, omega_1, omega_2, omega_3 (rad/s, body), then the reference angles
  *                        phi_ref, psi_ref (rad) from which the outputs phi, psi are unwrapped (a pure function of
  *                        y: reading never changes the state) and the rotation since they were set (rad); the
- *                        engine moves the reference before the body can turn by 1 rad from it
- *   p[b*GS_NP + .]  (8)  I1, I2, I3 (kg*m^2, principal, about the reference point), mgl = mass*g*cm_distance
- *                        (N*m), damping (N*m*s), tau_1, tau_2, tau_3 (N*m, body frame, held over the step)
+ *                        engine moves the reference before the body can turn by 1 rad from it. Then the health
+ *                        monitor (gs_start_state sets it): [10] E0 + W, the energy the work-energy balance expects
+ *                        (J; W = the input torque's work minus the damping's dissipation, integrated alongside the
+ *                        state by the integrator's own quadrature; constant where the scene has neither term),
+ *                        [11] the energy scale S0 = T0 + |mgl| (J), [12] |L0|, [13] L_z0 (world), [14] L_3,0
+ *                        (body) (kg*m^2/s) at the start
+ *   p[b*GS_NP + .]  (9)  I1, I2, I3 (kg*m^2, principal, about the reference point), mgl = mass*g*cm_distance
+ *                        (N*m), damping (N*m*s), tau_1, tau_2, tau_3 (N*m, body frame, held over the step),
+ *                        max_drift (the health monitor's bound: gs_drift; 0 or inf = off)
  *   hint[b]              adaptive: the next internal step (s); 0 = choose one (part of the saved state)
  *   stats[b*3 + .]       accepted internal steps, rejected steps, right-hand-side evaluations (accumulated)
  *   ex[b*GS_EX_SIZE + .] exact: the constants of the torque-free flow from its anchor state, ex[GS_EX_T0] the
  *                        anchor time (s) and ex[GS_EX_VALID] 1 when set up (0: set up from y at the next step)
- *   status[b]            0, or k + 1 when internal step k of body b failed (non-finite or overflowing state);
+ *   status[b]            0, or k + 1 when internal step k of body b failed (non-finite or overflowing state, or
+ *                        the health monitor's largest drift beyond max_drift, checked at the end of each
+ *                        communication step and output point);
  *                        the body's y, hint, stats and ex are then left as they were before the call
  */
 #ifndef GYROSIM_ENGINE_H
@@ -60,10 +68,10 @@ extern "C" {
 #define GS_DOP853 6
 #define GS_N_METHODS 7
 
-#define GS_NY 10
-#define GS_NP 8
+#define GS_NY 15
+#define GS_NP 9
 #define GS_NSTATS 3
-#define GS_NOUT 14
+#define GS_NOUT 15
 
 /* the torque-free flow's constants (gs_tf_setup: 40, then a Chebyshev series of the angle about L of up to
  * GS_TF_NCHEB terms, then 12 constants and the four Chebyshev series of the fast evaluation, GS_TF_NFAST terms
@@ -79,6 +87,20 @@ extern "C" {
  * the tolerance as given, its global attitude error over 100 s of the study's free body was 77-350 times the
  * tolerance; with a quarter, 12-60 times over 1e-3..1e-12 (docs/accuracy.md), at 1.3 times the steps. */
 #define GS_ADAPTIVE_TOL_SCALE 0.25
+
+/* max_drift's default: the health monitor's bound on the relative drifts of gs_drift (docs/accuracy.md, the
+ * stability map: no run of the study trips it, and every blow-up there is caught within 1% of its steps) */
+#define GS_MAX_DRIFT_DEFAULT 0.02
+
+/* The largest stable h*rate of each fixed-step integrator, the minimum over the study's stability map (rate =
+ * |omega|, on a pivot the larger of |omega| and the nutation frequency I3 |omega_3| / sqrt(I1 I2)): what the blow-up
+ * messages compute a max_step from. 0: no step is stable over a long run (euler's energy grows by a factor 1 +
+ * (h w)^2 per step); inf: the method chooses its own steps or needs none (adaptive, dop853, exact). */
+extern const double gs_stable_x[GS_N_METHODS];
+
+/* The fastest rate of a body's state (rad/s): |omega| and, on a pivot (mgl != 0), the nutation frequency
+ * I3 |omega_3| / sqrt(I1 I2) and the pendulum frequency sqrt(|mgl| / min(I1, I2)), whichever is largest. */
+double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]);
 
 /* |omega_1| + |omega_2| + |omega_3| at or above which a state counts as blown up (rad/s) */
 #define GS_OMEGA_LIMIT 1e100
@@ -133,18 +155,31 @@ int32_t gs_advance_one(int method, int flags, double *y, const double *p, double
                        double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex);
 
 /* Every output per body into out[b*GS_NOUT + .], in the order q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z,
- * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J). */
+ * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J), energy_error (J: energy - y[10], the
+ * work-energy balance E(t) - E(0) - W_torque(t) + W_damping(t)). */
 void gs_outputs(size_t n, const double *y, const double *p, double *out);
 
-/* Derived outputs to compute: phi, theta, psi (the costly part); L_x, L_y, L_z and energy. */
+/* Derived outputs to compute: phi, theta, psi (the costly part); L_x, L_y, L_z, energy and energy_error. */
 #define GS_OUT_ANGLES 1
 #define GS_OUT_MOMENTUM 2
 
 /* gs_outputs with only the derived outputs in want (q and omega always; the others NaN). */
 void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want);
 
-/* Start a state: q = y[0:4] divided by its norm, then y[7], y[8] = phi, psi of gs_quat_to_euler_zyz(q), y[9] = 0. */
-void gs_start_state(double y[GS_NY]);
+/* Start a state: q = y[0:4] divided by its norm, then y[7], y[8] = phi, psi of gs_quat_to_euler_zyz(q), y[9] = 0,
+ * and the health monitor's start values y[10..14] from y and p. */
+void gs_start_state(double y[GS_NY], const double p[GS_NP]);
+
+/* The health monitor: relative drifts of one body's monitored quantities since gs_start_state.
+ *   d[0] energy balance: |E - y[10]| / max(S0, |y[10] - V| + |mgl|) (V = the potential energy now: the scale is
+ *        the energy the body started with or the kinetic energy the balance expects, whichever is larger)
+ *   d[1] | |L| - |L0| | / Ls, where the body is torque-free (gs_torque_free)
+ *   d[2] |L_z - L_z0| / Ls and d[3] |L_3 - L_3,0| / Ls, for a symmetric body (I1 == I2) on a pivot with no damping
+ *        or input torque (gravity is then the only torque, about the world z and normal to body axis 3)
+ *   Ls = max(|L0|, sqrt(2 max(I) |mgl|)) (a top released slowly gains about the latter); 0 where not monitored.
+ * Returns the largest (NaN when the state is not finite). */
+#define GS_NDRIFT 4
+double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double d[GS_NDRIFT]);
 
 /* Move the reference angles y[7], y[8] to the unwrapped phi, psi of the quaternion y[0:4]; y[9] = 0. */
 void gs_unwrap(double y[GS_NY]);

@@ -21,13 +21,13 @@ static const double START_BODY[GS_N_BODIES][14] = GS_START_BODIES;
 
 static const char *const KIND_NAME[GS_V_COUNT] = {
     "?", "time", "I1", "I2", "I3", "mass", "cm_distance", "g", "damping", "integrator", "max_step",
-    "q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "tau_x", "tau_y", "tau_z",
-    "phi", "theta", "psi", "L_x", "L_y", "L_z", "energy"};
+    "max_drift", "q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "tau_x", "tau_y", "tau_z",
+    "phi", "theta", "psi", "L_x", "L_y", "L_z", "energy", "energy_error"};
 
 static const char *const KIND_UNIT[GS_V_COUNT] = {
     "", "s", "kg.m2", "kg.m2", "kg.m2", "kg", "m", "m/s2", "N.m.s", "", "s",
-    "1", "1", "1", "1", "rad/s", "rad/s", "rad/s", "N.m", "N.m", "N.m",
-    "rad", "rad", "rad", "kg.m2/s", "kg.m2/s", "kg.m2/s", "J"};
+    "1", "1", "1", "1", "1", "rad/s", "rad/s", "rad/s", "N.m", "N.m", "N.m",
+    "rad", "rad", "rad", "kg.m2/s", "kg.m2/s", "kg.m2/s", "J", "J"};
 
 /* ------------------------------------------------------------------------------------------ helpers */
 
@@ -167,6 +167,7 @@ void gs_set_start_values(GsInstance *m) {
     d->fmi_state = GS_INSTANTIATED;
     d->integrator = GS_START_INTEGRATOR_CODE;
     d->max_step = GS_START_MAX_STEP;
+    d->max_drift = GS_START_MAX_DRIFT;
     d->tolerance = GS_START_TOLERANCE;
     for (int b = 0; b < GS_N_BODIES; b++) {
         const double *s = START_BODY[b];
@@ -276,6 +277,7 @@ int gs_initialize(GsInstance *m) {
             p[5] = d->tau[b][0];
             p[6] = d->tau[b][1];
             p[7] = d->tau[b][2];
+            p[8] = d->max_drift;
         }
         d->initialized = 1;
     }
@@ -298,7 +300,7 @@ int gs_initialize(GsInstance *m) {
                 }
             }
         }
-        for (int b = 0; b < GS_N_BODIES; b++) gs_start_state(d->y[b]);
+        for (int b = 0; b < GS_N_BODIES; b++) gs_start_state(d->y[b], d->p[b]);
         d->state_dirty = 0;
         m->outputs_valid = 0;
     }
@@ -340,14 +342,16 @@ int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
         case GS_V_G: *value = d->g[b]; return GS_OK;
         case GS_V_DAMPING: *value = d->damping[b]; return GS_OK;
         case GS_V_MAX_STEP: *value = d->max_step; return GS_OK;
+        case GS_V_MAX_DRIFT: *value = d->max_drift; return GS_OK;
         case GS_V_TX: case GS_V_TY: case GS_V_TZ: *value = d->tau[b][k - GS_V_TX]; return GS_OK;
         case GS_V_QW: case GS_V_QX: case GS_V_QY: case GS_V_QZ: case GS_V_OX: case GS_V_OY: case GS_V_OZ:
-        case GS_V_PHI: case GS_V_THETA: case GS_V_PSI: case GS_V_LX: case GS_V_LY: case GS_V_LZ: case GS_V_ENERGY: {
+        case GS_V_PHI: case GS_V_THETA: case GS_V_PSI: case GS_V_LX: case GS_V_LY: case GS_V_LZ: case GS_V_ENERGY:
+        case GS_V_ENERGY_ERROR: {
             if (outputs(m) != GS_OK) return GS_ERROR;
             static const int SLOT[GS_V_COUNT] = {
                 [GS_V_QW] = 0, [GS_V_QX] = 1, [GS_V_QY] = 2, [GS_V_QZ] = 3, [GS_V_OX] = 4, [GS_V_OY] = 5,
                 [GS_V_OZ] = 6, [GS_V_PHI] = 7, [GS_V_THETA] = 8, [GS_V_PSI] = 9, [GS_V_LX] = 10, [GS_V_LY] = 11,
-                [GS_V_LZ] = 12, [GS_V_ENERGY] = 13};
+                [GS_V_LZ] = 12, [GS_V_ENERGY] = 13, [GS_V_ENERGY_ERROR] = 14};
             *value = m->outputs[b][SLOT[k]];
             return GS_OK;
         }
@@ -379,7 +383,7 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
     if (!is_input && !(d->fmi_state & (GS_INSTANTIATED | GS_INIT))) {
         gs_log_error(m, "%s cannot be set in state %s: only the inputs tau_x, tau_y, tau_z can be set after "
                      "initialisation (%s is a %s)", name.s, state_name(d->fmi_state), name.s,
-                     k <= GS_V_MAX_STEP ? "fixed parameter" : "output");
+                     k <= GS_V_MAX_DRIFT ? "fixed parameter" : "output");
         return GS_ERROR;
     }
     if (k >= GS_V_PHI) {
@@ -416,6 +420,14 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
                 return GS_ERROR;
             }
             d->max_step = x;
+            break;
+        case GS_V_MAX_DRIFT:
+            if (!(x >= 0)) {
+                gs_log_error(m, "max_drift = %s is not allowed: a number >= 0 (0: the health monitor off)", num(x).s);
+                return GS_ERROR;
+            }
+            d->max_drift = x;
+            for (int i = 0; i < GS_N_BODIES; i++) d->p[i][8] = x;
             break;
         case GS_V_TX: case GS_V_TY: case GS_V_TZ:
             d->tau[b][k - GS_V_TX] = x;
@@ -529,26 +541,57 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
 #if GS_N_BODIES > 1
         memcpy(d, m->scratch, sizeof(GsData));
 #endif
-        char detail[200], advice[200];
-        if (method == GS_ADAPTIVE || method == GS_DOP853) {
-            snprintf(detail, sizeof(detail), "the adaptive step size fell below its minimum, or the step needed more "
-                     "than %d internal steps, at internal step %d", GS_MAX_WORK, k);
-            snprintf(advice, sizeof(advice), "loosen the tolerance or check the parameters (the solution may "
-                     "truly blow up)");
-        } else if (method == GS_EXACT) {
-            snprintf(detail, sizeof(detail), "the exact torque-free solution");
-            snprintf(advice, sizeof(advice), "check the parameters and the state (the rates may be beyond double "
-                     "precision)");
+        /* what went wrong: the step again from the same state with the health monitor off */
+        double y[GS_NY], pp[GS_NP], hint = d->hint[b], ex_valid = d->ex[b][GS_EX_VALID];
+        int64_t st[GS_NSTATS] = {0, 0, 0};
+        memcpy(y, d->y[b], sizeof(y));
+        memcpy(pp, d->p[b], sizeof(pp));
+        pp[8] = 0.0;
+        const double rate = gs_fastest_rate(GS_FLAGS, y, pp);
+        const int again = gs_advance_one(method, GS_FLAGS, y, pp, t, h, n_sub ? n_sub : 1, d->tolerance,
+                                         d->tolerance, d->max_step, &hint, st, d->ex[b]);
+        d->ex[b][GS_EX_VALID] = ex_valid;   /* the anchor as before the step */
+        char cause[240], advice[320];
+        if (again && (method == GS_ADAPTIVE || method == GS_DOP853)) {
+            snprintf(cause, sizeof(cause), "the adaptive step size fell below its minimum, or the step needed more "
+                     "than %d internal steps (the solution may truly blow up)", GS_MAX_WORK);
+        } else if (again) {
+            snprintf(cause, sizeof(cause), "the state became non-finite or overflowed (|omega| > 1e+100 rad/s) at "
+                     "internal step %d of %lld", k, (long long)n_sub);
         } else {
-            snprintf(detail, sizeof(detail), "internal step %d of %lld (internal step %.6g s)", k, (long long)n_sub,
-                     h / (double)n_sub);
-            snprintf(advice, sizeof(advice), "use a smaller max_step (now %.6g s) or the integrator '%s'",
-                     d->max_step, method == GS_SPLITTING ? "adaptive" : "splitting");
+            static const char *const what[GS_NDRIFT] = {"the energy balance", "|L|", "L_z", "L_3"};
+            double dr[GS_NDRIFT];
+            gs_drift(GS_FLAGS, y, pp, dr);
+            int i = 0;
+            for (int j = 1; j < GS_NDRIFT; j++) if (dr[j] > dr[i]) i = j;
+            snprintf(cause, sizeof(cause), "%s drifted by %.3g of its scale (max_drift = %.6g, the health "
+                     "monitor's bound)", what[i], dr[i], d->max_drift);
         }
-        gs_log_error(m, "integrator '%s' blew up%s%s%s in the step from t = %s s with h = %s s: %s gave a non-finite "
-                     "or overflowing state (|omega| > 1e+100 rad/s); %s", gs_method_names[method],
-                     GS_N_BODIES > 1 ? " for body '" : "", where(b), GS_N_BODIES > 1 ? "'" : "", num(t).s, num(h).s,
-                     detail, advice);
+        static const char *const alt[GS_N_METHODS] = {"rk4", "splitting", "dop853", "dop853", "splitting",
+                                                      "dop853", "splitting"};
+        const double hi = method == GS_ADAPTIVE || method == GS_DOP853 || method == GS_EXACT ? h : h / (double)n_sub;
+        const double xs = gs_stable_x[method];
+        if (method == GS_ADAPTIVE || method == GS_DOP853 || method == GS_EXACT) {
+            snprintf(advice, sizeof(advice), "loosen the tolerance, check the parameters, or try the integrator '%s'",
+                     alt[method]);
+        } else if (xs == 0.0) {
+            snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s, so h*rate = %.3g; %s's "
+                     "energy grows by a factor 1 + (h*rate)^2 every step at any step size: use the integrator 'rk4' "
+                     "with max_step <= %.3g s, or 'splitting'", rate, hi * rate, gs_method_names[method],
+                     0.5 * gs_stable_x[GS_RK4] / rate);
+        } else if (0.5 * xs / rate < hi) {
+            snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s, so h*rate = %.3g, beyond "
+                     "%s's stable h*rate <= %g (the stability map of the FMU's documentation): use max_step <= "
+                     "%.3g s, or the integrator '%s'", rate, hi * rate, gs_method_names[method], xs,
+                     0.5 * xs / rate, alt[method]);
+        } else {
+            snprintf(advice, sizeof(advice), "h*rate = %.3g (rate %.4g rad/s) is within %s's stable h*rate <= %g: "
+                     "the parameters may make the motion truly grow; check them, or try the integrator '%s'",
+                     hi * rate, rate, gs_method_names[method], xs, alt[method]);
+        }
+        gs_log_error(m, "integrator '%s' blew up%s%s%s in the step from t = %s s with h = %s s: %s; %s",
+                     gs_method_names[method], GS_N_BODIES > 1 ? " for body '" : "", where(b),
+                     GS_N_BODIES > 1 ? "'" : "", num(t).s, num(h).s, cause, advice);
         return GS_ERROR;
     }
     if (h == d->h) {
@@ -625,8 +668,7 @@ int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *
     int ok = (out->fmi_state == GS_INSTANTIATED || out->fmi_state == GS_INIT || out->fmi_state == GS_STEP ||
               out->fmi_state == GS_TERMINATED) &&
              out->integrator >= 0 && out->integrator < GS_N_METHODS &&
-             (out->integrator != GS_EXACT || GS_FLAGS == 0) &&
-             isfinite(out->max_step) && out->max_step > 0.0 && isfinite(out->tolerance) && out->tolerance > 0.0 &&
+             isfinite(out->max_step) && out->max_step > 0.0 && out->max_drift >= 0.0 && isfinite(out->tolerance) && out->tolerance > 0.0 &&
              out->n >= 0;
     for (int b = 0; ok && b < GS_N_BODIES; b++) {
         if (out->ex[b][GS_EX_VALID] == 1.0 && !gs_tf_valid(out->ex[b])) ok = 0;

@@ -18,8 +18,9 @@
 enum {
     GS_V_NONE = 0, GS_V_TIME,
     GS_V_I1, GS_V_I2, GS_V_I3, GS_V_MASS, GS_V_CM, GS_V_G, GS_V_DAMPING, GS_V_INTEGRATOR, GS_V_MAX_STEP,
+    GS_V_MAX_DRIFT,
     GS_V_QW, GS_V_QX, GS_V_QY, GS_V_QZ, GS_V_OX, GS_V_OY, GS_V_OZ, GS_V_TX, GS_V_TY, GS_V_TZ,
-    GS_V_PHI, GS_V_THETA, GS_V_PSI, GS_V_LX, GS_V_LY, GS_V_LZ, GS_V_ENERGY,
+    GS_V_PHI, GS_V_THETA, GS_V_PSI, GS_V_LX, GS_V_LY, GS_V_LZ, GS_V_ENERGY, GS_V_ENERGY_ERROR,
     GS_V_COUNT
 };
 
@@ -39,6 +40,7 @@ typedef struct {
     int32_t stop_defined;
     int32_t tolerance_defined;
     double max_step;          /* s */
+    double max_drift;         /* the health monitor's bound (engine p[8]; 0: off) */
     double tolerance;         /* relative and absolute tolerance of adaptive (the FMI tolerance) */
     double start_time, stop_time;      /* s */
     double t_base, h;         /* time = t_base + n*h (Model.time) */
