@@ -50,6 +50,9 @@ _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 OUTPUT_NAMES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "phi", "theta", "psi",
                 "L_x", "L_y", "L_z", "energy", "energy_error")
 _STATE_NAMES = OUTPUT_NAMES[:7]
+#: The variables that enter the engine's parameter rows.
+_PARAM_NAMES = frozenset(("I1", "I2", "I3", "mass", "cm_distance", "g", "damping", "tau_x", "tau_y", "tau_z",
+                          "max_drift"))
 
 
 def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
@@ -155,9 +158,11 @@ def _moments_plainly_valid(moments: np.ndarray) -> bool:
         return bool(np.all((moments > 0) & (moments < math.inf) & (others >= moments * (1.0 - TRIANGLE_RTOL))))
 
 
-def _layout(scene: Scene) -> tuple[dict[str, Variable], dict[str, tuple], dict[str, np.ndarray]]:
-    """variables_for(scene) for body 0, their slots and the scene's start arrays (copied by each model), computed
-    once per scene object (scenes are frozen)."""
+def _layout(scene: Scene) -> tuple:
+    """variables_for(scene) for body 0, their slots, the scene's start arrays (copied by each model), the body
+    names and their index, and the engine parameters of the start values (None when they do not pass
+    :meth:`Model.initialize`'s checks, which then names what is wrong), computed once per scene object (scenes are
+    frozen)."""
     hit = _LAYOUT.get(id(scene))
     if hit is None or hit[0] is not scene:
         if len(_LAYOUT) > 64:
@@ -177,9 +182,25 @@ def _layout(scene: Scene) -> tuple[dict[str, Variable], dict[str, tuple], dict[s
                   "_stats": np.zeros((n, 3), dtype=np.int64),
                   "_ex": np.zeros((n, _engine.EX_SIZE)),  # the exact integrator's anchor (EX_VALID = 0: none)
                   "_outbuf": np.empty((n, len(OUTPUT_NAMES))), "_status": np.zeros(n, dtype=np.int32)}
-        hit = (scene, variables, _slots(variables), arrays)
+        names = scene.body_names
+        ok = _moments_plainly_valid(arrays["_moments"]) and not (
+            scene.gravity and np.any((arrays["_cm"] > 0) & ~(arrays["_mass"] > 0)))
+        p = _params_of(arrays["_moments"], arrays["_mass"], arrays["_g"], arrays["_cm"], arrays["_damping"],
+                       arrays["_tau"], scene.max_drift) if ok else None
+        hit = (scene, variables, _slots(variables), arrays, names, {b: i for i, b in enumerate(names)}, p)
         _LAYOUT[id(scene)] = hit
-    return hit[1], hit[2], hit[3]
+    return hit[1:]
+
+
+def _params_of(moments, mass, g, cm, damping, tau, max_drift) -> np.ndarray:
+    """The engine's parameter rows (n, NP): I1..I3, mass*g*cm_distance, damping, tau, max_drift."""
+    p = np.empty((len(moments), _engine.NP))
+    p[:, 0:3] = moments
+    p[:, 3] = mass * g * cm
+    p[:, 4] = damping
+    p[:, 5:8] = tau
+    p[:, 8] = max_drift
+    return p
 
 
 @dataclass
@@ -219,10 +240,8 @@ class Model:
     def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
                  stop_time: float | None = None, tolerance: float | None = None):
         self.scene = load_scene(scene)
-        self.variables, self._slots, arrays = _layout(self.scene)
-        n = len(self.scene.bodies)
-        self.body_names = self.scene.body_names
-        self._index = {name: i for i, name in enumerate(self.body_names)}
+        self.variables, self._slots, arrays, self.body_names, self._index, self._p_start = _layout(self.scene)
+        n = len(self.body_names)
         self.n_bodies = n
         for k, a in arrays.items():  # _moments, _mass, _cm, _g, _damping, _tau, _y, _hint, _stats, _ex, ...
             setattr(self, k, a.copy())
@@ -230,7 +249,8 @@ class Model:
         self.max_step = float(self.scene.max_step)
         self.max_drift = float(self.scene.max_drift)
         self.tolerance = float(self.scene.tolerance if tolerance is None else tolerance)
-        self._check_positive("tolerance", self.tolerance)
+        if tolerance is not None:
+            self._check_positive("tolerance", self.tolerance)
         self.start_time = float(start_time)
         self.stop_time = None if stop_time is None else float(stop_time)
         self._t_base = self.start_time
@@ -282,6 +302,8 @@ class Model:
         """
         v = self._var(name)
         i = self._body(body)
+        if name in _PARAM_NAMES:
+            self._p_start = None  # the parameters are no longer the scene's start values
         if v.type == "String":
             if name == "integrator":
                 if value not in INTEGRATORS:
@@ -372,13 +394,7 @@ class Model:
 
     # ----------------------------------------------------------------------------------------------- stepping
     def _params(self) -> np.ndarray:
-        p = np.empty((self.n_bodies, _engine.NP))
-        p[:, 0:3] = self._moments
-        p[:, 3] = self._mass * self._g * self._cm
-        p[:, 4] = self._damping
-        p[:, 5:8] = self._tau
-        p[:, 8] = self.max_drift
-        return p
+        return _params_of(self._moments, self._mass, self._g, self._cm, self._damping, self._tau, self.max_drift)
 
     def initialize(self) -> None:
         """Validate parameters and the initial state; done by the first step (FMI: exit initialisation).
@@ -388,6 +404,9 @@ class Model:
         ConfigError
             Moments breaking the triangle inequality, a non-unit quaternion (|q| not within 1e-6 of 1), ...
         """
+        if not self._initialized and self._p_start is not None:  # the scene's start values, checked once
+            self._p = self._p_start.copy()
+            self._initialized = True
         if not self._initialized:
             if not _moments_plainly_valid(self._moments):  # the detailed check names the rule that failed
                 for b in range(self.n_bodies):
@@ -663,6 +682,7 @@ class Model:
                               f"a state of this scene ({self.n_bodies} bodies)")
         for k, v in state.data.items():
             setattr(self, k, copy.deepcopy(v))
+        self._p_start = None
         self._out = None
         if self._initialized:
             self._p = self._params()

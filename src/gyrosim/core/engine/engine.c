@@ -209,13 +209,29 @@ double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double 
     return isnan(d[0]) ? d[0] : m;
 }
 
-/* the health monitor's verdict: 1 when max_drift (p[8]) is on and a drift is beyond it or not a number */
+/* the health monitor's verdict: 1 when max_drift (p[8]) is on and a drift of gs_drift is beyond it or not a
+ * number. The same comparisons as gs_drift's, with the bound multiplied into each scale instead of a division per
+ * quantity (this runs at every output point), and |L| compared squared. */
+static GS_INLINE double gmax(double a, double b) { return a > b ? a : b; }
+
 static GS_INLINE int drifted(int flags, const double *y, const double *p) {
     const double bound = p[8];
-    if (!(bound > 0.0) || isinf(bound)) return 0;
-    double d[GS_NDRIFT];
-    const double m = gs_drift(flags, y, p, d);
-    return !(m <= bound);
+    if (!(bound > 0.0) || bound == INFINITY) return 0;
+    const double mgl = fabs(p[3]);
+    const double V = (flags & GS_GRAVITY) ? potential(y, p) : 0.0;
+    const double de = fabs(kinetic(y, p) + V - y[10]);
+    if (!(de <= bound * gmax(y[11], fabs(y[10] - V) + mgl))) return 1;   /* also NaN */
+    if (!(flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE)) || gs_torque_free(flags, p)) {
+        const double ls = mgl == 0.0 ? y[12] : gmax(y[12], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
+        const double a = p[0] * y[4], b = p[1] * y[5], c = p[2] * y[6];
+        const double l2 = a * a + b * b + c * c, lo = y[12] - bound * ls, hi = y[12] + bound * ls;
+        return !(l2 <= hi * hi && (lo <= 0.0 || l2 >= lo * lo));
+    }
+    if (pivoted_top(flags, p)) {
+        const double ls = gmax(y[12], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
+        return !(fabs(l_world_z(y, p) - y[13]) <= bound * ls && fabs(p[2] * y[6] - y[14]) <= bound * ls);
+    }
+    return 0;
 }
 
 /* ------------------------------------------------------------------------------------------- dynamics */

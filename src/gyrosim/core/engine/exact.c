@@ -574,6 +574,42 @@ typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
         r_;                                                         \
     })
 
+/* cos and sin of GS_VW angles at once: fdlibm's reduction by pi/2 in three 33-bit parts (exact products for
+ * |n| < 2^20) and its kernels __kernel_sin / __kernel_cos on [-pi/4, pi/4] (error within 1 ulp of the reduced
+ * argument's), the quadrant by selects; lanes beyond |x| = 2^19 pi/2 take libm's cos and sin. The same operations
+ * on every lane, so one time and GS_VW times give the same bits. */
+#define GS_INVPIO2 6.36619772367581382433e-01
+#define GS_PIO2_1 1.57079632673412561417e+00  /* first 33 bits of pi/2 */
+#define GS_PIO2_2 6.07710050630396597660e-11  /* next 33 bits */
+#define GS_PIO2_3 2.02226624871116645580e-21  /* the next */
+#define VSINCOS(x, cos_out, sin_out)                                                                              \
+    do {                                                                                                          \
+        const vd x_ = (x);                                                                                        \
+        const vd n_ = VMAP(floor, x_ * GS_INVPIO2 + 0.5);                                                         \
+        const vd r_ = ((x_ - n_ * GS_PIO2_1) - n_ * GS_PIO2_2) - n_ * GS_PIO2_3;                                 \
+        const vd z_ = r_ * r_;                                                                                    \
+        const vd sr_ = r_ + (z_ * r_) * (-1.66666666666666324348e-01 +                                            \
+                       z_ * (8.33333333332248946124e-03 + z_ * (-1.98412698298579493134e-04 +                    \
+                       z_ * (2.75573137070700676789e-06 + z_ * (-2.50507602534068634195e-08 +                     \
+                       z_ * 1.58969099521155010221e-10)))));                                                      \
+        const vd cz_ = z_ * (z_ * (4.16666666666666019037e-02 + z_ * (-1.38888888888741095749e-03 +              \
+                       z_ * (2.48015872894767294178e-05 + z_ * (-2.75573143513906633035e-07 +                     \
+                       z_ * (2.08757232129817482790e-09 + z_ * -1.13596475577881948265e-11))))));                 \
+        const vd hz_ = 0.5 * z_, w_ = 1.0 - hz_;                                                                  \
+        const vd cr_ = w_ + (((1.0 - w_) - hz_) + cz_);                                                           \
+        const vd q_ = n_ - 4.0 * VMAP(floor, 0.25 * n_);   /* the quadrant, 0 .. 3 */                             \
+        const vm odd_ = (q_ == 1.0) | (q_ == 3.0), negs_ = q_ >= 2.0, negc_ = (q_ == 1.0) | (q_ == 2.0);          \
+        const vd s0_ = VSEL(odd_, cr_, sr_), c0_ = VSEL(odd_, sr_, cr_);                                          \
+        sin_out = VSEL(negs_, -s0_, s0_);                                                                         \
+        cos_out = VSEL(negc_, -c0_, c0_);                                                                         \
+        for (int i_ = 0; i_ < GS_VW; i_++) {                                                                      \
+            if (!(fabs(x_[i_]) <= 823549.6)) {   /* 2^19 pi/2, and NaN */                                          \
+                cos_out[i_] = cos(x_[i_]);                                                                        \
+                sin_out[i_] = sin(x_[i_]);                                                                        \
+            }                                                                                                     \
+        }                                                                                                         \
+    } while (0)
+
 /* The flow at the GS_VW times tp (relative to the anchor) with the fast series (C_NF > 0); circular (mc == 1, a
  * symmetric body) takes sn, cn from libm's sin and cos of u, whose own reduction of u is exact (2K = pi is not). */
 static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circular, double w_out[][3],
@@ -649,10 +685,7 @@ static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circula
     /* (phi + psi) / 2 */
     const vd sp = 0.5 * (c[C_LN] * t / c[C_MO] + j * c[C_JSTEP] + p + c[C_OFF]);
     vd csp, ssp;
-    for (int i = 0; i < GS_VW; i++) {
-        csp[i] = cos(sp[i]);
-        ssp[i] = sin(sp[i]);
-    }
+    VSINCOS(sp, csp, ssp);
     /* q = q_L * zyz(phi, theta, psi) * conj(q_F), the ZYZ quaternion (ch cos sp, -shh sin dm, shh cos dm,
      * ch sin sp) with dm = sp - psi */
     const vd cdm = csp * cpsi + ssp * spsi, sdm = ssp * cpsi - csp * spsi;
