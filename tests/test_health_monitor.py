@@ -162,3 +162,24 @@ def test_a_blown_step_keeps_the_state_and_a_restore_goes_on():
     m.set("integrator", "rk4")
     m.step(0.01)
     assert m.time == pytest.approx(0.01) and t > 0
+
+
+def test_a_trajectory_that_keeps_going_marks_the_bodies_that_blew_up():
+    # two bodies, one spun 100x faster: euler at h*|omega| = 2 blows the fast one up within 10 intervals, the slow
+    # one (h*|omega| = 0.02) runs to the end; the same bits as the slow body alone
+    sc = scene_from_dict({"scene": {"name": "pair", "integrator": "euler", "max_step": 10.0},
+                          "body": [{"name": "slow", "inertia": {"principal": [1.0, 2.0, 3.0]},
+                                    "rates": {"omega": [0.02, 0.002, 0.002]}},
+                                   {"name": "fast", "inertia": {"principal": [1.0, 2.0, 3.0]},
+                                    "rates": {"omega": [2.0, 0.2, 0.2]}}]})
+    m = Model(sc)
+    status = np.zeros(2, dtype=np.int32)
+    out = m.trajectory(1.0, 50, status=status)
+    assert status[0] == 0 and 1 <= status[1] <= 10
+    assert np.all(np.isnan(out[status[1]:, 1])) and np.all(np.isfinite(out[:, 0]))
+    alone = Model(scene_from_dict({"scene": {"name": "one", "integrator": "euler", "max_step": 10.0},
+                                   "body": [{"inertia": {"principal": [1.0, 2.0, 3.0]},
+                                             "rates": {"omega": [0.02, 0.002, 0.002]}}]}))
+    np.testing.assert_array_equal(out[:, 0], alone.trajectory(1.0, 50)[:, 0])
+    with pytest.raises(IntegrationError):
+        Model(sc).trajectory(1.0, 50)

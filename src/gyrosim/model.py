@@ -583,7 +583,8 @@ class Model:
                 f"stable h*rate <= {x_max:g}: the parameters may make the motion truly grow; check them, or try the "
                 f"integrator {alt!r}")
 
-    def trajectory(self, dt: float, n: int, *, angles: bool = True, momentum: bool = True) -> np.ndarray:
+    def trajectory(self, dt: float, n: int, *, angles: bool = True, momentum: bool = True,
+                   status: np.ndarray | None = None) -> np.ndarray:
         """Advance ``n`` output intervals of ``dt`` s in one call of the engine; the outputs at every point.
 
         Fixed-step integrators and ``exact`` give the bits of ``n`` calls of :meth:`step` with ``dt``; ``adaptive``
@@ -591,11 +592,16 @@ class Model:
         points with their continuous extensions (a step is never cut by the output grid).
 
         ``angles=False`` leaves phi, theta, psi out (NaN): they cost most of an output row; ``momentum=False``
-        leaves L_x, L_y, L_z and energy out (NaN).
+        leaves L_x, L_y, L_z, energy and energy_error out (NaN).
+
+        ``status``: an (n_bodies,) int32 array to keep going when bodies blow up (sweeps): instead of raising, a
+        failing body ``b`` gets ``status[b]`` = the output interval (1-based) in which it failed and NaN rows from
+        there, its state stays as before that interval (``adaptive``, ``dop853``: as before the call), and the
+        other bodies run to the end (0 in ``status``).
 
         Returns
         -------
-        (n + 1, n_bodies, 14) ndarray
+        (n + 1, n_bodies, 15) ndarray
             Outputs in the order of :data:`OUTPUT_NAMES` at ``time + k*dt``, ``k = 0..n``.
 
         Raises
@@ -603,9 +609,13 @@ class Model:
         StepError
             ``dt`` not finite or <= 0, ``n`` < 0, or the run would end after the stop time.
         IntegrationError
-            A body blew up; the model keeps its state from before the call, and the error carries the rows
-            computed before the failing interval (``error.rows``).
+            A body blew up (without ``status``); the model keeps its state from before the call, and the error
+            carries the rows computed before the failing interval (``error.rows``).
         """
+        keep_going = status is not None
+        if keep_going and not (isinstance(status, np.ndarray) and status.dtype == np.int32
+                               and status.shape == (self.n_bodies,)):
+            raise ConfigError("status", type(status).__name__, f"an int32 array of shape ({self.n_bodies},)")
         dt = _positive_step(dt, "output interval dt")
         if not (isinstance(n, (int, np.integer)) and n >= 0):
             raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
@@ -620,15 +630,18 @@ class Model:
         method = _METHOD_CODES[self.integrator]
         self._check_call(dt, "output interval dt")
         out = np.empty((n + 1, self.n_bodies, len(OUTPUT_NAMES)))
-        saved = (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
-        status = np.zeros(self.n_bodies, dtype=np.int32)
+        saved = None if keep_going else (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
+        if keep_going:
+            status[:] = 0
+        else:
+            status = np.zeros(self.n_bodies, dtype=np.int32)
         # continue the clock of a run of equal steps (t_base + n*h) as step() would, for the same bits
         t_base, k0 = (self._t_base, self._n) if dt == self._h else (t, 0)
         failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t_base, dt, n, self.tolerance,
                                     self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
                                     (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0),
                                     k0)
-        if failed:
+        if failed and not keep_going:
             self._y, self._hint, self._stats, self._ex = saved
             b = int(np.flatnonzero(status)[0])
             k = int(status[b])
