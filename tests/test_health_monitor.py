@@ -183,3 +183,70 @@ def test_a_trajectory_that_keeps_going_marks_the_bodies_that_blew_up():
     np.testing.assert_array_equal(out[:, 0], alone.trajectory(1.0, 50)[:, 0])
     with pytest.raises(IntegrationError):
         Model(sc).trajectory(1.0, 50)
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "splitting", "adaptive", "dop853"])
+def test_a_torque_switched_off_starts_the_invariants_again(integrator):
+    # a pulse of torque changes |L|; once it is off the body is torque-free again and |L| is conserved from then
+    # on (not from the start): no false blow-up, and exact can take over
+    m = Model(torqued(integrator=integrator, max_step=1e-3))
+    for k in range(30):
+        m.set("tau_x", 1.0 if 5 <= k < 15 else 0.0)
+        m.step(0.01)
+    m.set("integrator", "exact")
+    m.step(0.01)
+    assert abs(m.outputs()["energy_error"]) < 1e-6
+
+
+def test_parameters_changed_during_a_run_move_the_balance_with_them():
+    # I1 * 1.05 after 10 steps: the energy jumps with the parameter, energy_error does not, and |L| restarts
+    for integ, scene in (("rk4", "free_body"), ("splitting", "heavy_top")):
+        m = Model(scene, parameters={"integrator": integ})
+        for _ in range(10):
+            m.step(0.01)
+        before = m.outputs()["energy_error"]
+        m.set("I1", m.get("I1") * 1.05)
+        if scene == "heavy_top":
+            m.set("I2", m.get("I2") * 1.05)
+            m.set("mass", m.get("mass") * 1.05)
+        for _ in range(10):
+            m.step(0.01)
+        assert abs(m.outputs()["energy_error"] - before) < 1e-6 * abs(m.outputs()["energy"])
+
+
+def test_a_failed_adaptive_step_keeps_its_step_size_hint():
+    m = Model("free_body", parameters={"integrator": "adaptive", "max_drift": 1e-16})
+    hint = m._hint.copy()
+    with pytest.raises(IntegrationError):
+        m.step(0.5)
+    np.testing.assert_array_equal(m._hint, hint)
+    m.set("max_drift", 0.0)
+    m.step(0.5)
+    fresh = Model("free_body", parameters={"integrator": "adaptive"})
+    fresh.step(0.5)
+    np.testing.assert_array_equal(m.outputs_array(), fresh.outputs_array())
+    assert m.stats == fresh.stats
+
+
+def test_a_body_at_rest_pushed_by_a_torque():
+    # from rest, rk4 integrates the work of a constant torque exactly (omega grows linearly): no drift, the
+    # closed form omega_x = tau t / I1. euler's left-point work is first order: after n steps from rest it misses
+    # 1/n of the kinetic energy, beyond max_drift at once - a clear error, not a crash (the rate before is 0)
+    m = Model(torqued(omega=(0.0, 0.0, 0.0), integrator="rk4", max_step=0.01))
+    m.set("tau_x", 0.1)
+    for _ in range(10):
+        m.step(0.01)
+    assert m.outputs()["omega_x"] == pytest.approx(0.1 * 0.1, rel=1e-12)
+    assert abs(m.outputs()["energy_error"]) <= 1e-15
+    m = Model(torqued(omega=(0.0, 0.0, 0.0), integrator="euler", max_step=0.01))
+    m.set("tau_x", 0.1)
+    with pytest.raises(IntegrationError, match=r"the energy balance drifted by 1 of its scale .*at rest .*'rk4'"):
+        m.step(0.01)
+
+
+def test_the_message_of_a_dense_output_failure_gives_the_drift_that_tripped():
+    m = Model("heavy_top", parameters={"integrator": "dop853", "max_step": 1.0, "max_drift": 1e-9}, tolerance=1e-6)
+    with pytest.raises(IntegrationError) as e:
+        m.trajectory(0.01, 3000)
+    drift = float(re.search(r"drifted by ([0-9.e+-]+) of its scale", str(e.value)).group(1))
+    assert drift > 1e-9

@@ -124,8 +124,8 @@ def test_integration_error_keeps_state_and_advises():
     before = m.outputs_array()
     # the first step of h*|omega| = 1e3 drifts the energy balance beyond max_drift: the message names the step,
     # the quantity and its drift, the fastest rate, and integrators other than the one that failed
-    with pytest.raises(IntegrationError, match=r"in the step from t = 0.0 s with h = 1.0 s: the energy balance "
-                       r"drifted by .*\|omega\| = 1005 rad/s.*'rk4' with max_step <= 0.000221 s, or 'splitting'") as e:
+    with pytest.raises(IntegrationError, match=r"in the step from t = 0.0 s with h = 1.0 s: .* drifted by "
+                       r".*\|omega\| = 1005 rad/s.*'rk4' with max_step <= 0.000221 s, or 'splitting'") as e:
         for _ in range(200):
             m.step(1.0)
     assert "'euler' with" not in str(e.value)

@@ -107,7 +107,7 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
     return {v.name: v for v in V}
 
 
-def _energy_error(y: np.ndarray, p: np.ndarray, flags: int) -> float:
+def _energy_error(y: np.ndarray, p: np.ndarray) -> float:
     """The energy_error output of one body's state y (GS_NY) with parameters p (J)."""
     out = np.empty((1, len(OUTPUT_NAMES)))
     _engine.outputs(y.reshape(1, -1), p.reshape(1, -1), out)
@@ -353,6 +353,62 @@ class Model:
             raise ConfigError(name, value, "a parameter, an input or a state start (q_*, omega_*); "
                               f"{name} is a derived output")
 
+    def set_many(self, name: str, values) -> None:
+        """Set a per-body parameter, input or state start for every body at once (sweeps).
+
+        ``values`` is an (n_bodies,) array in the variable's unit, one value per body; the names, rules and
+        messages are those of :meth:`set` (the first value that is not allowed raises as ``set`` would for its
+        body). ``integrator``, ``max_step`` and ``max_drift`` hold for the whole model: set them with :meth:`set`.
+
+        Raises
+        ------
+        ConfigError
+            Unknown name, a model-wide or derived variable, a shape other than (n_bodies,), or a value that is not
+            allowed.
+        """
+        v = self._var(name)
+        if v.type == "String" or name in ("max_step", "max_drift"):
+            raise ConfigError(name, "an array", "one value for every body: use Model.set")
+        try:
+            x = np.asarray(values, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError(name, values, f"an array of real numbers in {v.unit or '1'}") from None
+        if x.shape != (self.n_bodies,):
+            raise ConfigError(name, f"an array of shape {x.shape}", f"an array of shape ({self.n_bodies},)")
+        with np.errstate(invalid="ignore"):
+            if name in ("I1", "I2", "I3", "mass"):
+                ok = x > 0
+            elif name in ("cm_distance", "g", "damping"):
+                ok = x >= 0
+            else:
+                ok = np.ones(x.shape, dtype=bool)
+            ok &= np.isfinite(x)
+        if not ok.all():
+            b = int(np.flatnonzero(~ok)[0])
+            self.set(name, float(x[b]), body=b)  # raises with set's message
+        if name in _PARAM_NAMES:
+            self._p_start = None
+        if name in ("I1", "I2", "I3"):
+            self._moments[:, int(name[1]) - 1] = x
+            self._initialized = False
+            self._ex[:, _engine.EX_VALID] = 0.0
+        elif name in self._BODY_ARRAYS:
+            getattr(self, self._BODY_ARRAYS[name])[:] = x
+            self._initialized = False
+        elif name in ("tau_x", "tau_y", "tau_z"):
+            k = "xyz".index(name[-1])
+            self._tau[:, k] = x
+            if self._initialized:
+                self._p[:, 5 + k] = x
+        elif name in _STATE_NAMES:
+            self._y[:, _STATE_NAMES.index(name)] = x
+            self._state_dirty = True
+            self._ex[:, _engine.EX_VALID] = 0.0
+            self._out = None
+        else:
+            raise ConfigError(name, "an array", "a parameter, an input or a state start (q_*, omega_*); "
+                              f"{name} is a derived output")
+
     def set_tolerance(self, tolerance: float) -> None:
         """Relative and absolute tolerance of ``adaptive`` (the FMI tolerance)."""
         self._check_positive("tolerance", tolerance)
@@ -381,7 +437,7 @@ class Model:
         return {n: float(row[k]) for k, n in enumerate(OUTPUT_NAMES)}
 
     def outputs_array(self) -> np.ndarray:
-        """(n_bodies, 14) outputs in the order of :data:`OUTPUT_NAMES` (a copy)."""
+        """(n_bodies, 15) outputs in the order of :data:`OUTPUT_NAMES` (a copy)."""
         return self._outputs_array().copy()
 
     def parameters(self, body=0) -> dict:
@@ -404,6 +460,7 @@ class Model:
         ConfigError
             Moments breaking the triangle inequality, a non-unit quaternion (|q| not within 1e-6 of 1), ...
         """
+        p_old = getattr(self, "_p", None) if not self._state_dirty else None  # parameters changed during a run
         if not self._initialized and self._p_start is not None:  # the scene's start values, checked once
             self._p = self._p_start.copy()
             self._initialized = True
@@ -420,6 +477,8 @@ class Model:
                                       where=None if self.n_bodies == 1 else f"body {self.body_names[b]!r}")
             self._initialized = True
             self._p = self._params()
+            if p_old is not None and p_old.shape == self._p.shape:  # the monitor follows (energy_error continuous)
+                _engine.monitor_reparam(self._y, p_old, self._p)
         if self._state_dirty:
             b = _engine.start_state(self._y, self._p)  # q /= |q|; phi, psi from q (as the FMUs do), the health
             # monitor started; or the first bad row
@@ -506,50 +565,60 @@ class Model:
             raise IntegrationError(self._blowup(b, start, t, h, 0, 1, f"the step from t = {t!r} s with h = {h!r} s"))
 
     # ----------------------------------------------------------------------------------------------- blow-ups
-    def _rerun(self, b: int, start: tuple, t_base: float, dt: float, k0: int, k: int):
-        """Body ``b`` from ``start`` (y, hint, stats, ex of every body) over ``k`` intervals of ``dt``, the first
-        starting at ``t_base + k0*dt`` (the clock of the failed run), with the health monitor off: the state before
-        the last interval, the state after it (None when it failed too) and the drifts there."""
+    def _rerun(self, b: int, start: tuple, t: float, dt: float, k0: int, k: int, rows: np.ndarray | None):
+        """What body ``b`` did in the interval that failed, again with the health monitor off: the state before
+        that interval, the state after it (None when it fails again) and the drifts there.
+
+        ``start`` holds (y, hint, stats, ex) of every body. In step mode (``step``, :meth:`step`) and for
+        fixed-step methods and ``exact`` the rerun starts from the failing interval itself, at ``t + k0*dt``: one
+        interval of ``dt``, the same bits as the failed one. ``adaptive`` and ``dop853`` trajectories are not rerun
+        (their steps span the output points of the whole call): the engine leaves the state that tripped the monitor
+        in row ``k`` of their outputs, ``rows`` (the body's rows of the call), rebuilt here."""
         method = _METHOD_CODES[self.integrator]
         y, hint, stats, ex = (a[b:b + 1].copy() for a in start)
         p = self._p[b:b + 1].copy()
         p[:, 8] = 0.0
         status = np.zeros(1, dtype=np.int32)
-        done = 0
-        while done < k - 1:  # the intervals before the failing one, in chunks (the outputs are not kept)
-            m = min(k - 1 - done, 4096)
-            out = np.empty((m + 1, 1, len(OUTPUT_NAMES)))
-            if _engine.trajectory(method, self.scene.flags, y, p, t_base, dt, m, self.tolerance, self.tolerance,
-                                  self.max_step, hint, stats, ex, status, 0, out, 0, k0 + done):
-                return y[0].copy(), None, None
-            done += m
-        before = y[0].copy()
-        out = np.empty((2, 1, len(OUTPUT_NAMES)))
-        if _engine.trajectory(method, self.scene.flags, y, p, t_base, dt, 1, self.tolerance, self.tolerance,
-                              self.max_step, hint, stats, ex, status, 0, out, 0, k0 + done):
-            return before, None, None
         d = np.empty((1, _engine.NDRIFT))
-        _engine.drift(self.scene.flags, y, p, d)
-        return before, y[0].copy(), d[0]
+        if rows is None:
+            before = y[0].copy()
+            if _engine.advance(method, self.scene.flags, y, p, t + k0 * dt, dt, self.tolerance, self.tolerance,
+                               self.max_step, hint, stats, ex, status, 1):
+                return before, None, None
+            _engine.drift(self.scene.flags, y, p, d)
+            return before, y[0].copy(), d[0]
+        before = y[0].copy()
+        before[0:7] = rows[k - 1, 0:7]
+        if not np.all(np.isfinite(rows[k, 0:7])):  # not the monitor: the step size collapsed, or the work limit
+            return before, None, None
+        after = y[0].copy()
+        after[0:7] = rows[k, 0:7]
+        after[10] = rows[k, 13] - rows[k, 14]  # the energy the balance expects: energy - energy_error
+        _engine.drift(self.scene.flags, after.reshape(1, -1), p, d)
+        return before, after, d[0]
 
-    def _blowup(self, b: int, start: tuple, t_base: float, dt: float, k0: int, k: int, where: str) -> str:
-        """The message for body ``b`` failing in interval ``k`` (1-based) of a run of ``dt`` from ``start`` (as
-        :meth:`_rerun`): the time, the step, what drifted and by how much, and advice the user is not already
-        following."""
+    def _blowup(self, b: int, start: tuple, t: float, dt: float, k0: int, k: int, where: str,
+                rows: np.ndarray | None = None) -> str:
+        """The message for body ``b`` failing in interval ``k`` (1-based) of a run of ``dt`` (as :meth:`_rerun`):
+        the time, the step, what drifted and by how much, and advice the user is not already following."""
         integ = self.integrator
         who = "" if self.n_bodies == 1 else f" for body {self.body_names[b]!r}"
-        before, after, d = self._rerun(b, start, t_base, dt, k0, k)
+        before, after, d = self._rerun(b, start, t, dt, k0, k, rows)
         p = self._p[b]
+        w = math.sqrt(float(before[4] ** 2 + before[5] ** 2 + before[6] ** 2))
         if integ in ("adaptive", "dop853") and after is None:
             cause = ("the adaptive step size fell below its minimum, or the step needed more than "
                      f"{_engine.MAX_WORK:,} internal steps (the solution may truly blow up, or the rates are beyond "
                      "double precision)")
+        elif integ == "exact" and after is None and not w * dt <= 1e6:
+            return (f"integrator 'exact' refused{who} {where}: the body turns by |omega|*h = {w * dt:.3g} rad in it, "
+                    "more than the 1e6 rad one call may sample; take shorter steps")
         elif after is None:
-            cause = (f"the state became non-finite or overflowed (|omega| > {_engine.OMEGA_LIMIT:g} rad/s)")
+            cause = f"the state became non-finite or overflowed (|omega| > {_engine.OMEGA_LIMIT:g} rad/s)"
         else:
             names = ("the energy balance", "|L|", "L_z", "L_3")
-            i = int(np.nanargmax(d))
-            val = f"energy_error = {_energy_error(after, p, self.scene.flags):.4g} J" if i == 0 else None
+            i = int(np.nanargmax(d)) if not np.all(np.isnan(d)) else 0
+            val = f"energy_error = {_energy_error(after, p):.4g} J" if i == 0 else None
             cause = (f"{names[i]} drifted by {d[i]:.3g} of its scale ({val + '; ' if val else ''}"
                      f"max_drift = {self.max_drift:g}, the health monitor's bound)")
         return (f"integrator {integ!r} blew up{who} in {where}: {cause}; "
@@ -569,6 +638,9 @@ class Model:
         n_sub = max(1, _engine.substeps(dt, self.max_step))
         h = dt / n_sub
         x = h * rate
+        if not rate > 0:
+            return (f"the body was at rest before the step; check the torques and parameters, or try the integrator "
+                    f"{alt!r}")
         if x_max == 0.0:
             x_rk4 = _engine.STABLE_X[_METHOD_CODES["rk4"]]
             return (f"the fastest rate in the state is {what} = {rate:.4g} rad/s, so h*rate = {x:.3g} with internal "
@@ -641,15 +713,23 @@ class Model:
                                     self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
                                     (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0),
                                     k0)
+        erk = self.integrator in ("adaptive", "dop853")
         if failed and not keep_going:
-            self._y, self._hint, self._stats, self._ex = saved
             b = int(np.flatnonzero(status)[0])
             k = int(status[b])
             where = (f"the output interval from t = {t + (k - 1) * dt!r} s to {t + k * dt!r} s (interval {k} of {n}, "
                      f"step {k0 + k} from t = {t_base!r} s)")
-            err = IntegrationError(self._blowup(b, saved, t_base, dt, k0, k, where))
+            if erk:  # the state that tripped the monitor is in row k
+                msg = self._blowup(b, saved, t_base, dt, k0, k, where, rows=out[:, b])
+            else:  # the engine left the failing body at the start of its failing interval
+                msg = self._blowup(b, (self._y, self._hint, self._stats, self._ex), t_base, dt, k0 + k - 1, 1, where)
+            self._y, self._hint, self._stats, self._ex = saved
+            err = IntegrationError(msg)
             err.rows = out[:k]
             raise err
+        if failed and erk:  # NaN from the failing interval on, as for the other methods
+            for b in np.flatnonzero(status):
+                out[status[b]:, b] = np.nan
         if n:
             if dt == self._h:
                 self._n += n

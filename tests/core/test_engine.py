@@ -145,7 +145,8 @@ def test_an_absurd_rate_fails_at_once_and_keeps_the_state(integrator):
     m = Model("free_body", parameters={"integrator": integrator, "omega_x": 1e73})
     m.initialize()
     before = (m._y.copy(), m._ex.copy(), dict(m.stats))
-    with pytest.raises(IntegrationError, match="blew up"):
+    msg = "refused .*more than the 1e6 rad" if integrator == "exact" else "blew up"
+    with pytest.raises(IntegrationError, match=msg):
         m.step(0.01)
     np.testing.assert_array_equal(m._y, before[0])
     np.testing.assert_array_equal(m._ex, before[1])

@@ -222,6 +222,32 @@ static PyObject *py_start_state(PyObject *self, PyObject *const *args, Py_ssize_
     return PyLong_FromLong(-1);
 }
 
+/* monitor_reparam(y(n, NY), p_old(n, NP), p_new(n, NP)): gs_monitor_reparam for every row */
+static PyObject *py_monitor_reparam(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "monitor_reparam() takes 3 arguments");
+        return NULL;
+    }
+    Buf b[3] = {{0}, {0}, {0}};
+    if (get_buf(args[0], &b[0], "y", 'd', -1, 1) < 0) goto fail;
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / GS_NY;
+    if (n * GS_NY * (Py_ssize_t)sizeof(double) != b[0].view.len) {
+        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", GS_NY);
+        goto fail;
+    }
+    if (get_buf(args[1], &b[1], "p_old", 'd', n * GS_NP, 0) < 0) goto fail;
+    if (get_buf(args[2], &b[2], "p_new", 'd', n * GS_NP, 0) < 0) goto fail;
+    for (Py_ssize_t i = 0; i < n; i++)
+        gs_monitor_reparam((double *)b[0].view.buf + i * GS_NY, (const double *)b[1].view.buf + i * GS_NP,
+                           (const double *)b[2].view.buf + i * GS_NP);
+    release(b, 3);
+    Py_RETURN_NONE;
+fail:
+    release(b, 3);
+    return NULL;
+}
+
 /* fastest_rate(flags, y(NY), p(NP)) -> rad/s (gs_fastest_rate) */
 static PyObject *py_fastest_rate(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
@@ -370,6 +396,8 @@ static PyMethodDef methods[] = {
     {"start_state", (PyCFunction)(void (*)(void))py_start_state, METH_FASTCALL,
      "start_state(y, p) -> -1, each row's q normalised, phi, psi from it and the health monitor started; or the "
      "first row with |q| not within 1e-6 of 1 or a non-finite omega (y unchanged)"},
+    {"monitor_reparam", (PyCFunction)(void (*)(void))py_monitor_reparam, METH_FASTCALL,
+     "monitor_reparam(y, p_old, p_new): the health monitor follows parameters changed during a run"},
     {"fastest_rate", (PyCFunction)(void (*)(void))py_fastest_rate, METH_FASTCALL,
      "fastest_rate(flags, y, p) -> the fastest rate of one body's state (rad/s)"},
     {"drift", (PyCFunction)(void (*)(void))py_drift, METH_FASTCALL,

@@ -164,6 +164,31 @@ static GS_INLINE double l_norm(const double *y, const double *p) {
     return sqrt(a * a + b * b + c * c);
 }
 
+/* the symmetric top on a pivot: L_z and L_3 conserved */
+static GS_INLINE int pivoted_top(int flags, const double *p) {
+    return (flags & GS_GRAVITY) && p[3] != 0.0 && p[0] == p[1] && !((flags & GS_DAMPING) && p[4] != 0.0) &&
+           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
+}
+
+/* After a successful step: the invariants the body does not conserve now (a torque or damping acts) start again
+ * from the current state, so that each is checked from the moment it is conserved (a torque switched off). */
+static GS_INLINE void monitor_commit(int flags, double *y, const double *p) {
+    if (!(flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE))) return;   /* torque-free by the scene: all conserved */
+    if (!gs_torque_free(flags, p)) y[12] = l_norm(y, p);
+    if (!pivoted_top(flags, p)) {
+        y[13] = l_world_z(y, p);
+        y[14] = p[2] * y[6];
+    }
+}
+
+void gs_monitor_reparam(double y[GS_NY], const double p_old[GS_NP], const double p_new[GS_NP]) {
+    y[10] += (kinetic(y, p_new) + potential(y, p_new)) - (kinetic(y, p_old) + potential(y, p_old));
+    y[11] = kinetic(y, p_new) + fabs(p_new[3]);
+    y[12] = l_norm(y, p_new);
+    y[13] = l_world_z(y, p_new);
+    y[14] = p_new[2] * y[6];
+}
+
 void gs_start_state(double y[GS_NY], const double p[GS_NP]) {
     const double nq = gs_norm4(y);
     for (int i = 0; i < 4; i++) y[i] = y[i] / nq;
@@ -180,17 +205,11 @@ void gs_start_state(double y[GS_NY], const double p[GS_NP]) {
     y[14] = p[2] * y[6];
 }
 
-/* the symmetric top on a pivot: L_z and L_3 conserved */
-static GS_INLINE int pivoted_top(int flags, const double *p) {
-    return (flags & GS_GRAVITY) && p[3] != 0.0 && p[0] == p[1] && !((flags & GS_DAMPING) && p[4] != 0.0) &&
-           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
-}
-
 double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double d[GS_NDRIFT]) {
     const double mgl = fabs(p[3]);
-    const double V = (flags & GS_GRAVITY) ? potential(y, p) : 0.0;
-    const double E = kinetic(y, p) + V;
-    const double es = fmax(y[11], fabs(y[10] - V) + mgl);
+    const double V = p[3] != 0.0 ? potential(y, p) : 0.0;   /* as the energy output has it */
+    const double T = kinetic(y, p), E = T + V;
+    const double es = fmax(fmax(y[11], T), fabs(y[10] - V) + mgl);
     const double de = fabs(E - y[10]);
     d[0] = de == 0.0 ? 0.0 : de / es;   /* a body at rest: 0 / 0 */
     d[1] = d[2] = d[3] = 0.0;
@@ -211,21 +230,20 @@ double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double 
 
 /* the health monitor's verdict: 1 when max_drift (p[8]) is on and a drift of gs_drift is beyond it or not a
  * number. The same comparisons as gs_drift's, with the bound multiplied into each scale instead of a division per
- * quantity (this runs at every output point), and |L| compared squared. */
+ * quantity (this runs at every output point). */
 static GS_INLINE double gmax(double a, double b) { return a > b ? a : b; }
 
 static GS_INLINE int drifted(int flags, const double *y, const double *p) {
     const double bound = p[8];
     if (!(bound > 0.0) || bound == INFINITY) return 0;
     const double mgl = fabs(p[3]);
-    const double V = (flags & GS_GRAVITY) ? potential(y, p) : 0.0;
-    const double de = fabs(kinetic(y, p) + V - y[10]);
-    if (!(de <= bound * gmax(y[11], fabs(y[10] - V) + mgl))) return 1;   /* also NaN */
+    const double V = p[3] != 0.0 ? potential(y, p) : 0.0;
+    const double T = kinetic(y, p);
+    const double de = fabs(T + V - y[10]);
+    if (!(de <= bound * gmax(gmax(y[11], T), fabs(y[10] - V) + mgl))) return 1;   /* also NaN */
     if (!(flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE)) || gs_torque_free(flags, p)) {
         const double ls = mgl == 0.0 ? y[12] : gmax(y[12], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
-        const double a = p[0] * y[4], b = p[1] * y[5], c = p[2] * y[6];
-        const double l2 = a * a + b * b + c * c, lo = y[12] - bound * ls, hi = y[12] + bound * ls;
-        return !(l2 <= hi * hi && (lo <= 0.0 || l2 >= lo * lo));
+        return !(fabs(l_norm(y, p) - y[12]) <= bound * ls);
     }
     if (pivoted_top(flags, p)) {
         const double ls = gmax(y[12], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
@@ -568,11 +586,14 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
     const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
     rebase(y, w, H);
     if (method == GS_ADAPTIVE || method == GS_DOP853) {   /* they move the reference angles themselves */
+        const double hint0 = *hint;
         const int64_t st = erk_step_mode(method, y, p, flags, H, rtol, atol, max_step, hint, stats);
         if (st || drifted(flags, y, p)) {
             memcpy(y, save, sizeof(save));
+            *hint = hint0;
             return st ? clamp_status(st) : 1;
         }
+        monitor_commit(flags, y, p);
         return 0;
     }
     /* the state is checked once at the end (NaN and inf propagate); only on failure are the steps replayed
@@ -593,6 +614,7 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
         memcpy(y, save, sizeof(save));
         return clamp_status(n_sub);
     }
+    monitor_commit(flags, y, p);
     stats[0] += n_sub;
     stats[2] += method == GS_EULER ? n_sub : (method == GS_RK4 ? 4 * n_sub : 0);
     return 0;
@@ -614,7 +636,7 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
 typedef double Lanes[GS_BLOCK];
 
 static GS_INLINE void rhs_block(const Lanes *S, const Lanes *P, int flags, Lanes *K) {
-#if defined(_OPENMP) || defined(__GNUC__)
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC ivdep
 #endif
     for (int j = 0; j < GS_BLOCK; j++) {
@@ -772,6 +794,7 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
             failed += status[b] != 0;
             continue;
         }
+        monitor_commit(flags, yn, p + b * GS_NP);
         memcpy(yb, yn, sizeof(yn));
         stats[b * GS_NSTATS] += n_sub;
         stats[b * GS_NSTATS + 2] += method == GS_EULER ? n_sub : 4 * n_sub;
@@ -1131,8 +1154,9 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             }
             normalize_q(yi);
             yi[9] = 0.0;
-            if (drifted(flags, yi, p)) {   /* the health monitor at every output point */
-                *fail_row = k_next;
+            if (drifted(flags, yi, p)) {   /* the health monitor at every output point: the row shows what tripped */
+                gs_outputs_select(1, yi, p, out + (size_t)(k_next - 1) * ostride, want | GS_OUT_MOMENTUM);
+                *fail_row = -k_next;
                 return nstep;
             }
             gs_outputs_select(1, yi, p, out + (size_t)(k_next - 1) * ostride, want);
@@ -1209,10 +1233,13 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
             int64_t row = 0;
             const int64_t st = erk_run(method, yb, pb, flags, (double)n_out * dt, rtol, atol, max_step, hint + b, sb,
                                        dt, n_out, out + (n + b) * GS_NOUT, n * GS_NOUT, &row, want);
-            if (st) {
-                status[b] = (int32_t)(row > 2147483647 ? 2147483647 : row);
-                nan_rows(out, n, b, row, n_out);
+            if (st) {   /* row < 0: the monitor tripped at output point -row, whose row holds that state */
+                const int64_t k = row < 0 ? -row : row;
+                status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
+                nan_rows(out, n, b, row < 0 ? k + 1 : k, n_out);
                 failed += 1;
+            } else {
+                monitor_commit(flags, yb, pb);
             }
             continue;
         }

@@ -557,6 +557,7 @@ static int fast_setup_n(double *c, int N, double mc, double K, double n, double 
  * operation is an IEEE add, multiply, divide, square root or floor, element by element, with no contraction
  * (-ffp-contract=off): a lane gives the same bits whichever lanes are beside it and whatever instruction set the
  * compiler picks (SSE2 pairs or AVX2). */
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(GS_NO_VECTORS)
 #define GS_VW 4
 typedef double vd __attribute__((vector_size(GS_VW * sizeof(double))));
 typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
@@ -565,14 +566,26 @@ typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
 #define VSPLAT(a) ((vd){(a), (a), (a), (a)})
 /* a where m, else b (m from a vector comparison: all bits set or none) */
 #define VSEL(m, a, b) ((vd)(((vm)(a) & (m)) | ((vm)(b) & ~(m))))
+/* lane i of a vector */
+#define LANE(v, i) ((v)[i])
 /* f element by element */
 #define VMAP(f, a)                                                  \
     __extension__({                                                 \
-        const vd a_ = (a);                                          \
-        vd r_;                                                      \
-        for (int i_ = 0; i_ < GS_VW; i_++) r_[i_] = f(a_[i_]);      \
-        r_;                                                         \
+        const vd vma_ = (a);                                        \
+        vd vmr_;                                                    \
+        for (int vmi_ = 0; vmi_ < GS_VW; vmi_++) vmr_[vmi_] = f(vma_[vmi_]); \
+        vmr_;                                                       \
     })
+#else
+/* compilers without vector extensions (MSVC): one lane, the same operations on doubles (the same bits) */
+#define GS_VW 1
+typedef double vd;
+typedef long long vm;
+#define VSPLAT(a) (a)
+#define VSEL(m, a, b) ((m) ? (a) : (b))
+#define LANE(v, i) (v)
+#define VMAP(f, a) f(a)
+#endif
 
 /* cos and sin of GS_VW angles at once: fdlibm's reduction by pi/2 in three 33-bit parts (exact products for
  * |n| < 2^20) and its kernels __kernel_sin / __kernel_cos on [-pi/4, pi/4] (error within 1 ulp of the reduced
@@ -603,9 +616,9 @@ typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
         sin_out = VSEL(negs_, -s0_, s0_);                                                                         \
         cos_out = VSEL(negc_, -c0_, c0_);                                                                         \
         for (int i_ = 0; i_ < GS_VW; i_++) {                                                                      \
-            if (!(fabs(x_[i_]) <= 823549.6)) {   /* 2^19 pi/2, and NaN */                                          \
-                cos_out[i_] = cos(x_[i_]);                                                                        \
-                sin_out[i_] = sin(x_[i_]);                                                                        \
+            if (!(fabs(LANE(x_, i_)) <= 823549.6)) {   /* 2^19 pi/2, and NaN */                                          \
+                LANE(cos_out, i_) = cos(LANE(x_, i_));                                                                        \
+                LANE(sin_out, i_) = sin(LANE(x_, i_));                                                                        \
             }                                                                                                     \
         }                                                                                                         \
     } while (0)
@@ -651,8 +664,8 @@ static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circula
     vd dn = c[C_FD] + d1 * y - d2;
     if (circular) {
         for (int i = 0; i < GS_VW; i++) {
-            sn_r[i] = sg[i] * sin(u[i]);
-            cn_r[i] = sg[i] * cos(u[i]);
+            LANE(sn_r, i) = LANE(sg, i) * sin(LANE(u, i));
+            LANE(cn_r, i) = LANE(sg, i) * cos(LANE(u, i));
         }
         dn = VSPLAT(1.0);
     }
@@ -662,9 +675,9 @@ static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circula
     const vd wo = c[C_AO] * cn, wb = c[C_AB] * sn, wp = c[C_AP] * dn;
     const int io = (int)c[C_IO], ib = (int)c[C_IB], ip = (int)c[C_IP];
     for (int i = 0; i < GS_VW; i++) {
-        w_out[i][io] = wo[i];
-        w_out[i][ib] = wb[i];
-        w_out[i][ip] = wp[i];
+        w_out[i][io] = LANE(wo, i);
+        w_out[i][ib] = LANE(wb, i);
+        w_out[i][ip] = LANE(wp, i);
     }
     /* direction of L in the frame (o, b, p): theta from cos = lp, sin = |(lo, lb)|, its half angles without trig */
     const vd lo = c[C_LO] * cn, lb = c[C_LB] * sn, lp = c[C_LP] * dn;
@@ -701,10 +714,10 @@ static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circula
     const vd q2 = r0 * f2 - r1 * f3 + r2 * f0 + r3 * f1;
     const vd q3 = r0 * f3 + r1 * f2 - r2 * f1 + r3 * f0;
     for (int i = 0; i < GS_VW; i++) {
-        q_out[i][0] = q0[i];
-        q_out[i][1] = q1[i];
-        q_out[i][2] = q2[i];
-        q_out[i][3] = q3[i];
+        q_out[i][0] = LANE(q0, i);
+        q_out[i][1] = LANE(q1, i);
+        q_out[i][2] = LANE(q2, i);
+        q_out[i][3] = LANE(q3, i);
     }
 }
 

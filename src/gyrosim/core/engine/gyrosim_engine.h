@@ -141,7 +141,8 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
  * point to output point as gs_advance does (the same bits as a loop of gs_advance); adaptive and dop853 take the
  * steps their error control chooses over the whole run and interpolate the output points with their continuous
  * extensions (orders 4 and 7; the quaternion renormalised). y, hint, stats, ex end at t0 + n_out*dt. A body that
- * fails gets status[b] = the output interval (1-based) in which it failed and NaN rows from there; returns the
+ * fails gets status[b] = the output interval (1-based) in which it failed and NaN rows from there (adaptive and
+ * dop853 stopped by the health monitor: from the next one, the failing row holding the state that tripped it); returns the
  * number of bodies that failed. want selects the derived outputs computed (GS_OUT_ANGLES, GS_OUT_MOMENTUM); the
  * others are NaN (the angles cost most of an output row). */
 size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, int64_t k0, double dt,
@@ -170,12 +171,19 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
  * and the health monitor's start values y[10..14] from y and p. */
 void gs_start_state(double y[GS_NY], const double p[GS_NP]);
 
+/* Parameters changed during a run (p_old -> p_new, the state kept): the energy the balance expects moves by the
+ * energy change the new parameters make (energy_error stays continuous) and the invariants start again. */
+void gs_monitor_reparam(double y[GS_NY], const double p_old[GS_NP], const double p_new[GS_NP]);
+
 /* The health monitor: relative drifts of one body's monitored quantities since gs_start_state.
- *   d[0] energy balance: |E - y[10]| / max(S0, |y[10] - V| + |mgl|) (V = the potential energy now: the scale is
- *        the energy the body started with or the kinetic energy the balance expects, whichever is larger)
+ *   d[0] energy balance: |E - y[10]| / max(S0, T, |y[10] - V| + |mgl|) (T, V = the kinetic and potential energy
+ *        now: the scale is the largest of the energy the body started with, the kinetic energy it has and the one
+ *        the balance expects)
  *   d[1] | |L| - |L0| | / Ls, where the body is torque-free (gs_torque_free)
  *   d[2] |L_z - L_z0| / Ls and d[3] |L_3 - L_3,0| / Ls, for a symmetric body (I1 == I2) on a pivot with no damping
  *        or input torque (gravity is then the only torque, about the world z and normal to body axis 3)
+ *   After every successful step the quantities the body does not conserve then (a torque acts) start again from
+ *   the state, so that each is checked from the moment it is conserved.
  *   Ls = max(|L0|, sqrt(2 max(I) |mgl|)) (a top released slowly gains about the latter); 0 where not monitored.
  * Returns the largest (NaN when the state is not finite). */
 #define GS_NDRIFT 4

@@ -555,6 +555,9 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         if (again && (method == GS_ADAPTIVE || method == GS_DOP853)) {
             snprintf(cause, sizeof(cause), "the adaptive step size fell below its minimum, or the step needed more "
                      "than %d internal steps (the solution may truly blow up)", GS_MAX_WORK);
+        } else if (again && method == GS_EXACT && !(sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]) * h <= 1e6)) {
+            snprintf(cause, sizeof(cause), "the body turns by more than 1e6 rad in the step, more than one doStep "
+                     "may sample; take shorter steps");
         } else if (again) {
             snprintf(cause, sizeof(cause), "the state became non-finite or overflowed (|omega| > 1e+100 rad/s) at "
                      "internal step %d of %lld", k, (long long)n_sub);
@@ -574,6 +577,9 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         if (method == GS_ADAPTIVE || method == GS_DOP853 || method == GS_EXACT) {
             snprintf(advice, sizeof(advice), "loosen the tolerance, check the parameters, or try the integrator '%s'",
                      alt[method]);
+        } else if (!(rate > 0.0)) {
+            snprintf(advice, sizeof(advice), "the body was at rest before the step; check the torques and "
+                     "parameters, or try the integrator '%s'", alt[method]);
         } else if (xs == 0.0) {
             snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s, so h*rate = %.3g; %s's "
                      "energy grows by a factor 1 + (h*rate)^2 every step at any step size: use the integrator 'rk4' "
