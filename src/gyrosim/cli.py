@@ -18,7 +18,7 @@ from .errors import GyrosimError
 __all__ = ["main", "build_parser"]
 
 #: Modules that add their own subcommands through ``register(subparsers)``.
-_PLUGINS = ("gyrosim.fmu.cli", "gyrosim.service.cli", "gyrosim.telemetry.cli")
+_PLUGINS = ("gyrosim.fmu.cli", "gyrosim.service.cli", "gyrosim.telemetry.cli", "gyrosim.sweep.cli")
 
 
 def _parse_set(items):
@@ -138,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--output", "-o", default="docs/study", help="folder for plots and tables")
     b.add_argument("--quick", action="store_true", help="a short ladder (seconds, for a smoke test)")
     b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, "
-                   "startup, peers, fmu, service), merged into the folder's earlier results")
+                   "startup, peers, fmu, service, sweep), merged into the folder's earlier results")
     b.set_defaults(func=cmd_bench)
     for mod in _PLUGINS:
         try:

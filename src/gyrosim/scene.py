@@ -331,7 +331,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     ConfigError
         Naming the source, the key, the value and what is allowed; unknown keys get a "did you mean".
     """
-    _check_keys(data, ("scene", "body"), source)
+    _check_keys(data, ("scene", "body", "sweep"), source)  # [sweep]: read by `gyrosim sweep` (gyrosim.sweep.spec)
     sc = data.get("scene", {})
     if not isinstance(sc, dict):
         raise ConfigError("scene", sc, "a table [scene]", where=source)

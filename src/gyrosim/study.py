@@ -17,8 +17,8 @@ Every error is measured against an exact solution, never against gyrosim's own o
 
 Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and integrator, Model.step overhead,
 10,000-body throughput, all against a C baseline compiled with ``gcc -O2`` in the same run), ``long``,
-``stability``, ``startup``, ``peers``, and ``fmu`` / ``service`` (the FMU and service benches, when those packages
-provide ``bench.run(out_dir)``).
+``stability``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` (the FMU, service and sweep benches,
+when those packages provide ``bench.run(out_dir)``).
 
 ``--only`` merges into the folder's earlier results: the parts it runs replace theirs in ``results.json`` and
 ``summary.md``, the other parts' stay (a run of every part starts afresh).
@@ -59,7 +59,7 @@ ADAPTIVE = ("adaptive", "dop853")
 INTEGRATORS = FIXED + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
-PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "service")
+PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "service", "sweep")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1162,7 +1162,7 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
     """
     import importlib.util
 
-    mods = {"fmu": ("gyrosim.fmu.bench",), "service": ("gyrosim.service.bench",)}
+    mods = {"fmu": ("gyrosim.fmu.bench",), "service": ("gyrosim.service.bench",), "sweep": ("gyrosim.sweep.bench",)}
     msgs = []
     for name in mods[part]:
         try:
@@ -1206,7 +1206,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 
 #: results.json keys that each part writes (fmu and service leave their own files)
 PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
-             "stability": ("stability",), "startup": ("startup",), "peers": ("peers",), "fmu": (), "service": ()}
+             "stability": ("stability",), "startup": ("startup",), "peers": ("peers",), "fmu": (), "service": (),
+             "sweep": ()}
 #: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
 SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
 
@@ -1227,7 +1228,7 @@ def _legacy_blocks(out: Path, old: dict) -> dict:
              "accuracy": [f"accuracy_{c}" for c in old.get("accuracy", {})] + ["orders"]}
     for m in old.get("messages", []):  # fmu / service: the markdown files their message says they wrote
         part = m.split(":", 1)[0]
-        if part in ("fmu", "service") and "(wrote " in m:
+        if part in ("fmu", "service", "sweep") and "(wrote " in m:
             files = m.split("(wrote ", 1)[1].split(")", 1)[0].split(", ")
             names[part] = [f[:-3] for f in files if f.endswith(".md")]
     blocks = {}
@@ -1381,7 +1382,7 @@ def main(args) -> int:
                 if res.get("note"):
                     messages.append(f"peers: {res['note']}")
                 bar.update()
-            elif part in ("fmu", "service"):
+            elif part in ("fmu", "service", "sweep"):
                 bar.set_postfix_str(part)
                 try:
                     messages += _external_bench(part, out, quick, plan.external)

@@ -1,0 +1,81 @@
+"""``gyrosim sweep`` and ``gyrosim sweep-plot`` (DESIGN.md section 5); :func:`register` adds them to the parser.
+
+Nothing here imports dask or pyarrow at start-up: ``gyrosim --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["register", "cmd_sweep", "cmd_plot"]
+
+
+def register(subparsers) -> None:
+    """Add ``sweep`` and ``sweep-plot`` to ``subparsers`` (the ``add_subparsers()`` object of ``gyrosim``)."""
+    p = subparsers.add_parser(
+        "sweep", help="Monte Carlo and parameter sweeps to a Parquet dataset (in process, or on a Dask cluster)",
+        description="Run SCENE once per sample with variables drawn from distributions and write one Parquet row "
+                    "per sample (the varied values, the final outputs, max_energy_drift, max_L_drift, blew_up) to "
+                    "DIR, a chunk file at a time. DIST: uniform(lo,hi), normal(mean,std), lognormal(mean,sigma), "
+                    "choice(a,b,...), linspace(lo,hi). A scene file's [sweep] table gives defaults; the command "
+                    "line wins. See docs/sweeps.md.")
+    p.add_argument("scene", nargs="?", default=None,
+                   help="one-body scene: free_body, heavy_top, gyroscope or a .toml path (default: the full model)")
+    p.add_argument("--samples", "-n", type=int, metavar="N", help="number of samples")
+    p.add_argument("--vary", action="append", metavar="NAME=DIST", help="draw NAME from DIST (repeatable)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="set NAME for every sample (repeatable)")
+    p.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact")
+    p.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s")
+    p.add_argument("--stop-time", type=float, metavar="T", help="end time in s (default: the scene's)")
+    p.add_argument("--output-interval", type=float, metavar="H",
+                   help="grid of the drift checks in s (default: the scene's)")
+    p.add_argument("--seed", type=int, metavar="S", help="seed of the draws (default 0)")
+    p.add_argument("--output", "-o", required=True, metavar="DIR", help="folder of the Parquet dataset")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the chunks on the dask.distributed cluster at ADDRESS, e.g. tcp://127.0.0.1:8786")
+    p.add_argument("--chunk-size", type=int, metavar="K", help="samples per chunk: per file and per task "
+                   "(default: 2000, or the folder's with --resume)")
+    p.add_argument("--resume", action="store_true", help="complete the sweep in DIR: compute only missing chunks")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_sweep)
+
+    q = subparsers.add_parser(
+        "sweep-plot", help="PNG histograms and a scatter plot of a sweep's Parquet dataset",
+        description="Write <DIR>_histograms.png (the varied values, max_energy_drift, max_L_drift) and "
+                    "<DIR>_scatter.png (one column against a varied parameter, blown-up samples marked).",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    q.add_argument("dir", metavar="DIR", help="the folder written by gyrosim sweep --output")
+    q.add_argument("--output-dir", "-o", metavar="OUT", help="folder for the PNGs (default: next to DIR)")
+    q.add_argument("--x", help="column on the x axis of the scatter (default: the first varied number)")
+    q.add_argument("--y", default="max_energy_drift", help="column on the y axis of the scatter")
+    q.add_argument("--columns", nargs="+", metavar="NAME", help="columns to histogram (default: the varied values, "
+                   "max_energy_drift, max_L_drift)")
+    q.set_defaults(func=cmd_plot)
+
+
+def cmd_sweep(args) -> int:
+    """Handler of ``gyrosim sweep``: 0 done, 2 a bad spec or folder (nothing run), 130 interrupted."""
+    from .execute import run_sweep
+
+    try:
+        res = run_sweep(args.scene, samples=args.samples, vary=args.vary, set=args.set, integrator=args.integrator,
+                        max_step=args.max_step, stop_time=args.stop_time, output_interval=args.output_interval,
+                        seed=args.seed, output=args.output, scheduler=args.scheduler, chunk_size=args.chunk_size,
+                        resume=args.resume, progress=not args.quiet)
+    except KeyboardInterrupt:
+        print(f"gyrosim sweep: interrupted; the chunks written so far are complete: `gyrosim sweep ... --output "
+              f"{args.output} --resume` computes the others", file=sys.stderr)
+        return 130
+    if not args.quiet:
+        print(res.format())
+    return 0
+
+
+def cmd_plot(args) -> int:
+    """Handler of ``gyrosim sweep-plot``: prints the PNG paths."""
+    from .plot import plot_sweep
+
+    for path in plot_sweep(args.dir, args.output_dir, x=args.x, y=args.y, columns=args.columns):
+        print(path)
+    return 0

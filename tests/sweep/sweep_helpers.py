@@ -1,0 +1,34 @@
+"""Helpers of the sweep tests: subprocess commands and row comparison (the Dask processes come from
+:class:`gyrosim.sweep.bench.DaskProcesses`)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+SRC = str(Path(__file__).resolve().parents[2] / "src")
+
+
+def env() -> dict:
+    e = dict(os.environ)
+    e["PYTHONPATH"] = SRC + (os.pathsep + e["PYTHONPATH"] if e.get("PYTHONPATH") else "")
+    return e
+
+
+def gyrosim_cmd(*args) -> list[str]:
+    return [sys.executable, "-m", "gyrosim.cli", *map(str, args)]
+
+
+def columns(table) -> dict:
+    return {c: table.column(c).to_numpy(zero_copy_only=False) for c in table.column_names}
+
+
+def assert_same_rows(a, b) -> None:
+    """The same columns and values (NaN equal to NaN: pyarrow's Table.equals counts NaN as unequal)."""
+    assert a.column_names == b.column_names and a.num_rows == b.num_rows
+    ca, cb = columns(a), columns(b)
+    for name in a.column_names:
+        np.testing.assert_array_equal(ca[name], cb[name], err_msg=name)
