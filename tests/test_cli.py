@@ -60,3 +60,197 @@ def test_console_script_runs(tmp_path):
     assert r.returncode == 0, r.stderr
     header, data = read(tmp_path / "g.csv")
     assert "tau_x" not in header and data.shape[0] == 11
+
+
+# ------------------------------------------------------------------------------------ FMPy's habits (issue 15)
+def test_fmpy_flags_give_what_gyrosim_simulate_gives(tmp_path):
+    import gyrosim
+
+    out = tmp_path / "top.csv"
+    assert main(["simulate", "heavy_top", "--start-values", "mass", "0.6", "omega_z", "40", "--start-time", "1.0",
+                 "--stop-time", "1.5", "--output-interval", "0.05", "--integrator", "adaptive",
+                 "--relative-tolerance", "1e-9", "--output-variables", "theta", "energy",
+                 "--output-file", str(out), "-q"]) == 0
+    header, data = read(out)
+    assert header == ["time", "theta", "energy"]
+    ref = gyrosim.simulate("heavy_top", start_values={"mass": 0.6, "omega_z": 40.0}, start_time=1.0, stop_time=1.5,
+                           output_interval=0.05, integrator="adaptive", relative_tolerance=1e-9,
+                           output=["theta", "energy"])
+    assert data.shape == (11, 3)
+    for k, name in enumerate(header):
+        np.testing.assert_array_equal(data[:, k], ref[name])  # the same bits (repr round-trips)
+    # --tolerance and --set are today's spellings of the same thing
+    old = tmp_path / "old.csv"
+    assert main(["simulate", "heavy_top", "--set", "mass=0.6", "--set", "omega_z=40", "--start-time", "1.0",
+                 "--stop-time", "1.5", "--output-interval", "0.05", "--integrator", "adaptive", "--tolerance", "1e-9",
+                 "--output-variables", "theta", "energy", "-o", str(old), "-q"]) == 0
+    assert old.read_text() == out.read_text()
+
+
+def test_default_output_file_is_scene_out_csv(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "free_body", "--stop-time", "0.1"]) == 0
+    assert "wrote free_body_out.csv (11 rows" in capsys.readouterr().err
+    header, data = read(tmp_path / "free_body_out.csv")
+    assert header == ["time", *OUTPUT_NAMES] and data.shape[0] == 11
+
+
+@pytest.mark.parametrize("argv", [
+    ["--tolerance", "1e-6", "--relative-tolerance", "1e-6"],
+    ["--output", "a.csv", "--output-file", "b.csv"],
+])
+def test_exclusive_spellings_are_a_usage_error(argv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["simulate", "free_body", *argv])
+    assert e.value.code == 2 and "not allowed with argument" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv,msg", [
+    (["--start-values", "I1", "2", "I2"], "NAME VALUE pairs, got 3 words"),
+    (["--start-values", "I1", "abc"], "I1 = 'abc' is not allowed: a real number in kg.m2"),
+    (["--output-variables", "omega_q"], "output = 'omega_q' is not allowed"),
+    (["--start-time", "2", "--stop-time", "1"], "--stop-time = 1.0 is not allowed: a time after --start-time"),
+    (["--relative-tolerance", "-1"], "--relative-tolerance = -1.0"),
+])
+def test_fmpy_flag_errors_are_one_line(argv, msg, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", "free_body", *argv]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_chunks_are_the_bits_of_one_call():
+    from gyrosim import simulate
+    from gyrosim.trajectory import Run
+
+    kw = dict(start_values={"omega_z": 5.0}, start_time=0.25, stop_time=1.25, output_interval=0.01,
+              integrator="rk4", output=["q_w", "psi", "L_z"])
+    whole = simulate("gyroscope", **kw)
+    parts = list(Run("gyroscope", **kw).chunks(7))
+    assert [len(p) for p in parts] == [8] + [7] * 13 + [2]
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+    np.testing.assert_array_equal(whole["time"], 0.25 + np.arange(101) * 0.01)
+
+
+def test_a_blow_up_writes_the_rows_before_and_exits_1(tmp_path, capsys):
+    out = tmp_path / "big.csv"
+    assert main(["simulate", "gyroscope", "--integrator", "euler", "--max-step", "10", "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    rows = out.read_text().splitlines()
+    assert "blew up" in err and f"wrote the {len(rows) - 1} rows before it to {out}" in err
+    assert "Traceback" not in err
+
+
+def test_show_plot_without_a_display_saves_a_png(tmp_path, monkeypatch, capsys):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from gyrosim import cli
+
+    figs = []
+    real = cli.show_plot
+    monkeypatch.setattr(cli, "show_plot", lambda *a, **k: figs.append(real(*a, **k)))
+    out = tmp_path / "g.csv"
+    assert main(["simulate", "gyroscope", "--stop-time", "1", "--output-variables", "theta", "omega_z", "energy",
+                 "-o", str(out), "--show-plot"]) == 0
+    assert (tmp_path / "g.png").stat().st_size > 10_000
+    assert f"plot saved to {tmp_path / 'g.png'}" in capsys.readouterr().err
+    (fig,) = figs
+    axes = fig.get_axes()
+    assert [a.get_ylabel() for a in axes] == ["theta [rad]", "omega_z [rad/s]", "energy [J]"]
+    assert all(a.yaxis.get_major_formatter().get_useOffset() is False for a in axes)  # no offset-only axes
+    assert len(axes[0].lines[0].get_xdata()) == 101
+
+
+# ----------------------------------------------------------------------------------------------- gyrosim info
+def _table(text):
+    lines = text.splitlines()
+    head = next(i for i, line in enumerate(lines) if line.split()[:2] == ["Name", "Causality"])
+    return {line.split()[0]: line for line in lines[head + 1:] if line.strip()}
+
+
+def test_info_of_a_scene_lists_every_variable(capsys):
+    from gyrosim.model import Model
+
+    assert main(["info", "gyroscope"]) == 0
+    out = capsys.readouterr().out
+    assert "Scene              gyroscope" in out and "Stop Time" in out
+    rows = _table(out)
+    assert set(rows) == set(Model("gyroscope").variables)
+    assert rows["I3"].split()[:4] == ["I3", "parameter", "0.01", "kg.m2"]
+    assert rows["omega_z"].split()[:4] == ["omega_z", "output", "200.0", "rad/s"]
+    assert rows["integrator"].split()[:3] == ["integrator", "parameter", "splitting"]
+    assert "body-frame angular velocity" in rows["omega_z"]
+    assert main(["info", "free_body", "-q"]) == 0
+    assert capsys.readouterr().out.split()[:2] == ["Name", "Causality"]
+
+
+def test_info_of_an_fmu_reads_its_model_description(tmp_path, capsys):
+    pytest.importorskip("fmpy")
+    from gyrosim.fmu import build_fmu
+
+    fmu = build_fmu("gyroscope", 3, tmp_path)
+    assert main(["info", str(fmu)]) == 0
+    out = capsys.readouterr().out
+    assert "FMI Version        3.0" in out and "Co-Simulation" in out
+    rows = _table(out)
+    assert main(["info", "gyroscope"]) == 0
+    scene_rows = _table(capsys.readouterr().out)
+    assert set(scene_rows) <= set(rows)
+    assert rows["omega_z"].split()[1:4] == ["output", "200.0", "rad/s"]
+    assert rows["I3"].split()[1:2] == ["parameter"]
+
+
+def test_missing_files_say_not_found(tmp_path, capsys):
+    from gyrosim.errors import ConfigError
+    from gyrosim.scene import load_scene
+
+    with pytest.raises(ConfigError, match=r"scene 'nope.toml' not found: give an embedded scene"):
+        load_scene("nope.toml")
+    for argv in (["simulate", str(tmp_path / "nope.toml")], ["info", str(tmp_path / "nope.toml")],
+                 ["info", str(tmp_path / "nope.fmu")], ["fmu", "build", str(tmp_path / "x.toml")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "not found" in err and "not allowed" not in err and "Traceback" not in err, err
+
+
+def test_fmu_build_to_an_unwritable_folder_is_one_clear_line(capsys):
+    assert main(["fmu", "build", "free_body", "-o", "/proc/nope"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("gyrosim fmu build: error: cannot write the FMU to --output '/proc/nope'")
+    assert len(err.splitlines()) == 1 and "Errno" not in err
+
+
+def test_a_closed_pipe_is_no_traceback():
+    # the reader goes away before gyrosim writes (as `gyrosim info free_body | head -2` can)
+    p = subprocess.Popen([sys.executable, "-m", "gyrosim.cli", "info", "free_body"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    p.stderr.close()
+    assert p.wait(timeout=60) == 141
+    assert err == ""
+    r = subprocess.run(f"'{sys.executable}' -m gyrosim.cli info heavy_top | head -2", shell=True,
+                       capture_output=True, text=True, timeout=60)
+    assert r.stdout.splitlines() == ["", "Model Info"] and r.stderr == ""
+
+
+@pytest.mark.parametrize("argv", [["simulate"], ["info", "x"], ["bench"], ["fmu", "build"], ["sweep", "-o", "d"],
+                                  ["sweep-plot", "x"]])
+def test_quiet_and_verbose_on_every_command(argv):
+    from gyrosim.cli import build_parser
+
+    p = build_parser()
+    for flags, q, v in ((["-q"], 1, 0), (["--quiet"], 1, 0), (["-v"], 0, 1), (["--verbose", "-v"], 0, 2)):
+        args = p.parse_args(argv + flags)
+        assert (args.quiet, args.verbose) == (q, v)
+
+
+def test_quiet_and_verbose_change_what_simulate_says(tmp_path, capsys):
+    assert main(["simulate", "free_body", "--stop-time", "0.1", "-o", str(tmp_path / "a.csv"), "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    assert main(["simulate", "free_body", "--stop-time", "0.1", "-o", str(tmp_path / "a.csv"), "-v"]) == 0
+    err = capsys.readouterr().err
+    assert "integrator splitting" in err and "11 rows of 16 columns" in err and "wrote" in err
+    assert main(["fmu", "build", "--fmi-version", "2", "-o", str(tmp_path), "-q"]) == 0
+    assert capsys.readouterr().out == "" and (tmp_path / "RigidBody.fmu").is_file()

@@ -250,3 +250,36 @@ def test_the_message_of_a_dense_output_failure_gives_the_drift_that_tripped():
         m.trajectory(0.01, 3000)
     drift = float(re.search(r"drifted by ([0-9.e+-]+) of its scale", str(e.value)).group(1))
     assert drift > 1e-9
+
+
+def test_a_long_call_is_stopped_within_one_percent_of_its_steps():
+    # the study's long run: euler on the free body at h = 0.01 s overflows after about 177,700 steps; one call
+    # of 1,000,000 steps with the monitor looking every 1/128 of it stops within 1 % of the steps to the overflow
+    # (the call is refused as a whole: the state stays)
+    m = Model("free_body", parameters={"integrator": "euler", "max_step": 0.01, "max_drift": 0.0},
+              stop_time=1e5)
+    with pytest.raises(IntegrationError, match=r"internal step (\d+) of 1000000") as e:
+        m.step(1e4)
+    overflow = int(re.search(r"internal step (\d+) of", str(e.value)).group(1))
+    assert 170_000 < overflow < 185_000
+    m = Model("free_body", parameters={"integrator": "euler", "max_step": 0.01}, stop_time=1e5)
+    with pytest.raises(IntegrationError, match=r"drifted by"):
+        m.step(1e4)
+    assert m.time == 0.0
+
+
+def test_many_bodies_stop_where_each_alone_stops():
+    # the blocked many-body path looks at the same checkpoints within a call as one body alone
+    sc = scene_from_dict({"scene": {"name": "field", "integrator": "euler", "max_step": 0.01},
+                          "body": [{"name": "b", "count": 9, "inertia": {"principal": [1.0, 2.0, 3.0]},
+                                    "rates": {"omega": [1.0, 0.1, 0.1]}}]})
+    status = np.zeros(9, dtype=np.int32)
+    Model(sc).trajectory(10.0, 30, status=status)
+    alone = np.zeros(1, dtype=np.int32)
+    Model(free_scene_euler()).trajectory(10.0, 30, status=alone)
+    assert np.all(status == alone[0]) and alone[0] > 0
+
+
+def free_scene_euler():
+    return scene_from_dict({"scene": {"name": "one", "integrator": "euler", "max_step": 0.01},
+                            "body": [{"inertia": {"principal": [1.0, 2.0, 3.0]}, "rates": {"omega": [1.0, 0.1, 0.1]}}]})

@@ -50,6 +50,7 @@ _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 OUTPUT_NAMES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "phi", "theta", "psi",
                 "L_x", "L_y", "L_z", "energy", "energy_error")
 _STATE_NAMES = OUTPUT_NAMES[:7]
+_FIXED = ("euler", "rk4", "splitting", "splitting4")
 #: The variables that enter the engine's parameter rows.
 _PARAM_NAMES = frozenset(("I1", "I2", "I3", "mass", "cm_distance", "g", "damping", "tau_x", "tau_y", "tau_z",
                           "max_drift"))
@@ -558,11 +559,15 @@ class Model:
                                  self.max_step, self._hint, self._stats, self._ex, status, 0)
         if failed:
             b = int(np.flatnonzero(status)[0])
+            k = int(status[b])
             status[:] = 0
             if not single:
                 self._y, self._hint, self._stats, self._ex = saved
             start = (self._y, self._hint, self._stats, self._ex)
-            raise IntegrationError(self._blowup(b, start, t, h, 0, 1, f"the step from t = {t!r} s with h = {h!r} s"))
+            n_sub = _engine.substeps(h, self.max_step)
+            at = f" at internal step {k} of {n_sub}" if self.integrator in _FIXED and n_sub > 1 else ""
+            raise IntegrationError(self._blowup(b, start, t, h, 0, 1, f"the step from t = {t!r} s with h = {h!r} s",
+                                                at=at))
 
     # ----------------------------------------------------------------------------------------------- blow-ups
     def _rerun(self, b: int, start: tuple, t: float, dt: float, k0: int, k: int, rows: np.ndarray | None):
@@ -582,8 +587,21 @@ class Model:
         d = np.empty((1, _engine.NDRIFT))
         if rows is None:
             before = y[0].copy()
-            if _engine.advance(method, self.scene.flags, y, p, t + k0 * dt, dt, self.tolerance, self.tolerance,
-                               self.max_step, hint, stats, ex, status, 1):
+            t1, run, max_step = t + k0 * dt, dt, self.max_step
+            n_sub = _engine.substeps(dt, self.max_step)
+            if self.integrator in _FIXED and n_sub > 1:
+                # where in the interval it failed: the interval again with the monitor on (the same bits); the
+                # monitor looks within long intervals, so the rerun stops at the internal step that tripped it
+                on = (y.copy(), hint.copy(), stats.copy(), ex.copy())
+                _engine.advance(method, self.scene.flags, on[0], self._p[b:b + 1], t1, dt, self.tolerance,
+                                self.tolerance, self.max_step, on[1], on[2], on[3], status, 1)
+                k_sub = int(status[0])
+                status[:] = 0
+                if 0 < k_sub < n_sub:
+                    max_step = dt / n_sub
+                    run = k_sub * max_step
+            if _engine.advance(method, self.scene.flags, y, p, t1, run, self.tolerance, self.tolerance, max_step,
+                               hint, stats, ex, status, 1):
                 return before, None, None
             _engine.drift(self.scene.flags, y, p, d)
             return before, y[0].copy(), d[0]
@@ -598,7 +616,7 @@ class Model:
         return before, after, d[0]
 
     def _blowup(self, b: int, start: tuple, t: float, dt: float, k0: int, k: int, where: str,
-                rows: np.ndarray | None = None) -> str:
+                rows: np.ndarray | None = None, at: str = "") -> str:
         """The message for body ``b`` failing in interval ``k`` (1-based) of a run of ``dt`` (as :meth:`_rerun`):
         the time, the step, what drifted and by how much, and advice the user is not already following."""
         integ = self.integrator
@@ -614,12 +632,12 @@ class Model:
             return (f"integrator 'exact' refused{who} {where}: the body turns by |omega|*h = {w * dt:.3g} rad in it, "
                     "more than the 1e6 rad one call may sample; take shorter steps")
         elif after is None:
-            cause = f"the state became non-finite or overflowed (|omega| > {_engine.OMEGA_LIMIT:g} rad/s)"
+            cause = f"the state became non-finite or overflowed (|omega| > {_engine.OMEGA_LIMIT:g} rad/s){at}"
         else:
             names = ("the energy balance", "|L|", "L_z", "L_3")
             i = int(np.nanargmax(d)) if not np.all(np.isnan(d)) else 0
             val = f"energy_error = {_energy_error(after, p):.4g} J" if i == 0 else None
-            cause = (f"{names[i]} drifted by {d[i]:.3g} of its scale ({val + '; ' if val else ''}"
+            cause = (f"{names[i]} drifted by {d[i]:.3g} of its scale{at} ({val + '; ' if val else ''}"
                      f"max_drift = {self.max_drift:g}, the health monitor's bound)")
         return (f"integrator {integ!r} blew up{who} in {where}: {cause}; "
                 + self._advice(before, p, dt))

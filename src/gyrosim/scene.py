@@ -21,7 +21,8 @@ File format (every key optional unless said)::
     name = "top"                 # default body, body_1, ...
     count = 1                    # replicate the body (fields of gyroscopes, Monte Carlo)
     inertia = { principal = [I1, I2, I3] }           # kg*m^2, about the pivot when cm_distance is given
-    # or { tensor = [[Ixx, Ixy, Ixz], [...], [...]] } (symmetric matrix; the body frame becomes its principal axes)
+    # or { tensor = [[Ixx, Ixy, Ixz], [...], [...]] } (symmetric matrix, its elements as InertiaTensor takes them;
+    #    Ixy = -sum m x y; the body frame becomes its principal axes)
     # or { shape = "cylinder", mass = 1.0, radius = 0.1, height = 0.05 }  (sphere: radius; box: length, width,
     #    height) about the centre of mass, shifted to the pivot by the parallel-axis theorem
     mass = 0.5                   # kg (pivoted bodies)
@@ -57,7 +58,7 @@ from .core.rotations import (
 )
 from .errors import ConfigError
 
-__all__ = ["Scene", "BodySpec", "load_scene", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
+__all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
 
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact")
@@ -153,6 +154,14 @@ def did_you_mean(word, allowed, cutoff: float = 0.6) -> str:
     """``" (did you mean 'x'?)"`` for the closest of ``allowed`` to ``word``, or ``""``."""
     close = difflib.get_close_matches(str(word), list(allowed), n=1, cutoff=cutoff)
     return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+class SceneNotFoundError(ConfigError):
+    """A scene that is neither an embedded name nor a readable TOML file (the message says "not found")."""
+
+    def __init__(self, scene: str, message: str):
+        super().__init__("scene", scene, message)
+        self.args = (message,)
 
 
 def _suggest(key: str, allowed) -> str:
@@ -392,8 +401,8 @@ def load_scene(scene: str | Path | Scene | None) -> Scene:
     Raises
     ------
     ConfigError
-        Unknown name or missing file (with the embedded names and a "did you mean"), invalid TOML, or an
-        invalid entry.
+        Unknown name or missing file (:class:`SceneNotFoundError`: "not found", with the embedded names and a
+        "did you mean"), invalid TOML, or an invalid entry.
     """
     if scene is None:
         return full_scene()
@@ -407,9 +416,15 @@ def load_scene(scene: str | Path | Scene | None) -> Scene:
     else:
         path = Path(s)
         if not path.is_file():
-            raise ConfigError("scene", s, f"an embedded scene ({_suggest(s, EMBEDDED_SCENES + ('full',))}) "
-                              "or the path of a TOML scene file")
-        text = path.read_text()
+            names = EMBEDDED_SCENES + ("full",)
+            what = "is a folder" if path.is_dir() else "not found"
+            raise SceneNotFoundError(s, f"scene {s!r} {what}{did_you_mean(s, names, cutoff=0.5)}: give an embedded "
+                                        f"scene ({', '.join(names)}) or the path of a TOML scene file")
+        try:
+            text = path.read_text()
+        except (OSError, UnicodeDecodeError) as e:
+            reason = getattr(e, "strerror", None) or str(e)
+            raise SceneNotFoundError(s, f"scene file {s!r} cannot be read: {reason}") from None
         source = str(path)
     try:
         data = tomllib.loads(text)

@@ -16,7 +16,7 @@ from .errors import ConfigError, IntegrationError
 from .model import OUTPUT_NAMES, Model
 from .scene import did_you_mean, load_scene
 
-__all__ = ["simulate", "field_names", "output_intervals"]
+__all__ = ["simulate", "Run", "field_names", "output_intervals"]
 
 
 def field_names(model: Model) -> list[str]:
@@ -97,37 +97,90 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     >>> r.dtype.names, len(r)
     (('time', 'omega_x'), 11)
     """
-    sc = load_scene(scene)
-    t0 = float(start_time)
-    if not math.isfinite(t0):
-        raise ConfigError("start_time", start_time, "a finite number in s")
-    stop = sc.stop_time if stop_time is None else float(stop_time)
-    dt = sc.output_interval if output_interval is None else float(output_interval)
-    if not (math.isfinite(dt) and dt > 0):
-        raise ConfigError("output_interval", output_interval, "a finite number > 0 in s")
-    if not (math.isfinite(stop) and stop > t0):
-        raise ConfigError("stop_time", stop_time, f"a finite number > start_time = {t0!r} s")
-    model = Model(sc, start_time=t0, stop_time=stop, tolerance=relative_tolerance)
-    if start_values:
-        _apply_start_values(model, dict(start_values))
-    if integrator is not None:
-        model.set("integrator", integrator)
-    if max_step is not None:
-        model.set("max_step", max_step)
-    n = output_intervals(stop - t0, dt, stop)
-    picked, columns, dtype, angles, momentum = _selection(sc, None if output is None else tuple(output))
-
-    def pack(block: np.ndarray) -> np.ndarray:
-        res = np.empty((block.shape[0], 1 + len(columns)))
-        _engine.pack(block, columns, t0, dt, res)
-        return res.view(dtype).reshape(-1)
-
+    run = Run(scene, start_values=start_values, start_time=start_time, stop_time=stop_time,
+              output_interval=output_interval, integrator=integrator, max_step=max_step,
+              relative_tolerance=relative_tolerance, output=output)
     try:
-        out = model.trajectory(dt, n, angles=angles, momentum=momentum)
+        out = run.model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
     except IntegrationError as e:
-        e.rows = pack(e.rows)
+        e.rows = run.pack(e.rows)
         raise
-    return pack(out)
+    return run.pack(out)
+
+
+class Run:
+    """A prepared run of :func:`simulate` (same arguments): the model set up, the grid and the output selection.
+
+    ``Run(...).chunks(k)`` yields the result in blocks of at most ``k`` output intervals, one engine call each
+    (the ``gyrosim simulate`` command writes them to CSV as they come, in bounded memory).
+
+    Attributes
+    ----------
+    model : Model
+        The model, with the start values applied.
+    t0, dt : float
+        Start time and output interval, s.
+    n : int
+        Output intervals: the result has ``n + 1`` rows.
+    names : list of str
+        The output fields, in order (the result's fields are ``time`` and these).
+    """
+
+    def __init__(self, scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
+                 integrator=None, max_step=None, relative_tolerance=None, output=None):
+        sc = load_scene(scene)
+        t0 = float(start_time)
+        if not math.isfinite(t0):
+            raise ConfigError("start_time", start_time, "a finite number in s")
+        stop = sc.stop_time if stop_time is None else float(stop_time)
+        dt = sc.output_interval if output_interval is None else float(output_interval)
+        if not (math.isfinite(dt) and dt > 0):
+            raise ConfigError("output_interval", output_interval, "a finite number > 0 in s")
+        if not (math.isfinite(stop) and stop > t0):
+            raise ConfigError("stop_time", stop_time, f"a finite number > start_time = {t0!r} s")
+        self.scene = sc
+        self.model = model = Model(sc, start_time=t0, stop_time=stop, tolerance=relative_tolerance)
+        if start_values:
+            _apply_start_values(model, dict(start_values))
+        if integrator is not None:
+            model.set("integrator", integrator)
+        if max_step is not None:
+            model.set("max_step", max_step)
+        self.t0, self.dt, self.stop_time = t0, dt, stop
+        self.n = output_intervals(stop - t0, dt, stop)
+        (self.names, self._columns, self.dtype, self.angles,
+         self.momentum) = _selection(sc, None if output is None else tuple(output))
+
+    def pack(self, block: np.ndarray, k0: int = 0) -> np.ndarray:
+        """Engine rows ``(rows, n_bodies, 15)`` of output points ``k0, k0 + 1, ...`` -> structured result rows."""
+        res = np.empty((block.shape[0], 1 + len(self._columns)))
+        _engine.pack(block, self._columns, self.t0, self.dt, res)
+        if k0:
+            res[:, 0] = self.t0 + (np.arange(block.shape[0]) + k0) * self.dt
+        return res.view(self.dtype).reshape(-1)
+
+    def chunks(self, size: int):
+        """Yield the result in blocks: the first holds output points ``0..m``, the next ``m+1..``, ... (``size``
+        output intervals per engine call, at least 1).
+
+        Raises
+        ------
+        IntegrationError
+            With ``error.rows``: the structured rows computed in the failing call before the failing interval
+            (those not yielded yet).
+        """
+        size = max(1, int(size))
+        done = 0
+        while done < self.n:
+            m = min(size, self.n - done)
+            try:
+                block = self.model.trajectory(self.dt, m, angles=self.angles, momentum=self.momentum)
+            except IntegrationError as e:
+                rows = np.asarray(e.rows)
+                e.rows = self.pack(rows, done) if done == 0 else self.pack(rows[1:], done + 1)
+                raise
+            yield self.pack(block, done) if done == 0 else self.pack(block[1:], done + 1)
+            done += m
 
 
 _SELECTIONS: dict = {}

@@ -37,9 +37,10 @@ def test_point_masses_reproduce_a_box_by_quadrature():
 
 
 def test_point_masses_products_and_principal_axes():
-    # two unit masses on the x=y diagonal: I_xy = sum m x y = 2, moments 0 about the diagonal
+    # two unit masses on the x=y diagonal: product P_xy = sum m x y = 2, the matrix element I_xy = -2
     I = InertiaTensor.from_point_masses([1.0, 1.0, 1.0], [[1, 1, 0], [-1, -1, 0], [0, 0, 1]])
-    assert I.I_xy == pytest.approx(2.0)
+    assert I.I_xy == pytest.approx(-2.0) and I.products[0] == pytest.approx(2.0)
+    assert I.to_matrix()[0, 1] == pytest.approx(-2.0)
     w, V = I.principal_axes()
     M = I.to_matrix()
     np.testing.assert_allclose(V.T @ M @ V, np.diag(w), atol=1e-12)
@@ -53,7 +54,31 @@ def test_parallel_axis_shift():
     assert P.I_xx == pytest.approx(I.I_xx + 0.09)
     assert P.I_zz == pytest.approx(I.I_zz)
     Q = I.shifted(1.0, [0.1, 0.2, 0.0])
-    assert Q.I_xy == pytest.approx(1.0 * 0.1 * 0.2)  # products follow sum m x y
+    assert Q.products[0] == pytest.approx(1.0 * 0.1 * 0.2)  # products follow sum m x y
+    assert Q.I_xy == pytest.approx(-1.0 * 0.1 * 0.2)  # the matrix element is minus the product
+
+
+def test_off_diagonal_arguments_are_the_matrix_elements_as_the_seed_documents():
+    # DESIGN.md section 3: InertiaTensor(I_xx, I_yy, I_zz, I_xy, I_xz, I_yz) takes the matrix's elements
+    I = InertiaTensor(2.0, 3.0, 4.0, I_xy=0.5, I_xz=-0.2, I_yz=0.3)
+    np.testing.assert_array_equal(I.to_matrix(), [[2.0, 0.5, -0.2], [0.5, 3.0, 0.3], [-0.2, 0.3, 4.0]])
+    assert InertiaTensor.from_matrix(I.to_matrix()) == I
+    assert I.products == (-0.5, 0.2, -0.3)
+    # the named constructor for products of inertia (engineering convention: minus sign in the matrix)
+    P = InertiaTensor.from_products(2.0, 3.0, 4.0, P_xy=-0.5, P_xz=0.2, P_yz=-0.3)
+    assert P == I
+    np.testing.assert_array_equal(InertiaTensor.from_products(1.0, 2.0, 2.5).to_matrix(), np.diag([1.0, 2.0, 2.5]))
+    assert not np.signbit(InertiaTensor.from_products(1.0, 2.0, 2.5).to_matrix()).any()  # no -0.0
+    with pytest.raises(ConfigError, match="P_xz"):
+        InertiaTensor.from_products(1.0, 2.0, 2.5, P_xz=np.nan)
+
+
+def test_seed_semantics_reach_the_dynamics():
+    # L = I omega with the elements as given: omega along x gives L = first column of the matrix
+    from gyrosim import RigidBodyDynamics
+
+    I = InertiaTensor(2.0, 3.0, 4.0, I_xy=0.5)
+    np.testing.assert_allclose(RigidBodyDynamics().angular_momentum(np.array([1.0, 0.0, 0.0]), I), [2.0, 0.5, 0.0])
 
 
 @given(st.lists(st.floats(-1, 1), min_size=3, max_size=3), st.floats(-50, 50), st.floats(-50, 50),

@@ -201,7 +201,7 @@ def test_recover_refuses_a_file_that_is_not_mcap(tmp_path):
     (tmp_path / "x.mcap").write_bytes(b"hello world, not mcap")
     with pytest.raises(RecordingError, match="not an MCAP file"):
         recover(tmp_path / "x.mcap", tmp_path / "y.mcap")
-    with pytest.raises(RecordingError, match="cannot read"):
+    with pytest.raises(RecordingError, match="not found"):
         recover(tmp_path / "missing.mcap", tmp_path / "y.mcap")
 
 
@@ -243,7 +243,7 @@ def test_cli_info_recover_and_plot(tmp_path):
     for x in pngs:
         assert Path(x).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     p = cli("plot", tmp_path / "missing.mcap")
-    assert p.returncode == 1 and "Traceback" not in p.stderr and "cannot read" in p.stderr
+    assert p.returncode == 1 and "Traceback" not in p.stderr and "not found" in p.stderr
 
 
 def test_plot_reads_state_series(tmp_path):

@@ -1,8 +1,10 @@
 """Inertia tensors: validation, principal axes, shapes and the parallel-axis shift.
 
-Units: kg*m^2 for moments, kg for masses, m for lengths. The tensor follows the engineering sign convention of
-the seed API: products of inertia ``I_xy = sum m x y`` enter the matrix with a minus sign,
-``[[I_xx, -I_xy, -I_xz], [-I_xy, I_yy, -I_yz], [-I_xz, -I_yz, I_zz]]``.
+Units: kg*m^2 for moments, kg for masses, m for lengths. As the seed API documents, the off-diagonal arguments
+of :class:`InertiaTensor` are the matrix's *elements*: the matrix is
+``[[I_xx, I_xy, I_xz], [I_xy, I_yy, I_yz], [I_xz, I_yz, I_zz]]``, so for a mass distribution ``I_xy = -sum m x y``.
+:meth:`InertiaTensor.from_products` takes the products of inertia ``P_xy = sum m x y`` instead (engineering sign
+convention: they enter the matrix with a minus sign).
 """
 
 from __future__ import annotations
@@ -80,7 +82,8 @@ class InertiaTensor:
     I_xx, I_yy, I_zz : float
         Moments about the body axes, kg*m^2.
     I_xy, I_xz, I_yz : float, optional
-        Products of inertia ``sum m x y`` etc., kg*m^2 (they enter the matrix with a minus sign).
+        Off-diagonal elements of the matrix, kg*m^2, as the seed API documents: ``I_xy = -sum m x y`` for a mass
+        distribution. For products of inertia ``P_xy = sum m x y`` use :meth:`from_products`.
 
     Raises
     ------
@@ -93,6 +96,10 @@ class InertiaTensor:
     >>> I = InertiaTensor(1.0, 2.0, 3.0)
     >>> I.principal_axes()[0]
     array([1., 2., 3.])
+    >>> InertiaTensor(2.0, 2.0, 1.0, I_xy=0.5).to_matrix()[0]
+    array([2. , 0.5, 0. ])
+    >>> InertiaTensor.from_products(2.0, 2.0, 1.0, P_xy=0.5).to_matrix()[0]
+    array([ 2. , -0.5,  0. ])
     """
 
     I_xx: float
@@ -120,9 +127,9 @@ class InertiaTensor:
 
     def to_matrix(self) -> np.ndarray:
         """The symmetric (3, 3) tensor in kg*m^2."""
-        return np.array([[self.I_xx, -self.I_xy, -self.I_xz],
-                         [-self.I_xy, self.I_yy, -self.I_yz],
-                         [-self.I_xz, -self.I_yz, self.I_zz]])
+        return np.array([[self.I_xx, self.I_xy, self.I_xz],
+                         [self.I_xy, self.I_yy, self.I_yz],
+                         [self.I_xz, self.I_yz, self.I_zz]])
 
     def principal_axes(self) -> tuple[np.ndarray, np.ndarray]:
         """Principal moments ascending (3,) kg*m^2 and principal axes as the columns of a (3, 3) rotation.
@@ -139,9 +146,25 @@ class InertiaTensor:
         """Principal moments ascending, (3,) kg*m^2."""
         return self.principal_axes()[0]
 
+    @property
+    def products(self) -> tuple[float, float, float]:
+        """The products of inertia ``(P_xy, P_xz, P_yz) = (sum m x y, sum m x z, sum m y z)`` in kg*m^2: minus the
+        off-diagonal elements."""
+        return (0.0 - self.I_xy, 0.0 - self.I_xz, 0.0 - self.I_yz)
+
+    @classmethod
+    def from_products(cls, I_xx, I_yy, I_zz, P_xy=0.0, P_xz=0.0, P_yz=0.0) -> InertiaTensor:
+        """Build from moments and products of inertia (engineering sign convention), kg*m^2.
+
+        ``P_xy = sum m x y`` etc. enter the matrix with a minus sign:
+        ``[[I_xx, -P_xy, -P_xz], [-P_xy, I_yy, -P_yz], [-P_xz, -P_yz, I_zz]]``.
+        """
+        return cls(I_xx, I_yy, I_zz, 0.0 - _finite("P_xy", P_xy), 0.0 - _finite("P_xz", P_xz),
+                   0.0 - _finite("P_yz", P_yz))  # 0.0 - x: no -0.0 in the matrix
+
     @classmethod
     def from_matrix(cls, I) -> InertiaTensor:
-        """Build from a symmetric (3, 3) matrix in kg*m^2 (off-diagonal entries are minus the products)."""
+        """Build from a symmetric (3, 3) matrix in kg*m^2 (its off-diagonal elements are ``I_xy``, ...)."""
         M = np.asarray(I, dtype=float)
         if M.shape != (3, 3):
             raise ConfigError("I", f"array of shape {M.shape}", "a (3, 3) matrix")
@@ -149,7 +172,7 @@ class InertiaTensor:
             raise ConfigError("I", M.tolist(), "finite entries")
         if not np.allclose(M, M.T, rtol=1e-12, atol=1e-15 * np.abs(M).max()):
             raise ConfigError("I", M.tolist(), "a symmetric matrix")
-        return cls(M[0, 0], M[1, 1], M[2, 2], -M[0, 1], -M[0, 2], -M[1, 2])
+        return cls(M[0, 0], M[1, 1], M[2, 2], M[0, 1], M[0, 2], M[1, 2])
 
     @classmethod
     def from_principal(cls, I1, I2, I3) -> InertiaTensor:
@@ -177,9 +200,9 @@ class InertiaTensor:
         if not np.all(np.isfinite(r)):
             raise ConfigError("positions", r.tolist(), "finite positions in m")
         x, y, z = r.T
-        return cls(float(np.sum(m * (y * y + z * z))), float(np.sum(m * (x * x + z * z))),
-                   float(np.sum(m * (x * x + y * y))), float(np.sum(m * x * y)), float(np.sum(m * x * z)),
-                   float(np.sum(m * y * z)))
+        return cls.from_products(float(np.sum(m * (y * y + z * z))), float(np.sum(m * (x * x + z * z))),
+                                 float(np.sum(m * (x * x + y * y))), float(np.sum(m * x * y)),
+                                 float(np.sum(m * x * z)), float(np.sum(m * y * z)))
 
     @classmethod
     def sphere(cls, mass, radius) -> InertiaTensor:

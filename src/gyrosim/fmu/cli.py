@@ -1,4 +1,4 @@
-"""``gyrosim fmu build [SCENE] --fmi-version {2,3} [--output DIR] [--standalone]`` (DESIGN.md section 5).
+"""``gyrosim fmu build [SCENE] --fmi-version {2,3} [--output DIR] [--standalone] [-q] [-v]`` (docs/cli.md).
 
 :func:`register` adds the ``fmu`` subcommand to the ``gyrosim`` parser (``gyrosim.cli`` calls it).
 """
@@ -14,6 +14,8 @@ __all__ = ["register", "cmd_build"]
 
 def register(subparsers) -> None:
     """Add ``fmu build`` to ``subparsers`` (the ``add_subparsers()`` object of the ``gyrosim`` parser)."""
+    from ..cli import add_verbosity
+
     p = subparsers.add_parser("fmu", help="build FMI 2.0 / 3.0 co-simulation FMUs",
                               description="Build native FMI co-simulation FMUs of the model (the C engine inside; "
                                           "no Python needed on the host).")
@@ -28,23 +30,37 @@ def register(subparsers) -> None:
     b.add_argument("--output", "-o", type=Path, default=Path("fmu") / "dist", help="output folder")
     b.add_argument("--standalone", action="store_true",
                    help="accepted for compatibility: every FMU is native (the C engine, no Python on the host)")
+    add_verbosity(b)
     b.set_defaults(func=cmd_build)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
 def cmd_build(args) -> int:
-    """Handler of ``gyrosim fmu build``: print the path written; exit code 2 for a bad scene or version."""
+    """Handler of ``gyrosim fmu build``: print the path written (not with -q; -v adds what is in it on stderr);
+    exit code 2 for a bad scene or version, 1 when the compiler or the output folder fails."""
+    from ..cli import verbosity
     from ..errors import ConfigError
 
+    v = verbosity(args)
     try:
         from .build import build_fmu
 
         path = build_fmu(args.scene, args.fmi_version, args.output)
     except (ConfigError, ValueError) as e:
-        print(f"gyrosim fmu build: {e}", file=sys.stderr)
+        print(f"gyrosim fmu build: error: {e}", file=sys.stderr)
         return 2
-    except (RuntimeError, OSError) as e:
-        print(f"gyrosim fmu build: {e}", file=sys.stderr)
+    except RuntimeError as e:
+        print(f"gyrosim fmu build: error: {e}", file=sys.stderr)
         return 1
-    print(path)
+    except OSError as e:
+        where = str(e.filename) if getattr(e, "filename", None) else str(args.output)
+        at = "" if Path(where) == Path(args.output) else f" ({where})"
+        print(f"gyrosim fmu build: error: cannot write the FMU to --output {str(args.output)!r}: "
+              f"{e.strerror or e}{at}; choose a writable folder", file=sys.stderr)
+        return 1
+    if v >= 0:
+        print(path)
+    if v > 0:
+        print(f"{path}: FMI {args.fmi_version}.0 co-simulation, native binary, {path.stat().st_size:,} bytes",
+              file=sys.stderr)
     return 0

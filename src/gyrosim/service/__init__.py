@@ -1,1 +1,2 @@
-"""The Zenoh service: keys, the serve loop, the recorder process and the command line."""
+"""The Zenoh service: keys, every Zenoh loop (serve, record, replay), the Foxglove live server and the command
+line of serve, record and replay."""

@@ -1,32 +1,27 @@
-"""Command line of the service: ``gyrosim serve`` and ``gyrosim record``.
+"""Command line of the Zenoh side: ``gyrosim serve``, ``gyrosim record`` and ``gyrosim replay``.
 
 ``register(subparsers)`` adds the subcommands to the ``gyrosim`` parser; each handler returns an exit code
-(0 fine, 1 runtime failure, 2 bad configuration, 130 interrupted twice). Errors are one line on stderr,
-never a traceback. ``python -m gyrosim.service.cli`` runs these subcommands and the telemetry ones
-stand-alone.
+(0 fine, 1 runtime failure, 2 bad configuration or input, 130 interrupted twice, 141 stdout closed). Errors are
+one line on stderr, never a traceback: Zenoh's errors name the endpoint and the flag to change.
+``python -m gyrosim.service.cli`` runs these subcommands and the file tools (``plot``, ``mcap``) stand-alone.
+
+Durations mean the same on every command: ``--duration S`` is simulated seconds (``serve``: simulate S
+seconds; ``record``: record S seconds of simulation time; ``replay``: the first S simulated seconds of the
+file) and ``--wall-duration S`` is wall-clock seconds.
 """
 
 from __future__ import annotations
 
 import argparse
-import logging
+import os
 import sys
 
-from ..errors import ConfigError, GyrosimError, RecordingError
+from ..errors import ConfigError
+from ..telemetry.cli import add_verbosity, run_handler, setup_logging
 from . import keys as K
-from .config import add_config_arguments, config_from_args
+from .config import add_config_arguments, config_from_args, uses_default_endpoints
 
 __all__ = ["register", "main", "parse_set", "setup_logging", "run_handler"]
-
-
-def setup_logging(verbosity: int = 0) -> None:
-    """Log to stderr (INFO by default, WARNING with -q, DEBUG with -v) unless logging is configured."""
-    level = logging.INFO if verbosity == 0 else (logging.WARNING if verbosity < 0 else logging.DEBUG)
-    root = logging.getLogger()
-    if not root.handlers:
-        logging.basicConfig(level=level, format="%(asctime)s %(name)s %(levelname)s: %(message)s",
-                            stream=sys.stderr)
-    logging.getLogger("gyrosim").setLevel(level)
 
 
 def parse_set(items) -> dict:
@@ -44,24 +39,21 @@ def parse_set(items) -> dict:
     return out
 
 
-def run_handler(prog: str, fn) -> int:
-    """Run ``fn()`` turning gyrosim errors into one stderr line and an exit code."""
-    try:
-        return int(fn() or 0)
-    except ConfigError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
-    except (RecordingError, GyrosimError) as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        return 130
+def _check_scene(scene) -> None:
+    """A scene given as a file path that does not exist: "not found" (embedded names pass through)."""
+    if scene and (scene.endswith(".toml") or os.sep in scene or "/" in scene) and not os.path.exists(scene):
+        raise ConfigError("scene", scene, "an embedded scene (free_body, heavy_top, gyroscope) or an existing "
+                          "TOML file (not found)")
 
 
-def _verbosity(p: argparse.ArgumentParser) -> None:
-    p.add_argument("-v", "--verbose", action="count", default=0, help="More log output.")
-    p.add_argument("-q", "--quiet", action="count", default=0, help="Only warnings and errors.")
+def _durations(p: argparse.ArgumentParser, what: str) -> None:
+    p.add_argument("--duration", type=float, metavar="S", help=f"Simulated seconds {what} (default: no limit).")
+    p.add_argument("--wall-duration", type=float, metavar="S", help="Wall-clock seconds to run at most.")
+
+
+def _summary(args, text: str) -> None:
+    if not args.quiet:
+        print(text)
 
 
 # ------------------------------------------------------------------------------------------------- serve
@@ -69,44 +61,67 @@ def _serve(args: argparse.Namespace) -> int:
     def run():
         from .serve import ServeOptions, main
 
-        setup_logging(args.verbose - args.quiet)
+        _check_scene(args.scene)
+        foxglove = None
+        if args.foxglove is not None:
+            from .live import parse_host_port
+
+            foxglove = parse_host_port(args.foxglove)
         params = parse_set(args.set)
         if args.integrator:
             params["integrator"] = args.integrator
         if args.max_step is not None:
             params["max_step"] = args.max_step
         options = ServeOptions(rate=args.rate, realtime_factor=args.realtime_factor, duration=args.duration,
-                               record=args.record, prefix=args.prefix, torque_limit=args.torque_limit,
-                               wait_subscribers=args.wait_subscribers)
+                               wall_duration=args.wall_duration, record=args.record, prefix=args.prefix,
+                               torque_limit=args.torque_limit, wait_subscribers=args.wait_subscribers,
+                               foxglove=foxglove)
         conf = config_from_args(args, role="producer")
         stats = main(conf, args.scene, options=options, parameters=params)
-        print(stats.format())
+        _summary(args, stats.format())
         return 0
 
-    return run_handler("gyrosim serve", run)
+    return run_handler("gyrosim serve", run, args)
 
 
 def _record(args: argparse.Namespace) -> int:
     def run():
         from .record import RecordOptions, main
 
-        setup_logging(args.verbose - args.quiet)
         if args.max_messages is not None and args.max_messages <= 0:
             raise ConfigError("--max-messages", args.max_messages, "a count > 0")
-        if args.duration is not None and args.duration <= 0:
-            raise ConfigError("--duration", args.duration, "wall seconds > 0")
-        options = RecordOptions(duration=args.duration, max_messages=args.max_messages,
-                                flush_interval=args.flush_interval, query_params=not args.no_params)
+        for flag, v in (("--duration", args.duration), ("--wall-duration", args.wall_duration)):
+            if v is not None and not v > 0:
+                raise ConfigError(flag, v, "seconds > 0")
+        options = RecordOptions(duration=args.duration, wall_duration=args.wall_duration,
+                                max_messages=args.max_messages, flush_interval=args.flush_interval,
+                                query_params=not args.no_params)
         conf = config_from_args(args, role="consumer")
         summary = main(conf, args.key, args.output, options=options)
-        print(summary.format())
+        _summary(args, summary.format())
         return 0
 
-    return run_handler("gyrosim record", run)
+    return run_handler("gyrosim record", run, args)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    def run():
+        from .replay import ReplayOptions, main
+
+        if args.speed < 0:
+            raise ConfigError("--speed", args.speed, "a factor >= 0 (0: as fast as possible)")
+        options = ReplayOptions(speed=args.speed, loop=args.loop, include_torque=args.include_torque,
+                                wait_subscribers=args.wait_subscribers, duration=args.duration,
+                                wall_duration=args.wall_duration, fallback_port=uses_default_endpoints(args))
+        stats = main(config_from_args(args, role="producer"), args.file, options=options)
+        _summary(args, stats.format())
+        return 0
+
+    return run_handler("gyrosim replay", run, args)
 
 
 def register(subparsers) -> None:
-    """Add ``serve`` and ``record`` to a ``gyrosim`` subparsers object."""
+    """Add ``serve``, ``record`` and ``replay`` to a ``gyrosim`` subparsers object."""
     p = subparsers.add_parser(
         "serve", help="Run a scene in real time and publish it on Zenoh",
         description="Step a scene's model in real time (or faster) and publish each body's state (JSON), "
@@ -116,8 +131,11 @@ def register(subparsers) -> None:
     p.add_argument("scene", nargs="?", default=None,
                    help="Embedded scene (free_body, heavy_top, gyroscope) or TOML file; default: full model.")
     p.add_argument("--record", metavar="FILE.mcap", help="Also record everything published into this file.")
-    p.add_argument("--duration", type=float, metavar="S", help="Simulated seconds to run (default: until "
-                   "SIGINT/SIGTERM).")
+    _durations(p, "to run (default: until SIGINT/SIGTERM)")
+    p.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", metavar="[HOST:]PORT",
+                   help="Also run a Foxglove WebSocket server streaming the same channels (host default "
+                        "127.0.0.1, loopback only; without a value 127.0.0.1:8765). In Foxglove: Open "
+                        "connection > Foxglove WebSocket > ws://HOST:PORT.")
     p.add_argument("--rate", type=float, default=100.0, metavar="HZ",
                    help="Publication rate = communication steps per simulated second (default 100).")
     p.add_argument("--realtime-factor", type=float, default=1.0, metavar="X",
@@ -130,7 +148,7 @@ def register(subparsers) -> None:
                    help="Largest accepted |torque component| in N*m (default 100).")
     p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
                    help="Wait up to S wall seconds for a subscriber on every state key before stepping.")
-    _verbosity(p)
+    add_verbosity(p)
     add_config_arguments(p)
     p.set_defaults(func=_serve)
 
@@ -139,19 +157,37 @@ def register(subparsers) -> None:
         description="Subscribe a key expression and write every sample into MCAP with its encoding and "
                     "schema (ROS 2 as ros2msg, JSON as jsonschema) and a metadata record per gyrosim body. "
                     "Stops cleanly on SIGINT/SIGTERM. Default: a Zenoh peer connecting to "
-                    "tcp/127.0.0.1:7447.")
+                    "tcp/127.0.0.1:7447, where a default `gyrosim serve` listens (no collision).")
     p.add_argument("--key", "-k", default=f"{K.DEFAULT_PREFIX}/**", metavar="EXPR",
                    help="Key expression to record (default gyrosim/**).")
     p.add_argument("--output", "-o", required=True, metavar="FILE.mcap", help="Output file.")
-    p.add_argument("--duration", type=float, metavar="S", help="Wall seconds to record (default: until "
-                   "SIGINT/SIGTERM).")
+    _durations(p, "to record: the span of the simulation time the messages carry (default: until "
+                  "SIGINT/SIGTERM)")
     p.add_argument("--max-messages", type=int, metavar="N", help="Stop after N messages.")
     p.add_argument("--flush-interval", type=float, default=0.5, metavar="S",
                    help="Largest time between flushes to disk (default 0.5 s): what a crash can lose.")
     p.add_argument("--no-params", action="store_true", help="Do not query .../params for metadata.")
-    _verbosity(p)
+    add_verbosity(p)
     add_config_arguments(p)
     p.set_defaults(func=_record)
+
+    p = subparsers.add_parser(
+        "replay", help="Republish an MCAP recording on Zenoh",
+        description="Republish every channel of a recording on its key with its recorded encoding and "
+                    "timing. Default: a Zenoh peer listening on tcp/127.0.0.1:7447 with scouting off; if a "
+                    "running `gyrosim serve` has that port, a free port instead (the warning names it). A "
+                    "truncated file is replayed as far as it reads, with a warning.")
+    p.add_argument("file", metavar="FILE.mcap")
+    p.add_argument("--speed", type=float, default=1.0, metavar="X",
+                   help="Replay speed factor (default 1; 0: as fast as possible).")
+    p.add_argument("--loop", action="store_true", help="Start again at the end until SIGINT/SIGTERM.")
+    _durations(p, "of the recording to replay, from its first message")
+    p.add_argument("--include-torque", action="store_true", help="Also republish recorded torque commands.")
+    p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
+                   help="Wait up to S seconds for a subscriber on every key before starting.")
+    add_verbosity(p)
+    add_config_arguments(p)
+    p.set_defaults(func=_replay)
 
 
 def main(argv=None) -> int:

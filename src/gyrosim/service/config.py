@@ -22,12 +22,21 @@ Examples
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import logging
+import os
+import re
+import socket
 
-from ..errors import ConfigError
+from ..errors import ConfigError, GyrosimError
 
 __all__ = [
     "DEFAULT_ENDPOINT",
+    "ZenohSessionError",
+    "open_session",
+    "zenoh_error",
+    "uses_default_endpoints",
     "add_config_arguments",
     "config_from_args",
     "loopback_config",
@@ -115,6 +124,8 @@ def config_from_args(args: argparse.Namespace, role: str = "producer"):
     listen = getattr(args, "listen", None)
     mode = getattr(args, "mode", None)
     if getattr(args, "config", None):
+        if not os.path.exists(args.config):
+            raise ConfigError("-c/--config", args.config, "an existing Zenoh JSON5 file (not found)")
         try:
             conf = zenoh.Config.from_file(args.config)
         except Exception as e:  # zenoh.ZError: one clear line
@@ -147,3 +158,106 @@ def config_from_args(args: argparse.Namespace, role: str = "producer"):
                                                                           ("listen", listen)) if v),
                           f"values Zenoh accepts; Zenoh says: {e}") from None
     return conf
+
+
+def uses_default_endpoints(args: argparse.Namespace) -> bool:
+    """True when none of ``-c``, ``-e``, ``-l``, ``-m`` was given (the loopback default applies)."""
+    return not any(getattr(args, a, None) for a in ("config", "connect", "listen", "mode"))
+
+
+class ZenohSessionError(GyrosimError):
+    """A Zenoh session could not start: one line naming the endpoint and the flag to change."""
+
+
+_RUST_NOISE = re.compile(r"\s+at\s+\S+\.rs:\d+(:\d+)?\.?|\s*\(os error \d+\)")
+_LOCATOR = re.compile(r"\b(?:tcp|udp|tls|quic|ws)/(?:\[[0-9a-fA-F:.%\w]+\]|[\w.\-]+):\d+")
+
+
+def _endpoints(conf, path: str) -> list[str]:
+    try:
+        value = json.loads(conf.get_json(path))
+    except Exception:  # noqa: BLE001 - an unset path
+        return []
+    if isinstance(value, dict):  # per-mode endpoints: {"router": [...], "peer": [...]}
+        value = [e for v in value.values() for e in (v or [])]
+    return [str(e) for e in value or []]
+
+
+def zenoh_error(e: Exception, conf=None) -> ZenohSessionError:
+    """Translate a ``zenoh.ZError`` from opening a session into one line with the endpoint and the flag.
+
+    Rust source locations and errno suffixes are dropped; a port in use, an address that is not local, a
+    privileged port and a refused connection get their own hint.
+    """
+    raw = " ".join(str(e).split())
+    text = _RUST_NOISE.sub("", raw).strip().rstrip(".")
+    listen = _endpoints(conf, "listen/endpoints") if conf is not None else []
+    connect = _endpoints(conf, "connect/endpoints") if conf is not None else []
+    named = _LOCATOR.findall(raw)
+    where = next((x for x in named if x in listen or x in connect), named[0] if named else None)
+    low = raw.lower()
+    if "address already in use" in low or "os error 98" in low or "addrinuse" in low:
+        ep = where or (listen[0] if listen else "the listen endpoint")
+        host = ep.split("/", 1)[-1].rsplit(":", 1)[0] if "/" in ep else "127.0.0.1"
+        return ZenohSessionError(
+            f"cannot listen on {ep}: the address is already in use (a running gyrosim serve or replay, or a "
+            f"zenohd?); listen on another port with -l/--listen tcp/{host}:PORT, or connect to the one running "
+            f"with -e/--connect {ep}")
+    if "cannot assign requested address" in low or "os error 99" in low:
+        ep = where or (listen[0] if listen else "the listen endpoint")
+        return ZenohSessionError(f"cannot listen on {ep}: that address is not one of this host's; "
+                                 "change -l/--listen")
+    if "permission denied" in low or "os error 13" in low:
+        ep = where or (listen[0] if listen else "the endpoint")
+        return ZenohSessionError(f"cannot listen on {ep}: permission denied (ports below 1024 need "
+                                 "privileges); change -l/--listen")
+    ends = "; ".join(x for x in (f"listen {', '.join(listen)}" if listen else "",
+                                 f"connect {', '.join(connect)}" if connect else "") if x)
+    return ZenohSessionError(f"Zenoh session failed{f' ({ends})' if ends else ''}: {text}; check "
+                             "-l/--listen, -e/--connect and -c/--config")
+
+
+def _free_port(host: str) -> int:
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as s:
+        s.bind((host.strip("[]"), 0))
+        return s.getsockname()[1]
+
+
+@contextlib.contextmanager
+def open_session(conf, *, fallback_port: bool = False, log: logging.Logger | None = None):
+    """``with open_session(conf) as session``: ``zenoh.open`` with errors as :class:`ZenohSessionError`.
+
+    Parameters
+    ----------
+    conf : zenoh.Config
+        Session configuration.
+    fallback_port : bool
+        If the (single TCP) listen endpoint is in use, listen on a free port of the same host instead and log
+        a warning naming it (``replay`` does so by default, so it does not collide with a running ``serve``).
+    log : logging.Logger, optional
+        Where the warning goes (default ``gyrosim.service``).
+    """
+    import zenoh
+
+    log = log or logging.getLogger("gyrosim.service")
+    try:
+        session = zenoh.open(conf)
+    except zenoh.ZError as e:
+        err = zenoh_error(e, conf)
+        listen = _endpoints(conf, "listen/endpoints")
+        if not (fallback_port and "already in use" in str(err) and len(listen) == 1
+                and listen[0].startswith("tcp/")):
+            raise err from None
+        host = listen[0][4:].rsplit(":", 1)[0]
+        new = f"tcp/{host}:{_free_port(host)}"
+        conf.insert_json5("listen/endpoints", json.dumps([new]))
+        try:
+            session = zenoh.open(conf)
+        except zenoh.ZError as e2:
+            raise zenoh_error(e2, conf) from None
+        log.warning("%s is in use (a running gyrosim serve?); listening on %s instead: connect to it with "
+                    "-e %s (or choose the port with -l)", listen[0], new, new)
+    try:
+        yield session
+    finally:
+        session.close()

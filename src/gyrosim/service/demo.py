@@ -28,10 +28,9 @@ def run(out: Path, duration: float = 3.0) -> dict:
     import zenoh
 
     from .. import Gyroscope
-    from ..telemetry import replay
     from ..telemetry.info import mcap_info
     from ..telemetry.plot import plot_recording, read_states
-    from . import record, serve
+    from . import record, replay, serve
     from .config import loopback_config
 
     print(f"\n== service: gyroscope on Zenoh (loopback peer), {duration:g} s real time, recorded to MCAP "

@@ -9,7 +9,8 @@ Keys (DESIGN.md section 6; the prefix defaults to ``gyrosim``)::
     <prefix>/<scene>/<body>/params   queryable: current parameters as JSON
     <prefix>/<scene>/alive           liveliness token
 
-An MCAP channel carries the topic ``"/" + key`` (:func:`topic_for_key`, :func:`key_for_topic`).
+An MCAP channel carries the topic ``"/" + key``: :func:`topic_for_key` and :func:`key_for_topic` are defined in
+:mod:`gyrosim.telemetry.topics` (formats know no transport) and re-exported here.
 
 Examples
 --------
@@ -27,6 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import ConfigError
+from ..telemetry.topics import key_for_topic, topic_for_key
 
 __all__ = [
     "DEFAULT_PREFIX",
@@ -169,14 +171,3 @@ def parse_key(key: str) -> KeyParts | None:
     if len(chunks) >= 4 and chunks[-1] in BODY_KINDS:
         return KeyParts("/".join(chunks[:-3]), chunks[-3], chunks[-2], chunks[-1])
     return None
-
-
-def topic_for_key(key: str) -> str:
-    """MCAP topic of a Zenoh key: ``"/" + key``."""
-    key = str(key)
-    return key if key.startswith("/") else "/" + key
-
-
-def key_for_topic(topic: str) -> str:
-    """Zenoh key of an MCAP topic written by :func:`topic_for_key`."""
-    return topic[1:] if topic.startswith("/") else topic

@@ -8,8 +8,9 @@ queries ``.../params`` once and writes the answer as a ``gyrosim`` metadata reco
 integrator).
 
 The Zenoh callback only queues samples (``FifoChannel``); this thread writes them. It stops cleanly (summary
-and footer written) on SIGINT, SIGTERM, ``duration`` or ``max_messages``; after a SIGKILL at most the last
-``flush_interval`` (0.5 s) is lost and ``gyrosim mcap recover`` makes the file valid.
+and footer written) on SIGINT, SIGTERM, ``duration`` (simulated seconds, as everywhere in gyrosim: the span of
+the simulation time the payloads carry), ``wall_duration`` (wall seconds) or ``max_messages``; after a
+SIGKILL at most the last ``flush_interval`` (0.5 s) is lost and ``gyrosim mcap recover`` makes the file valid.
 """
 
 from __future__ import annotations
@@ -21,9 +22,11 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from ..errors import GyrosimError
+from ..errors import ConfigError
+from ..telemetry import messages as msg
 from ..telemetry.recorder import Recorder, RecordingSummary, metadata_record
 from . import keys as K
+from .config import DEFAULT_ENDPOINT, open_session, zenoh_error
 from .serve import install_stop_signals
 
 __all__ = ["RecordOptions", "main"]
@@ -38,7 +41,12 @@ class RecordOptions:
     Parameters
     ----------
     duration : float or None
-        Wall seconds to record; None: until SIGINT/SIGTERM.
+        Simulated seconds to record: from the first message that carries a simulation time (gyrosim's state,
+        tf, imu) to the last one stamped at most ``duration`` later; the first message stamped beyond ends the
+        recording, as does a pause of ``idle_after_duration`` wall seconds once the span is reached (a service
+        that stopped there). Messages without a simulation time are recorded meanwhile. None: no limit.
+    wall_duration : float or None
+        Wall seconds to record; None: no limit.
     max_messages : int or None
         Stop after this many messages.
     capacity : int
@@ -54,6 +62,16 @@ class RecordOptions:
     capacity: int = 100_000
     flush_interval: float = 0.5
     query_params: bool = True
+    wall_duration: float | None = None
+    idle_after_duration: float = 0.5
+
+    def __post_init__(self):
+        for name in ("duration", "wall_duration"):
+            v = getattr(self, name)
+            if v is not None and not (v > 0 and v != float("inf")):
+                raise ConfigError(name, v, "a finite number of seconds > 0")
+        if self.max_messages is not None and self.max_messages <= 0:
+            raise ConfigError("max_messages", self.max_messages, "a count > 0")
 
 
 class _ParamsCollector:
@@ -147,25 +165,47 @@ def main(conf, key_expr: str, output, *, options: RecordOptions = RecordOptions(
         with Recorder(output, flush_interval=options.flush_interval, metadata=metadata_record(
                 key=key_expr, source="gyrosim record")) as rec:
             try:
-                with zenoh.open(conf) as session:
-                    _record(session, rec, key_expr, options, stop, ready)
+                with open_session(conf, log=log) as session:
+                    _record(session, rec, key_expr, options, stop, ready, _peers(conf))
             except zenoh.ZError as e:
-                raise GyrosimError(f"Zenoh session failed: {e}") from None
+                raise zenoh_error(e, conf) from None
         return rec.summary
     finally:
         restore()
 
 
-def _record(session, rec: Recorder, key_expr: str, o: RecordOptions, stop: threading.Event, ready) -> None:
+def _peers(conf) -> str:
+    import json
+
+    try:
+        connect = json.loads(conf.get_json("connect/endpoints"))
+        listen = json.loads(conf.get_json("listen/endpoints"))
+    except Exception:  # noqa: BLE001 - only for a log line
+        return ""
+    parts = []
+    if connect:
+        parts.append(f"connecting to {', '.join(map(str, connect))}")
+    if listen:
+        parts.append(f"listening on {', '.join(map(str, listen))}")
+    return "; ".join(parts)
+
+
+def _record(session, rec: Recorder, key_expr: str, o: RecordOptions, stop: threading.Event, ready,
+            peers: str = "") -> None:
     import zenoh
 
     sub = session.declare_subscriber(key_expr, zenoh.handlers.FifoChannel(o.capacity))
     params = _ParamsCollector(session, rec) if o.query_params else None
     seen: set[str] = set()
-    log.info("recording %r into %s", key_expr, rec.path)
+    log.info("recording %r into %s%s", key_expr, rec.path, f" ({peers})" if peers else "")
+    if peers == f"connecting to {DEFAULT_ENDPOINT}":
+        log.debug("the default: a running `gyrosim serve` listens there; start it any time")
     if ready is not None:
         ready()
-    t_end = None if o.duration is None else time.monotonic() + o.duration
+    t_end = None if o.wall_duration is None else time.monotonic() + o.wall_duration
+    span_ns = None if o.duration is None else round(o.duration * 1e9)
+    first_ns = None  # simulation time of the first stamped message
+    reached_at = None  # wall clock when the simulated span was reached
     n = 0
     limit = o.max_messages
     drain_until = None
@@ -175,13 +215,26 @@ def _record(session, rec: Recorder, key_expr: str, o: RecordOptions, stop: threa
             if sample is None:
                 if stop.is_set() or (t_end is not None and time.monotonic() >= t_end):
                     break
+                if reached_at is not None and time.monotonic() - reached_at >= o.idle_after_duration:
+                    break
                 rec.maybe_flush()
                 if params is not None:
                     params.poll()
                 time.sleep(0.002)
                 continue
             key = str(sample.key_expr)
-            rec.write_sample(key, str(sample.encoding), sample.payload.to_bytes(), log_time_ns=time.time_ns())
+            encoding = str(sample.encoding)
+            payload = sample.payload.to_bytes()
+            stamp, seq = msg.stamp_and_seq(encoding, payload)
+            if span_ns is not None and stamp is not None:
+                if first_ns is None:
+                    first_ns = stamp
+                if stamp - first_ns > span_ns + 1000:
+                    break  # the first message beyond the simulated span (1 us tolerance) ends the recording
+                if stamp - first_ns >= span_ns - 1000:
+                    reached_at = time.monotonic()
+            rec.write_sample(key, encoding, payload, log_time_ns=time.time_ns(), publish_time_ns=stamp,
+                             sequence=seq)
             n += 1
             if params is not None and key not in seen:
                 seen.add(key)

@@ -11,6 +11,9 @@ out-of-limit commands are logged, counted and ignored), answers ``.../params`` q
 parameters, inputs and counters, and holds the liveliness token ``<prefix>/<scene>/alive``. Zenoh's
 callbacks only queue (``FifoChannel``); all work happens in the stepping thread.
 
+With ``foxglove`` set, a Foxglove WebSocket server (:mod:`gyrosim.service.live`) streams the same channels
+for a live view in Foxglove.
+
 Pacing: simulated time runs ``realtime_factor`` times as fast as the wall clock (1: real time; 0: as fast as
 possible). A step that falls behind is not skipped (every step is published); the lag is reported.
 """
@@ -28,6 +31,7 @@ from dataclasses import asdict, dataclass
 from ..errors import ConfigError, GyrosimError, IntegrationError, StepError
 from ..telemetry import messages as msg
 from . import keys as K
+from .config import open_session, zenoh_error
 
 __all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals"]
 
@@ -45,7 +49,9 @@ class ServeOptions:
     realtime_factor : float
         Simulated seconds per wall-clock second; 0 runs as fast as possible.
     duration : float or None
-        Simulated seconds to run; None runs until SIGINT/SIGTERM.
+        Simulated seconds to run; None runs until SIGINT/SIGTERM (or ``wall_duration``).
+    wall_duration : float or None
+        Wall-clock seconds to run at most; None: no wall-clock limit.
     record : str or None
         MCAP file to record everything published (and accepted torque commands) into.
     prefix : str
@@ -56,6 +62,8 @@ class ServeOptions:
         Wait up to this many wall seconds for a subscriber on every state key before stepping.
     linger : float
         Wall seconds to keep the session open after the last message, so queued messages leave.
+    foxglove : tuple (host, port) or None
+        Also run a Foxglove WebSocket server there (port 0: a free port).
     """
 
     rate: float = 100.0
@@ -66,6 +74,8 @@ class ServeOptions:
     torque_limit: float = msg.DEFAULT_TORQUE_LIMIT
     wait_subscribers: float = 0.0
     linger: float = 0.2
+    wall_duration: float | None = None
+    foxglove: tuple | None = None
 
     def __post_init__(self):
         if not (isinstance(self.rate, (int, float)) and math.isfinite(self.rate) and self.rate > 0):
@@ -75,6 +85,8 @@ class ServeOptions:
                               "a finite factor >= 0 (0: as fast as possible)")
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
             raise ConfigError("duration", self.duration, "a finite number of simulated seconds > 0")
+        if self.wall_duration is not None and not (math.isfinite(self.wall_duration) and self.wall_duration > 0):
+            raise ConfigError("wall_duration", self.wall_duration, "a finite number of wall seconds > 0")
         if not (math.isfinite(self.torque_limit) and self.torque_limit > 0):
             raise ConfigError("torque_limit", self.torque_limit, "a finite limit > 0 N*m")
         if not (math.isfinite(self.wait_subscribers) and self.wait_subscribers >= 0):
@@ -153,15 +165,18 @@ class Service:
         Rate, pacing, limits.
     recorder : gyrosim.telemetry.recorder.Recorder, optional
         Records every published message and every accepted torque command.
+    live : gyrosim.service.live.LiveView, optional
+        Foxglove WebSocket server that gets every published message too.
     """
 
-    def __init__(self, session, model, options: ServeOptions = ServeOptions(), recorder=None):
+    def __init__(self, session, model, options: ServeOptions = ServeOptions(), recorder=None, live=None):
         import zenoh
 
         self.session = session
         self.model = model
         self.options = options
         self.recorder = recorder
+        self.live = live
         self.stats = ServeStats()
         self.scene = model.scene.name
         self.bodies = list(model.body_names)
@@ -188,6 +203,9 @@ class Service:
         self.queryables = [session.declare_queryable(k.params, zenoh.handlers.FifoChannel(64))
                            for k in self.keys]
         self.token = session.liveliness().declare_token(K.alive_key(self.scene, prefix=options.prefix))
+        if live is not None:
+            for k in self.keys:
+                live.add_body(k)
 
     # --------------------------------------------------------------------------------------------- inputs
     def _reject(self, key: str, reason: str) -> None:
@@ -267,6 +285,11 @@ class Service:
                     self.recorder.write_sample(self.keys[i].key(kind), encoding, data, log_time_ns=wall,
                                                publish_time_ns=t_ns, sequence=self._seq[i])
                     self.stats.recorded += 1
+            if self.live is not None:
+                key = self.keys[i]
+                self.live.log(key.state, payloads[0][2], wall)
+                self.live.log(key.tf, msg.encode_frame_transform(t, q, child_frame_id=body), wall)
+                self.live.log(key.imu, payloads[2][2], wall)
             self.stats.published += len(payloads)
             self._seq[i] += 1
 
@@ -317,9 +340,15 @@ class Service:
                  f"{o.duration:g} s simulated" if o.duration is not None else "until stopped")
         n = 0
         last_flush_poll = wall0
+        wall_end = None if o.wall_duration is None else wall0 + o.wall_duration
         while not stop.is_set() and (n_steps is None or n < n_steps):
+            if wall_end is not None and time.monotonic() >= wall_end:
+                st.stopped_by = st.stopped_by or "wall duration"
+                break
             if o.realtime_factor > 0:
                 target = wall0 + (n + 1) * self.h / o.realtime_factor
+                if wall_end is not None:
+                    target = min(target, wall_end)
                 while True:
                     now = time.monotonic()
                     remaining = target - now
@@ -410,10 +439,15 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
             bodies=list(model.body_names), source="gyrosim serve"))
     service = None
     stats = ServeStats()
+    live = None
     restore = install_stop_signals(stop, stats)
     try:
-        with zenoh.open(conf) as session:
-            service = Service(session, model, options, recorder)
+        if options.foxglove is not None:
+            from .live import LiveView
+
+            live = LiveView(*options.foxglove, name=f"gyrosim serve {model.scene.name}")
+        with open_session(conf, log=log) as session:
+            service = Service(session, model, options, recorder, live)
             service.stats = stats
             log.info("serving scene %r (bodies: %s) on %s/%s/... at %g Hz, realtime factor %g",
                      service.scene, ", ".join(service.bodies), options.prefix, service.scene, options.rate,
@@ -427,9 +461,11 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
                     time.sleep(options.linger)
                 service.close()
     except zenoh.ZError as e:
-        raise GyrosimError(f"Zenoh session failed: {e}") from None
+        raise zenoh_error(e, conf) from None
     finally:
         restore()
+        if live is not None:
+            live.close()
         if recorder is not None:
             summary = recorder.close()
             log.info("recording: %s", summary.format().splitlines()[0])

@@ -1,4 +1,4 @@
-"""``gyrosim sweep`` and ``gyrosim sweep-plot`` (DESIGN.md section 5); :func:`register` adds them to the parser.
+"""``gyrosim sweep`` and ``gyrosim sweep-plot`` (docs/sweeps.md); :func:`register` adds them to the parser.
 
 Nothing here imports dask or pyarrow at start-up: ``gyrosim --help`` stays fast.
 """
@@ -13,6 +13,8 @@ __all__ = ["register", "cmd_sweep", "cmd_plot"]
 
 def register(subparsers) -> None:
     """Add ``sweep`` and ``sweep-plot`` to ``subparsers`` (the ``add_subparsers()`` object of ``gyrosim``)."""
+    from ..cli import add_verbosity
+
     p = subparsers.add_parser(
         "sweep", help="Monte Carlo and parameter sweeps to a Parquet dataset (in process, or on a Dask cluster)",
         description="Run SCENE once per sample with variables drawn from distributions and write one Parquet row "
@@ -37,7 +39,7 @@ def register(subparsers) -> None:
     p.add_argument("--chunk-size", type=int, metavar="K", help="samples per chunk: per file and per task "
                    "(default: 2000, or the folder's with --resume)")
     p.add_argument("--resume", action="store_true", help="complete the sweep in DIR: compute only missing chunks")
-    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
+    add_verbosity(p)
     p.set_defaults(func=cmd_sweep)
 
     q = subparsers.add_parser(
@@ -51,31 +53,39 @@ def register(subparsers) -> None:
     q.add_argument("--y", default="max_energy_drift", help="column on the y axis of the scatter")
     q.add_argument("--columns", nargs="+", metavar="NAME", help="columns to histogram (default: the varied values, "
                    "max_energy_drift, max_L_drift)")
+    add_verbosity(q)
     q.set_defaults(func=cmd_plot)
 
 
 def cmd_sweep(args) -> int:
-    """Handler of ``gyrosim sweep``: 0 done, 2 a bad spec or folder (nothing run), 130 interrupted."""
+    """Handler of ``gyrosim sweep``: 0 done, 2 a bad spec or folder (nothing run), 130 interrupted. -q: no progress
+    bar or summary; -v: the log of the run (and of dask's client) on stderr."""
+    from ..cli import verbosity
     from .execute import run_sweep
+
+    v = verbosity(args)
 
     try:
         res = run_sweep(args.scene, samples=args.samples, vary=args.vary, set=args.set, integrator=args.integrator,
                         max_step=args.max_step, stop_time=args.stop_time, output_interval=args.output_interval,
                         seed=args.seed, output=args.output, scheduler=args.scheduler, chunk_size=args.chunk_size,
-                        resume=args.resume, progress=not args.quiet)
+                        resume=args.resume, progress=v >= 0)
     except KeyboardInterrupt:
         print(f"gyrosim sweep: interrupted; the chunks written so far are complete: `gyrosim sweep ... --output "
               f"{args.output} --resume` computes the others", file=sys.stderr)
         return 130
-    if not args.quiet:
+    if v >= 0:
         print(res.format())
     return 0
 
 
 def cmd_plot(args) -> int:
-    """Handler of ``gyrosim sweep-plot``: prints the PNG paths."""
+    """Handler of ``gyrosim sweep-plot``: prints the PNG paths (not with -q)."""
+    from ..cli import verbosity
     from .plot import plot_sweep
 
+    v = verbosity(args)
     for path in plot_sweep(args.dir, args.output_dir, x=args.x, y=args.y, columns=args.columns):
-        print(path)
+        if v >= 0:
+            print(path)
     return 0

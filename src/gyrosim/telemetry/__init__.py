@@ -1,4 +1,6 @@
-"""Telemetry: message encodings (JSON, ROS 2 CDR), the MCAP recorder, recover, info, plot and replay.
+"""Telemetry formats: message encodings (JSON, ROS 2 CDR), the key <-> topic mapping, MCAP writing and reading,
+recover, info, plots, and the Foxglove JSON-schema rules.
 
-Only this package and :mod:`gyrosim.service` import ``mcap`` and ``zenoh``.
+Formats know no transport: nothing here imports :mod:`gyrosim.service` or ``zenoh``; the Zenoh loops (serve,
+record, replay) live in :mod:`gyrosim.service`.
 """

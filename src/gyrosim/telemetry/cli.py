@@ -1,53 +1,137 @@
-"""Command line of the telemetry tools: ``gyrosim replay``, ``gyrosim plot``, ``gyrosim mcap {info,recover}``.
+"""Command line of the file tools: ``gyrosim plot``, ``gyrosim mcap {info,recover}``; the helpers every
+service and telemetry command shares (:func:`run_handler`, :func:`setup_logging`, :func:`add_verbosity`).
 
-``register(subparsers)`` adds them to the ``gyrosim`` parser; handlers return exit codes (0 fine, 1 failure,
-2 bad arguments); errors are one line on stderr.
+``register(subparsers)`` adds the subcommands to the ``gyrosim`` parser. Handlers return exit codes: 0 fine,
+1 runtime failure (also ``mcap info`` on an unfinished file), 2 bad arguments or input, 130 interrupted,
+141 stdout closed early (``gyrosim mcap info rec.mcap | head -2``), as a tool killed by SIGPIPE. Errors are
+one line on stderr, never a traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
+import os
 import sys
 
-__all__ = ["register"]
+from ..errors import ConfigError, GyrosimError, RecordingError
+
+__all__ = ["register", "run_handler", "setup_logging", "add_verbosity"]
+
+#: Exit code when stdout was closed by the reader (128 + SIGPIPE, as a shell reports a tool killed by it).
+EXIT_BROKEN_PIPE = 141
 
 
-def _replay(args: argparse.Namespace) -> int:
-    from ..errors import ConfigError
-    from ..service.cli import run_handler, setup_logging
-    from ..service.config import config_from_args
+class _Format(logging.Formatter):
+    """``gyrosim serve: warning: ...`` for warnings and errors; time-stamped records at -v."""
 
-    def run():
-        from .replay import ReplayOptions, main
+    def __init__(self, prog: str, verbose: bool):
+        super().__init__("%(asctime)s %(name)s %(levelname)s: %(message)s" if verbose else "%(message)s")
+        self.prog, self.verbose = prog, verbose
 
-        setup_logging(args.verbose - args.quiet)
-        if args.speed < 0:
-            raise ConfigError("--speed", args.speed, "a factor >= 0 (0: as fast as possible)")
-        options = ReplayOptions(speed=args.speed, loop=args.loop, include_torque=args.include_torque,
-                                wait_subscribers=args.wait_subscribers)
-        stats = main(config_from_args(args, role="producer"), args.file, options=options)
-        print(stats.format())
-        return 0
+    def format(self, record):
+        text = super().format(record)
+        if self.verbose:
+            return text
+        if record.levelno >= logging.WARNING:
+            return f"{self.prog}: {record.levelname.lower()}: {text}"
+        return f"{self.prog}: {text}"
 
-    return run_handler("gyrosim replay", run)
+
+def setup_logging(verbosity: int = 0, prog: str = "gyrosim") -> None:
+    """Log gyrosim's records to stderr: INFO by default, WARNING with -q, ERROR with -qq, DEBUG with -v.
+
+    Lines read ``gyrosim serve: ...`` (time-stamped with the logger name at -v). Other libraries' records
+    reach stderr only at -vv. Leaves a root logger configured by the caller (a test, an application) alone.
+    """
+    level = {0: logging.INFO, -1: logging.WARNING}.get(verbosity, logging.DEBUG if verbosity > 0 else logging.ERROR)
+    root = logging.getLogger()
+    g = logging.getLogger("gyrosim")
+    g.setLevel(level)
+    if root.handlers:
+        return
+    for h in list(g.handlers):
+        if getattr(h, "_gyrosim_cli", False):
+            g.removeHandler(h)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_Format(prog, verbosity > 0))
+    handler._gyrosim_cli = True
+    g.addHandler(handler)
+    g.propagate = False
+    if verbosity > 1:
+        logging.basicConfig(level=logging.DEBUG, stream=sys.stderr,
+                            format="%(asctime)s %(name)s %(levelname)s: %(message)s")
+
+
+def add_verbosity(p: argparse.ArgumentParser) -> None:
+    """``-v/--verbose`` (repeatable: more log output) and ``-q/--quiet`` (repeatable: less) on ``p``."""
+    p.add_argument("-v", "--verbose", action="count", default=0,
+                   help="More log output (-vv: also Zenoh's and the libraries').")
+    p.add_argument("-q", "--quiet", action="count", default=0,
+                   help="No progress or summary: only warnings and errors (-qq: errors only).")
+
+
+def _silence_stdout() -> None:
+    """After EPIPE: point stdout at /dev/null so the interpreter's final flush does not raise again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+def run_handler(prog: str, fn, args: argparse.Namespace | None = None) -> int:
+    """Run ``fn()``, turning every user error into one stderr line and an exit code.
+
+    With ``args`` carrying ``verbose`` and ``quiet``, logging is set up first (:func:`setup_logging`).
+    ``ConfigError`` and ``FileNotFoundError``: exit 2; other gyrosim errors and OS errors: 1; Ctrl-C: 130;
+    a closed stdout (``| head``): 141, silently.
+    """
+    if args is not None:
+        setup_logging(getattr(args, "verbose", 0) - getattr(args, "quiet", 0), prog)
+    try:
+        code = int(fn() or 0)
+        sys.stdout.flush()
+        return code
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
+    except (ConfigError, ValueError) as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    except FileNotFoundError as e:
+        print(f"{prog}: error: {e.filename or e} not found", file=sys.stderr)
+        return 2
+    except (RecordingError, GyrosimError) as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 1
+    except OSError as e:
+        where = f" ({e.filename})" if getattr(e, "filename", None) else ""
+        print(f"{prog}: error: {e.strerror or e}{where}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _out(args, text: str) -> None:
+    """Print a result line unless -q."""
+    if not getattr(args, "quiet", 0):
+        print(text)
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from ..service.cli import run_handler
-
     def run():
         from .plot import plot_recording
 
         for path in plot_recording(args.file, args.output_dir):
-            print(path)
+            _out(args, path)
         return 0
 
-    return run_handler("gyrosim plot", run)
+    return run_handler("gyrosim plot", run, args)
 
 
 def _info(args: argparse.Namespace) -> int:
-    from ..service.cli import run_handler
-
     def run():
         from .info import mcap_info
 
@@ -55,60 +139,49 @@ def _info(args: argparse.Namespace) -> int:
         print(info.format())
         return 0 if info.complete else 1
 
-    return run_handler("gyrosim mcap info", run)
+    return run_handler("gyrosim mcap info", run, args)
 
 
 def _recover(args: argparse.Namespace) -> int:
-    from ..service.cli import run_handler
-
     def run():
         from .recover import recover
 
-        print(recover(args.input, args.output).format())
+        _out(args, recover(args.input, args.output).format())
         return 0
 
-    return run_handler("gyrosim mcap recover", run)
+    return run_handler("gyrosim mcap recover", run, args)
 
 
 def register(subparsers) -> None:
-    """Add ``replay``, ``plot`` and ``mcap`` (``info``, ``recover``) to a ``gyrosim`` subparsers object."""
-    from ..service.config import add_config_arguments
-
+    """Add ``plot`` and ``mcap`` (``info``, ``recover``) to a ``gyrosim`` subparsers object."""
     p = subparsers.add_parser(
-        "replay", help="Republish an MCAP recording on Zenoh",
-        description="Republish every channel of a recording on its key with its recorded encoding and "
-                    "timing. Default: a Zenoh peer listening on tcp/127.0.0.1:7447 with scouting off.")
-    p.add_argument("file", metavar="FILE.mcap")
-    p.add_argument("--speed", type=float, default=1.0, metavar="X",
-                   help="Replay speed factor (default 1; 0: as fast as possible).")
-    p.add_argument("--loop", action="store_true", help="Start again at the end until SIGINT/SIGTERM.")
-    p.add_argument("--include-torque", action="store_true", help="Also republish recorded torque commands.")
-    p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
-                   help="Wait up to S seconds for a subscriber on every key before starting.")
-    p.add_argument("-v", "--verbose", action="count", default=0, help="More log output.")
-    p.add_argument("-q", "--quiet", action="count", default=0, help="Only warnings and errors.")
-    add_config_arguments(p)
-    p.set_defaults(func=_replay)
-
-    p = subparsers.add_parser("plot", help="PNG plots of attitude, rates, energy and |L| from a recording")
+        "plot", help="PNG plots of attitude, rates, energy and |L| from a recording",
+        description="Write <stem>_attitude.png, <stem>_rates.png, <stem>_energy.png and <stem>_momentum.png "
+                    "from every gyrosim.BodyState channel of FILE.mcap (one line per body). A truncated file "
+                    "is plotted as far as it reads, with a warning.")
     p.add_argument("file", metavar="FILE.mcap")
     p.add_argument("--output-dir", "-o", metavar="DIR",
                    help="Folder for the PNGs (default: next to the file).")
+    add_verbosity(p)
     p.set_defaults(func=_plot)
 
     p = subparsers.add_parser("mcap", help="MCAP tools: info, recover (the mcap CLI is not on PyPI)")
     msub = p.add_subparsers(dest="mcap_command", required=True)
     q = msub.add_parser("info", help="Channels, counts, time range, schemas and metadata of a recording",
-                        description="Exit code 1 when the file is not finished (run recover).")
+                        description="Exit code 1 when the file is not finished (run recover). JSON schemas "
+                                    "that Foxglove's reader would refuse are named with the reason.")
     q.add_argument("file", metavar="FILE.mcap")
+    add_verbosity(q)
     q.set_defaults(func=_info)
     q = msub.add_parser("recover", help="Salvage a recording whose writer died into a new valid file")
     q.add_argument("input", metavar="BROKEN.mcap")
     q.add_argument("output", metavar="FIXED.mcap")
+    add_verbosity(q)
     q.set_defaults(func=_recover)
 
 
 if __name__ == "__main__":
-    from ..service.cli import main
-
-    sys.exit(main())
+    parser = argparse.ArgumentParser(prog="gyrosim")
+    register(parser.add_subparsers(dest="command", required=True))
+    ns = parser.parse_args()
+    sys.exit(ns.func(ns))

@@ -20,6 +20,7 @@ import os
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
+from .foxglove_schema import check_foxglove_schema_data
 from .reading import Scan, scan_records
 
 __all__ = ["ChannelInfo", "McapInfo", "mcap_info"]
@@ -40,6 +41,8 @@ class ChannelInfo:
     last_log_time: int | None = None
     first_publish_time: int | None = None
     last_publish_time: int | None = None
+    #: Why Foxglove's JSON-schema reader would drop this channel (jsonschema channels only; empty: it reads it).
+    foxglove_problems: list = field(default_factory=list)
 
     @property
     def rate(self) -> float:
@@ -107,6 +110,8 @@ class McapInfo:
             rate = "" if c.rate != c.rate else f" {c.rate:9.1f} Hz"
             lines.append(f"  ({c.id}) {c.topic:<{w}}  {c.messages:8d} msgs{rate}  "
                          f"{c.message_encoding:<6} {schema}")
+            for p in c.foxglove_problems:
+                lines.append(f"      Foxglove cannot read this schema: {p}")
         lines.append(f"attachments: {self.attachments}")
         lines.append(f"metadata:    {len(self.metadata)}")
         for name, data in self.metadata:
@@ -139,6 +144,8 @@ def mcap_info(path) -> McapInfo:
             by_id[record.id] = ChannelInfo(record.id, record.topic, record.message_encoding,
                                            schema.name if schema else "", schema.encoding if schema else "",
                                            dict(record.metadata))
+            if schema is not None and schema.encoding == "jsonschema":
+                by_id[record.id].foxglove_problems = check_foxglove_schema_data(schema.data)
         elif isinstance(record, Message):
             c = by_id.get(record.channel_id)
             if c is None:

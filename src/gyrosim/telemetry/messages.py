@@ -53,6 +53,9 @@ __all__ = [
     "IMU_MSGDEF",
     "BODY_STATE_JSON_SCHEMA",
     "TORQUE_JSON_SCHEMA",
+    "FRAME_TRANSFORM_SCHEMA_NAME",
+    "FRAME_TRANSFORM_JSON_SCHEMA",
+    "STATE_INPUTS",
     "WORLD_FRAME",
     "DEFAULT_TORQUE_LIMIT",
     "BodyState",
@@ -65,6 +68,7 @@ __all__ = [
     "decode_state",
     "encode_tf",
     "encode_imu",
+    "encode_frame_transform",
     "decode_cdr",
     "encode_torque",
     "parse_torque",
@@ -170,13 +174,23 @@ float64[9] linear_acceleration_covariance
 _MSGDEFS = {TF_TYPE: TF_MSGDEF, IMU_TYPE: IMU_MSGDEF}
 
 # ------------------------------------------------------------------------------------------ JSON schemas
+# Foxglove's JSON-schema reader (parseJsonSchema) takes one type name per field (no ["number", "null"]) and needs
+# "properties" on every object; it throws on the whole channel otherwise. So every field has a single type and a
+# value that is not available is still written as null (the reader accepts null values). Checked by
+# gyrosim.telemetry.foxglove_schema.check_foxglove_schema in the tests, and by `gyrosim mcap info`.
 _NUM = {"type": "number"}
-_NUM_OR_NULL = {"type": ["number", "null"]}
 
 
 def _vec(n: int, what: str) -> dict:
     return {"type": "array", "items": _NUM, "minItems": n, "maxItems": n, "description": what}
 
+
+def _num(what: str) -> dict:
+    return {"type": "number", "description": what + " (null when not available or not finite)"}
+
+
+#: Input names a BodyState's ``inputs`` object may carry (body-frame torque, N*m).
+STATE_INPUTS = ("tau_x", "tau_y", "tau_z")
 
 #: JSON Schema (draft 2020-12) of a BodyState message.
 BODY_STATE_JSON_SCHEMA: dict = {
@@ -191,21 +205,23 @@ BODY_STATE_JSON_SCHEMA: dict = {
         "body": {"type": "string"},
         "q": _vec(4, "attitude quaternion (w, x, y, z), body -> world"),
         "omega": _vec(3, "body-frame angular velocity, rad/s"),
-        "phi": {**_NUM_OR_NULL, "description": "ZYZ precession angle (unwrapped), rad"},
-        "theta": {**_NUM_OR_NULL, "description": "ZYZ nutation angle in [0, pi], rad"},
-        "psi": {**_NUM_OR_NULL, "description": "ZYZ spin angle (unwrapped), rad"},
-        "L": {
-            "type": ["array", "null"], "items": _NUM, "minItems": 3, "maxItems": 3,
-            "description": "world-frame angular momentum about the reference point, kg*m^2/s",
-        },
-        "energy": {**_NUM_OR_NULL, "description": "total energy, J"},
-        "energy_error": {**_NUM_OR_NULL, "description": "work-energy balance E(t) - E(0) - W_torque(t) + "
-                         "W_damping(t), J: 0 for the exact flow, the integrator's error otherwise"},
+        "phi": _num("ZYZ precession angle (unwrapped), rad"),
+        "theta": _num("ZYZ nutation angle in [0, pi], rad"),
+        "psi": _num("ZYZ spin angle (unwrapped), rad"),
+        "L": {**_vec(3, "world-frame angular momentum about the reference point, kg*m^2/s "
+                        "(null when the scene has no L output)")},
+        "energy": _num("total energy, J"),
+        "energy_error": _num("work-energy balance E(t) - E(0) - W_torque(t) + W_damping(t), J: 0 for the exact "
+                             "flow, the integrator's error otherwise"),
         "inputs": {
-            "type": "object", "additionalProperties": _NUM,
-            "description": "inputs held over the last step (tau_x, tau_y, tau_z: body-frame torque, N*m)",
+            "type": "object",
+            "properties": {name: {"type": "number", "description": f"body-frame torque {name[-1]}, N*m"}
+                           for name in STATE_INPUTS},
+            "additionalProperties": _NUM,
+            "description": "inputs held over the last step (absent: the body has no torque input)",
         },
-        "wall_ns": {"type": "integer", "description": "publisher wall clock at publication, ns since epoch"},
+        "wall_ns": {"type": "integer", "description": "publisher wall clock at publication, ns since epoch "
+                    "(beyond 2^53: JavaScript readers round it to about 0.2 us)"},
     },
     "required": ["t", "seq", "q", "omega"],
 }
@@ -216,9 +232,36 @@ TORQUE_JSON_SCHEMA: dict = {
     "title": TORQUE_SCHEMA_NAME,
     "description": "Body-frame torque command, N*m, held until the next command.",
     "type": "object",
-    "properties": {"x": _NUM, "y": _NUM, "z": _NUM},
+    "properties": {"x": {**_NUM, "description": "body x, N*m"}, "y": {**_NUM, "description": "body y, N*m"},
+                   "z": {**_NUM, "description": "body z, N*m"}},
     "required": ["x", "y", "z"],
     "additionalProperties": False,
+}
+
+#: Foxglove's well-known schema name for one transform (drawn by its 3D panel).
+FRAME_TRANSFORM_SCHEMA_NAME = "foxglove.FrameTransform"
+
+
+def _xyz(*names: str, what: str) -> dict:
+    return {"type": "object", "title": what, "properties": {n: _NUM for n in names}}
+
+
+#: JSON Schema of ``foxglove.FrameTransform`` (as Foxglove's schemas repository publishes it for JSON).
+FRAME_TRANSFORM_JSON_SCHEMA: dict = {
+    "title": FRAME_TRANSFORM_SCHEMA_NAME,
+    "description": "A transform between two reference frames in 3D space",
+    "type": "object",
+    "properties": {
+        "timestamp": {"type": "object", "title": "time", "description": "Timestamp of transform",
+                      "properties": {"sec": {"type": "integer", "minimum": 0},
+                                     "nsec": {"type": "integer", "minimum": 0, "maximum": 999999999}}},
+        "parent_frame_id": {"type": "string", "description": "Name of the parent frame"},
+        "child_frame_id": {"type": "string", "description": "Name of the child frame"},
+        "translation": {**_xyz("x", "y", "z", what="foxglove.Vector3"),
+                        "description": "Translation component of the transform, m"},
+        "rotation": {**_xyz("x", "y", "z", "w", what="foxglove.Quaternion"),
+                     "description": "Rotation component of the transform"},
+    },
 }
 
 
@@ -415,6 +458,26 @@ def encode_imu(t: float, q, omega_body, *, frame_id: str) -> bytes:
         "linear_acceleration_covariance": _NOT_PROVIDED_COV,
     }
     return bytes(_encoder(IMU_TYPE)(msg))
+
+
+def encode_frame_transform(t: float, q, *, child_frame_id: str, parent_frame_id: str = WORLD_FRAME,
+                           translation=(0.0, 0.0, 0.0)) -> bytes:
+    """JSON ``foxglove.FrameTransform`` (the Foxglove live view's transform; :data:`FRAME_TRANSFORM_JSON_SCHEMA`).
+
+    The same transform as :func:`encode_tf`: ``parent_frame_id`` -> ``child_frame_id`` at simulation time ``t``
+    (s), rotation ``q = (w, x, y, z)`` body -> world, translation in m.
+
+    Examples
+    --------
+    >>> json.loads(encode_frame_transform(1.5, (1, 0, 0, 0), child_frame_id="gyro"))["timestamp"]
+    {'sec': 1, 'nsec': 500000000}
+    """
+    sec, nsec = ns_to_stamp(seconds_to_ns(t))
+    tx, ty, tz = (float(v) for v in translation)
+    d = {"timestamp": {"sec": sec, "nsec": nsec}, "parent_frame_id": parent_frame_id,
+         "child_frame_id": child_frame_id, "translation": {"x": tx, "y": ty, "z": tz},
+         "rotation": _quat_xyzw(q)}
+    return json.dumps(d, separators=(",", ":"), allow_nan=False).encode()
 
 
 def decode_cdr(type_name: str, data: bytes, msgdef: str | None = None) -> Any:

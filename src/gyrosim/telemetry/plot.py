@@ -1,13 +1,19 @@
 """``gyrosim plot FILE.mcap``: PNG plots of attitude, body rates, energy and |L| from the state channels.
 
-Reads every ``gyrosim.BodyState`` channel (one line per body), tolerating a truncated file, and writes
-``<stem>_attitude.png``, ``<stem>_rates.png``, ``<stem>_energy.png`` and ``<stem>_momentum.png``
-(matplotlib's Agg backend, no display needed).
+Reads every ``gyrosim.BodyState`` channel (one line per body), tolerating a truncated file (with a warning that
+gives the counts), and writes ``<stem>_attitude.png``, ``<stem>_rates.png``, ``<stem>_energy.png`` and
+``<stem>_momentum.png`` (matplotlib's Agg backend, no display needed).
+
+Made to be read: a quantity that barely moves (the gyroscope's nutation angle, its spin rate, energy, |L|) is
+plotted as its deviation from the initial value, in its unit, with the initial value in the panel title, never
+as an offset-only axis (``1e-6+1.5707``); dense series are drawn with thin lines, a few points with markers;
+the legend (one entry per body) sits below the panels, outside the data.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import os
 from dataclasses import dataclass, field
 
@@ -15,9 +21,11 @@ import numpy as np
 
 from ..errors import RecordingError
 from . import messages as msg
-from .reading import iter_messages
+from .reading import Scan, iter_messages
 
 __all__ = ["StateSeries", "read_states", "plot_recording"]
+
+log = logging.getLogger("gyrosim.plot")
 
 
 @dataclass
@@ -32,6 +40,7 @@ class StateSeries:
     euler: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     L: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
     energy: np.ndarray = field(default_factory=lambda: np.empty(0))
+    energy_error: np.ndarray = field(default_factory=lambda: np.empty(0))
     log_time: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
 
 
@@ -39,10 +48,14 @@ def _num(v) -> float:
     return float("nan") if v is None else float(v)
 
 
-def read_states(path) -> dict[str, StateSeries]:
-    """Every BodyState channel of a recording as arrays, keyed by topic (time in s, SI units)."""
+def read_states(path, scan: Scan | None = None) -> dict[str, StateSeries]:
+    """Every BodyState channel of a recording as arrays, keyed by topic (time in s, SI units).
+
+    ``scan`` (optional) is filled as in :func:`gyrosim.telemetry.reading.scan_records`: whether the file was
+    complete, and how much of it was read.
+    """
     rows: dict[str, list] = {}
-    for schema, channel, m in iter_messages(path):
+    for schema, channel, m in iter_messages(path, scan=scan):
         if schema is None or schema.name != msg.STATE_SCHEMA_NAME:
             continue
         try:
@@ -52,14 +65,66 @@ def read_states(path) -> dict[str, StateSeries]:
         L = d.get("L") or [None] * 3
         rows.setdefault(channel.topic, []).append(
             (d["t"], d.get("seq", -1), *d["q"], *d["omega"], _num(d.get("phi")), _num(d.get("theta")),
-             _num(d.get("psi")), *(_num(v) for v in L), _num(d.get("energy")), m.log_time))
+             _num(d.get("psi")), *(_num(v) for v in L), _num(d.get("energy")), _num(d.get("energy_error")),
+             m.log_time))
     out = {}
     for topic, r in rows.items():
-        a = np.array(r, dtype=float)
+        a = np.array([x[:-1] for x in r], dtype=float)
         out[topic] = StateSeries(topic, t=a[:, 0], seq=a[:, 1].astype(np.int64), q=a[:, 2:6], omega=a[:, 6:9],
-                                 euler=a[:, 9:12], L=a[:, 12:15], energy=a[:, 15],
+                                 euler=a[:, 9:12], L=a[:, 12:15], energy=a[:, 15], energy_error=a[:, 16],
                                  log_time=np.array([x[-1] for x in r], dtype=np.int64))
     return out
+
+
+def _style(n: int) -> dict:
+    """Line style by number of points: markers for a few, thin lines for many (no solid bands)."""
+    if n <= 60:
+        return {"linewidth": 1.0, "marker": "o", "markersize": 3}
+    if n <= 1000:
+        return {"linewidth": 1.0}
+    if n <= 10000:
+        return {"linewidth": 0.6}
+    return {"linewidth": 0.35}
+
+
+def _barely_moves(values: list[np.ndarray]) -> bool:
+    """True when every series stays within 1e-3 of its (non-zero) initial value's magnitude."""
+    for y in values:
+        y = y[np.isfinite(y)]
+        if len(y) < 2:
+            continue
+        y0 = y[0]
+        if y0 == 0 or np.ptp(y) > 1e-3 * abs(y0):
+            return False
+    return any(np.isfinite(y).sum() >= 2 for y in values)
+
+
+def _panel(ax, series: dict, values: dict, name: str, unit: str, label) -> None:
+    """Plot one quantity of every series on ``ax``: plain values, or deviations from the initial value."""
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter
+
+    deviation = _barely_moves(list(values.values()))
+    firsts = []
+    for topic, y in values.items():
+        t = series[topic].t
+        finite = np.isfinite(y)
+        y0 = y[finite][0] if finite.any() else np.nan
+        ax.plot(t, y - y0 if deviation else y, label=label(topic), **_style(len(t)))
+        firsts.append((label(topic), y0))
+    u = f" / {unit}" if unit else ""
+    if deviation:
+        ax.set_ylabel(f"{name} − {name}(0){u}")
+        init = ", ".join(f"{b} {v:.10g}" for b, v in firsts) if len(firsts) > 1 else f"{firsts[0][1]:.10g}"
+        ax.set_title(f"deviation from the initial value {name}(0) = {init} {unit}".rstrip(), fontsize="small",
+                     loc="left")
+    else:
+        ax.set_ylabel(f"{name}{u}")
+    fmt = ScalarFormatter(useOffset=False, useMathText=True)
+    fmt.set_powerlimits((-3, 4))
+    ax.yaxis.set_major_formatter(fmt)
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=5))
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=8))
+    ax.grid(True, alpha=0.3)
 
 
 def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
@@ -68,7 +133,8 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     Parameters
     ----------
     path : str or os.PathLike
-        The MCAP file.
+        The MCAP file. A truncated file is plotted as far as it can be read, with a warning (logger
+        ``gyrosim.plot``) giving the counts.
     output_dir : str, optional
         Folder for the PNGs (created if missing); default: next to the file.
 
@@ -83,7 +149,10 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     import matplotlib.pyplot as plt
 
     path = os.fspath(path)
-    series = read_states(path)
+    scan = Scan(path)
+    series = read_states(path, scan)
+    if (warning := scan.truncation_warning()) is not None:
+        log.warning("%s; plotting what was read", warning)
     if not series:
         raise RecordingError(f"{path!r} holds no {msg.STATE_SCHEMA_NAME} channel to plot")
     output_dir = output_dir or os.path.dirname(os.path.abspath(path))
@@ -93,58 +162,44 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
         raise RecordingError(f"cannot create plot folder {output_dir!r}: {e.strerror or e}") from None
     stem = os.path.splitext(os.path.basename(path))[0]
 
+    # one legend entry per body: its name, or scene/body when several scenes share the file
+    parts = {t: t.strip("/").split("/") for t in series}
+    one_scene = len({tuple(p[:-2]) for p in parts.values()}) == 1
+
     def label(topic):
-        return topic.strip("/").rsplit("/", 1)[0]
+        p = parts[topic]
+        return p[-2] if one_scene and len(p) >= 2 else "/".join(p[-3:-1])
 
-    figures = []
-
-    def three_panels(column, ylabels, title):
-        """One panel per component of ``column`` (an (n, 3) field of every series) against time."""
-        fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7))
-        for topic, s in series.items():
-            for k, ylabel in enumerate(ylabels):
-                axes[k].plot(s.t, getattr(s, column)[:, k], label=label(topic))
-                axes[k].set_ylabel(ylabel)
-        axes[-1].set_xlabel("t / s")
+    def figure(rows: int, title: str, panels):
+        """``panels``: (name, unit, {topic: values}) per row; one legend above the panels."""
+        fig, axes = plt.subplots(rows, 1, sharex=True, figsize=(8.5, 2.3 * rows + 1.0), layout="constrained")
+        for ax, (name, unit, values) in zip(np.atleast_1d(axes), panels):
+            _panel(ax, series, values, name, unit, label)
+        axes = np.atleast_1d(axes)
+        axes[-1].set_xlabel("simulation time t / s")
         fig.suptitle(title)
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside lower center", ncols=min(6, len(labels)), fontsize="small",
+                   frameon=False, title=None if len(labels) > 1 else "body")
         return fig
 
-    figures.append(("attitude", three_panels(
-        "euler", [f"{n} / rad" for n in ("phi (precession)", "theta (nutation)", "psi (spin)")],
-        "attitude (ZYZ Euler angles)")))
-    figures.append(("rates", three_panels("omega", [f"omega_{c} / (rad/s)" for c in "xyz"],
-                                          "body-frame angular velocity")))
-
-    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    for topic, s in series.items():
-        axes[0].plot(s.t, s.energy, label=label(topic))
-        e0 = s.energy[0] if len(s.energy) else np.nan
-        scale = abs(e0) if np.isfinite(e0) and e0 != 0 else 1.0
-        axes[1].plot(s.t, (s.energy - e0) / scale, label=label(topic))
-    axes[0].set_ylabel("E / J")
-    axes[1].set_ylabel("(E - E0) / |E0|")
-    axes[-1].set_xlabel("t / s")
-    fig.suptitle("energy")
-    figures.append(("energy", fig))
-
-    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    for topic, s in series.items():
-        n = np.linalg.norm(s.L, axis=-1)
-        axes[0].plot(s.t, n, label=label(topic))
-        n0 = n[0] if len(n) else np.nan
-        axes[1].plot(s.t, (n - n0) / (abs(n0) if np.isfinite(n0) and n0 != 0 else 1.0), label=label(topic))
-    axes[0].set_ylabel("|L| / (kg m^2/s)")
-    axes[1].set_ylabel("(|L| - |L0|) / |L0|")
-    axes[-1].set_xlabel("t / s")
-    fig.suptitle("angular momentum about the reference point (world frame)")
-    figures.append(("momentum", fig))
+    figures = []
+    names = (("phi", "precession"), ("theta", "nutation"), ("psi", "spin"))
+    figures.append(("attitude", figure(3, "attitude (ZYZ Euler angles)", [
+        (f"{n}", "rad", {k: s.euler[:, i] for k, s in series.items()}) for i, (n, _) in enumerate(names)])))
+    figures.append(("rates", figure(3, "body-frame angular velocity", [
+        (f"omega_{c}", "rad/s", {k: s.omega[:, i] for k, s in series.items()}) for i, c in enumerate("xyz")])))
+    has_error = any(np.isfinite(s.energy_error).any() for s in series.values())
+    energy_panels = [("E", "J", {k: s.energy for k, s in series.items()})]
+    if has_error:
+        energy_panels.append(("energy_error", "J", {k: s.energy_error for k, s in series.items()}))
+    figures.append(("energy", figure(len(energy_panels), "energy (energy_error: the work-energy balance)",
+                                     energy_panels)))
+    figures.append(("momentum", figure(1, "|L|, angular momentum about the reference point", [
+        ("|L|", "kg m²/s", {k: np.linalg.norm(s.L, axis=-1) for k, s in series.items()})])))
 
     paths = []
     for name, fig in figures:
-        for ax in fig.axes:
-            ax.grid(True, alpha=0.3)
-        fig.axes[0].legend(loc="best", fontsize="small")
-        fig.tight_layout()
         out = os.path.join(output_dir, f"{stem}_{name}.png")
         try:
             fig.savefig(out, dpi=dpi)

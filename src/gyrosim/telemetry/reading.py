@@ -36,12 +36,27 @@ class Scan:
     schemas: dict = field(default_factory=dict)
     channels: dict = field(default_factory=dict)
     statistics: object = None
+    messages: int = 0
+    bytes_read: int = 0
+    size: int = 0
+
+    def truncation_warning(self) -> str | None:
+        """One line with the counts when the file was not finished (None when it was read to its footer)."""
+        if self.complete:
+            return None
+        why = self.error or "no summary and footer"
+        return (f"{self.path} is truncated ({why}): read {self.messages} messages from {self.bytes_read} of "
+                f"{self.size} bytes; `gyrosim mcap recover` writes a valid copy")
 
 
 def _open(path) -> object:
     path = os.fspath(path)
     try:
         return open(path, "rb")
+    except FileNotFoundError:
+        raise RecordingError(f"recording {path!r} not found") from None
+    except IsADirectoryError:
+        raise RecordingError(f"recording {path!r} is a directory, not an MCAP file") from None
     except OSError as e:
         raise RecordingError(f"cannot read recording {path!r}: {e.strerror or e}") from None
 
@@ -70,16 +85,20 @@ def scan_records(path, scan: Scan | None = None) -> Iterator[object]:
         If the file cannot be opened or does not start with the MCAP magic.
     """
     from mcap.exceptions import InvalidMagic
-    from mcap.records import Channel, Footer, Header, Schema, Statistics
+    from mcap.records import Channel, Footer, Header, Message, Schema, Statistics
     from mcap.stream_reader import StreamReader
 
     scan = scan if scan is not None else Scan(os.fspath(path))
     check_mcap(path)
     with _open(path) as f:
+        scan.size = os.fstat(f.fileno()).st_size
         reader = StreamReader(f, record_size_limit=1 << 31)
         try:
             for record in reader.records:
-                if isinstance(record, Header):
+                scan.bytes_read = f.tell()
+                if isinstance(record, Message):
+                    scan.messages += 1
+                elif isinstance(record, Header):
                     scan.header = record
                 elif isinstance(record, Schema):
                     scan.schemas[record.id] = record
@@ -89,6 +108,7 @@ def scan_records(path, scan: Scan | None = None) -> Iterator[object]:
                     scan.statistics = record
                 elif isinstance(record, Footer):
                     scan.complete = True
+                    scan.bytes_read = scan.size
                 yield record
         except InvalidMagic as e:
             scan.error = f"bad magic at the end ({e})"

@@ -34,8 +34,8 @@ from dataclasses import dataclass, field
 from typing import IO
 
 from ..errors import RecordingError
-from ..service.keys import topic_for_key
 from . import messages as msg
+from .topics import topic_for_key
 
 __all__ = ["Recorder", "RecordingSummary", "DEFAULT_CHUNK_SIZE", "DEFAULT_FLUSH_INTERVAL", "versions",
            "metadata_record"]

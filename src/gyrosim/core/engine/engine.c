@@ -470,9 +470,20 @@ static inline double after_steps(double acc0, double w, double H, double h, int6
 
 #define DUE(k, stride, n_sub) ((stride) && ((k) + 1) % (stride) == 0)
 
-/* n_sub fixed steps of h; with check, stop at the first step whose state is not ok and return its index + 1 */
+/* The health monitor within a call: every GS_MONITOR_PARTS-th of its substeps (and at its end), so that a blow-up
+ * is stopped within 1 % of the steps of a long call, whatever the communication step. 0: only at the end. */
+#define GS_MONITOR_PARTS 128
+
+static inline int64_t monitor_stride(int64_t n_sub) {
+    return n_sub >= 2 * GS_MONITOR_PARTS ? n_sub / GS_MONITOR_PARTS : 0;
+}
+
+#define CHECKED(k, cs, F) ((cs) && ((k) + 1) % (cs) == 0 && drifted((F), y, p))
+
+/* n_sub fixed steps of h; with check, stop at the first step whose state is not ok and return its index + 1; the
+ * monitor every cstride steps (0: none) stops them too (the index + 1 of the step after which it tripped) */
 static int64_t fixed_steps(int method, double *y, const double *p, int flags, double h, int64_t n_sub,
-                           int64_t stride, int check) {
+                           int64_t stride, int check, int64_t cstride) {
     if (method == GS_SPLITTING || method == GS_SPLITTING4) {
         int s, pp, r;
         double L[3];
@@ -489,12 +500,14 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
             for (int i = 0; i < 3; i++) y[4 + i] = L[i] / p[i];
             normalize_q(y);
             if (check && !ok(y)) return k + 1;
+            if (CHECKED(k, cstride, flags)) return k + 1;
             if (DUE(k, stride, n_sub)) gs_unwrap(y);
         }
     } else if (method == GS_EULER) {
         for (int64_t k = 0; k < n_sub; k++) {
             euler_step(y, p, flags, h);
             if (check && !ok(y)) return k + 1;
+            if (CHECKED(k, cstride, flags)) return k + 1;
             if (DUE(k, stride, n_sub)) gs_unwrap(y);
         }
     } else {
@@ -504,6 +517,7 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
             for (int64_t k = 0; k < n_sub; k++) { \
                 rk4_step(y, p, (F), h); \
                 if (check && !ok(y)) return k + 1; \
+                if (CHECKED(k, cstride, (F))) return k + 1; \
                 if (DUE(k, stride, n_sub)) gs_unwrap(y); \
             } \
             break;
@@ -601,11 +615,12 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
     const double h = H / (double)n_sub;
     const int64_t stride = unwrap_stride(w, H, h);
     const double acc0 = y[9];
-    fixed_steps(method, y, p, flags, h, n_sub, stride, 0);
-    if (!ok(y)) {
+    const int64_t cstride = p[8] > 0.0 && p[8] != INFINITY ? monitor_stride(n_sub) : 0;
+    const int64_t trip = fixed_steps(method, y, p, flags, h, n_sub, stride, 0, cstride);
+    if (trip || !ok(y)) {
         memcpy(y, save, sizeof(save));
         rebase(y, w, H);
-        const int64_t k = fixed_steps(method, y, p, flags, h, n_sub, stride, 1);
+        const int64_t k = trip ? trip : fixed_steps(method, y, p, flags, h, n_sub, stride, 1, cstride);
         memcpy(y, save, sizeof(save));
         return clamp_status(k);
     }
@@ -754,16 +769,37 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
         ang[j][2] = yr[9];
         stride[j] = unwrap_stride(w[j], H, h);
     }
-    for (int64_t k = 0; k < n_sub;) {
-        /* run to the next substep after which some lane updates its reference angles */
+    /* the health monitor's checkpoints within the call, as advance_body has them (the bodies share p[8]) */
+    const double bound = p[b0 * GS_NP + 8];
+    const int64_t cstride = bound > 0.0 && bound != INFINITY ? monitor_stride(n_sub) : 0;
+    int tripped = 0;
+    for (int j = 1; j < GS_BLOCK; j++)   /* bodies with bounds of their own: each alone (below) */
+        if (!(p[(b0 + j) * GS_NP + 8] == bound)) tripped = 1;
+    for (int64_t k = 0; k < n_sub && !tripped;) {
+        /* run to the next substep after which some lane updates its reference angles, or the monitor looks */
         int64_t next = n_sub;
         for (int j = 0; j < GS_BLOCK; j++) {
             if (!stride[j]) continue;
             const int64_t due = (k / stride[j] + 1) * stride[j];
             if (due < next) next = due;
         }
+        if (cstride) {
+            const int64_t due = (k / cstride + 1) * cstride;
+            if (due < next) next = due;
+        }
         run_block(method, Y, (const Lanes *)P, flags, h, next - k);
         k = next;
+        if (cstride && k % cstride == 0) {
+            for (int j = 0; j < GS_BLOCK && !tripped; j++) {
+                const double *pb = p + (b0 + j) * GS_NP;
+                double yn[GS_NY];
+                memcpy(yn, y + (b0 + j) * GS_NY, sizeof(yn));
+                for (int i = 0; i < 7; i++) yn[i] = Y[i][j];
+                yn[10] = Y[7][j];
+                tripped = drifted(flags, yn, pb);
+            }
+            if (tripped) break;
+        }
         for (int j = 0; j < GS_BLOCK; j++) {
             if (stride[j] && k % stride[j] == 0) {
                 double yn[GS_NY];
@@ -777,6 +813,15 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
         }
     }
     size_t failed = 0;
+    if (tripped) {   /* a lane tripped the monitor within the call (or the bounds differ): each body alone */
+        for (int j = 0; j < GS_BLOCK; j++) {
+            const size_t b = b0 + j;
+            status[b] = advance_body(method, flags, y + b * GS_NY, p + b * GS_NP, t, H, n_sub, rtol, atol, max_step,
+                                     hint + b, stats + b * GS_NSTATS, ex ? ex + b * GS_EX_SIZE : NULL);
+            failed += status[b] != 0;
+        }
+        return failed;
+    }
     for (int j = 0; j < GS_BLOCK; j++) {
         const size_t b = b0 + j;
         double *yb = y + b * GS_NY;

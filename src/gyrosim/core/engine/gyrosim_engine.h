@@ -27,7 +27,7 @@
  *                        anchor time (s) and ex[GS_EX_VALID] 1 when set up (0: set up from y at the next step)
  *   status[b]            0, or k + 1 when internal step k of body b failed (non-finite or overflowing state, or
  *                        the health monitor's largest drift beyond max_drift, checked at the end of each
- *                        communication step and output point);
+ *                        communication step and output point, and every 1/128 of a call's fixed steps);
  *                        the body's y, hint, stats and ex are then left as they were before the call
  */
 #ifndef GYROSIM_ENGINE_H

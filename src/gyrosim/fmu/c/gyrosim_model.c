@@ -548,7 +548,11 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         memcpy(pp, d->p[b], sizeof(pp));
         pp[8] = 0.0;
         const double rate = gs_fastest_rate(GS_FLAGS, y, pp);
-        const int again = gs_advance_one(method, GS_FLAGS, y, pp, t, h, n_sub ? n_sub : 1, d->tolerance,
+        /* the monitor looks within long steps: a fixed-step method stopped at internal step k is rerun to it */
+        const int fixed = method == GS_EULER || method == GS_RK4 || method == GS_SPLITTING || method == GS_SPLITTING4;
+        const int64_t run_sub = fixed && k > 0 && k < n_sub ? k : (n_sub ? n_sub : 1);
+        const double run_h = run_sub == n_sub || !fixed ? h : (double)run_sub * (h / (double)n_sub);
+        const int again = gs_advance_one(method, GS_FLAGS, y, pp, t, run_h, run_sub, d->tolerance,
                                          d->tolerance, d->max_step, &hint, st, d->ex[b]);
         d->ex[b][GS_EX_VALID] = ex_valid;   /* the anchor as before the step */
         char cause[240], advice[320];
@@ -567,8 +571,9 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
             gs_drift(GS_FLAGS, y, pp, dr);
             int i = 0;
             for (int j = 1; j < GS_NDRIFT; j++) if (dr[j] > dr[i]) i = j;
-            snprintf(cause, sizeof(cause), "%s drifted by %.3g of its scale (max_drift = %.6g, the health "
-                     "monitor's bound)", what[i], dr[i], d->max_drift);
+            snprintf(cause, sizeof(cause), "%s drifted by %.3g of its scale at internal step %lld of %lld "
+                     "(max_drift = %.6g, the health monitor's bound)", what[i], dr[i], (long long)run_sub,
+                     (long long)(n_sub ? n_sub : 1), d->max_drift);
         }
         static const char *const alt[GS_N_METHODS] = {"rk4", "splitting", "dop853", "dop853", "splitting",
                                                       "dop853", "splitting"};

@@ -4,7 +4,9 @@ Every channel goes back to its key (topic without the leading ``/``) with the Ze
 with (channel metadata ``zenoh_encoding``, else rebuilt from the message and schema encodings), in file order,
 with the recorded timing (log-time differences divided by ``speed``; ``speed`` 0 publishes as fast as
 possible). Publishers are reliable with ``CongestionControl.BLOCK``. Torque channels are skipped unless asked
-for, so a replay does not push a live service.
+for, so a replay does not push a live service. ``duration`` replays the first simulated seconds only (by
+publish time, the simulation time of gyrosim channels); ``wall_duration`` stops after wall seconds (with
+``loop``). A truncated file is replayed as far as it reads, with a warning giving the counts.
 """
 
 from __future__ import annotations
@@ -15,10 +17,11 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ..errors import ConfigError, GyrosimError
-from ..service.keys import key_for_topic
-from . import messages as msg
-from .reading import Scan, iter_messages
+from ..errors import ConfigError
+from ..telemetry import messages as msg
+from ..telemetry.reading import Scan, iter_messages, scan_records
+from .config import open_session
+from .keys import key_for_topic
 
 __all__ = ["ReplayOptions", "ReplayStats", "main"]
 
@@ -39,16 +42,30 @@ class ReplayOptions:
         Also republish recorded ``.../torque`` commands.
     wait_subscribers : float
         Before the first pass, wait up to this many seconds for a subscriber on every key.
+    duration : float or None
+        Replay only messages within this many simulated seconds of the first one (publish time); None: all.
+    wall_duration : float or None
+        Stop after this many wall seconds; None: at the end (or never, with ``loop``).
+    fallback_port : bool
+        If the configured listen endpoint is taken (e.g. by a running ``gyrosim serve``), listen on a free port
+        of the same host instead and say which (the command line's default when no endpoint is given).
     """
 
     speed: float = 1.0
     loop: bool = False
     include_torque: bool = False
     wait_subscribers: float = 0.0
+    duration: float | None = None
+    wall_duration: float | None = None
+    fallback_port: bool = False
 
     def __post_init__(self):
         if not (self.speed >= 0 and self.speed != float("inf")):
             raise ConfigError("speed", self.speed, "a finite factor >= 0 (0: as fast as possible)")
+        for name in ("duration", "wall_duration"):
+            v = getattr(self, name)
+            if v is not None and not (v > 0 and v != float("inf")):
+                raise ConfigError(name, v, "a finite number of seconds > 0")
 
 
 @dataclass
@@ -68,8 +85,6 @@ class ReplayStats:
 def _keys_and_encodings(path) -> dict[int, tuple[str, str]]:
     from mcap.records import Channel
 
-    from .reading import scan_records
-
     scan = Scan(str(path))
     out = {}
     for record in scan_records(path, scan):
@@ -78,6 +93,8 @@ def _keys_and_encodings(path) -> dict[int, tuple[str, str]]:
             encoding = msg.encoding_for_channel(record.message_encoding, schema.name if schema else None,
                                                 dict(record.metadata))
             out[record.id] = (key_for_topic(record.topic), encoding)
+    if (warning := scan.truncation_warning()) is not None:
+        log.warning("%s; replaying what was read", warning)
     return out
 
 
@@ -89,17 +106,19 @@ def main(conf, path, *, options: ReplayOptions = ReplayOptions(), stop: threadin
     ------
     RecordingError
         If the file cannot be read.
+    GyrosimError
+        If the Zenoh session cannot start (one line naming the endpoint and the flag to change).
     """
     import zenoh
 
-    from ..service.serve import install_stop_signals
+    from .serve import install_stop_signals
 
     stop = stop if stop is not None else threading.Event()
     channels = _keys_and_encodings(path)  # reads the file once: fails early on a bad path
     stats = ReplayStats()
     restore = install_stop_signals(stop)
     try:
-        with zenoh.open(conf) as session:
+        with open_session(conf, fallback_port=options.fallback_port, log=log) as session:
             pubs = {}
             for cid, (key, encoding) in channels.items():
                 if key.endswith("/torque") and not options.include_torque:
@@ -118,37 +137,39 @@ def main(conf, path, *, options: ReplayOptions = ReplayOptions(), stop: threadin
             if ready is not None:
                 ready()
             wall0 = time.monotonic()
+            wall_end = None if options.wall_duration is None else wall0 + options.wall_duration
             while not stop.is_set():
-                _one_pass(path, pubs, channels, options.speed, stop, stats)
+                _one_pass(path, pubs, channels, options, stop, stats, wall_end)
                 stats.passes += 1
-                if not options.loop:
+                if not options.loop or (wall_end is not None and time.monotonic() >= wall_end):
                     break
             stats.wall_time = time.monotonic() - wall0
             time.sleep(0.2)  # let queued messages leave before the session closes
             for p in pubs.values():
                 p.undeclare()
-    except zenoh.ZError as e:
-        raise GyrosimError(f"Zenoh session failed: {e}") from None
     finally:
         restore()
     return stats
 
 
-def _one_pass(path, pubs, channels, speed, stop, stats) -> None:
-    t0_log = None
+def _one_pass(path, pubs, channels, options: ReplayOptions, stop, stats, wall_end) -> None:
+    speed = options.speed
+    t0_log = t0_pub = None
     wall0 = time.monotonic()
     for _, channel, m in iter_messages(path):
-        if stop.is_set():
+        if stop.is_set() or (wall_end is not None and time.monotonic() >= wall_end):
             return
         pub = pubs.get(channel.id)
         if pub is None:
             continue
         if t0_log is None:
-            t0_log = m.log_time
+            t0_log, t0_pub = m.log_time, m.publish_time
+        if options.duration is not None and m.publish_time - t0_pub > options.duration * 1e9 + 0.5:
+            continue
         if speed > 0:
             target = wall0 + (m.log_time - t0_log) / 1e9 / speed
             while (remaining := target - time.monotonic()) > 0:
-                if stop.is_set():
+                if stop.is_set() or (wall_end is not None and time.monotonic() >= wall_end):
                     return
                 time.sleep(min(remaining, 0.05))
         pub.put(m.data)

@@ -1,0 +1,100 @@
+"""`gyrosim serve --foxglove`: a real Foxglove WebSocket server (foxglove-sdk) checked with a real WebSocket client
+(the `websockets` package) speaking the Foxglove WebSocket protocol on 127.0.0.1: server info, channel
+advertisements with schemas Foxglove reads, subscribe, binary message data decoded."""
+
+import asyncio
+import json
+import struct
+
+import pytest
+from svc_helpers import endpoint, free_port, reap, start, stop, wait_for_line  # noqa: F401 - reap: autouse
+
+from gyrosim.telemetry import messages as msg
+from gyrosim.telemetry.foxglove_schema import check_foxglove_schema_data
+
+websockets = pytest.importorskip("websockets")
+pytest.importorskip("foxglove")
+
+TOPICS = {f"/gyrosim/gyroscope/gyro/{k}" for k in ("state", "tf", "imu")}
+
+
+async def _session(url: str, per_topic: int = 5):
+    """Connect, read serverInfo and advertisements, subscribe to every channel, collect decoded messages."""
+    from websockets.asyncio.client import connect
+
+    async with connect(url, subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=30,
+                       max_size=None) as ws:
+        assert ws.subprotocol in ("foxglove.sdk.v1", "foxglove.websocket.v1")
+        info, channels = None, {}
+        while info is None or set(c["topic"] for c in channels.values()) < TOPICS:
+            frame = await asyncio.wait_for(ws.recv(), 60)
+            assert isinstance(frame, str)
+            m = json.loads(frame)
+            if m["op"] == "serverInfo":
+                info = m
+            elif m["op"] == "advertise":
+                channels.update({c["id"]: c for c in m["channels"]})
+        subs = {i + 1: cid for i, cid in enumerate(channels)}
+        await ws.send(json.dumps({"op": "subscribe",
+                                  "subscriptions": [{"id": sid, "channelId": cid} for sid, cid in subs.items()]}))
+        got: dict[str, list] = {}
+        while any(len(got.get(t, [])) < per_topic for t in TOPICS):
+            frame = await asyncio.wait_for(ws.recv(), 60)
+            if isinstance(frame, str):
+                continue  # e.g. more advertisements or status
+            assert frame[0] == 0x01  # messageData
+            sid, log_time = struct.unpack_from("<IQ", frame, 1)
+            got.setdefault(channels[subs[sid]]["topic"], []).append((log_time, bytes(frame[13:])))
+        return info, channels, got
+
+
+def test_serve_streams_the_same_channels_to_a_foxglove_websocket_client(tmp_path):
+    port = free_port()
+    srv = start("serve", "gyroscope", "-l", endpoint(free_port()), "--foxglove", f"127.0.0.1:{port}",
+                "--wall-duration", 600)
+    wait_for_line(srv, f"ws://127.0.0.1:{port}", timeout=60)
+    try:
+        info, channels, got = asyncio.run(_session(f"ws://127.0.0.1:{port}"))
+    finally:
+        code, out, err = stop(srv)
+    assert code == 0, err
+    assert "Traceback" not in err
+    assert info["name"] == "gyrosim serve gyroscope"
+    by_topic = {c["topic"]: c for c in channels.values()}
+    assert (by_topic["/gyrosim/gyroscope/gyro/state"]["encoding"],
+            by_topic["/gyrosim/gyroscope/gyro/state"]["schemaName"]) == ("json", msg.STATE_SCHEMA_NAME)
+    assert (by_topic["/gyrosim/gyroscope/gyro/tf"]["encoding"],
+            by_topic["/gyrosim/gyroscope/gyro/tf"]["schemaName"]) == ("json", "foxglove.FrameTransform")
+    assert (by_topic["/gyrosim/gyroscope/gyro/imu"]["encoding"],
+            by_topic["/gyrosim/gyroscope/gyro/imu"]["schemaName"]) == ("cdr", msg.IMU_TYPE)
+    for topic in ("/gyrosim/gyroscope/gyro/state", "/gyrosim/gyroscope/gyro/tf"):  # Foxglove reads them
+        c = by_topic[topic]
+        assert c.get("schemaEncoding", "jsonschema") == "jsonschema"
+        assert check_foxglove_schema_data(c["schema"], c["schemaName"]) == []
+
+    states = [json.loads(d) for _, d in got["/gyrosim/gyroscope/gyro/state"]]
+    assert all(s["scene"] == "gyroscope" and s["body"] == "gyro" and len(s["q"]) == 4 for s in states)
+    seqs = [s["seq"] for s in states]
+    assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
+    tfs = [json.loads(d) for _, d in got["/gyrosim/gyroscope/gyro/tf"]]
+    assert all(t["parent_frame_id"] == "world" and t["child_frame_id"] == "gyro" for t in tfs)
+    q = tfs[0]["rotation"]
+    assert abs(q["w"] ** 2 + q["x"] ** 2 + q["y"] ** 2 + q["z"] ** 2 - 1) < 1e-9
+    imu = msg.decode_cdr(msg.IMU_TYPE, got["/gyrosim/gyroscope/gyro/imu"][0][1])
+    assert imu.header.frame_id == "gyro" and imu.angular_velocity.z == pytest.approx(200.0, rel=1e-6)
+    # log times: the wall clock at publication, ns since the Unix epoch (as in the recordings)
+    assert all(lt > 1_600_000_000 * 10**9 for lt, _ in got["/gyrosim/gyroscope/gyro/state"])
+
+
+def test_a_taken_foxglove_port_is_one_line_naming_the_flag(tmp_path):
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        p = start("serve", "gyroscope", "-l", endpoint(free_port()), "--foxglove", str(port), "--duration", 1)
+        code, out, err = stop(p, timeout=60) if p.wait(timeout=60) is None else (p.returncode, *p.communicate())
+    assert code == 1 and "Traceback" not in err
+    assert f"127.0.0.1:{port}" in err and "already in use" in err and "--foxglove" in err
+    assert len(err.strip().splitlines()) == 1, err
