@@ -1041,10 +1041,11 @@ def plot_long(recs: list[dict], out: Path) -> list[str]:
         for ax in axs:
             ax.set_xlabel("t (s)")
             ax.grid(True, which="both", alpha=0.3)
-        axs[0].legend(fontsize=8)
         n = rr[0]["n_steps"] if rr else 0
         fig.suptitle(f"Long run, {case}: {n:,} steps of h = {rr[0]['h'] if rr else 0:g} s", fontsize=10)
-        fig.tight_layout()
+        fig.tight_layout(rect=(0, 0.08, 1, 1))
+        fig.legend(*axs[0].get_legend_handles_labels(), loc="lower center", ncol=len(rr), fontsize=8,
+                   frameon=False)  # below the panels, off the data
         f = out / f"long_{case}.png"
         fig.savefig(f, dpi=110)
         plt.close(fig)
@@ -1068,7 +1069,7 @@ def plot_cost(res: dict, out: Path) -> str:
     ax.set_xticklabels(scenes)
     ax.set_ylabel("ns per internal step")
     ax.set_title("Cost per internal step by scene (one body)", fontsize=10)
-    ax.legend(fontsize=8, ncol=2)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes, off the bars
     ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
     f = out / "cost.png"
