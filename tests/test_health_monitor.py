@@ -283,3 +283,8 @@ def test_many_bodies_stop_where_each_alone_stops():
 def free_scene_euler():
     return scene_from_dict({"scene": {"name": "one", "integrator": "euler", "max_step": 0.01},
                             "body": [{"inertia": {"principal": [1.0, 2.0, 3.0]}, "rates": {"omega": [1.0, 0.1, 0.1]}}]})
+
+
+def test_energy_error_alone_is_computed():
+    r = simulate("free_body", stop_time=1.0, output_interval=0.5, integrator="rk4", output=["energy_error"])
+    assert np.all(np.isfinite(r["energy_error"])) and abs(r["energy_error"][-1]) < 1e-9

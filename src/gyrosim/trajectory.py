@@ -208,7 +208,7 @@ def _selection(sc, output: tuple | None):
     dtype = np.dtype([("time", np.float64)] + [(o, np.float64) for o in picked])
     bare = {o.rsplit(".", 1)[-1] for o in picked}
     value = (picked, columns, dtype, bool(bare & {"phi", "theta", "psi"}),
-             bool(bare & {"L_x", "L_y", "L_z", "energy"}))
+             bool(bare & {"L_x", "L_y", "L_z", "energy", "energy_error"}))
     if len(_SELECTIONS) > 256:
         _SELECTIONS.clear()
     _SELECTIONS[key] = (sc, value)
