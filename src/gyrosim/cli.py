@@ -19,7 +19,8 @@ from .errors import GyrosimError
 __all__ = ["main", "build_parser", "add_verbosity", "verbosity", "scene_info", "fmu_info", "show_plot"]
 
 #: Modules that add their own subcommands through ``register(subparsers)``.
-_PLUGINS = ("gyrosim.fmu.cli", "gyrosim.service.cli", "gyrosim.telemetry.cli", "gyrosim.sweep.cli")
+_PLUGINS = ("gyrosim.fmu.cli", "gyrosim.service.cli", "gyrosim.telemetry.cli", "gyrosim.sweep.cli",
+            "gyrosim.cosim")
 
 
 def add_verbosity(p: argparse.ArgumentParser) -> None:

@@ -1,12 +1,16 @@
-"""Build the gyrosim FMU: FMI 2.0 / 3.0 co-simulation, native code compiled from the engine's C sources.
+"""Build the gyrosim FMU: FMI 2.0 / 3.0 co-simulation and model exchange, native code from the engine's C sources.
 
-One FMU kind. Its binary is the C engine (``core/engine/``: the same sources and floating-point flags as the
-Python extension, so an FMU run and ``Model.step`` agree to the bit) plus the FMI glue in ``c/`` (variables,
+One FMU kind, offering co-simulation, model exchange or both (``fmi_type``; both interfaces in one binary, as the
+Modelica Reference FMUs do). Its binary is the C engine (``core/engine/``: the same sources and floating-point flags
+as the Python extension, so an FMU run and ``Model.step`` agree to the bit) plus the FMI glue in ``c/`` (variables,
 validation, time, saved state; no physics). No Python on the host. The FMU carries its sources (FMI 2.0
 ``SourceFiles``, FMI 3.0 ``sources/buildDescription.xml``), from which it rebuilds to the same bits.
 
 Variables come from :func:`gyrosim.model.variables_for`; a multi-body scene exports every body, its variables
-named ``<body>.<name>`` (``fast.q_w``), with ``integrator`` and ``max_step`` shared by all bodies.
+named ``<body>.<name>`` (``fast.q_w``), with ``integrator`` and ``max_step`` shared by all bodies. Model exchange
+adds the state derivatives ``der(q_w)`` ... ``der(omega_z)`` (``der(fast.q_w)``), local variables after all the
+others (the value references of the co-simulation variables do not change): the continuous states are q and omega of
+every body, 7 per body, and their derivatives the engine's right-hand side (``gs_derivatives``).
 """
 
 from __future__ import annotations
@@ -29,7 +33,7 @@ from ..model import variables_for
 from ..scene import INTEGRATORS, Scene, load_scene
 
 __all__ = ["build_fmu", "model_identifier", "fmi_include_dir", "compile_command", "binary_path", "C_FLAGS",
-           "DEFAULT_OUTPUT", "engine_sources", "SCENE_VARIABLES"]
+           "DEFAULT_OUTPUT", "engine_sources", "SCENE_VARIABLES", "FMI_TYPES", "STATES", "ME_NORM_TOL"]
 
 DEFAULT_OUTPUT = Path("fmu") / "dist"
 
@@ -55,9 +59,16 @@ _UNITS = {  # unit -> SI base-unit exponents
     "kg.m2": {"kg": 1, "m": 2}, "kg": {"kg": 1}, "m": {"m": 1}, "m/s2": {"m": 1, "s": -2},
     "N.m.s": {"kg": 1, "m": 2, "s": -1}, "s": {"s": 1}, "1": {}, "rad/s": {"rad": 1, "s": -1},
     "N.m": {"kg": 1, "m": 2, "s": -2}, "rad": {"rad": 1}, "kg.m2/s": {"kg": 1, "m": 2, "s": -1},
-    "J": {"kg": 1, "m": 2, "s": -2},
+    "J": {"kg": 1, "m": 2, "s": -2}, "1/s": {"s": -1}, "rad/s2": {"rad": 1, "s": -2},
 }
 _TOKEN = "@INSTANTIATION_TOKEN@"
+#: ``fmi_type`` values: co-simulation, model exchange, or both interfaces in one FMU.
+FMI_TYPES = ("cs", "me", "both")
+#: The continuous states of each body (model exchange), in the order of the state vector.
+STATES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z")
+_DER_KINDS = ("GS_V_DQW", "GS_V_DQX", "GS_V_DQY", "GS_V_DQZ", "GS_V_DOX", "GS_V_DOY", "GS_V_DOZ")
+#: | |q| - 1 | beyond which a completed integrator step asks for a step event that renormalises q (GS_ME_NORM_TOL).
+ME_NORM_TOL = 1e-3
 _LOG_CATEGORIES = (("logStatusWarning", "Log messages with status Warning (this FMU has none)."),
                    ("logStatusError", "Log messages with status Error: illegal calls, invalid values, failed steps."),
                    ("logStatusFatal", "Log messages with status Fatal (this FMU has none)."),
@@ -142,10 +153,33 @@ def fmu_variables(sc: Scene) -> list[tuple[str, int, object]]:
     return rows
 
 
-def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, integrator: str) -> str:
+def derivative_rows(sc: Scene, rows) -> list[tuple[str, int, int, int]]:
+    """Model exchange: ``(name, body, state index, kind)`` of every state derivative, body by body in the order of
+    :data:`STATES`; ``state index`` is the 0-based position of the state in ``rows`` (``der(q_w)``,
+    ``der(fast.q_w)``)."""
+    index = {name: i for i, (name, _, _) in enumerate(rows)}
+    out = []
+    for b, body in enumerate(sc.bodies):
+        for k, st in enumerate(STATES):
+            name = st if len(sc.bodies) == 1 else f"{body.name}.{st}"
+            out.append((f"der({name})", b, index[name], k))
+    return out
+
+
+def _omega_nominal(body) -> float:
+    """The nominal value of a body's omega states: its largest start rate, at least 1 rad/s."""
+    return max(1.0, *(abs(float(w)) for w in body.omega0))
+
+
+def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, integrator: str,
+                   fmi_type: str = "cs") -> str:
     # FMI 3.0 has the independent variable time at value reference 0; FMI 2.0 leaves 0 unused
     kinds = ["GS_V_TIME" if fmi_version == 3 else "GS_V_NONE"] + [_KINDS[v.name] for _, _, v in rows]
     bodies = ["0"] + [str(max(b, 0)) for _, b, _ in rows]
+    if fmi_type != "cs":
+        for _, b, _, k in derivative_rows(sc, rows):
+            kinds.append(_DER_KINDS[k])
+            bodies.append(str(b))
     g = sc.g if sc.gravity else 0.0  # Model: g of a scene without gravity is 0 (no potential energy term)
     starts = []
     for body in sc.bodies:
@@ -161,7 +195,10 @@ def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, in
         f"#define GS_SCENE_NAME {_c_string(sc.name)}", "",
         f"#define GS_N_BODIES {len(sc.bodies)}",
         f"#define GS_FLAGS {sc.flags}   /* GRAVITY=1, DAMPING=2, TORQUE=4 */",
-        f"#define GS_HAS_GRAVITY {int(sc.gravity)}", "",
+        f"#define GS_HAS_GRAVITY {int(sc.gravity)}",
+        f"#define GS_HAS_CS {int(fmi_type in ('cs', 'both'))}   /* the interfaces: --fmi-type {fmi_type} */",
+        f"#define GS_HAS_ME {int(fmi_type in ('me', 'both'))}",
+        "#define GS_OMEGA_NOMINALS {" + ", ".join(_hexf(_omega_nominal(b)) for b in sc.bodies) + "}", "",
         "/* value reference -> variable kind and body (index = value reference) */",
         "#define GS_VR_KINDS {" + ", ".join(kinds) + "}",
         "#define GS_VR_BODIES {" + ", ".join(bodies) + "}",
@@ -183,13 +220,26 @@ def _variable_description(name: str, v, sc: Scene) -> str:
     return v.description
 
 
-def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources) -> str:
+_ME_NOTE = ("Model exchange: the continuous states are q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z of every body, "
+            "their derivatives the engine's right-hand side; the host's solver integrates them (integrator, max_step, "
+            "max_drift and the tolerance act in co-simulation only). |q| is a first integral of the flow, so it "
+            "drifts by the solver's error only: when a completed integrator step finds | |q| - 1 | > "
+            f"{ME_NORM_TOL:g}, the FMU asks for a step event and renormalises q in the event update "
+            "(valuesOfContinuousStatesChanged); the derived outputs use q normalised. No event indicators.")
+
+
+def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs") -> str:
     from .. import __version__
 
+    has_cs, has_me = fmi_type in ("cs", "both"), fmi_type in ("me", "both")
     integ = [i if i != "exact" or sc.torque_free else "exact (a torque-free body only)" for i in INTEGRATORS]
+    kind = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[fmi_type]
     desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
-            f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python); "
-            f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + ".")
+            f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python), {kind}; "
+            f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + "."
+            + (" " + _ME_NOTE if has_me else ""))
+    ders = derivative_rows(sc, rows) if has_me else []
+    is_state = {i for _, _, i, _ in ders}
     root = ET.Element("fmiModelDescription")
     root.set("fmiVersion", "2.0" if fmi_version == 2 else "3.0")
     root.set("modelName", ident)
@@ -199,7 +249,30 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
     root.set("variableNamingConvention", "flat")
     if fmi_version == 2:
         root.set("numberOfEventIndicators", "0")
-    cs = ET.SubElement(root, "CoSimulation")
+    if has_me:
+        me = ET.SubElement(root, "ModelExchange")
+        me.set("modelIdentifier", ident)
+        if fmi_version == 2:
+            attrs = {"needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
+                     "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
+                     "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
+                     "providesDirectionalDerivative": "false"}
+        else:
+            attrs = {"needsExecutionTool": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
+                     "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
+                     "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
+                     "needsCompletedIntegratorStep": "true"}
+        for k, v in attrs.items():
+            me.set(k, v)
+        if fmi_version == 2:
+            sf = ET.SubElement(me, "SourceFiles")
+            for s in sources:
+                if s.endswith(".c"):
+                    ET.SubElement(sf, "File", name=s)
+    if not has_cs:
+        cs = ET.Element("CoSimulation")   # not written
+    else:
+        cs = ET.SubElement(root, "CoSimulation")
     cs.set("modelIdentifier", ident)
     common = {"needsExecutionTool": "false", "canHandleVariableCommunicationStepSize": "true",
               "canBeInstantiatedOnlyOncePerProcess": "false", "maxOutputDerivativeOrder": "0"}
@@ -219,7 +292,7 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
         for s in sources:
             if s.endswith(".c"):
                 ET.SubElement(sf, "File", name=s)
-    units = sorted({v.unit for _, _, v in rows if v.unit} | {"s"})
+    units = sorted({v.unit for _, _, v in rows if v.unit} | {"s"} | ({"1/s", "rad/s2"} if has_me else set()))
     ud = ET.SubElement(root, "UnitDefinitions")
     for u in units:
         ue = ET.SubElement(ud, "Unit", name=u)
@@ -234,6 +307,7 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
         ET.SubElement(mv, "Float64", name="time", valueReference="0", causality="independent",
                       variability="continuous", unit="s", description="simulation time")
     outputs, initial_unknowns = [], []
+    b_of = [b for _, b, _ in rows]
     for i, (name, _, v) in enumerate(rows):
         vr = i + 1
         index = i + 1  # 1-based index in ModelVariables (FMI 2.0)
@@ -253,6 +327,9 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
             start = integrator if v.name == "integrator" else v.start
         else:
             start = v.start
+        nominal = None
+        if i in is_state and v.name.startswith("omega"):
+            nominal = _fmt(_omega_nominal(sc.bodies[max(b_of[i], 0)]))
         if fmi_version == 2:
             sv = ET.SubElement(mv, "ScalarVariable", attrs)
             t = ET.SubElement(sv, "Real" if v.type == "Real" else "String")
@@ -260,27 +337,53 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
                 t.set("start", start if isinstance(start, str) else _fmt(start))
             if v.type == "Real" and v.unit:
                 t.set("unit", v.unit)
+            if nominal is not None:
+                t.set("nominal", nominal)
         else:
             if v.type == "Real":
                 if start is not None:
                     attrs["start"] = _fmt(start)
                 if v.unit:
                     attrs["unit"] = v.unit
+                if nominal is not None:
+                    attrs["nominal"] = nominal
                 ET.SubElement(mv, "Float64", attrs)
             else:
                 se = ET.SubElement(mv, "String", attrs)
                 ET.SubElement(se, "Start", value=str(start))
+    derivatives = []
+    for j, (name, _, si, k) in enumerate(ders):
+        vr = index = len(rows) + 1 + j
+        derivatives.append((index, vr))
+        initial_unknowns.append((index, vr))   # initial="calculated" (a local continuous variable's default)
+        unit = "1/s" if k < 4 else "rad/s2"
+        what = f"derivative of {rows[si][0]}" + (" (model exchange: dq/dt = q * (0, omega) / 2)" if k < 4 else
+                                                  " (model exchange: Euler's equations with the scene's torques)")
+        attrs = {"name": name, "valueReference": str(vr), "causality": "local", "variability": "continuous",
+                 "description": what}
+        if fmi_version == 2:
+            sv = ET.SubElement(mv, "ScalarVariable", attrs)
+            ET.SubElement(sv, "Real", unit=unit, derivative=str(si + 1))
+        else:
+            attrs.update(unit=unit, derivative=str(si + 1))
+            ET.SubElement(mv, "Float64", attrs)
     ms = ET.SubElement(root, "ModelStructure")
     if fmi_version == 2:
         oe = ET.SubElement(ms, "Outputs")
         for index, _ in outputs:
             ET.SubElement(oe, "Unknown", index=str(index))
+        if derivatives:
+            de = ET.SubElement(ms, "Derivatives")
+            for index, _ in derivatives:
+                ET.SubElement(de, "Unknown", index=str(index))
         ie = ET.SubElement(ms, "InitialUnknowns")
         for index, _ in initial_unknowns:
             ET.SubElement(ie, "Unknown", index=str(index))
     else:
         for _, vr in outputs:
             ET.SubElement(ms, "Output", valueReference=str(vr))
+        for _, vr in derivatives:
+            ET.SubElement(ms, "ContinuousStateDerivative", valueReference=str(vr))
         for _, vr in initial_unknowns:
             ET.SubElement(ms, "InitialUnknown", valueReference=str(vr))
     ET.indent(root, space="  ")
@@ -312,8 +415,8 @@ def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None =
 
 def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
               output_dir: str | Path = DEFAULT_OUTPUT, *, integrator: str | None = None,
-              cc: str | None = None) -> Path:
-    """Build ``<output_dir>/<ModelIdentifier>.fmu``: a co-simulation FMU whose binary is the C engine.
+              cc: str | None = None, fmi_type: str = "both") -> Path:
+    """Build ``<output_dir>/<ModelIdentifier>.fmu``: an FMU whose binary is the C engine.
 
     Parameters
     ----------
@@ -323,6 +426,11 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     fmi_version : {2, 3}
     output_dir : path
         Created if missing.
+    fmi_type : {"cs", "me", "both"}
+        The interfaces: co-simulation (the engine's integrators step the model), model exchange (the host's
+        solver integrates q and omega, 7 continuous states per body) or both in one FMU. ``gyrosim fmu build``
+        defaults to ``both``; this function to ``cs`` (the variables then are exactly ``Model.variables``:
+        model exchange adds the state derivatives ``der(...)``).
     integrator : str, optional
         Start value of the ``integrator`` parameter (default the scene's).
     cc : str, optional
@@ -335,7 +443,7 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     Raises
     ------
     ConfigError
-        An unknown FMI version or integrator ('exact' on a scene with torques).
+        An unknown FMI version, FMI type or integrator ('exact' on a scene with torques).
     RuntimeError
         The C compiler failed or warned (its output in the message).
     OSError
@@ -343,6 +451,8 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     """
     if fmi_version not in (2, 3):
         raise ConfigError("fmi_version", fmi_version, "2 or 3")
+    if fmi_type not in FMI_TYPES:
+        raise ConfigError("fmi_type", fmi_type, "one of " + ", ".join(FMI_TYPES))
     sc = load_scene(scene)
     integrator = sc.integrator if integrator is None else integrator
     if integrator not in INTEGRATORS:
@@ -357,8 +467,8 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         "c", f"fmi{fmi_version}Functions.c").read_text()
     sources = [*texts, "gyrosim_config.h"]
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
-    md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources)
-    config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator)
+    md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type)
+    config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
     h = hashlib.sha256()
     for part in (md, config, *texts.values()):
         h.update(part.encode())

@@ -297,6 +297,11 @@ static GS_INLINE void rhs(const double *s, const double *p, int flags, double k[
     }
 }
 
+void gs_derivatives(int flags, const double y[GS_NY], const double p[GS_NP], double dy[8]) {
+    rhs(y, p, flags, dy);
+    if (!(flags & GS_WORK)) dy[7] = 0.0;
+}
+
 static GS_INLINE int ok(const double *y) {
     for (int i = 0; i < 7; i++) {
         if (!isfinite(y[i])) return 0;

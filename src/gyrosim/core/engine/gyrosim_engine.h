@@ -155,6 +155,12 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
 int32_t gs_advance_one(int method, int flags, double *y, const double *p, double t, double H, int64_t n_sub,
                        double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex);
 
+/* The right-hand side of one body (what every integrator evaluates; for Model Exchange): dy[0:4] = dq/dt,
+ * dy[4:7] = domega/dt from y[0:7] and p (the input torque p[5:8] where flags has GS_TORQUE), and dy[7] = the power
+ * of the input torque minus the damping's dissipation, tau.omega - damping |omega|^2 (W; 0 where the flags carry
+ * neither). q is used as given (not normalised): dq/dt = q * (0, omega) / 2 keeps |q| constant. */
+void gs_derivatives(int flags, const double y[GS_NY], const double p[GS_NP], double dy[8]);
+
 /* Every output per body into out[b*GS_NOUT + .], in the order q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z,
  * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J), energy_error (J: energy - y[10], the
  * work-energy balance E(t) - E(0) - W_torque(t) + W_damping(t)). */

@@ -1,12 +1,13 @@
 /*
- * gyrosim FMU: the FMI 2.0 co-simulation interface around the engine (gyrosim_model.c).
+ * gyrosim FMU: the FMI 2.0 co-simulation and model-exchange interfaces around the engine (gyrosim_model.c).
  *
  * Every function of fmi2Functions.h is defined and exported. The call sequence is enforced as the Modelica
  * Reference FMUs do (src/fmi2Functions.c): a call in the wrong state returns fmi2Error with "Illegal call
  * sequence". Invalid input (a bad parameter, h <= 0, a wrong current time, a step past the stop time, a blow-up)
  * returns fmi2Error with a message through the logger and leaves the instance as it was before the call, so the
- * host can correct the input, restore a saved FMU state, or terminate. Model exchange is not provided: its
- * functions return fmi2Error with a message.
+ * host can correct the input, restore a saved FMU state, or terminate. The interfaces the FMU offers are those of
+ * its build (GS_HAS_CS, GS_HAS_ME in gyrosim_config.h); a model-exchange call on a co-simulation instance (or the
+ * reverse) is an illegal call sequence. Model exchange: see gyrosim_model.c (states, norm events).
  */
 #include <stdlib.h>
 #include <string.h>
@@ -15,7 +16,7 @@
 #include "fmi2Functions.h"
 
 #define M ((GsInstance *)c)
-#define ALL_STATES (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_TERMINATED)
+#define ALL_STATES (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_TERMINATED | GS_EVENT | GS_CONT)
 #define CHECK(mask, name) \
     do { \
         if (!c) return fmi2Error; \
@@ -86,9 +87,17 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         if (logger) logger(env, "?", fmi2Error, "logStatusError", "fmi2Instantiate: missing instance name.");
         return NULL;
     }
-    if (fmuType != fmi2CoSimulation) {
-        if (logger) logger(env, name, fmi2Error, "logStatusError", "fmi2Instantiate: fmuType = "
-                           "fmi2ModelExchange is not allowed: this FMU provides co-simulation only.");
+    if (fmuType != fmi2CoSimulation && fmuType != fmi2ModelExchange) {
+        if (logger) logger(env, name, fmi2Error, "logStatusError", "fmi2Instantiate: fmuType is not allowed: "
+                           "fmi2ModelExchange or fmi2CoSimulation.");
+        return NULL;
+    }
+    if ((fmuType == fmi2CoSimulation && !GS_HAS_CS) || (fmuType == fmi2ModelExchange && !GS_HAS_ME)) {
+        if (logger) logger(env, name, fmi2Error, "logStatusError", fmuType == fmi2CoSimulation ?
+                           "fmi2Instantiate: fmuType = fmi2CoSimulation is not allowed: this FMU provides model "
+                           "exchange only (build it with --fmi-type cs or both)." :
+                           "fmi2Instantiate: fmuType = fmi2ModelExchange is not allowed: this FMU provides "
+                           "co-simulation only (build it with --fmi-type me or both).");
         return NULL;
     }
     if (!fmuGUID || strcmp(fmuGUID, INSTANTIATION_TOKEN) != 0) {
@@ -106,8 +115,14 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     e->logger = logger;
     e->env = env;
     e->name = m->instance_name;
-    gs_log_event(m, "fmi2Instantiate: %s (%s), integrators " GS_INTEGRATOR_LIST, name,
-                 MODEL_IDENTIFIER_STRING);
+    m->d.me = fmuType == fmi2ModelExchange;
+    if (m->d.me) {
+        gs_log_event(m, "fmi2Instantiate: %s (%s), model exchange: %d continuous states", name,
+                     MODEL_IDENTIFIER_STRING, GS_NX);
+    } else {
+        gs_log_event(m, "fmi2Instantiate: %s (%s), integrators " GS_INTEGRATOR_LIST, name,
+                     MODEL_IDENTIFIER_STRING);
+    }
     return m;
 }
 
@@ -132,12 +147,17 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
 fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     CHECK(GS_INIT, "fmi2ExitInitializationMode");
     if (gs_initialize(M) != GS_OK) return fmi2Error;   /* stays in initialisation mode: fix and retry */
-    M->d.fmi_state = GS_STEP;
+    if (M->d.me) {
+        gs_me_start(M);
+        M->d.fmi_state = GS_EVENT;
+    } else {
+        M->d.fmi_state = GS_STEP;
+    }
     return fmi2OK;
 }
 
 fmi2Status fmi2Terminate(fmi2Component c) {
-    CHECK(GS_STEP, "fmi2Terminate");
+    CHECK(GS_STEP | GS_EVENT | GS_CONT, "fmi2Terminate");
     M->d.fmi_state = GS_TERMINATED;
     return fmi2OK;
 }
@@ -150,8 +170,8 @@ fmi2Status fmi2Reset(fmi2Component c) {
 
 /* ----------------------------------------------------------------------------------------------- values */
 
-#define GET_MASK (GS_INIT | GS_STEP | GS_TERMINATED)
-#define SET_MASK (GS_INSTANTIATED | GS_INIT | GS_STEP)
+#define GET_MASK (GS_INIT | GS_STEP | GS_TERMINATED | GS_EVENT | GS_CONT)
+#define SET_MASK (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_EVENT | GS_CONT)
 
 fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     CHECK(GET_MASK, "fmi2GetReal");
@@ -394,66 +414,89 @@ fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2Stri
 
 /* ----------------------------------------------------------------------------------------------- model exchange */
 
-#define NO_ME(name) \
+#define ME_STATES (GS_INIT | GS_EVENT | GS_CONT | GS_TERMINATED)
+#define CHECK_ME(mask, name) \
     do { \
-        if (!c) return fmi2Error; \
-        M->fn = (name); \
-        gs_log_error(M, "model exchange is not provided by this FMU (co-simulation only)"); \
-        return fmi2Error; \
+        CHECK((mask), (name)); \
+        if (!M->d.me) { \
+            gs_log_error(M, "a model-exchange function: this instance is co-simulation (instantiated with " \
+                         "fmi2CoSimulation)"); \
+            return fmi2Error; \
+        } \
     } while (0)
 
 fmi2Status fmi2EnterEventMode(fmi2Component c) {
-    NO_ME("fmi2EnterEventMode");
+    CHECK_ME(GS_EVENT | GS_CONT, "fmi2EnterEventMode");
+    if (M->d.fmi_state == GS_CONT) gs_me_enter_event_mode(M);
+    M->d.fmi_state = GS_EVENT;
+    return fmi2OK;
 }
 
-fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *fmi2eventInfo) {
-    (void)fmi2eventInfo;
-    NO_ME("fmi2NewDiscreteStates");
+fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *eventInfo) {
+    CHECK_ME(GS_EVENT, "fmi2NewDiscreteStates");
+    NOT_NULL(eventInfo, "fmi2NewDiscreteStates", "fmi2eventInfo");
+    int changed = 0;
+    if (gs_me_update(M, &changed) != GS_OK) return fmi2Error;
+    eventInfo->newDiscreteStatesNeeded = fmi2False;
+    eventInfo->terminateSimulation = fmi2False;
+    eventInfo->nominalsOfContinuousStatesChanged = fmi2False;
+    eventInfo->valuesOfContinuousStatesChanged = changed ? fmi2True : fmi2False;
+    eventInfo->nextEventTimeDefined = fmi2False;
+    eventInfo->nextEventTime = 0.0;
+    return fmi2OK;
 }
 
 fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
-    NO_ME("fmi2EnterContinuousTimeMode");
+    CHECK_ME(GS_EVENT, "fmi2EnterContinuousTimeMode");
+    M->d.fmi_state = GS_CONT;
+    return fmi2OK;
 }
 
 fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi2Boolean *enterEventMode, fmi2Boolean *terminateSimulation) {
     (void)noSetFMUStatePriorToCurrentPoint;
-    (void)enterEventMode;
-    (void)terminateSimulation;
-    NO_ME("fmi2CompletedIntegratorStep");
+    CHECK_ME(GS_CONT, "fmi2CompletedIntegratorStep");
+    NOT_NULL(enterEventMode, "fmi2CompletedIntegratorStep", "enterEventMode");
+    NOT_NULL(terminateSimulation, "fmi2CompletedIntegratorStep", "terminateSimulation");
+    int event = 0, terminate = 0;
+    const int s = gs_me_completed_step(M, &event, &terminate);
+    *enterEventMode = event ? fmi2True : fmi2False;
+    *terminateSimulation = terminate ? fmi2True : fmi2False;
+    return st(s);
 }
 
 fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
-    (void)time;
-    NO_ME("fmi2SetTime");
+    CHECK_ME(GS_EVENT | GS_CONT, "fmi2SetTime");
+    return st(gs_me_set_time(M, time));
 }
 
 fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
-    (void)x;
-    (void)nx;
-    NO_ME("fmi2SetContinuousStates");
+    CHECK_ME(GS_EVENT | GS_CONT, "fmi2SetContinuousStates");
+    return st(gs_me_set_states(M, x, nx));
 }
 
 fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
-    (void)derivatives;
-    (void)nx;
-    NO_ME("fmi2GetDerivatives");
+    CHECK_ME(ME_STATES, "fmi2GetDerivatives");
+    return st(gs_me_derivatives(M, derivatives, nx));
 }
 
 fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
     (void)eventIndicators;
-    (void)ni;
-    NO_ME("fmi2GetEventIndicators");
+    CHECK_ME(ME_STATES, "fmi2GetEventIndicators");
+    if (ni != 0) {
+        gs_log_error(M, "ni = %zu is not allowed: this FMU has no event indicators (numberOfEventIndicators=\"0\"; "
+                     "its events are step events)", ni);
+        return fmi2Error;
+    }
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
-    (void)x;
-    (void)nx;
-    NO_ME("fmi2GetContinuousStates");
+    CHECK_ME(ME_STATES, "fmi2GetContinuousStates");
+    return st(gs_me_get_states(M, x, nx));
 }
 
 fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[], size_t nx) {
-    (void)x_nominal;
-    (void)nx;
-    NO_ME("fmi2GetNominalsOfContinuousStates");
+    CHECK_ME(GS_INSTANTIATED | ME_STATES, "fmi2GetNominalsOfContinuousStates");
+    return st(gs_me_nominals(M, x_nominal, nx));
 }

@@ -1,12 +1,15 @@
 /*
- * gyrosim FMU: the FMI 3.0 co-simulation interface around the engine (gyrosim_model.c).
+ * gyrosim FMU: the FMI 3.0 co-simulation and model-exchange interfaces around the engine (gyrosim_model.c).
  *
  * Every function of fmi3Functions.h is defined and exported. The state machine is enforced as the Modelica
  * Reference FMUs do (src/fmi3Functions.c): a call in the wrong state returns fmi3Error with "Illegal call
  * sequence". Invalid input (a bad parameter, h <= 0, a wrong current time, a step past the stop time, a blow-up)
  * returns fmi3Error with a message through the logger and leaves the instance as it was before the call.
- * Model exchange, scheduled execution, event mode, clocks and configuration mode are not provided.
+ * The interfaces offered are those of the build (GS_HAS_CS, GS_HAS_ME in gyrosim_config.h). Model exchange: see
+ * gyrosim_model.c (states, norm events); its event mode has no discrete states. Scheduled execution, event mode
+ * in co-simulation, clocks and configuration mode are not provided.
  */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -14,7 +17,7 @@
 #include "fmi3Functions.h"
 
 #define M ((GsInstance *)instance)
-#define ALL_STATES (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_TERMINATED)
+#define ALL_STATES (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_TERMINATED | GS_EVENT | GS_CONT)
 #define CHECK(mask, name) \
     do { \
         if (!instance) return fmi3Error; \
@@ -55,19 +58,55 @@ fmi3Status fmi3SetDebugLogging(fmi3Instance instance, fmi3Boolean loggingOn, siz
     return st(gs_set_debug_logging(M, loggingOn, nCategories, categories));
 }
 
+static fmi3Instance instantiate(const char *fn, int me, fmi3String instanceName, fmi3String instantiationToken,
+                                fmi3Boolean loggingOn, fmi3InstanceEnvironment instanceEnvironment,
+                                fmi3LogMessageCallback logMessage) {
+    char msg[256];
+    if (!instanceName || !instanceName[0]) {
+        snprintf(msg, sizeof(msg), "%s: missing instance name.", fn);
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", msg);
+        return NULL;
+    }
+    if ((me && !GS_HAS_ME) || (!me && !GS_HAS_CS)) {
+        snprintf(msg, sizeof(msg), "%s: %s is not provided by this FMU: it provides %s only (build it with "
+                 "--fmi-type %s or both).", fn, me ? "model exchange" : "co-simulation",
+                 me ? "co-simulation" : "model exchange", me ? "me" : "cs");
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", msg);
+        return NULL;
+    }
+    if (!instantiationToken || strcmp(instantiationToken, INSTANTIATION_TOKEN) != 0) {
+        snprintf(msg, sizeof(msg), "%s: wrong instantiationToken: expected " INSTANTIATION_TOKEN
+                 " (modelDescription.xml).", fn);
+        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", msg);
+        return NULL;
+    }
+    Env *e = (Env *)calloc(1, sizeof(Env));
+    if (!e) return NULL;
+    e->logger = logMessage;
+    e->env = instanceEnvironment;
+    GsInstance *m = gs_new(instanceName, e, logger3, loggingOn);
+    if (!m) {
+        free(e);
+        return NULL;
+    }
+    m->d.me = me;
+    if (me) {
+        gs_log_event(m, "%s: %s (%s), model exchange: %d continuous states", fn, instanceName,
+                     MODEL_IDENTIFIER_STRING, GS_NX);
+    } else {
+        gs_log_event(m, "%s: %s (%s), integrators " GS_INTEGRATOR_LIST, fn, instanceName, MODEL_IDENTIFIER_STRING);
+    }
+    return m;
+}
+
 fmi3Instance fmi3InstantiateModelExchange(fmi3String instanceName, fmi3String instantiationToken,
                                           fmi3String resourcePath, fmi3Boolean visible, fmi3Boolean loggingOn,
                                           fmi3InstanceEnvironment instanceEnvironment,
                                           fmi3LogMessageCallback logMessage) {
-    (void)instanceName;
-    (void)instantiationToken;
     (void)resourcePath;
     (void)visible;
-    (void)loggingOn;
-    if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                               "fmi3InstantiateModelExchange: model exchange is not provided by this FMU "
-                               "(co-simulation only).");
-    return NULL;
+    return instantiate("fmi3InstantiateModelExchange", 1, instanceName, instantiationToken, loggingOn,
+                       instanceEnvironment, logMessage);
 }
 
 fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String instantiationToken,
@@ -83,21 +122,10 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
     (void)earlyReturnAllowed;
     (void)requiredIntermediateVariables;
     (void)intermediateUpdate;
-    if (!instanceName || !instanceName[0]) {
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                                   "fmi3InstantiateCoSimulation: missing instance name.");
-        return NULL;
-    }
-    if (!instantiationToken || strcmp(instantiationToken, INSTANTIATION_TOKEN) != 0) {
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                                   "fmi3InstantiateCoSimulation: wrong instantiationToken: expected "
-                                   INSTANTIATION_TOKEN " (modelDescription.xml).");
-        return NULL;
-    }
     if (eventModeUsed) {
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
                                    "fmi3InstantiateCoSimulation: eventModeUsed = true is not allowed: this FMU "
-                                   "has no event mode (hasEventMode=\"false\").");
+                                   "has no event mode in co-simulation (hasEventMode=\"false\").");
         return NULL;
     }
     if (nRequiredIntermediateVariables > 0) {
@@ -105,18 +133,8 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                    "fmi3InstantiateCoSimulation: intermediate variables are not provided.");
         return NULL;
     }
-    Env *e = (Env *)calloc(1, sizeof(Env));
-    if (!e) return NULL;
-    e->logger = logMessage;
-    e->env = instanceEnvironment;
-    GsInstance *m = gs_new(instanceName, e, logger3, loggingOn);
-    if (!m) {
-        free(e);
-        return NULL;
-    }
-    gs_log_event(m, "fmi3InstantiateCoSimulation: %s (%s), integrators " GS_INTEGRATOR_LIST,
-                 instanceName, MODEL_IDENTIFIER_STRING);
-    return m;
+    return instantiate("fmi3InstantiateCoSimulation", 0, instanceName, instantiationToken, loggingOn,
+                       instanceEnvironment, logMessage);
 }
 
 fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
@@ -157,18 +175,31 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
 fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
     CHECK(GS_INIT, "fmi3ExitInitializationMode");
     if (gs_initialize(M) != GS_OK) return fmi3Error;   /* stays in initialisation mode: fix and retry */
-    M->d.fmi_state = GS_STEP;
+    if (M->d.me) {
+        gs_me_start(M);
+        M->d.fmi_state = GS_EVENT;
+    } else {
+        M->d.fmi_state = GS_STEP;
+    }
     return fmi3OK;
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
     CHECK(ALL_STATES, "fmi3EnterEventMode");
-    gs_log_error(M, "this FMU has no event mode (hasEventMode=\"false\")");
-    return fmi3Error;
+    if (!M->d.me) {
+        gs_log_error(M, "this FMU has no event mode in co-simulation (hasEventMode=\"false\")");
+        return fmi3Error;
+    }
+    if (!(M->d.fmi_state & (GS_EVENT | GS_CONT)) && !gs_check_state(M, GS_EVENT | GS_CONT, "fmi3EnterEventMode")) {
+        return fmi3Error;
+    }
+    if (M->d.fmi_state == GS_CONT) gs_me_enter_event_mode(M);
+    M->d.fmi_state = GS_EVENT;
+    return fmi3OK;
 }
 
 fmi3Status fmi3Terminate(fmi3Instance instance) {
-    CHECK(GS_STEP, "fmi3Terminate");
+    CHECK(GS_STEP | GS_EVENT | GS_CONT, "fmi3Terminate");
     M->d.fmi_state = GS_TERMINATED;
     return fmi3OK;
 }
@@ -181,8 +212,8 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
 
 /* ----------------------------------------------------------------------------------------------- values */
 
-#define GET_MASK (GS_INIT | GS_STEP | GS_TERMINATED)
-#define SET_MASK (GS_INSTANTIATED | GS_INIT | GS_STEP)
+#define GET_MASK (GS_INIT | GS_STEP | GS_TERMINATED | GS_EVENT | GS_CONT)
+#define SET_MASK (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_EVENT | GS_CONT)
 
 static int scalar_count(fmi3Instance instance, const char *function, size_t nvr, size_t nValues) {
     if (nValues != nvr) {
@@ -467,8 +498,20 @@ fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference 
     return not_provided(instance, "fmi3SetShiftFraction", "no clocks");
 }
 
+#define ME_STATES (GS_INIT | GS_EVENT | GS_CONT | GS_TERMINATED)
+#define CHECK_ME(mask, name) \
+    do { \
+        CHECK((mask), (name)); \
+        if (!M->d.me) { \
+            gs_log_error(M, "a model-exchange function: this instance is co-simulation (instantiated with " \
+                         "fmi3InstantiateCoSimulation; hasEventMode=\"false\")"); \
+            return fmi3Error; \
+        } \
+    } while (0)
+
 fmi3Status fmi3EvaluateDiscreteStates(fmi3Instance instance) {
-    return not_provided(instance, "fmi3EvaluateDiscreteStates", "no event mode");
+    CHECK_ME(GS_EVENT | GS_CONT, "fmi3EvaluateDiscreteStates");
+    return fmi3OK;   /* no discrete states */
 }
 
 fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discreteStatesNeedUpdate,
@@ -476,76 +519,89 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Boolean *nominalsOfContinuousStatesChanged,
                                     fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime) {
-    (void)discreteStatesNeedUpdate;
-    (void)terminateSimulation;
-    (void)nominalsOfContinuousStatesChanged;
-    (void)valuesOfContinuousStatesChanged;
-    (void)nextEventTimeDefined;
-    (void)nextEventTime;
-    return not_provided(instance, "fmi3UpdateDiscreteStates", "no event mode");
+    CHECK_ME(GS_EVENT, "fmi3UpdateDiscreteStates");
+    int changed = 0;
+    if (gs_me_update(M, &changed) != GS_OK) return fmi3Error;
+    if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = fmi3False;
+    if (terminateSimulation) *terminateSimulation = fmi3False;
+    if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
+    if (valuesOfContinuousStatesChanged) *valuesOfContinuousStatesChanged = changed ? fmi3True : fmi3False;
+    if (nextEventTimeDefined) *nextEventTimeDefined = fmi3False;
+    if (nextEventTime) *nextEventTime = 0.0;
+    return fmi3OK;
 }
 
-#define ME_ONLY "model exchange; this FMU is co-simulation only"
-
 fmi3Status fmi3EnterContinuousTimeMode(fmi3Instance instance) {
-    return not_provided(instance, "fmi3EnterContinuousTimeMode", ME_ONLY);
+    CHECK_ME(GS_EVENT, "fmi3EnterContinuousTimeMode");
+    M->d.fmi_state = GS_CONT;
+    return fmi3OK;
 }
 
 fmi3Status fmi3CompletedIntegratorStep(fmi3Instance instance, fmi3Boolean noSetFMUStatePriorToCurrentPoint,
                                        fmi3Boolean *enterEventMode, fmi3Boolean *terminateSimulation) {
     (void)noSetFMUStatePriorToCurrentPoint;
-    (void)enterEventMode;
-    (void)terminateSimulation;
-    return not_provided(instance, "fmi3CompletedIntegratorStep", ME_ONLY);
+    CHECK_ME(GS_CONT, "fmi3CompletedIntegratorStep");
+    NOT_NULL(enterEventMode, "fmi3CompletedIntegratorStep", "enterEventMode");
+    NOT_NULL(terminateSimulation, "fmi3CompletedIntegratorStep", "terminateSimulation");
+    int event = 0, terminate = 0;
+    const int s = gs_me_completed_step(M, &event, &terminate);
+    *enterEventMode = event ? fmi3True : fmi3False;
+    *terminateSimulation = terminate ? fmi3True : fmi3False;
+    return st(s);
 }
 
 fmi3Status fmi3SetTime(fmi3Instance instance, fmi3Float64 time) {
-    (void)time;
-    return not_provided(instance, "fmi3SetTime", ME_ONLY);
+    CHECK_ME(GS_EVENT | GS_CONT, "fmi3SetTime");
+    return st(gs_me_set_time(M, time));
 }
 
 fmi3Status fmi3SetContinuousStates(fmi3Instance instance, const fmi3Float64 continuousStates[],
                                    size_t nContinuousStates) {
-    (void)continuousStates;
-    (void)nContinuousStates;
-    return not_provided(instance, "fmi3SetContinuousStates", ME_ONLY);
+    CHECK_ME(GS_EVENT | GS_CONT, "fmi3SetContinuousStates");
+    return st(gs_me_set_states(M, continuousStates, nContinuousStates));
 }
 
 fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 derivatives[],
                                              size_t nContinuousStates) {
-    (void)derivatives;
-    (void)nContinuousStates;
-    return not_provided(instance, "fmi3GetContinuousStateDerivatives", ME_ONLY);
+    CHECK_ME(ME_STATES, "fmi3GetContinuousStateDerivatives");
+    return st(gs_me_derivatives(M, derivatives, nContinuousStates));
 }
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
     (void)eventIndicators;
-    (void)nEventIndicators;
-    return not_provided(instance, "fmi3GetEventIndicators", ME_ONLY);
+    CHECK_ME(ME_STATES, "fmi3GetEventIndicators");
+    if (nEventIndicators != 0) {
+        gs_log_error(M, "nEventIndicators = %zu is not allowed: this FMU has no event indicators (its events are "
+                     "step events)", nEventIndicators);
+        return fmi3Error;
+    }
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
                                    size_t nContinuousStates) {
-    (void)continuousStates;
-    (void)nContinuousStates;
-    return not_provided(instance, "fmi3GetContinuousStates", ME_ONLY);
+    CHECK_ME(ME_STATES, "fmi3GetContinuousStates");
+    return st(gs_me_get_states(M, continuousStates, nContinuousStates));
 }
 
 fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 nominals[],
                                              size_t nContinuousStates) {
-    (void)nominals;
-    (void)nContinuousStates;
-    return not_provided(instance, "fmi3GetNominalsOfContinuousStates", ME_ONLY);
+    CHECK_ME(GS_INSTANTIATED | ME_STATES, "fmi3GetNominalsOfContinuousStates");
+    return st(gs_me_nominals(M, nominals, nContinuousStates));
 }
 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
-    (void)nEventIndicators;
-    return not_provided(instance, "fmi3GetNumberOfEventIndicators", ME_ONLY);
+    CHECK_ME(ALL_STATES, "fmi3GetNumberOfEventIndicators");
+    NOT_NULL(nEventIndicators, "fmi3GetNumberOfEventIndicators", "nEventIndicators");
+    *nEventIndicators = 0;
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nContinuousStates) {
-    (void)nContinuousStates;
-    return not_provided(instance, "fmi3GetNumberOfContinuousStates", ME_ONLY);
+    CHECK_ME(ALL_STATES, "fmi3GetNumberOfContinuousStates");
+    NOT_NULL(nContinuousStates, "fmi3GetNumberOfContinuousStates", "nContinuousStates");
+    *nContinuousStates = GS_NX;
+    return fmi3OK;
 }
 
 fmi3Status fmi3ActivateModelPartition(fmi3Instance instance, fmi3ValueReference clockReference,

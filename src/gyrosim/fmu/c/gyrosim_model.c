@@ -4,6 +4,15 @@
  * Validation rules, the time rule (time = t_base + n*h over each run of equal steps), the initialisation
  * (q normalised, the unwrapped angles started: gs_start_state) and every step (gs_advance) follow
  * src/gyrosim/model.py; the physics is the engine's alone.
+ *
+ * Model Exchange: the continuous states are q and omega of every body (7 per body), their derivatives the
+ * engine's right-hand side (gs_derivatives). The host's solver integrates them, so |q| drifts by the solver's
+ * error (the exact flow keeps it); when a completed integrator step finds | |q| - 1 | > GS_ME_NORM_TOL for a body,
+ * the FMU asks for a step event and renormalises q in the event update (valuesOfContinuousStatesChanged). The
+ * outputs q_* are the states as the host integrates them; the derived outputs (angles, L, energy) are computed
+ * from q normalised. At each completed step and event the unwrapping reference of phi, psi moves to the state, and
+ * the work of the input torque and damping (energy_error's balance) is accumulated by the trapezoidal rule over
+ * the interval since the previous one.
  */
 #include "gyrosim_model.h"   /* first: the engine's FP_CONTRACT pragma */
 
@@ -22,12 +31,14 @@ static const double START_BODY[GS_N_BODIES][14] = GS_START_BODIES;
 static const char *const KIND_NAME[GS_V_COUNT] = {
     "?", "time", "I1", "I2", "I3", "mass", "cm_distance", "g", "damping", "integrator", "max_step",
     "max_drift", "q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "tau_x", "tau_y", "tau_z",
-    "phi", "theta", "psi", "L_x", "L_y", "L_z", "energy", "energy_error"};
+    "phi", "theta", "psi", "L_x", "L_y", "L_z", "energy", "energy_error",
+    "der(q_w)", "der(q_x)", "der(q_y)", "der(q_z)", "der(omega_x)", "der(omega_y)", "der(omega_z)"};
 
 static const char *const KIND_UNIT[GS_V_COUNT] = {
     "", "s", "kg.m2", "kg.m2", "kg.m2", "kg", "m", "m/s2", "N.m.s", "", "s",
     "1", "1", "1", "1", "1", "rad/s", "rad/s", "rad/s", "N.m", "N.m", "N.m",
-    "rad", "rad", "rad", "kg.m2/s", "kg.m2/s", "kg.m2/s", "J", "J"};
+    "rad", "rad", "rad", "kg.m2/s", "kg.m2/s", "kg.m2/s", "J", "J",
+    "1/s", "1/s", "1/s", "1/s", "rad/s2", "rad/s2", "rad/s2"};
 
 /* ------------------------------------------------------------------------------------------ helpers */
 
@@ -55,7 +66,9 @@ typedef struct { char s[160]; } Name;
 
 static Name var_name(int body, int kind) {
     Name r;
-    if (GS_N_BODIES > 1 && body >= 0) {
+    if (GS_N_BODIES > 1 && body >= 0 && kind >= GS_V_DQW) {   /* der(<body>.q_w) */
+        snprintf(r.s, sizeof(r.s), "der(%s.%s)", BODY_NAME[body], KIND_NAME[kind - GS_V_DQW + GS_V_QW]);
+    } else if (GS_N_BODIES > 1 && body >= 0) {
         snprintf(r.s, sizeof(r.s), "%s.%s", BODY_NAME[body], KIND_NAME[kind]);
     } else {
         snprintf(r.s, sizeof(r.s), "%s", KIND_NAME[kind]);
@@ -138,6 +151,8 @@ static const char *state_name(int state) {
         case GS_STEP: return "StepMode";
 #endif
         case GS_TERMINATED: return "Terminated";
+        case GS_EVENT: return "EventMode";
+        case GS_CONT: return "ContinuousTimeMode";
         default: return "?";
     }
 }
@@ -146,7 +161,7 @@ int gs_check_state(GsInstance *m, int mask, const char *function) {
     if (!m) return 0;
     if (m->d.fmi_state & mask) return 1;
     char allowed[128] = "";
-    for (int s = GS_INSTANTIATED; s <= GS_TERMINATED; s <<= 1) {
+    for (int s = GS_INSTANTIATED; s <= GS_CONT; s <<= 1) {
         if (mask & s) {
             if (allowed[0]) strncat(allowed, ", ", sizeof(allowed) - strlen(allowed) - 1);
             strncat(allowed, state_name(s), sizeof(allowed) - strlen(allowed) - 1);
@@ -162,7 +177,9 @@ int gs_check_state(GsInstance *m, int mask, const char *function) {
 
 void gs_set_start_values(GsInstance *m) {
     GsData *d = &m->d;
+    const int32_t me = d->me;   /* the interface chosen at instantiation */
     memset(d, 0, sizeof(*d));
+    d->me = me;
     d->token_hash = fnv1a(INSTANTIATION_TOKEN);
     d->fmi_state = GS_INSTANTIATED;
     d->integrator = GS_START_INTEGRATOR_CODE;
@@ -205,8 +222,12 @@ void gs_free(GsInstance *m) {
     free(m);
 }
 
+static double gs_time_data(const GsData *d) {
+    return d->t_base + (double)d->n * d->h;
+}
+
 double gs_time(const GsInstance *m) {
-    return m->d.t_base + (double)m->d.n * m->d.h;
+    return gs_time_data(&m->d);
 }
 
 int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double start_time, int stop_defined,
@@ -312,10 +333,49 @@ int gs_initialize(GsInstance *m) {
 static int outputs(GsInstance *m) {
     if (!m->outputs_valid) {
         if (gs_initialize(m) != GS_OK) return GS_ERROR;
-        gs_outputs(GS_N_BODIES, &m->d.y[0][0], &m->d.p[0][0], &m->outputs[0][0]);
+        if (m->d.me) {   /* the host's states: the derived outputs of q normalised, q_* and omega_* as they are */
+            double y[GS_N_BODIES][GS_NY];
+            memcpy(y, m->d.y, sizeof(y));
+            for (int b = 0; b < GS_N_BODIES; b++) {
+                const double nq = gs_norm4(y[b]);
+                if (nq > 0.0) for (int i = 0; i < 4; i++) y[b][i] /= nq;
+            }
+            gs_outputs(GS_N_BODIES, &y[0][0], &m->d.p[0][0], &m->outputs[0][0]);
+            for (int b = 0; b < GS_N_BODIES; b++) {
+                for (int i = 0; i < 4; i++) m->outputs[b][i] = m->d.y[b][i];
+            }
+        } else {
+            gs_outputs(GS_N_BODIES, &m->d.y[0][0], &m->d.p[0][0], &m->outputs[0][0]);
+        }
         m->outputs_valid = 1;
     }
     return GS_OK;
+}
+
+/* the input torque into the engine's parameters (CS: at each doStep; ME: at each evaluation) */
+static void me_inputs(GsData *d) {
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        d->p[b][5] = d->tau[b][0];
+        d->p[b][6] = d->tau[b][1];
+        d->p[b][7] = d->tau[b][2];
+    }
+}
+
+/* Model exchange: the derivatives of body b's states (p current). dq/dt = q * (0, omega) / 2 of the state q as it
+ * is (it keeps |q|: a first integral), domega/dt of the attitude q / |q| (the gravity torque): |q| is then a gauge
+ * that does not act on the motion, and its drift (the host solver's error) changes nothing but |q|. */
+static void me_rhs(const GsData *d, int b, double dy[8]) {
+    gs_derivatives(GS_FLAGS, d->y[b], d->p[b], dy);
+#if GS_FLAGS & GS_GRAVITY
+    const double nq = gs_norm4(d->y[b]);
+    if (nq != 1.0 && nq > 0.0 && isfinite(nq)) {
+        double y[GS_NY], dn[8];
+        memcpy(y, d->y[b], sizeof(y));
+        for (int i = 0; i < 4; i++) y[i] /= nq;
+        gs_derivatives(GS_FLAGS, y, d->p[b], dn);
+        for (int i = 4; i < 8; i++) dy[i] = dn[i];
+    }
+#endif
 }
 
 static int unknown_vr(GsInstance *m, uint32_t vr, const char *type) {
@@ -355,6 +415,14 @@ int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
             *value = m->outputs[b][SLOT[k]];
             return GS_OK;
         }
+        case GS_V_DQW: case GS_V_DQX: case GS_V_DQY: case GS_V_DQZ: case GS_V_DOX: case GS_V_DOY: case GS_V_DOZ: {
+            if (gs_initialize(m) != GS_OK) return GS_ERROR;
+            double dy[8];
+            me_inputs(d);
+            me_rhs(d, b, dy);
+            *value = dy[k - GS_V_DQW];
+            return GS_OK;
+        }
         default:
             return unknown_vr(m, vr, "Real");
     }
@@ -388,7 +456,7 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
     }
     if (k >= GS_V_PHI) {
         gs_log_error(m, "%s = %s is not allowed: a parameter, an input or a state start (q_*, omega_*); %s is a "
-                     "derived output", name.s, num(x).s, name.s);
+                     "%s", name.s, num(x).s, name.s, k >= GS_V_DQW ? "state derivative" : "derived output");
         return GS_ERROR;
     }
     if (!finite_in_unit(m, b, k, x)) return GS_ERROR;
@@ -616,6 +684,162 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
     return GS_OK;
 }
 
+/* ------------------------------------------------------------------------------------------ model exchange */
+
+static const double OMEGA_NOMINAL[GS_N_BODIES] = GS_OMEGA_NOMINALS;
+
+static int check_nx(GsInstance *m, const void *x, size_t nx, const char *what) {
+    if (!x && nx > 0) {
+        gs_log_error(m, "%s = NULL is not allowed", what);
+        return 0;
+    }
+    if (nx != GS_NX) {
+        gs_log_error(m, "nx = %zu is not allowed: this FMU has %d continuous states (q_w, q_x, q_y, q_z, omega_x, "
+                     "omega_y, omega_z of each of its %d bod%s)", nx, GS_NX, GS_N_BODIES, GS_N_BODIES == 1 ? "y" : "ies");
+        return 0;
+    }
+    return 1;
+}
+
+/* the work terms' power of every body now, into d->power */
+static void me_power(GsData *d) {
+    double dy[8];
+    me_inputs(d);
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        me_rhs(d, b, dy);
+        d->power[b] = dy[7];
+    }
+}
+
+/* The work since t_work by the trapezoidal rule into the energy balance y[b][10]; the reference angles to the
+ * state. Called at each completed integrator step and at each event. */
+static void me_commit(GsData *d) {
+    const double t = gs_time_data(d);
+#if GS_FLAGS & (GS_DAMPING | GS_TORQUE)
+    double p0[GS_N_BODIES];
+    memcpy(p0, d->power, sizeof(p0));
+    me_power(d);
+    for (int b = 0; b < GS_N_BODIES; b++) d->y[b][10] += 0.5 * (p0[b] + d->power[b]) * (t - d->t_work);
+#endif
+    d->t_work = t;
+    for (int b = 0; b < GS_N_BODIES; b++) gs_unwrap(d->y[b]);
+}
+
+/* after initialisation: the clock of the work and its power at the start */
+void gs_me_start(GsInstance *m) {
+    m->d.t_work = gs_time(m);
+    me_power(&m->d);
+}
+
+int gs_me_set_time(GsInstance *m, double t) {
+    if (!isfinite(t)) {
+        gs_log_error(m, "time = %s is not allowed: a finite number in s", num(t).s);
+        return GS_ERROR;
+    }
+    m->d.t_base = t;
+    m->d.n = 0;
+    m->d.h = 0.0;
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+int gs_me_get_states(GsInstance *m, double x[], size_t nx) {
+    if (!check_nx(m, x, nx, "x[]")) return GS_ERROR;
+    if (gs_initialize(m) != GS_OK) return GS_ERROR;
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        for (int i = 0; i < 7; i++) x[7 * b + i] = m->d.y[b][i];
+    }
+    return GS_OK;
+}
+
+int gs_me_set_states(GsInstance *m, const double x[], size_t nx) {
+    if (!check_nx(m, x, nx, "x[]")) return GS_ERROR;
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        for (int i = 0; i < 7; i++) m->d.y[b][i] = x[7 * b + i];
+    }
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+int gs_me_derivatives(GsInstance *m, double dx[], size_t nx) {
+    if (!check_nx(m, dx, nx, "derivatives[]")) return GS_ERROR;
+    if (gs_initialize(m) != GS_OK) return GS_ERROR;
+    double dy[8];
+    me_inputs(&m->d);
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        me_rhs(&m->d, b, dy);
+        for (int i = 0; i < 7; i++) dx[7 * b + i] = dy[i];
+    }
+    return GS_OK;
+}
+
+int gs_me_nominals(GsInstance *m, double x[], size_t nx) {
+    if (!check_nx(m, x, nx, "x_nominal[]")) return GS_ERROR;
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        for (int i = 0; i < 4; i++) x[7 * b + i] = 1.0;
+        for (int i = 4; i < 7; i++) x[7 * b + i] = OMEGA_NOMINAL[b];
+    }
+    return GS_OK;
+}
+
+static int norm_drifted(const GsData *d, int b) {
+    return !(fabs(gs_norm4(d->y[b]) - 1.0) <= GS_ME_NORM_TOL);
+}
+
+int gs_me_completed_step(GsInstance *m, int *enter_event_mode, int *terminate) {
+    GsData *d = &m->d;
+    *enter_event_mode = 0;
+    *terminate = 0;
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        const double *y = d->y[b];
+        int finite = 1;
+        for (int i = 0; i < 7; i++) finite &= isfinite(y[i]) != 0;
+        if (!finite || !(fabs(y[4]) + fabs(y[5]) + fabs(y[6]) < GS_OMEGA_LIMIT) || !(gs_norm4(y) > 0.5)) {
+            gs_log_error(m, "the state%s%s at t = %s s is not allowed: q = [%s, %s, %s, %s], omega = [%s, %s, %s] "
+                         "rad/s (non-finite, |omega| > 1e+100 rad/s or |q| < 0.5: the host's solver blew up; "
+                         "tighten its tolerance or shorten its step)", GS_N_BODIES > 1 ? " of body " : "",
+                         where(b), num(gs_time(m)).s, num(y[0]).s, num(y[1]).s, num(y[2]).s, num(y[3]).s,
+                         num(y[4]).s, num(y[5]).s, num(y[6]).s);
+            *terminate = 1;
+            return GS_ERROR;
+        }
+        if (norm_drifted(d, b)) *enter_event_mode = 1;
+    }
+    me_commit(d);
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+void gs_me_enter_event_mode(GsInstance *m) {
+    me_commit(&m->d);
+    m->outputs_valid = 0;
+}
+
+int gs_me_update(GsInstance *m, int *values_changed) {
+    GsData *d = &m->d;
+    *values_changed = 0;
+    for (int b = 0; b < GS_N_BODIES; b++) {
+        if (!norm_drifted(d, b)) continue;
+        const double nq = gs_norm4(d->y[b]);
+        if (!(nq > 0.0 && isfinite(nq))) {
+            gs_log_error(m, "q%s%s has norm %s: it cannot be renormalised", GS_N_BODIES > 1 ? " of body " : "",
+                         where(b), num(nq).s);
+            return GS_ERROR;
+        }
+        for (int i = 0; i < 4; i++) d->y[b][i] /= nq;
+        d->norm_events += 1;
+        *values_changed = 1;
+        gs_log_event(m, "t = %s s: q%s%s renormalised (|q| - 1 = %.3g, beyond %g); renormalisation %d",
+                     num(gs_time(m)).s, GS_N_BODIES > 1 ? " of body " : "", where(b), nq - 1.0, GS_ME_NORM_TOL,
+                     (int)d->norm_events);
+    }
+    if (*values_changed) {
+        me_power(d);   /* the trapezoid restarts from the renormalised state */
+        m->outputs_valid = 0;
+    }
+    return GS_OK;
+}
+
 /* ------------------------------------------------------------------------------------------ state */
 
 #define GS_MAGIC 0x32535947u  /* "GYS2" */
@@ -648,6 +872,11 @@ int gs_check_state_data(GsInstance *m, const GsData *d) {
         gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
         return GS_ERROR;
     }
+    if (d->me != m->d.me) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to a %s instance, and this one is %s",
+                     d->me ? "model exchange" : "co-simulation", m->d.me ? "model exchange" : "co-simulation");
+        return GS_ERROR;
+    }
     return GS_OK;
 }
 
@@ -677,7 +906,8 @@ int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *
     memcpy(out, in + sizeof(h), sizeof(GsData));
     /* the bytes may have been altered: check every field that indexes or divides before the state is used */
     int ok = (out->fmi_state == GS_INSTANTIATED || out->fmi_state == GS_INIT || out->fmi_state == GS_STEP ||
-              out->fmi_state == GS_TERMINATED) &&
+              out->fmi_state == GS_TERMINATED || out->fmi_state == GS_EVENT || out->fmi_state == GS_CONT) &&
+             out->me == m->d.me &&
              out->integrator >= 0 && out->integrator < GS_N_METHODS &&
              isfinite(out->max_step) && out->max_step > 0.0 && out->max_drift >= 0.0 && isfinite(out->tolerance) && out->tolerance > 0.0 &&
              out->n >= 0;

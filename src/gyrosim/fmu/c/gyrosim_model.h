@@ -2,7 +2,9 @@
  * gyrosim FMU glue: the step-based model around the engine (../../core/engine/gyrosim_engine.h), independent of
  * the FMI version, for the scene's GS_N_BODIES bodies. fmi2Functions.c and fmi3Functions.c map the FMI calls
  * onto these functions. It keeps no physics: parameters, validation, time and the saved state; every step is
- * gs_advance, as in gyrosim.model.Model.
+ * gs_advance, as in gyrosim.model.Model. Model Exchange (GS_HAS_ME) exposes q and omega of every body as the
+ * continuous states (7 per body, body-major) and the engine's right-hand side (gs_derivatives) as their
+ * derivatives; the host's solver integrates them.
  */
 #ifndef GYROSIM_MODEL_H
 #define GYROSIM_MODEL_H
@@ -21,12 +23,20 @@ enum {
     GS_V_MAX_DRIFT,
     GS_V_QW, GS_V_QX, GS_V_QY, GS_V_QZ, GS_V_OX, GS_V_OY, GS_V_OZ, GS_V_TX, GS_V_TY, GS_V_TZ,
     GS_V_PHI, GS_V_THETA, GS_V_PSI, GS_V_LX, GS_V_LY, GS_V_LZ, GS_V_ENERGY, GS_V_ENERGY_ERROR,
+    /* Model Exchange: der(q_w) ... der(omega_z) */
+    GS_V_DQW, GS_V_DQX, GS_V_DQY, GS_V_DQZ, GS_V_DOX, GS_V_DOY, GS_V_DOZ,
     GS_V_COUNT
 };
 
 /* Life-cycle states (bit masks), shared by both FMI versions:
- * Instantiated, InitializationMode, StepComplete (FMI 2) / StepMode (FMI 3), Terminated. */
-enum { GS_INSTANTIATED = 1, GS_INIT = 2, GS_STEP = 4, GS_TERMINATED = 8 };
+ * Instantiated, InitializationMode, StepComplete (FMI 2) / StepMode (FMI 3), Terminated, and for Model Exchange
+ * EventMode and ContinuousTimeMode. */
+enum { GS_INSTANTIATED = 1, GS_INIT = 2, GS_STEP = 4, GS_TERMINATED = 8, GS_EVENT = 16, GS_CONT = 32 };
+
+/* Model Exchange: continuous states (q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z per body) and the norm drift
+ * | |q| - 1 | beyond which fmi*CompletedIntegratorStep asks for a step event, at which q is renormalised. */
+#define GS_NX (7 * GS_N_BODIES)
+#define GS_ME_NORM_TOL 1e-3
 
 enum { GS_OK = 0, GS_WARNING = 1, GS_DISCARD = 2, GS_ERROR = 3, GS_FATAL = 4 };
 
@@ -53,6 +63,11 @@ typedef struct {
     double hint[GS_N_BODIES];          /* adaptive's next internal step */
     int64_t stats[GS_N_BODIES][GS_NSTATS];
     double ex[GS_N_BODIES][GS_EX_SIZE];  /* exact's anchor */
+    /* Model Exchange */
+    int32_t me;               /* 1: a Model Exchange instance (after initialisation: event / continuous-time mode) */
+    int32_t norm_events;      /* renormalisations of q so far */
+    double t_work;            /* s: the time up to which the work in y[b][10] is accumulated */
+    double power[GS_N_BODIES];  /* W: the power of the work terms at t_work (trapezoidal rule) */
 } GsData;
 
 typedef void (*GsLogger)(void *env, int status, const char *category, const char *message);
@@ -99,6 +114,17 @@ int gs_get_string(GsInstance *m, uint32_t vr, const char **value);
 int gs_set_string(GsInstance *m, uint32_t vr, const char *value);
 int gs_do_step(GsInstance *m, double current_time, double h);
 double gs_time(const GsInstance *m);
+
+/* Model Exchange (the host's solver integrates q and omega; see gyrosim_model.c). */
+void gs_me_start(GsInstance *m);
+int gs_me_set_time(GsInstance *m, double t);
+int gs_me_get_states(GsInstance *m, double x[], size_t nx);
+int gs_me_set_states(GsInstance *m, const double x[], size_t nx);
+int gs_me_derivatives(GsInstance *m, double dx[], size_t nx);
+int gs_me_nominals(GsInstance *m, double x[], size_t nx);
+int gs_me_completed_step(GsInstance *m, int *enter_event_mode, int *terminate);
+void gs_me_enter_event_mode(GsInstance *m);
+int gs_me_update(GsInstance *m, int *values_changed);
 
 /* FMU states: heap copies of GsData. Serialised: a small header (magic, size) followed by GsData. */
 GsData *gs_state_alloc(GsInstance *m);
