@@ -33,13 +33,25 @@ from ..model import variables_for
 from ..scene import INTEGRATORS, Scene, load_scene
 
 __all__ = ["build_fmu", "model_identifier", "fmi_include_dir", "compile_command", "binary_path", "C_FLAGS",
-           "DEFAULT_OUTPUT", "engine_sources", "SCENE_VARIABLES", "FMI_TYPES", "STATES", "ME_NORM_TOL"]
+           "DEFAULT_OUTPUT", "WINDOWS_CC", "WINDOWS_C_FLAGS", "windows_compiler", "PLATFORMS", "engine_sources",
+           "SCENE_VARIABLES", "FMI_TYPES", "STATES", "ME_NORM_TOL"]
 
 DEFAULT_OUTPUT = Path("fmu") / "dist"
 
 #: The engine's floating-point flags (core/engine/cflags.txt, shared with the Python extension) and the FMU's.
 C_FLAGS = (*resources.files("gyrosim.core").joinpath("engine", "cflags.txt").read_text().split(),
            "-Wall", "-Wextra", "-fPIC", "-fvisibility=hidden")
+#: The MinGW-w64 cross-compiler of the win64 binary (Debian package gcc-mingw-w64-x86-64).
+WINDOWS_CC = "x86_64-w64-mingw32-gcc"
+#: The Windows flags: the same engine flags and warnings; no -fPIC / -fvisibility (PE code is position independent,
+#: and a DLL exports exactly the functions the FMI headers declare ``__declspec(dllexport)`` on ``_WIN32``);
+#: libgcc linked statically, so the DLL imports only the system's DLLs (KERNEL32, msvcrt). MinGW's C99 stdio
+#: (``__USE_MINGW_ANSI_STDIO``) formats the log messages (msvcrt's lacks %zu), and the glue's format attributes
+#: check against it (``gnu_printf``).
+WINDOWS_C_FLAGS = (*(f for f in C_FLAGS if f not in ("-fPIC", "-fvisibility=hidden")),
+                   "-D__USE_MINGW_ANSI_STDIO=1", "-static-libgcc")
+#: The platforms an FMU may carry: name -> (FMI 2.0 folder, FMI 3.0 folder, library suffix).
+PLATFORMS = {"linux": ("linux64", "x86_64-linux", ".so"), "windows": ("win64", "x86_64-windows", ".dll")}
 
 _ENGINE = ("gyrosim_engine.h", "rk_tables.h", "engine.c", "exact.c", "cflags.txt")
 _GLUE = ("gyrosim_model.h", "gyrosim_model.c")
@@ -115,9 +127,21 @@ def model_identifier(scene: str | Path | Scene | None = None) -> str:
     return ident if ident[:1].isalpha() else "Gyrosim" + ident
 
 
-def binary_path(fmi_version: int, identifier: str) -> str:
-    """Path of the shared library inside the FMU (Linux x86-64)."""
-    return f"binaries/{'linux64' if fmi_version == 2 else 'x86_64-linux'}/{identifier}.so"
+def binary_path(fmi_version: int, identifier: str, platform: str = "linux") -> str:
+    """Path of the shared library inside the FMU: ``platform`` "linux" (x86-64) or "windows" (x86-64).
+
+    Examples
+    --------
+    >>> binary_path(2, "HeavyTop"), binary_path(3, "HeavyTop", "windows")
+    ('binaries/linux64/HeavyTop.so', 'binaries/x86_64-windows/HeavyTop.dll')
+    """
+    v2, v3, suffix = PLATFORMS[platform]
+    return f"binaries/{v2 if fmi_version == 2 else v3}/{identifier}{suffix}"
+
+
+def windows_compiler() -> str | None:
+    """The MinGW-w64 cross-compiler's path (:data:`WINDOWS_CC` on PATH), or None."""
+    return shutil.which(WINDOWS_CC)
 
 
 def _hexf(x: float) -> str:
@@ -228,7 +252,16 @@ _ME_NOTE = ("Model exchange: the continuous states are q_w, q_x, q_y, q_z, omega
             "(valuesOfContinuousStatesChanged); the derived outputs use q normalised. No event indicators.")
 
 
-def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs") -> str:
+def _platforms_note(platforms) -> str:
+    if "windows" in platforms:
+        return ("Binaries: Linux x86-64 and Windows x86-64 (cross-compiled with MinGW-w64); other platforms build "
+                "from sources/.")
+    return ("Binaries: Linux x86-64 only (no MinGW-w64 cross-compiler at build time, so no Windows binary); "
+            "other platforms build from sources/.")
+
+
+def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs",
+                       platforms=("linux",)) -> str:
     from .. import __version__
 
     has_cs, has_me = fmi_type in ("cs", "both"), fmi_type in ("me", "both")
@@ -237,7 +270,7 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
     desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
             f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python), {kind}; "
             f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + "."
-            + (" " + _ME_NOTE if has_me else ""))
+            + (" " + _ME_NOTE if has_me else "") + " " + _platforms_note(platforms))
     ders = derivative_rows(sc, rows) if has_me else []
     is_state = {i for _, _, i, _ in ders}
     root = ET.Element("fmiModelDescription")
@@ -405,17 +438,22 @@ def _build_description(ident: str, sources) -> str:
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None = None) -> list[str]:
-    """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources)."""
-    cc = cc or os.environ.get("CC", "gcc")
+def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None = None,
+                    platform: str = "linux") -> list[str]:
+    """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources);
+    ``platform`` "windows" cross-compiles the DLL with MinGW-w64 (``cc`` default :data:`WINDOWS_CC`)."""
+    if platform == "windows":
+        cc, flags = cc or WINDOWS_CC, WINDOWS_C_FLAGS
+    else:
+        cc, flags = cc or os.environ.get("CC", "gcc"), C_FLAGS
     srcs = ["engine.c", "exact.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
-    return [cc, *C_FLAGS, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
+    return [cc, *flags, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 
 
 def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
               output_dir: str | Path = DEFAULT_OUTPUT, *, integrator: str | None = None,
-              cc: str | None = None, fmi_type: str = "both") -> Path:
+              cc: str | None = None, fmi_type: str = "both", windows: bool | None = None) -> Path:
     """Build ``<output_dir>/<ModelIdentifier>.fmu``: an FMU whose binary is the C engine.
 
     Parameters
@@ -435,6 +473,10 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         Start value of the ``integrator`` parameter (default the scene's).
     cc : str, optional
         C compiler (default ``$CC`` or ``gcc``).
+    windows : bool, optional
+        Also carry a win64 binary, cross-compiled with MinGW-w64 (:data:`WINDOWS_CC`). ``None`` (default): when that
+        compiler is on PATH; ``True``: required (RuntimeError without it); ``False``: Linux only. The model
+        description says which platforms the FMU carries.
 
     Returns
     -------
@@ -461,13 +503,18 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise ConfigError("integrator", integrator, "a general integrator: 'exact' solves a torque-free body only, "
                           f"and scene {sc.name!r} starts with {sc.torque_free_start()}")
     ident = model_identifier(scene)
+    win_cc = windows_compiler() if windows is not False else None
+    if windows and win_cc is None:
+        raise RuntimeError(f"the Windows binary needs the MinGW-w64 cross-compiler {WINDOWS_CC!r} on PATH "
+                           "(Debian/Ubuntu: apt-get install gcc-mingw-w64-x86-64)")
+    platforms = ("linux", "windows") if win_cc else ("linux",)
     rows = fmu_variables(sc)
     texts = engine_sources()
     texts[f"fmi{fmi_version}Functions.c"] = resources.files(__package__).joinpath(
         "c", f"fmi{fmi_version}Functions.c").read_text()
     sources = [*texts, "gyrosim_config.h"]
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
-    md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type)
+    md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type, platforms)
     config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
     h = hashlib.sha256()
     for part in (md, config, *texts.values()):
@@ -487,20 +534,31 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         if fmi_version == 3:
             (src_dir / "buildDescription.xml").write_text(_build_description(ident, sources))
         (root / "modelDescription.xml").write_text(md)
-        so = root / binary_path(fmi_version, ident)
-        so.parent.mkdir(parents=True)
-        cmd = compile_command(src_dir, so, fmi_version, cc)
-        try:
-            r = subprocess.run(cmd, capture_output=True, text=True)
-        except FileNotFoundError:
-            raise RuntimeError(f"C compiler {cmd[0]!r} not found: the FMU is compiled at build time "
-                               "(install gcc, or set CC)") from None
-        if r.returncode != 0 or r.stderr.strip():
-            raise RuntimeError(f"compiling the FMU failed or warned:\n{' '.join(cmd)}\n{r.stderr}")
+        jobs = []   # the platforms' compilers run side by side
+        for platform in platforms:
+            so = root / binary_path(fmi_version, ident, platform)
+            so.parent.mkdir(parents=True)
+            cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows") if platform == "windows"
+                   else compile_command(src_dir, so, fmi_version, cc))
+            try:
+                jobs.append((platform, cmd, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                                              text=True)))
+            except FileNotFoundError:
+                for _, _, p in jobs:
+                    p.communicate()
+                raise RuntimeError(f"C compiler {cmd[0]!r} not found: the FMU is compiled at build time "
+                                   "(install gcc, or set CC)") from None
+        for platform, cmd, p in jobs:
+            out, err = p.communicate()
+            if p.returncode != 0 or out.strip() or err.strip():
+                for _, _, other in jobs:
+                    other.communicate()
+                raise RuntimeError(f"compiling the FMU ({platform}) failed or warned:\n{' '.join(cmd)}\n{out}{err}")
         tmp_fmu = root / f"{ident}.fmu"
         with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.write(root / "modelDescription.xml", "modelDescription.xml")
-            zf.write(so, binary_path(fmi_version, ident))
+            for platform in platforms:
+                zf.write(root / binary_path(fmi_version, ident, platform), binary_path(fmi_version, ident, platform))
             for f in sorted(src_dir.iterdir()):
                 zf.write(f, f"sources/{f.name}")
         shutil.copyfile(tmp_fmu, fmu_path)

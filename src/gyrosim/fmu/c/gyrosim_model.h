@@ -90,14 +90,20 @@ GsInstance *gs_new(const char *instance_name, void *env, GsLogger log, int loggi
 void gs_free(GsInstance *m);
 void gs_set_start_values(GsInstance *m);
 
+/* the printf checked against: MinGW's C99 stdio on Windows (__USE_MINGW_ANSI_STDIO, %zu included) */
+#if defined(__MINGW32__)
+#define GS_PRINTF_FORMAT gnu_printf
+#else
+#define GS_PRINTF_FORMAT printf
+#endif
 void gs_log_error(GsInstance *m, const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
+    __attribute__((format(GS_PRINTF_FORMAT, 2, 3)))
 #endif
     ;
 void gs_log_event(GsInstance *m, const char *fmt, ...)
 #if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
+    __attribute__((format(GS_PRINTF_FORMAT, 2, 3)))
 #endif
     ;
 int gs_set_debug_logging(GsInstance *m, int logging_on, size_t n, const char *const categories[]);
