@@ -260,6 +260,23 @@ def _platforms_note(platforms) -> str:
             "other platforms build from sources/.")
 
 
+def source_files(interface: ET.Element, sources) -> None:
+    """FMI 2.0's ``<SourceFiles>`` of an interface element: the C files among ``sources``."""
+    sf = ET.SubElement(interface, "SourceFiles")
+    for name in sources:
+        if name.endswith(".c"):
+            ET.SubElement(sf, "File", name=name)
+
+
+def content_token(*parts: str) -> str:
+    """The instantiation token (FMI 2.0 guid) of an FMU: a UUID from the SHA-256 of its texts, so that the same
+    sources give the same token (reproducible builds) and other sources another."""
+    h = hashlib.sha256()
+    for part in parts:
+        h.update(part.encode())
+    return "{" + str(uuid.UUID(bytes=h.digest()[:16], version=5)) + "}"
+
+
 def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs",
                        platforms=("linux",)) -> str:
     from .. import __version__
@@ -298,10 +315,7 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
         for k, v in attrs.items():
             me.set(k, v)
         if fmi_version == 2:
-            sf = ET.SubElement(me, "SourceFiles")
-            for s in sources:
-                if s.endswith(".c"):
-                    ET.SubElement(sf, "File", name=s)
+            source_files(me, sources)
     if not has_cs:
         cs = ET.Element("CoSimulation")   # not written
     else:
@@ -321,10 +335,7 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
     for k, v in common.items():
         cs.set(k, v)
     if fmi_version == 2:
-        sf = ET.SubElement(cs, "SourceFiles")
-        for s in sources:
-            if s.endswith(".c"):
-                ET.SubElement(sf, "File", name=s)
+        source_files(cs, sources)
     units = sorted({v.unit for _, _, v in rows if v.unit} | {"s"} | ({"1/s", "rad/s2"} if has_me else set()))
     ud = ET.SubElement(root, "UnitDefinitions")
     for u in units:
@@ -516,10 +527,7 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
     md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type, platforms)
     config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
-    h = hashlib.sha256()
-    for part in (md, config, *texts.values()):
-        h.update(part.encode())
-    token = "{" + str(uuid.UUID(bytes=h.digest()[:16], version=5)) + "}"
+    token = content_token(md, config, *texts.values())
     md, config = md.replace(_TOKEN, token), config.replace(_TOKEN, token)
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)

@@ -19,18 +19,16 @@ FMI 2.0 hosts.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import subprocess
 import tempfile
-import uuid
 import xml.etree.ElementTree as ET
 import zipfile
 from importlib import resources
 from pathlib import Path
 
-from .build import C_FLAGS, binary_path, fmi_include_dir
+from .build import C_FLAGS, binary_path, content_token, fmi_include_dir, source_files
 
 __all__ = ["build_controller", "pd_gains", "IDENTIFIER", "PARAMETERS", "INPUTS", "OUTPUTS", "controller_variables"]
 
@@ -117,8 +115,7 @@ def _model_description(token: str) -> str:
                        canBeInstantiatedOnlyOncePerProcess="false", canNotUseMemoryManagementFunctions="true",
                        canGetAndSetFMUstate="true", canSerializeFMUstate="true",
                        providesDirectionalDerivative="false")
-    sf = ET.SubElement(cs, "SourceFiles")
-    ET.SubElement(sf, "File", name=_SOURCE)
+    source_files(cs, [_SOURCE])
     ud = ET.SubElement(root, "UnitDefinitions")
     for u, base in _UNITS.items():
         ET.SubElement(ET.SubElement(ud, "Unit", name=u), "BaseUnit", {k: str(e) for k, e in base.items()})
@@ -160,10 +157,7 @@ def build_controller(output_dir: str | Path, *, cc: str | None = None) -> Path:
     """
     src = resources.files(__package__).joinpath("c", "controller", _SOURCE).read_text()
     md = _model_description("@TOKEN@")
-    h = hashlib.sha256()
-    for part in (md, _config_header("@TOKEN@"), src):
-        h.update(part.encode())
-    token = "{" + str(uuid.UUID(bytes=h.digest()[:16], version=5)) + "}"
+    token = content_token(md, _config_header("@TOKEN@"), src)
     md = md.replace("@TOKEN@", token)
     output_dir = Path(output_dir)
     output_dir.mkdir(parents=True, exist_ok=True)

@@ -623,24 +623,13 @@ typedef long long vm;
         }                                                                                                         \
     } while (0)
 
-/* The flow at the GS_VW times tp (relative to the anchor) with the fast series (C_NF > 0); circular (mc == 1, a
- * symmetric body) takes sn, cn from libm's sin and cos of u, whose own reduction of u is exact (2K = pi is not). */
-static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circular, double w_out[][3],
-                                  double q_out[][4])
+/* The four series at x = u_r / K in [-1, 1] (GS_VW of them), one Clenshaw recurrence each in y = 2 x^2 - 1
+ * (W_{i+1} = 2y W_i - W_{i-1} for the odd ones): odd series sum a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1,
+ * W_1 = 2y - 1; even ones sum a_i T_i(y). (Vectors by pointer: no vector crosses a call by value.) */
+static GS_TF_INLINE void fast_sums(const double *c, const vd *xp, vd *sn, vd *cn, vd *dn, vd *p)
 {
-    vd t;
-    memcpy(&t, tp, sizeof(t));
-    /* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
-    const vd u = VSPLAT(c[C_LAM]) * t + c[C_U0];
-    const vd j = VMAP(floor, 0.5 * c[C_RK] * u + 0.5);
-    const vd u_r = u - j * (2.0 * c[C_K]);
-    vd x = u_r * c[C_RK];
-    x = VSEL(x < -1.0, VSPLAT(-1.0), VSEL(x > 1.0, VSPLAT(1.0), x));
-    const vd y2 = 2.0 * (2.0 * x * x - 1.0);
-    const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
-
-    /* The four series at x, one Clenshaw recurrence each in y = 2 x^2 - 1 (W_{i+1} = 2y W_i - W_{i-1} for the odd
-     * ones): odd series sum a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1, W_1 = 2y - 1; even ones sum a_i T_i(y). */
+    const vd x = *xp;
+    const vd y2 = 2.0 * (2.0 * x * x - 1.0), y = 0.5 * y2;
     const int nf = (int)c[C_NF];
     vd s1 = VSPLAT(0.0), s2 = s1, c1 = s1, c2 = s1, d1 = s1, d2 = s1, p1 = s1, p2 = s1;
     for (int i = nf - 1; i >= 1; i--) {
@@ -657,11 +646,28 @@ static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circula
         p2 = p1;
         p1 = p0;
     }
-    const vd y = 0.5 * y2;
-    vd sn_r = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
-    const vd p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
-    vd cn_r = c[C_FC] + c1 * y - c2;
-    vd dn = c[C_FD] + d1 * y - d2;
+    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
+    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
+    *cn = c[C_FC] + c1 * y - c2;
+    *dn = c[C_FD] + d1 * y - d2;
+}
+
+/* The flow at the GS_VW times tp (relative to the anchor) with the fast series (C_NF > 0); circular (mc == 1, a
+ * symmetric body) takes sn, cn from libm's sin and cos of u, whose own reduction of u is exact (2K = pi is not). */
+static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circular, double w_out[][3],
+                                  double q_out[][4])
+{
+    vd t;
+    memcpy(&t, tp, sizeof(t));
+    /* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
+    const vd u = VSPLAT(c[C_LAM]) * t + c[C_U0];
+    const vd j = VMAP(floor, 0.5 * c[C_RK] * u + 0.5);
+    const vd u_r = u - j * (2.0 * c[C_K]);
+    vd x = u_r * c[C_RK];
+    x = VSEL(x < -1.0, VSPLAT(-1.0), VSEL(x > 1.0, VSPLAT(1.0), x));
+    const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
+    vd sn_r, cn_r, dn, p;
+    fast_sums(c, &x, &sn_r, &cn_r, &dn, &p);
     if (circular) {
         for (int i = 0; i < GS_VW; i++) {
             LANE(sn_r, i) = LANE(sg, i) * sin(LANE(u, i));
@@ -721,30 +727,16 @@ static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circula
     }
 }
 
-/* The four series at one x (the set-up's anchor): lane 0 of the recurrence above */
+/* The four series at one x (the set-up's anchor): lane 0 of fast_sums */
 static void fast_series(const double *c, double x, double *sn, double *cn, double *dn, double *p)
 {
-    const int nf = (int)c[C_NF];
-    const double y2 = 2.0 * (2.0 * x * x - 1.0), y = 0.5 * y2;
-    double s1 = 0.0, s2 = 0.0, c1 = 0.0, c2 = 0.0, d1 = 0.0, d2 = 0.0, p1 = 0.0, p2 = 0.0;
-    for (int i = nf - 1; i >= 1; i--) {
-        const double s0 = y2 * s1 - s2 + c[C_FS + i];
-        const double c0 = y2 * c1 - c2 + c[C_FC + i];
-        const double d0 = y2 * d1 - d2 + c[C_FD + i];
-        const double p0 = y2 * p1 - p2 + c[C_FP + i];
-        s2 = s1;
-        s1 = s0;
-        c2 = c1;
-        c1 = c0;
-        d2 = d1;
-        d1 = d0;
-        p2 = p1;
-        p1 = p0;
-    }
-    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
-    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
-    *cn = c[C_FC] + c1 * y - c2;
-    *dn = c[C_FD] + d1 * y - d2;
+    const vd xv = VSPLAT(x);
+    vd s, cc, d, pp;
+    fast_sums(c, &xv, &s, &cc, &d, &pp);
+    *sn = LANE(s, 0);
+    *cn = LANE(cc, 0);
+    *dn = LANE(d, 0);
+    *p = LANE(pp, 0);
 }
 
 /* Set up the fast evaluation (after every other constant): 40 nodes, else 64, else none. ps0 = psi at t = 0
