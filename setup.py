@@ -47,8 +47,10 @@ setup(
     ext_modules=[
         Extension(
             "gyrosim.core._engine",
-            sources=["src/gyrosim/core/_enginemodule.c", str(ENGINE / "engine.c"), str(ENGINE / "exact.c")],
-            depends=[str(ENGINE / "gyrosim_engine.h"), str(ENGINE / "rk_tables.h"), str(ENGINE / "cflags.txt")],
+            sources=["src/gyrosim/core/_enginemodule.c", str(ENGINE / "engine.c"), str(ENGINE / "exact.c"),
+                     str(ENGINE / "rk.c"), str(ENGINE / "tree.c")],
+            depends=[str(ENGINE / "gyrosim_engine.h"), str(ENGINE / "gyrosim_ode.h"), str(ENGINE / "gyrosim_tree.h"),
+                     str(ENGINE / "rk_tables.h"), str(ENGINE / "cflags.txt")],
             extra_compile_args=list(CFLAGS),
             libraries=["m"],
         )

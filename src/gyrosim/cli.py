@@ -204,20 +204,31 @@ def scene_info(scene) -> str:
     from .scene import load_scene
 
     sc = load_scene(scene)
-    multi = len(sc.bodies) > 1
+    multi = len(sc.body_names) > 1
     rows = []
+    if sc.is_tree:
+        from .tree_model import tree_variables
+
+        rows = [(var.name, var.causality, _start_text(var.start), var.unit, var.description)
+                for var in tree_variables(sc).values()]
     for b, body in enumerate(sc.bodies):
         for var in variables_for(sc, b).values():
             rows.append((f"{body.name}.{var.name}" if multi else var.name, var.causality, _start_text(var.start),
                          var.unit, var.description))
     width = max(18, *(len(r[0]) for r in rows))
-    names = ", ".join(sc.body_names[:10]) + (", ..." if len(sc.bodies) > 10 else "")
+    names = ", ".join(sc.body_names[:10]) + (", ..." if len(sc.body_names) > 10 else "")
     terms = [t for t, on in (("gravity", sc.gravity), ("damping", sc.damping), ("torque inputs", sc.torque)) if on]
+    if sc.is_tree:
+        names = ", ".join(f"{b.name} ({b.joint} on {sc.tree[b.parent].name if b.parent >= 0 else 'world'})"
+                          for b in sc.tree)
+        terms = [t for t, on in (("gravity", sc.g > 0), ("joint damping", sc.damping),
+                                 ("motor and torque inputs", sc.torque), ("springs", bool(sc.couplings) or any(
+                                     b.stiffness > 0 for b in sc.tree))) if on]
     lines = ["", "Model Info", "",
              f"  Scene              {sc.name}",
              f"  Description        {sc.description}",
              f"  Source             {sc.source}",
-             f"  Bodies             {len(sc.bodies)} ({names})",
+             f"  Bodies             {len(sc.body_names)} ({names})",
              f"  Terms              {', '.join(terms) or 'none (torque-free)'}",
              f"  Integrator         {sc.integrator}",
              f"  Variables          {len(rows)}",

@@ -238,6 +238,13 @@ class Model:
     []
     """
 
+    def __new__(cls, scene=None, *args, **kwargs):
+        if cls is Model and load_scene(scene).is_tree:  # a tree of bodies: the engine's tree (tree_model.py)
+            from .tree_model import TreeModel
+
+            return super().__new__(TreeModel)
+        return super().__new__(cls)
+
     def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
                  stop_time: float | None = None, tolerance: float | None = None):
         self.scene = load_scene(scene)

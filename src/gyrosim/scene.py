@@ -60,7 +60,8 @@ from .errors import ConfigError
 
 __all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
 
-EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope")
+EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
+                   "double_pendulum", "coupled_pendula")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact")
 G_DEFAULT = 9.81
 
@@ -122,6 +123,17 @@ class Scene:
     g: float = G_DEFAULT
     description: str = ""
     source: str = "<embedded>"
+    #: a tree scene (DESIGN.md 4b): its bodies (core.tree.TreeBody), coupling springs (a, b, k), their names and
+    #: the scene parameters that set body parameters (scene_tree.Alias); None for a scene of independent bodies
+    tree: tuple | None = None
+    couplings: tuple = ()
+    coupling_names: tuple = ()
+    aliases: tuple = ()
+
+    @property
+    def is_tree(self) -> bool:
+        """True for a tree of bodies joined by joints (the tree engine), False for independent bodies."""
+        return self.tree is not None
 
     @property
     def flags(self) -> int:
@@ -131,7 +143,7 @@ class Scene:
 
     @property
     def body_names(self) -> list[str]:
-        return [b.name for b in self.bodies]
+        return [b.name for b in (self.tree if self.tree is not None else self.bodies)]
 
     @property
     def torque_free(self) -> bool:
@@ -340,7 +352,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     ConfigError
         Naming the source, the key, the value and what is allowed; unknown keys get a "did you mean".
     """
-    _check_keys(data, ("scene", "body", "sweep"), source)  # [sweep]: read by `gyrosim sweep` (gyrosim.sweep.spec)
+    _check_keys(data, ("scene", "body", "sweep", "coupling", "parameters"), source)  # [sweep]: `gyrosim sweep`
     sc = data.get("scene", {})
     if not isinstance(sc, dict):
         raise ConfigError("scene", sc, "a table [scene]", where=source)
@@ -353,6 +365,8 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     if integ not in INTEGRATORS:
         raise ConfigError("integrator", integ, _suggest(str(integ), INTEGRATORS), where=where)
     g = _num(sc, "g", where, G_DEFAULT, lo=0.0)
+    if _is_tree(data):
+        return _tree_scene(data, sc, name, integ, g, where, source)
     bodies_tbl = data.get("body")
     if not isinstance(bodies_tbl, list) or not bodies_tbl:
         raise ConfigError("body", bodies_tbl, "at least one [[body]] table", where=source)
@@ -378,6 +392,37 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
         raise ConfigError("integrator", integ, "a general integrator: 'exact' solves a torque-free body only, and "
                           f"this scene has {scene.torque_free_start()}", where=where)
     return scene
+
+
+def _is_tree(data: dict) -> bool:
+    from .scene_tree import TREE_KEYS
+
+    bodies = data.get("body")
+    return ("coupling" in data or "parameters" in data or
+            (isinstance(bodies, list) and any(isinstance(b, dict) and any(k in b for k in TREE_KEYS) for b in bodies)))
+
+
+#: The integrators of the tree engine (the splittings and exact solve one body).
+TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853")
+
+
+def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
+    from .scene_tree import tree_from_dict
+
+    if integ not in TREE_INTEGRATORS:
+        raise ConfigError("integrator", integ, f"one of {', '.join(TREE_INTEGRATORS)}: a tree of bodies is "
+                          f"integrated by the tree engine ('{integ}' solves one body)", where=where)
+    bodies, couplings, cnames, aliases = tree_from_dict(data, source)
+    return Scene(
+        name=name, bodies=(), gravity=g > 0, damping=any(b.damping > 0 for b in bodies),
+        torque=any(b.torque_input or b.motor_input for b in bodies), integrator=integ,
+        max_step=_num(sc, "max_step", where, 1e-3, lo=0.0, lo_open=True),
+        max_drift=_num(sc, "max_drift", where, _engine.MAX_DRIFT, lo=0.0, lo_open=False),
+        tolerance=_num(sc, "tolerance", where, 1e-8, lo=0.0, lo_open=True),
+        output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
+        stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
+        g=g, description=str(sc.get("description", "")), source=source, tree=bodies, couplings=couplings,
+        coupling_names=cnames, aliases=aliases)
 
 
 def full_scene() -> Scene:

@@ -21,7 +21,15 @@ __all__ = ["simulate", "Run", "field_names", "output_intervals"]
 
 def field_names(model: Model) -> list[str]:
     """The output names of ``model``: ``<body>.<name>`` in multi-body scenes, the bare names otherwise."""
-    return _names(model.body_names)
+    return _scene_names(model.scene)
+
+
+def _scene_names(sc) -> list[str]:
+    if sc.is_tree:
+        from .tree_model import tree_output_names
+
+        return tree_output_names(sc)
+    return _names(sc.body_names)
 
 
 def _names(body_names: list) -> list[str]:
@@ -43,7 +51,7 @@ def _apply_start_values(model: Model, start_values: dict) -> None:
     for name, value in start_values.items():
         body = None
         key = str(name)
-        if model.n_bodies > 1 and "." in key:
+        if model.n_bodies > 1 and "." in key and not model.scene.is_tree:
             b, key = key.split(".", 1)
             if b not in model.body_names:
                 raise ConfigError("start_values", name, "a variable name, or <body>.<name> with a body of the scene "
@@ -193,7 +201,7 @@ def _selection(sc, output: tuple | None):
     hit = _SELECTIONS.get(key)
     if hit is not None and hit[0] is sc:
         return hit[1]
-    names = _names(sc.body_names)
+    names = _scene_names(sc)
     if output is None:
         picked = names
     else:

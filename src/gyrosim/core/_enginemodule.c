@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "engine/gyrosim_engine.h"
+#include "engine/gyrosim_tree.h"
 
 #include <math.h>
 
@@ -384,7 +385,247 @@ done:
     return res;
 }
 
+/* ------------------------------------------------------------------------------------------- trees */
+
+/* the tree description (int32 array) into t; -1 with an error */
+static int get_tree(PyObject *obj, gs_tree *t) {
+    Buf d = {0};
+    if (get_buf(obj, &d, "desc", 'i', -1, 0) < 0) {
+        release(&d, 1);
+        return -1;
+    }
+    const int rc = gs_tree_init(t, (const int32_t *)d.view.buf, (size_t)(d.view.len / 4));
+    release(&d, 1);
+    if (rc) {
+        PyErr_Format(PyExc_ValueError, "desc: not a valid tree description (code %d)", rc);
+        return -1;
+    }
+    return 0;
+}
+
+/* y (n, ny) and p (n, np) of n systems into b[0], b[1]; n or -1 */
+static Py_ssize_t get_systems(const gs_tree *t, PyObject *y, PyObject *p, Buf *b, int y_writable) {
+    if (get_buf(y, &b[0], "y", 'd', -1, y_writable) < 0) return -1;
+    const Py_ssize_t n = b[0].view.len / (Py_ssize_t)sizeof(double) / t->ny;
+    if (n * t->ny * (Py_ssize_t)sizeof(double) != b[0].view.len) {
+        PyErr_Format(PyExc_ValueError, "y: shape (n, %d) is needed", t->ny);
+        return -1;
+    }
+    if (get_buf(p, &b[1], "p", 'd', n * t->np, 0) < 0) return -1;
+    return n;
+}
+
+/* tree_info(desc) -> (nx, ny, np, nout) */
+static PyObject *py_tree_info(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 1) {
+        PyErr_SetString(PyExc_TypeError, "tree_info() takes 1 argument");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    return Py_BuildValue("(iiii)", t.nx, t.ny, t.np, GS_TREE_NOUT(&t));
+}
+
+/* tree_advance(desc, method, y, p, H, rtol, atol, max_step, hint, stats, status, threads) -> failed systems */
+static PyObject *py_tree_advance(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 12) {
+        PyErr_SetString(PyExc_TypeError, "tree_advance() takes 12 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    const int method = (int)PyLong_AsLong(args[1]);
+    const double H = PyFloat_AsDouble(args[4]);
+    const double rtol = PyFloat_AsDouble(args[5]);
+    const double atol = PyFloat_AsDouble(args[6]);
+    const double max_step = PyFloat_AsDouble(args[7]);
+    const int threads = (int)PyLong_AsLong(args[11]);
+    if (PyErr_Occurred()) return NULL;
+    Buf b[5] = {{0}};
+    const Py_ssize_t n = get_systems(&t, args[2], args[3], b, 1);
+    if (n < 0) goto fail;
+    if (get_buf(args[8], &b[2], "hint", 'd', n, 1) < 0) goto fail;
+    if (get_buf(args[9], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) goto fail;
+    if (get_buf(args[10], &b[4], "status", 'i', n, 1) < 0) goto fail;
+    size_t failed;
+    Py_BEGIN_ALLOW_THREADS
+    failed = gs_tree_advance(&t, method, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, H, rtol,
+                             atol, max_step, (double *)b[2].view.buf, (int64_t *)b[3].view.buf,
+                             (int32_t *)b[4].view.buf, threads);
+    Py_END_ALLOW_THREADS
+    release(b, 5);
+    return PyLong_FromSize_t(failed);
+fail:
+    release(b, 5);
+    return NULL;
+}
+
+/* tree_trajectory(desc, method, y, p, dt, n_out, rtol, atol, max_step, hint, stats, status, threads, out) */
+static PyObject *py_tree_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 14) {
+        PyErr_SetString(PyExc_TypeError, "tree_trajectory() takes 14 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    const int method = (int)PyLong_AsLong(args[1]);
+    const double dt = PyFloat_AsDouble(args[4]);
+    const long long n_out = PyLong_AsLongLong(args[5]);
+    const double rtol = PyFloat_AsDouble(args[6]);
+    const double atol = PyFloat_AsDouble(args[7]);
+    const double max_step = PyFloat_AsDouble(args[8]);
+    const int threads = (int)PyLong_AsLong(args[12]);
+    if (PyErr_Occurred()) return NULL;
+    if (n_out < 0) {
+        PyErr_SetString(PyExc_ValueError, "n_out: >= 0 is needed");
+        return NULL;
+    }
+    Buf b[6] = {{0}};
+    const Py_ssize_t n = get_systems(&t, args[2], args[3], b, 1);
+    if (n < 0) goto fail;
+    if (get_buf(args[9], &b[2], "hint", 'd', n, 1) < 0) goto fail;
+    if (get_buf(args[10], &b[3], "stats", 'q', n * GS_NSTATS, 1) < 0) goto fail;
+    if (get_buf(args[11], &b[4], "status", 'i', n, 1) < 0) goto fail;
+    if (get_buf(args[13], &b[5], "out", 'd', (n_out + 1) * n * GS_TREE_NOUT(&t), 1) < 0) goto fail;
+    size_t failed;
+    Py_BEGIN_ALLOW_THREADS
+    failed = gs_tree_trajectory(&t, method, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, dt,
+                                (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf,
+                                (int64_t *)b[3].view.buf, (int32_t *)b[4].view.buf, threads,
+                                (double *)b[5].view.buf);
+    Py_END_ALLOW_THREADS
+    release(b, 6);
+    return PyLong_FromSize_t(failed);
+fail:
+    release(b, 6);
+    return NULL;
+}
+
+/* tree_outputs / tree_start / tree_drift / tree_reparam / tree_derivatives / tree_accelerations: one call each over
+ * n systems (derivatives and accelerations: over the first system's y and p, into dy (nx + 1) or qdd (dof)) */
+static PyObject *py_tree_each(PyObject *const *args, Py_ssize_t nargs, int what) {
+    gs_tree t;
+    static const int want_args[6] = {4, 3, 4, 4, 4, 4};
+    static const char *const names[6] = {"tree_outputs", "tree_start", "tree_drift", "tree_reparam",
+                                         "tree_derivatives", "tree_accelerations"};
+    if (nargs != want_args[what]) {
+        PyErr_Format(PyExc_TypeError, "%s() takes %d arguments", names[what], want_args[what]);
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    Buf b[3] = {{0}};
+    PyObject *res = NULL;
+    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, what == 1 || what == 3);
+    if (n < 0) goto done;
+    if (what == 0) {
+        if (get_buf(args[3], &b[2], "out", 'd', n * GS_TREE_NOUT(&t), 1) < 0) goto done;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            gs_tree_outputs(&t, (const double *)b[0].view.buf + i * t.ny, (const double *)b[1].view.buf + i * t.np,
+                            (double *)b[2].view.buf + i * GS_TREE_NOUT(&t));
+        }
+    } else if (what == 1) {
+        for (Py_ssize_t i = 0; i < n; i++) {
+            if (!gs_tree_start(&t, (double *)b[0].view.buf + i * t.ny, (const double *)b[1].view.buf + i * t.np)) {
+                res = PyLong_FromSsize_t(i);
+                goto done;
+            }
+        }
+        res = PyLong_FromLong(-1);
+        goto done;
+    } else if (what == 2) {
+        if (get_buf(args[3], &b[2], "d", 'd', n * 2, 1) < 0) goto done;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            gs_tree_drift(&t, (const double *)b[0].view.buf + i * t.ny, (const double *)b[1].view.buf + i * t.np,
+                          (double *)b[2].view.buf + 2 * i);
+        }
+    } else if (what == 3) {
+        if (get_buf(args[3], &b[2], "p_new", 'd', n * t.np, 0) < 0) goto done;
+        for (Py_ssize_t i = 0; i < n; i++) {
+            gs_tree_reparam(&t, (double *)b[0].view.buf + i * t.ny, (const double *)b[1].view.buf + i * t.np,
+                            (const double *)b[2].view.buf + i * t.np);
+        }
+    } else {
+        int dof = 0;
+        for (int i = 0; i < t.n; i++) dof += gs_tree_ndof(t.joint[i]);
+        if (get_buf(args[3], &b[2], what == 4 ? "dy" : "qdd", 'd', what == 4 ? t.nx + 1 : dof, 1) < 0) goto done;
+        if (n < 1) {
+            PyErr_SetString(PyExc_ValueError, "y: one system is needed");
+            goto done;
+        }
+        if (what == 4) {
+            gs_tree_derivatives(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf,
+                                (double *)b[2].view.buf);
+        } else {
+            gs_tree_accelerations(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf,
+                                  (double *)b[2].view.buf);
+        }
+    }
+    res = Py_None;
+    Py_INCREF(res);
+done:
+    release(b, 3);
+    return res;
+}
+
+#define TREE_EACH(NAME, WHAT) \
+    static PyObject *py_##NAME(PyObject *self, PyObject *const *args, Py_ssize_t nargs) { \
+        (void)self; \
+        return py_tree_each(args, nargs, WHAT); \
+    }
+TREE_EACH(tree_outputs, 0)
+TREE_EACH(tree_start, 1)
+TREE_EACH(tree_drift, 2)
+TREE_EACH(tree_reparam, 3)
+TREE_EACH(tree_derivatives, 4)
+TREE_EACH(tree_accelerations, 5)
+
+/* tree_scalar(desc, y, p, which) -> torque_free (0) or fastest_rate (1) of the first system */
+static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "tree_scalar() takes 4 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    const long which = PyLong_AsLong(args[3]);
+    if (PyErr_Occurred()) return NULL;
+    Buf b[2] = {{0}};
+    PyObject *res = NULL;
+    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, 0);
+    if (n < 1) {
+        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
+        release(b, 2);
+        return NULL;
+    }
+    const double *y = (const double *)b[0].view.buf, *p = (const double *)b[1].view.buf;
+    res = which == 0 ? PyLong_FromLong(gs_tree_torque_free(&t, p)) : PyFloat_FromDouble(gs_tree_fastest_rate(&t, y, p));
+    release(b, 2);
+    return res;
+}
+
 static PyMethodDef methods[] = {
+    {"tree_info", (PyCFunction)(void (*)(void))py_tree_info, METH_FASTCALL,
+     "tree_info(desc) -> (nx, ny, np, nout) of a tree description (int32: n, n_cpl, (parent, joint)*, (a, b)*)"},
+    {"tree_advance", (PyCFunction)(void (*)(void))py_tree_advance, METH_FASTCALL,
+     "tree_advance(desc, method, y, p, H, rtol, atol, max_step, hint, stats, status, threads) -> failed systems"},
+    {"tree_trajectory", (PyCFunction)(void (*)(void))py_tree_trajectory, METH_FASTCALL,
+     "tree_trajectory(desc, method, y, p, dt, n_out, rtol, atol, max_step, hint, stats, status, threads, out)"},
+    {"tree_outputs", (PyCFunction)(void (*)(void))py_tree_outputs, METH_FASTCALL, "tree_outputs(desc, y, p, out)"},
+    {"tree_start", (PyCFunction)(void (*)(void))py_tree_start, METH_FASTCALL,
+     "tree_start(desc, y, p) -> -1, or the first system with a zero quaternion or a non-finite value"},
+    {"tree_drift", (PyCFunction)(void (*)(void))py_tree_drift, METH_FASTCALL, "tree_drift(desc, y, p, d(n, 2))"},
+    {"tree_reparam", (PyCFunction)(void (*)(void))py_tree_reparam, METH_FASTCALL,
+     "tree_reparam(desc, y, p_old, p_new)"},
+    {"tree_derivatives", (PyCFunction)(void (*)(void))py_tree_derivatives, METH_FASTCALL,
+     "tree_derivatives(desc, y, p, dy(nx + 1))"},
+    {"tree_accelerations", (PyCFunction)(void (*)(void))py_tree_accelerations, METH_FASTCALL,
+     "tree_accelerations(desc, y, p, qdd(dof))"},
+    {"tree_scalar", (PyCFunction)(void (*)(void))py_tree_scalar, METH_FASTCALL,
+     "tree_scalar(desc, y, p, which) -> torque-free (0) or the fastest rate (1)"},
     {"pack", (PyCFunction)(void (*)(void))py_pack, METH_FASTCALL,
      "pack(out(rows, width), columns int64, t0, dt, res(rows, 1 + k)): res[r] = (t0 + r*dt, out[r, columns])"},
     {"advance", (PyCFunction)(void (*)(void))py_advance, METH_FASTCALL,
@@ -417,6 +658,18 @@ static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_engine",
 PyMODINIT_FUNC PyInit__engine(void) {
     PyObject *m = PyModule_Create(&module);
     if (!m) return NULL;
+    PyModule_AddIntConstant(m, "TREE_MAX", GS_TREE_MAX);
+    PyModule_AddIntConstant(m, "TREE_NMON", GS_TREE_NMON);
+    PyModule_AddIntConstant(m, "TB_NP", GS_TB_NP);
+    PyModule_AddIntConstant(m, "TP_HEAD", GS_TP_HEAD);
+    {
+        static const struct { const char *name; int value; } tc[] = {
+            {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
+            {"TB_POS", GS_TB_POS}, {"TB_AXIS", GS_TB_AXIS}, {"TB_MASS", GS_TB_MASS}, {"TB_CM", GS_TB_CM},
+            {"TB_I", GS_TB_I}, {"TB_STIFF", GS_TB_STIFF}, {"TB_REST", GS_TB_REST}, {"TB_DAMP", GS_TB_DAMP},
+            {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}};
+        for (size_t i = 0; i < sizeof(tc) / sizeof(tc[0]); i++) PyModule_AddIntConstant(m, tc[i].name, tc[i].value);
+    }
     PyModule_AddIntConstant(m, "NY", GS_NY);
     PyModule_AddIntConstant(m, "NP", GS_NP);
     PyModule_AddIntConstant(m, "NOUT", GS_NOUT);

@@ -955,18 +955,6 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
 #include "rk_tables.h"
 
 
-/* Dormand-Prince 5(4) tableau (adaptive: step mode and dense output) */
-static const double D5_A[7][7] = {
-    {0.0},
-    {1.0 / 5.0},
-    {3.0 / 40.0, 9.0 / 40.0},
-    {44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0},
-    {19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0},
-    {9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0},
-    {35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0}};
-static const double D5_E[7] = {71.0 / 57600.0, 0.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0,
-                               22.0 / 525.0, -1.0 / 40.0};
-
 typedef struct {
     double K[16][8];   /* stages (dop853 uses 13 + 3 for dense output; dopri5 7) */
     double y0[8];      /* state at the start of the step: q, omega and, with GS_WORK terms, y[10] */

@@ -1,0 +1,48 @@
+/*
+ * gyrosim engine: one Runge-Kutta driver over a right-hand side (rk.c). It knows nothing of what it integrates:
+ * a system gives its derivative function, how many components it integrates, how many of them enter the error
+ * norm, a projection applied after every accepted step (unit quaternions) and the health monitor's check.
+ *
+ * The tree of bodies (tree.c) is driven by it with euler, rk4, adaptive (Dormand-Prince 5(4)) and dop853
+ * (Dormand-Prince 8(5,3)); the tableaux are those of the one-body engine (rk_tables.h), so a method means the same
+ * thing on every system.
+ */
+#ifndef GYROSIM_ODE_H
+#define GYROSIM_ODE_H
+
+#include "gyrosim_engine.h"   /* first: its FP_CONTRACT pragma; the method codes */
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The most components one system integrates (a tree of GS_TREE_MAX free bodies and its work integral). */
+#define GS_ODE_MAX 424
+
+typedef struct {
+    /* dy[0:nv] = f(y[0:nv]); y may hold more components after nv (the monitor's constants), read-only here */
+    void (*rhs)(const void *ctx, const double *y, double *dy);
+    /* after every accepted step (may be NULL): e.g. quaternions back to unit norm */
+    void (*project)(const void *ctx, double *y);
+    /* the health monitor (may be NULL): 1 when the state y counts as blown up; it may restart the invariants the
+     * system does not conserve now (it is called only on accepted states) */
+    int (*check)(const void *ctx, double *y);
+    const void *ctx;
+    int nv;   /* integrated components, at most GS_ODE_MAX */
+    int ne;   /* the first ne of them enter the adaptive methods' error norm */
+    int ny;   /* the whole state (nv integrated, then constants the step carries along) */
+} gs_ode;
+
+/* Advance y over H: fixed-step methods (GS_EULER, GS_RK4) take n_sub equal steps (gs_substeps); GS_ADAPTIVE and
+ * GS_DOP853 take the steps their error control chooses (rtol, atol; none longer than max_step; the last one ends
+ * at H) from the step-size hint (0: choose one), which they update. The health monitor is asked every
+ * n_sub/128 fixed steps and at the end. Returns 0, or the failing internal step + 1 (y and hint are then as they
+ * were before the call; stats counts the work done). Other method codes fail with step 1. */
+int64_t gs_ode_advance(int method, const gs_ode *o, double *y, double H, int64_t n_sub, double rtol, double atol,
+                       double max_step, double *hint, int64_t stats[GS_NSTATS]);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,131 @@
+/*
+ * gyrosim engine: trees of rigid bodies joined by joints (tree.c), in Pinocchio's and RBDL's layout: a model
+ * description (gs_tree: bodies, parents, joints, where each body's coordinates and parameters live), the
+ * per-system arrays (state y, parameters p) and algorithms as free functions over both. Forward dynamics by
+ * Featherstone's articulated-body algorithm (O(n)), in each body's own frame, driven by the one Runge-Kutta
+ * driver (gyrosim_ode.h).
+ *
+ * Conventions (DESIGN.md 4b): world z up, gravity g along -z. A body's frame has its origin at its joint point
+ * (the pivot, the hinge's point, a free body's reference point). Joints, the child relative to its parent:
+ *   GS_J_BALL   3 rotational degrees of freedom about the joint point: q (w, x, y, z; child -> parent), omega
+ *               (rad/s, the child's angular velocity relative to the parent, in the child frame). free_rotation is
+ *               a ball whose joint point is the centre of mass.
+ *   GS_J_HINGE  1, about `axis` (unit, in the parent frame; equal in the child frame): angle (rad), rate (rad/s).
+ *   GS_J_FREE   6, a root only: q, r (m, the origin from `pos`, world), omega (rad/s, child frame), v (m/s, world).
+ *   GS_J_FIXED  0: the child frame is the parent's, moved by `pos`.
+ *
+ * The state of one system, y[ny]: every body's joint coordinates in body order (ball: q[4], omega[3]; hinge:
+ * angle, rate; free: q[4], r[3], omega[3], v[3]; fixed: none), nx in all; then the health monitor:
+ *   y[nx]     E0 + W (J): the energy the work-energy balance expects; W, the work of the motors and the external
+ *             torques minus the joints' dissipation, is integrated with the state (component nx)
+ *   y[nx+1]   the energy scale S0 (J): T0 + sum m g |c - o_root| + the springs' energy at the start
+ *   y[nx+2..4] L0 (kg*m^2/s, world, about the world origin): the angular momentum the tree keeps while it is
+ *             torque-free (restarted after every step where it is not)
+ *   y[nx+5]   the momentum scale (kg*m^2/s)
+ * The parameters of one system, p[np]: g (m/s^2), max_drift, then GS_TB_NP per body (below), then the stiffness
+ * (N*m/rad) of every coupling spring between two hinges.
+ */
+#ifndef GYROSIM_TREE_H
+#define GYROSIM_TREE_H
+
+#include "gyrosim_ode.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define GS_TREE_MAX 32
+
+#define GS_J_BALL 0
+#define GS_J_HINGE 1
+#define GS_J_FREE 2
+#define GS_J_FIXED 3
+
+/* per-body parameters (offsets in the body's block of p) */
+#define GS_TB_POS 0     /* 3: the joint point in the parent frame (m; world for a root) */
+#define GS_TB_AXIS 3    /* 3: the hinge axis (unit, parent frame) */
+#define GS_TB_MASS 6    /* kg */
+#define GS_TB_CM 7      /* 3: centre of mass in the body frame from the joint point (m) */
+#define GS_TB_I 10      /* 6: inertia about the centre of mass, body frame: Ixx, Iyy, Izz, Ixy, Ixz, Iyz (matrix
+                         * elements, kg*m^2) */
+#define GS_TB_STIFF 16  /* hinge spring stiffness (N*m/rad) */
+#define GS_TB_REST 17   /* its rest angle (rad) */
+#define GS_TB_DAMP 18   /* joint viscous damping: hinge N*m*s/rad, ball and free N*m*s (-damping * omega) */
+#define GS_TB_MOTOR 19  /* hinge motor torque (N*m, on the child about the axis, its reaction on the parent) */
+#define GS_TB_TAU 20    /* 3: external torque on the body, body frame (N*m) */
+#define GS_TB_NP 23
+
+#define GS_TP_G 0
+#define GS_TP_DRIFT 1
+#define GS_TP_HEAD 2
+
+#define GS_TREE_NMON 6
+
+typedef struct {
+    int n;                       /* bodies */
+    int n_cpl;                   /* coupling springs */
+    int parent[GS_TREE_MAX];     /* index of the parent body (< the body's own), -1 = the world */
+    int joint[GS_TREE_MAX];      /* GS_J_* */
+    int yi[GS_TREE_MAX];         /* offset of the body's joint coordinates in y */
+    int cpl_a[GS_TREE_MAX], cpl_b[GS_TREE_MAX];   /* coupled hinge bodies */
+    int nx, ny, np;
+} gs_tree;
+
+/* The description as a flat int32 array: n, n_cpl, then (parent, joint) per body, then (a, b) per coupling.
+ * Returns 0, or a nonzero code when it is not a valid tree (a parent not before its child, a free joint that is
+ * not a root, an unknown joint, a coupling between bodies that are not hinges, sizes beyond GS_TREE_MAX). */
+int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
+
+/* Joint coordinates a body has (7, 2, 13, 0) and velocity degrees of freedom (3, 1, 6, 0). */
+int gs_tree_ncoord(int joint);
+int gs_tree_ndof(int joint);
+
+/* The right-hand side: dy[0:nx] the joint coordinates' derivatives (quaternions as given: dq = q (0, omega) / 2),
+ * dy[nx] the power of the motors and external torques minus the joints' dissipation (W). */
+void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy);
+
+/* Joint accelerations only (for tests against other multibody codes): qdd[sum of dof] in body order (ball:
+ * domega/dt, child frame; hinge: angle''; free: domega/dt child frame, then dv/dt world). */
+void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd);
+
+/* Outputs of one system per row: y[0:nx], then every body's world attitude q_world (4 each), then energy (J),
+ * energy_error (J), L_x, L_y, L_z (world, about the world origin). GS_TREE_NOUT(t) values. */
+#define GS_TREE_NOUT(t) ((t)->nx + 4 * (t)->n + 5)
+void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out);
+
+/* Start a state: quaternions normalised (0 returned when one is zero or a value is not finite, else 1), the
+ * monitor's start values set. */
+int gs_tree_start(const gs_tree *t, double *y, const double *p);
+
+/* Parameters changed during a run: the balance's expected energy moves by the energy change they make. */
+void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new);
+
+/* The health monitor's relative drifts: d[0] the energy balance, d[1] the angular momentum (where the tree is
+ * torque-free: every root free or a ball at the world origin, no gravity acting, no external torque, no damping
+ * at a root; 0 elsewhere). Returns the largest (NaN for a non-finite state). */
+double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]);
+
+/* 1 when the tree keeps its angular momentum with these parameters (see gs_tree_drift). */
+int gs_tree_torque_free(const gs_tree *t, const double *p);
+
+/* The fastest rate in the state (rad/s): the largest body angular speed and hinge rate. */
+double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p);
+
+/* Advance n systems (y: n * ny, p: n * np) over H (as gs_advance: euler and rk4 take gs_substeps(H, max_step)
+ * equal steps, adaptive and dop853 their own). Returns the failed systems; status[b] = the failing internal step + 1
+ * (y, hint of that system then as before the call). Other methods fail every system with status -1. */
+size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
+                       double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads);
+
+/* n_out intervals of dt: outputs at every point (k = 0..n_out) into out[(k * n + b) * GS_TREE_NOUT + .], the bits of
+ * a loop of gs_tree_advance. A failing system gets status[b] = the interval (1-based) and NaN rows from there; its
+ * state is left at the start of that interval. Returns the failed systems. */
+size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
+                          int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                          int32_t *status, int threads, double *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

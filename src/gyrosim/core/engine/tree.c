@@ -1,0 +1,812 @@
+/*
+ * gyrosim engine: trees of rigid bodies (gyrosim_tree.h). Forward dynamics by Featherstone's articulated-body
+ * algorithm (Rigid Body Dynamics Algorithms, 2008, table 7.1), every quantity in the body's own frame, gravity as
+ * an upward acceleration of the world; spatial vectors are (angular; linear).
+ */
+#include "gyrosim_tree.h"   /* first: the engine header's FP_CONTRACT pragma */
+
+#include <math.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+typedef double M3[3][3];
+typedef double M6[6][6];
+
+int gs_tree_ncoord(int joint) {
+    return joint == GS_J_BALL ? 7 : joint == GS_J_HINGE ? 2 : joint == GS_J_FREE ? 13 : 0;
+}
+
+int gs_tree_ndof(int joint) {
+    return joint == GS_J_BALL ? 3 : joint == GS_J_HINGE ? 1 : joint == GS_J_FREE ? 6 : 0;
+}
+
+int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
+    if (len < 2) return 1;
+    const int n = desc[0], nc = desc[1];
+    if (n < 1 || n > GS_TREE_MAX || nc < 0 || nc > GS_TREE_MAX) return 2;
+    if (len != (size_t)(2 + 2 * n + 2 * nc)) return 3;
+    t->n = n;
+    t->n_cpl = nc;
+    int at = 0;
+    for (int i = 0; i < n; i++) {
+        const int par = desc[2 + 2 * i], j = desc[3 + 2 * i];
+        if (par < -1 || par >= i) return 4;                      /* parents before their children */
+        if (j < GS_J_BALL || j > GS_J_FIXED) return 5;
+        if (j == GS_J_FREE && par != -1) return 6;               /* a free joint is a root */
+        t->parent[i] = par;
+        t->joint[i] = j;
+        t->yi[i] = at;
+        at += gs_tree_ncoord(j);
+    }
+    for (int c = 0; c < nc; c++) {
+        const int a = desc[2 + 2 * n + 2 * c], b = desc[3 + 2 * n + 2 * c];
+        if (a < 0 || a >= n || b < 0 || b >= n || a == b) return 7;
+        if (t->joint[a] != GS_J_HINGE || t->joint[b] != GS_J_HINGE) return 8;
+        t->cpl_a[c] = a;
+        t->cpl_b[c] = b;
+    }
+    t->nx = at;
+    t->ny = at + GS_TREE_NMON;
+    t->np = GS_TP_HEAD + GS_TB_NP * n + nc;
+    if (at + 1 > GS_ODE_MAX) return 9;
+    return 0;
+}
+
+/* ---------------------------------------------------------------------------------------------- small algebra */
+
+static void cross3(const double a[3], const double b[3], double c[3]) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static void mv3(const M3 A, const double x[3], double y[3]) {
+    for (int i = 0; i < 3; i++) y[i] = A[i][0] * x[0] + A[i][1] * x[1] + A[i][2] * x[2];
+}
+
+static void mtv3(const M3 A, const double x[3], double y[3]) {   /* A^T x */
+    for (int i = 0; i < 3; i++) y[i] = A[0][i] * x[0] + A[1][i] * x[1] + A[2][i] * x[2];
+}
+
+static void mm3(const M3 A, const M3 B, M3 C) {
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++) C[i][j] = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
+    }
+}
+
+/* rotation matrix (child -> parent) of a unit quaternion (w, x, y, z) */
+static void quat_to_mat(const double *q, M3 R) {
+    const double w = q[0], x = q[1], y = q[2], z = q[3];
+    R[0][0] = 1.0 - 2.0 * (y * y + z * z);
+    R[0][1] = 2.0 * (x * y - w * z);
+    R[0][2] = 2.0 * (x * z + w * y);
+    R[1][0] = 2.0 * (x * y + w * z);
+    R[1][1] = 1.0 - 2.0 * (x * x + z * z);
+    R[1][2] = 2.0 * (y * z - w * x);
+    R[2][0] = 2.0 * (x * z - w * y);
+    R[2][1] = 2.0 * (y * z + w * x);
+    R[2][2] = 1.0 - 2.0 * (x * x + y * y);
+}
+
+static void hinge_quat(const double axis[3], double angle, double q[4]) {
+    const double s = sin(0.5 * angle);
+    q[0] = cos(0.5 * angle);
+    q[1] = s * axis[0];
+    q[2] = s * axis[1];
+    q[3] = s * axis[2];
+}
+
+static void quat_mul(const double a[4], const double b[4], double c[4]) {
+    c[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
+    c[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
+    c[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
+    c[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
+}
+
+static void quat_rate(const double *q, const double *w, double *dq) {   /* q (0, w) / 2 */
+    dq[0] = -0.5 * (q[1] * w[0] + q[2] * w[1] + q[3] * w[2]);
+    dq[1] = 0.5 * (q[0] * w[0] + q[2] * w[2] - q[3] * w[1]);
+    dq[2] = 0.5 * (q[0] * w[1] + q[3] * w[0] - q[1] * w[2]);
+    dq[3] = 0.5 * (q[0] * w[2] + q[1] * w[1] - q[2] * w[0]);
+}
+
+/* motion cross product v x m */
+static void crm(const double v[6], const double m[6], double out[6]) {
+    double a[3], b[3];
+    cross3(v, m, out);
+    cross3(v, m + 3, a);
+    cross3(v + 3, m, b);
+    for (int i = 0; i < 3; i++) out[3 + i] = a[i] + b[i];
+}
+
+/* force cross product v x* f */
+static void crf(const double v[6], const double f[6], double out[6]) {
+    double a[3], b[3];
+    cross3(v, f, a);
+    cross3(v + 3, f + 3, b);
+    for (int i = 0; i < 3; i++) out[i] = a[i] + b[i];
+    cross3(v, f + 3, out + 3);
+}
+
+static void mv6(const M6 A, const double x[6], double y[6]) {
+    for (int i = 0; i < 6; i++) {
+        double s = 0.0;
+        for (int j = 0; j < 6; j++) s += A[i][j] * x[j];
+        y[i] = s;
+    }
+}
+
+/* ---------------------------------------------------------------------------------------------- the model */
+
+typedef struct {
+    M3 E[GS_TREE_MAX];        /* parent coordinates -> child coordinates (R_rel^T) */
+    double r[GS_TREE_MAX][3];  /* the child origin in parent coordinates */
+    M3 Rw[GS_TREE_MAX];       /* child -> world */
+    double ow[GS_TREE_MAX][3]; /* the child origin in the world */
+    double v[GS_TREE_MAX][6];  /* spatial velocity, child coordinates */
+    double vj[GS_TREE_MAX][6]; /* the joint's velocity */
+    double qd[GS_TREE_MAX][6]; /* the joint's generalized velocity (free: omega, v in child coordinates) */
+} Kin;
+
+static const double *body_p(const double *p, int i) { return p + GS_TP_HEAD + GS_TB_NP * i; }
+
+/* spatial inertia about the body origin, body coordinates */
+static void body_inertia(const double *b, M6 I) {
+    const double m = b[GS_TB_MASS], *c = b + GS_TB_CM, *J = b + GS_TB_I;
+    const double cc = dot3(c, c);
+    const double Ic[3][3] = {{J[0], J[3], J[4]}, {J[3], J[1], J[5]}, {J[4], J[5], J[2]}};
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++) {
+            I[i][j] = Ic[i][j] + m * ((i == j ? cc : 0.0) - c[i] * c[j]);
+            I[3 + i][3 + j] = i == j ? m : 0.0;
+        }
+    }
+    /* top right m [c]x, bottom left its transpose */
+    const double cx[3][3] = {{0.0, -c[2], c[1]}, {c[2], 0.0, -c[0]}, {-c[1], c[0], 0.0}};
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++) {
+            I[i][3 + j] = m * cx[i][j];
+            I[3 + i][j] = m * cx[j][i];
+        }
+    }
+}
+
+/* positions and velocities of every body (pass 1 without the accelerations) */
+static void kinematics(const gs_tree *t, const double *y, const double *p, Kin *k) {
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *s = y + t->yi[i];
+        M3 R;
+        double vj[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+        memcpy(k->r[i], b + GS_TB_POS, sizeof(k->r[i]));
+        switch (t->joint[i]) {
+            case GS_J_BALL:
+                quat_to_mat(s, R);
+                memcpy(vj, s + 4, 3 * sizeof(double));
+                break;
+            case GS_J_HINGE: {
+                double q[4];
+                hinge_quat(b + GS_TB_AXIS, s[0], q);
+                quat_to_mat(q, R);
+                for (int a = 0; a < 3; a++) vj[a] = b[GS_TB_AXIS + a] * s[1];
+                break;
+            }
+            case GS_J_FREE:
+                quat_to_mat(s, R);
+                for (int a = 0; a < 3; a++) k->r[i][a] += s[4 + a];
+                memcpy(vj, s + 7, 3 * sizeof(double));
+                mtv3(R, s + 10, vj + 3);   /* v in child coordinates */
+                break;
+            default:
+                memset(R, 0, sizeof(M3));
+                R[0][0] = R[1][1] = R[2][2] = 1.0;
+        }
+        for (int a = 0; a < 3; a++) {
+            for (int c = 0; c < 3; c++) k->E[i][a][c] = R[c][a];
+        }
+        memcpy(k->vj[i], vj, sizeof(vj));
+        memcpy(k->qd[i], vj, sizeof(vj));
+        const int par = t->parent[i];
+        if (par < 0) {
+            memcpy(k->Rw[i], R, sizeof(M3));
+            memcpy(k->ow[i], k->r[i], sizeof(k->ow[i]));
+            memcpy(k->v[i], vj, sizeof(vj));
+        } else {
+            double d[3], tmp[3], vp[6];
+            mm3(k->Rw[par], R, k->Rw[i]);
+            mv3(k->Rw[par], k->r[i], d);
+            for (int a = 0; a < 3; a++) k->ow[i][a] = k->ow[par][a] + d[a];
+            /* X v_parent: (E w, E (v - r x w)) */
+            mv3(k->E[i], k->v[par], vp);
+            cross3(k->r[i], k->v[par], tmp);
+            for (int a = 0; a < 3; a++) tmp[a] = k->v[par][3 + a] - tmp[a];
+            mv3(k->E[i], tmp, vp + 3);
+            for (int a = 0; a < 6; a++) k->v[i][a] = vp[a] + vj[a];
+        }
+    }
+}
+
+/* the joint generalized forces (springs, damping, motors, couplings) */
+static void joint_forces(const gs_tree *t, const double *y, const double *p, double tau[GS_TREE_MAX][6]) {
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *s = y + t->yi[i];
+        for (int a = 0; a < 6; a++) tau[i][a] = 0.0;
+        switch (t->joint[i]) {
+            case GS_J_BALL:
+                for (int a = 0; a < 3; a++) tau[i][a] = -b[GS_TB_DAMP] * s[4 + a];
+                break;
+            case GS_J_HINGE:
+                tau[i][0] = b[GS_TB_MOTOR] - b[GS_TB_STIFF] * (s[0] - b[GS_TB_REST]) - b[GS_TB_DAMP] * s[1];
+                break;
+            case GS_J_FREE:
+                for (int a = 0; a < 3; a++) tau[i][a] = -b[GS_TB_DAMP] * s[7 + a];
+                break;
+            default:
+                break;
+        }
+    }
+    const double *kc = p + GS_TP_HEAD + GS_TB_NP * t->n;
+    for (int c = 0; c < t->n_cpl; c++) {
+        const int a = t->cpl_a[c], bb = t->cpl_b[c];
+        const double m = kc[c] * (y[t->yi[a]] - y[t->yi[bb]]);
+        tau[a][0] -= m;
+        tau[bb][0] += m;
+    }
+}
+
+/* the joint's motion subspace S (6 x k) in child coordinates */
+static int subspace(const gs_tree *t, const double *p, int i, double S[6][6]) {
+    const int k = gs_tree_ndof(t->joint[i]);
+    memset(S, 0, sizeof(double) * 36);
+    if (t->joint[i] == GS_J_HINGE) {
+        const double *ax = body_p(p, i) + GS_TB_AXIS;
+        S[0][0] = ax[0];
+        S[1][0] = ax[1];
+        S[2][0] = ax[2];
+    } else {
+        for (int a = 0; a < k; a++) S[a][a] = 1.0;
+    }
+    return k;
+}
+
+/* inverse of a k x k symmetric positive definite matrix (k <= 6) by Gauss-Jordan; 0 when singular */
+static int inverse(int k, double A[6][6], double Ai[6][6]) {
+    double M[6][12];
+    for (int i = 0; i < k; i++) {
+        for (int j = 0; j < k; j++) {
+            M[i][j] = A[i][j];
+            M[i][k + j] = i == j ? 1.0 : 0.0;
+        }
+    }
+    for (int c = 0; c < k; c++) {
+        int piv = c;
+        for (int r = c + 1; r < k; r++) {
+            if (fabs(M[r][c]) > fabs(M[piv][c])) piv = r;
+        }
+        if (!(fabs(M[piv][c]) > 0.0)) return 0;
+        if (piv != c) {
+            for (int j = 0; j < 2 * k; j++) {
+                const double tmp = M[c][j];
+                M[c][j] = M[piv][j];
+                M[piv][j] = tmp;
+            }
+        }
+        const double d = M[c][c];
+        for (int j = 0; j < 2 * k; j++) M[c][j] /= d;
+        for (int r = 0; r < k; r++) {
+            if (r == c) continue;
+            const double f = M[r][c];
+            if (f == 0.0) continue;
+            for (int j = 0; j < 2 * k; j++) M[r][j] -= f * M[c][j];
+        }
+    }
+    for (int i = 0; i < k; i++) {
+        for (int j = 0; j < k; j++) Ai[i][j] = M[i][k + j];
+    }
+    return 1;
+}
+
+/* the articulated-body algorithm: joint accelerations qdd[i][0:k] */
+static void aba(const gs_tree *t, const double *y, const double *p, const Kin *kin, double qdd[GS_TREE_MAX][6]) {
+    M6 IA[GS_TREE_MAX];
+    double pA[GS_TREE_MAX][6], c[GS_TREE_MAX][6], U[GS_TREE_MAX][6][6], Di[GS_TREE_MAX][6][6], u[GS_TREE_MAX][6];
+    double tau[GS_TREE_MAX][6];
+    int nd[GS_TREE_MAX];
+    joint_forces(t, y, p, tau);
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i);
+        double h[6], f[6];
+        body_inertia(b, IA[i]);
+        mv6(IA[i], kin->v[i], h);
+        crf(kin->v[i], h, f);
+        for (int a = 0; a < 3; a++) {
+            pA[i][a] = f[a] - b[GS_TB_TAU + a];
+            pA[i][3 + a] = f[3 + a];
+        }
+        if (t->parent[i] >= 0) {
+            crm(kin->v[i], kin->vj[i], c[i]);
+        } else {
+            for (int a = 0; a < 6; a++) c[i][a] = 0.0;   /* the world does not move */
+        }
+    }
+    for (int i = t->n - 1; i >= 0; i--) {
+        double S[6][6];
+        const int k = subspace(t, p, i, S);
+        nd[i] = k;
+        double D[6][6];
+        for (int a = 0; a < 6; a++) {
+            for (int j = 0; j < k; j++) {
+                double s = 0.0;
+                for (int l = 0; l < 6; l++) s += IA[i][a][l] * S[l][j];
+                U[i][a][j] = s;
+            }
+        }
+        for (int a = 0; a < k; a++) {
+            for (int j = 0; j < k; j++) {
+                double s = 0.0;
+                for (int l = 0; l < 6; l++) s += S[l][a] * U[i][l][j];
+                D[a][j] = s;
+            }
+            double s = 0.0;
+            for (int l = 0; l < 6; l++) s += S[l][a] * pA[i][l];
+            u[i][a] = tau[i][a] - s;
+        }
+        if (k > 0 && !inverse(k, D, Di[i])) {
+            for (int a = 0; a < k; a++) {
+                for (int j = 0; j < k; j++) Di[i][a][j] = NAN;
+            }
+        }
+        const int par = t->parent[i];
+        if (par < 0) continue;
+        /* Ia = IA - U D^-1 U^T, pa = pA + Ia c + U D^-1 u */
+        M6 Ia;
+        double pa[6], UDi[6][6], Du[6];
+        for (int a = 0; a < 6; a++) {
+            for (int j = 0; j < k; j++) {
+                double s = 0.0;
+                for (int l = 0; l < k; l++) s += U[i][a][l] * Di[i][l][j];
+                UDi[a][j] = s;
+            }
+        }
+        for (int a = 0; a < 6; a++) {
+            for (int j = 0; j < 6; j++) {
+                double s = 0.0;
+                for (int l = 0; l < k; l++) s += UDi[a][l] * U[i][j][l];
+                Ia[a][j] = IA[i][a][j] - s;
+            }
+        }
+        for (int a = 0; a < k; a++) Du[a] = u[i][a];
+        mv6(Ia, c[i], pa);
+        for (int a = 0; a < 6; a++) {
+            double s = 0.0;
+            for (int l = 0; l < k; l++) s += UDi[a][l] * Du[l];
+            pa[a] += pA[i][a] + s;
+        }
+        /* to the parent: IA_p += X^T Ia X, pA_p += X^T pa, X = [E 0; -E [r]x E] */
+        const M3 *E = &kin->E[i];
+        const double *r = kin->r[i];
+        M6 X, IX;
+        const double rx[3][3] = {{0.0, -r[2], r[1]}, {r[2], 0.0, -r[0]}, {-r[1], r[0], 0.0}};
+        for (int a = 0; a < 3; a++) {
+            for (int j = 0; j < 3; j++) {
+                X[a][j] = (*E)[a][j];
+                X[a][3 + j] = 0.0;
+                X[3 + a][3 + j] = (*E)[a][j];
+                double s = 0.0;
+                for (int l = 0; l < 3; l++) s += (*E)[a][l] * rx[l][j];
+                X[3 + a][j] = -s;
+            }
+        }
+        for (int a = 0; a < 6; a++) {
+            for (int j = 0; j < 6; j++) {
+                double s = 0.0;
+                for (int l = 0; l < 6; l++) s += Ia[a][l] * X[l][j];
+                IX[a][j] = s;
+            }
+        }
+        for (int a = 0; a < 6; a++) {
+            for (int j = 0; j < 6; j++) {
+                double s = 0.0;
+                for (int l = 0; l < 6; l++) s += X[l][a] * IX[l][j];
+                IA[par][a][j] += s;
+            }
+            double s = 0.0;
+            for (int l = 0; l < 6; l++) s += X[l][a] * pa[l];
+            pA[par][a] += s;
+        }
+    }
+    double acc[GS_TREE_MAX][6];
+    const double g = p[GS_TP_G];
+    for (int i = 0; i < t->n; i++) {
+        const int par = t->parent[i];
+        double ap[6];
+        if (par < 0) {
+            const double up[3] = {0.0, 0.0, g};   /* gravity: the world accelerates upwards */
+            ap[0] = ap[1] = ap[2] = 0.0;
+            mv3(kin->E[i], up, ap + 3);
+        } else {
+            double tmp[3];
+            mv3(kin->E[i], acc[par], ap);
+            cross3(kin->r[i], acc[par], tmp);
+            for (int a = 0; a < 3; a++) tmp[a] = acc[par][3 + a] - tmp[a];
+            mv3(kin->E[i], tmp, ap + 3);
+        }
+        for (int a = 0; a < 6; a++) ap[a] += c[i][a];
+        const int k = nd[i];
+        double S[6][6], rhs[6];
+        subspace(t, p, i, S);
+        for (int a = 0; a < k; a++) {
+            double s = 0.0;
+            for (int l = 0; l < 6; l++) s += U[i][l][a] * ap[l];
+            rhs[a] = u[i][a] - s;
+        }
+        for (int a = 0; a < k; a++) {
+            double s = 0.0;
+            for (int l = 0; l < k; l++) s += Di[i][a][l] * rhs[l];
+            qdd[i][a] = s;
+        }
+        for (int a = 0; a < 6; a++) {
+            double s = 0.0;
+            for (int l = 0; l < k; l++) s += S[a][l] * qdd[i][l];
+            acc[i][a] = ap[a] + s;
+        }
+    }
+}
+
+static double power(const gs_tree *t, const double *y, const double *p, const Kin *kin) {
+    double P = 0.0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *s = y + t->yi[i];
+        P += dot3(b + GS_TB_TAU, kin->v[i]);
+        switch (t->joint[i]) {
+            case GS_J_BALL:
+                P -= b[GS_TB_DAMP] * dot3(s + 4, s + 4);
+                break;
+            case GS_J_HINGE:
+                P += (b[GS_TB_MOTOR] - b[GS_TB_DAMP] * s[1]) * s[1];
+                break;
+            case GS_J_FREE:
+                P -= b[GS_TB_DAMP] * dot3(s + 7, s + 7);
+                break;
+            default:
+                break;
+        }
+    }
+    return P;
+}
+
+void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
+    Kin kin;
+    double qdd[GS_TREE_MAX][6];
+    kinematics(t, y, p, &kin);
+    aba(t, y, p, &kin, qdd);
+    for (int i = 0; i < t->n; i++) {
+        const double *s = y + t->yi[i];
+        double *d = dy + t->yi[i];
+        switch (t->joint[i]) {
+            case GS_J_BALL:
+                quat_rate(s, s + 4, d);
+                memcpy(d + 4, qdd[i], 3 * sizeof(double));
+                break;
+            case GS_J_HINGE:
+                d[0] = s[1];
+                d[1] = qdd[i][0];
+                break;
+            case GS_J_FREE: {
+                double wv[3], a[3];
+                quat_rate(s, s + 7, d);
+                memcpy(d + 4, s + 10, 3 * sizeof(double));
+                memcpy(d + 7, qdd[i], 3 * sizeof(double));
+                cross3(s + 7, kin.qd[i] + 3, wv);
+                for (int c = 0; c < 3; c++) a[c] = qdd[i][3 + c] + wv[c];
+                mv3(kin.Rw[i], a, d + 10);   /* the origin's acceleration, world */
+                break;
+            }
+            default:
+                break;
+        }
+    }
+    dy[t->nx] = power(t, y, p, &kin);
+}
+
+void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd_out) {
+    double dy[GS_ODE_MAX];
+    gs_tree_derivatives(t, y, p, dy);
+    int at = 0;
+    for (int i = 0; i < t->n; i++) {
+        const double *d = dy + t->yi[i];
+        switch (t->joint[i]) {
+            case GS_J_BALL:
+                memcpy(qdd_out + at, d + 4, 3 * sizeof(double));
+                at += 3;
+                break;
+            case GS_J_HINGE:
+                qdd_out[at++] = d[1];
+                break;
+            case GS_J_FREE:
+                memcpy(qdd_out + at, d + 7, 6 * sizeof(double));
+                at += 6;
+                break;
+            default:
+                break;
+        }
+    }
+}
+
+/* ---------------------------------------------------------------------------------------------- energy, momentum */
+
+typedef struct {
+    double T, V, L[3];
+    double pot_scale;   /* sum m g |c - o_root| + the springs' energy */
+    double inertia;     /* a moment of inertia of the whole tree about its roots (kg*m^2) */
+} Totals;
+
+static int root_of(const gs_tree *t, int i) {
+    while (t->parent[i] >= 0) i = t->parent[i];
+    return i;
+}
+
+static void totals(const gs_tree *t, const double *y, const double *p, Totals *s) {
+    Kin kin;
+    kinematics(t, y, p, &kin);
+    const double g = p[GS_TP_G];
+    s->T = s->V = s->pot_scale = s->inertia = 0.0;
+    s->L[0] = s->L[1] = s->L[2] = 0.0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *st = y + t->yi[i];
+        M6 I;
+        double h[6], cw[3], nw[3], fw[3], oxf[3];
+        body_inertia(b, I);
+        mv6(I, kin.v[i], h);
+        s->T += 0.5 * (dot3(kin.v[i], h) + dot3(kin.v[i] + 3, h + 3));
+        mv3(kin.Rw[i], b + GS_TB_CM, cw);
+        const double m = b[GS_TB_MASS];
+        s->V += m * g * (kin.ow[i][2] + cw[2]);
+        const int r = root_of(t, i);
+        double d[3];
+        for (int a = 0; a < 3; a++) d[a] = kin.ow[i][a] + cw[a] - kin.ow[r][a];
+        s->pot_scale += m * g * sqrt(dot3(d, d));
+        s->inertia += 0.5 * (b[GS_TB_I] + b[GS_TB_I + 1] + b[GS_TB_I + 2]) + m * dot3(d, d);
+        mv3(kin.Rw[i], h, nw);
+        mv3(kin.Rw[i], h + 3, fw);
+        cross3(kin.ow[i], fw, oxf);
+        for (int a = 0; a < 3; a++) s->L[a] += nw[a] + oxf[a];
+        if (t->joint[i] == GS_J_HINGE) {
+            const double e = st[0] - b[GS_TB_REST];
+            s->V += 0.5 * b[GS_TB_STIFF] * e * e;
+            s->pot_scale += 0.5 * b[GS_TB_STIFF] * e * e;
+        }
+    }
+    const double *kc = p + GS_TP_HEAD + GS_TB_NP * t->n;
+    for (int c = 0; c < t->n_cpl; c++) {
+        const double e = y[t->yi[t->cpl_a[c]]] - y[t->yi[t->cpl_b[c]]];
+        s->V += 0.5 * kc[c] * e * e;
+        s->pot_scale += 0.5 * kc[c] * e * e;
+    }
+}
+
+int gs_tree_torque_free(const gs_tree *t, const double *p) {
+    double mass = 0.0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i);
+        mass += b[GS_TB_MASS];
+        if (b[GS_TB_TAU] != 0.0 || b[GS_TB_TAU + 1] != 0.0 || b[GS_TB_TAU + 2] != 0.0) return 0;
+        if (t->parent[i] >= 0) continue;
+        if (t->joint[i] == GS_J_HINGE || t->joint[i] == GS_J_FIXED) return 0;
+        if (b[GS_TB_DAMP] != 0.0) return 0;
+        if (t->joint[i] == GS_J_BALL &&
+            (b[GS_TB_POS] != 0.0 || b[GS_TB_POS + 1] != 0.0 || b[GS_TB_POS + 2] != 0.0)) return 0;
+    }
+    return p[GS_TP_G] * mass == 0.0;
+}
+
+static double norm3(const double a[3]) { return sqrt(dot3(a, a)); }
+
+int gs_tree_start(const gs_tree *t, double *y, const double *p) {
+    for (int i = 0; i < t->nx; i++) {
+        if (!isfinite(y[i])) return 0;
+    }
+    for (int i = 0; i < t->n; i++) {
+        if (t->joint[i] != GS_J_BALL && t->joint[i] != GS_J_FREE) continue;
+        double *q = y + t->yi[i];
+        const double nq = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        if (!(nq > 0.0)) return 0;
+        for (int a = 0; a < 4; a++) q[a] /= nq;
+    }
+    Totals s;
+    totals(t, y, p, &s);
+    double *m = y + t->nx;
+    m[0] = s.T + s.V;
+    m[1] = s.T + s.pot_scale;
+    memcpy(m + 2, s.L, sizeof(s.L));
+    m[5] = fmax(norm3(s.L), sqrt(2.0 * m[1] * s.inertia));
+    return 1;
+}
+
+void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new) {
+    Totals a, b;
+    totals(t, y, p_old, &a);
+    totals(t, y, p_new, &b);
+    double *m = y + t->nx;
+    m[0] += (b.T + b.V) - (a.T + a.V);
+    m[1] = fmax(m[1], b.T + b.pot_scale);
+    memcpy(m + 2, b.L, sizeof(b.L));
+    m[5] = fmax(m[5], fmax(norm3(b.L), sqrt(2.0 * m[1] * b.inertia)));
+}
+
+double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]) {
+    Totals s;
+    totals(t, y, p, &s);
+    const double *m = y + t->nx;
+    const double E = s.T + s.V;
+    const double de = fabs(E - m[0]);
+    const double se = fmax(m[1], s.T);
+    d[0] = de == 0.0 ? 0.0 : de / se;
+    d[1] = 0.0;
+    if (gs_tree_torque_free(t, p)) {
+        const double dl[3] = {s.L[0] - m[2], s.L[1] - m[3], s.L[2] - m[4]};
+        const double nl = norm3(dl);
+        const double sl = fmax(m[5], sqrt(2.0 * s.T * s.inertia));
+        d[1] = nl == 0.0 ? 0.0 : nl / sl;
+    }
+    if (!isfinite(E) || !isfinite(d[0]) || !isfinite(d[1])) return NAN;
+    return fmax(d[0], d[1]);
+}
+
+double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) {
+    Kin kin;
+    kinematics(t, y, p, &kin);
+    double w = 0.0;
+    for (int i = 0; i < t->n; i++) {
+        w = fmax(w, norm3(kin.v[i]));
+        if (t->joint[i] == GS_J_HINGE) w = fmax(w, fabs(y[t->yi[i] + 1]));
+    }
+    return w;
+}
+
+void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out) {
+    memcpy(out, y, (size_t)t->nx * sizeof(double));
+    double qw[GS_TREE_MAX][4];
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *s = y + t->yi[i];
+        double qr[4] = {1.0, 0.0, 0.0, 0.0};
+        if (t->joint[i] == GS_J_BALL || t->joint[i] == GS_J_FREE) {
+            memcpy(qr, s, sizeof(qr));
+        } else if (t->joint[i] == GS_J_HINGE) {
+            hinge_quat(b + GS_TB_AXIS, s[0], qr);
+        }
+        const int par = t->parent[i];
+        if (par < 0) {
+            memcpy(qw[i], qr, sizeof(qr));
+        } else {
+            quat_mul(qw[par], qr, qw[i]);
+        }
+        memcpy(out + t->nx + 4 * i, qw[i], sizeof(qr));
+    }
+    Totals s;
+    totals(t, y, p, &s);
+    double *o = out + t->nx + 4 * t->n;
+    o[0] = s.T + s.V;
+    o[1] = o[0] - y[t->nx];
+    memcpy(o + 2, s.L, sizeof(s.L));
+}
+
+/* ---------------------------------------------------------------------------------------------- stepping */
+
+typedef struct {
+    const gs_tree *t;
+    const double *p;
+} Ctx;
+
+static void ode_rhs(const void *ctx, const double *y, double *dy) {
+    const Ctx *c = (const Ctx *)ctx;
+    gs_tree_derivatives(c->t, y, c->p, dy);
+}
+
+static void ode_project(const void *ctx, double *y) {
+    const gs_tree *t = ((const Ctx *)ctx)->t;
+    for (int i = 0; i < t->n; i++) {
+        if (t->joint[i] != GS_J_BALL && t->joint[i] != GS_J_FREE) continue;
+        double *q = y + t->yi[i];
+        const double nq = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        if (nq > 0.0) {
+            for (int a = 0; a < 4; a++) q[a] /= nq;
+        }
+    }
+}
+
+static int ode_check(const void *ctx, double *y) {
+    const Ctx *c = (const Ctx *)ctx;
+    double d[2];
+    const double worst = gs_tree_drift(c->t, y, c->p, d);
+    const double bound = c->p[GS_TP_DRIFT];
+    if (isnan(worst)) return 1;
+    if (bound > 0.0 && isfinite(bound) && worst > bound) return 1;
+    if (!gs_tree_torque_free(c->t, c->p)) {   /* restart the momentum where a torque acts */
+        Totals s;
+        totals(c->t, y, c->p, &s);
+        memcpy(y + c->t->nx + 2, s.L, sizeof(s.L));
+    }
+    return 0;
+}
+
+static int32_t advance_system(const gs_tree *t, int method, double *y, const double *p, double H, int64_t n_sub,
+                              double rtol, double atol, double max_step, double *hint, int64_t *stats) {
+    Ctx ctx = {t, p};
+    gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
+    const int64_t k = gs_ode_advance(method, &o, y, H, n_sub, rtol, atol, max_step, hint, stats);
+    return (int32_t)(k > 2147483647 ? 2147483647 : k);
+}
+
+static int tree_method(int method) {
+    return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853;
+}
+
+size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
+                       double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads) {
+    int64_t n_sub = 1;
+    if (method == GS_EULER || method == GS_RK4) n_sub = gs_substeps(H, max_step);
+    if (!tree_method(method) || n_sub == 0) {
+        for (size_t b = 0; b < n; b++) status[b] = tree_method(method) ? 1 : -1;
+        return n;
+    }
+    size_t failed = 0;
+    const long long nn = (long long)n;
+#ifdef _OPENMP
+    const int nt = threads > 0 ? threads : omp_get_max_threads();
+#pragma omp parallel for schedule(dynamic) num_threads(nt) reduction(+:failed) if (n >= 4 && nt > 1)
+#else
+    (void)threads;
+#endif
+    for (long long b = 0; b < nn; b++) {
+        status[b] = advance_system(t, method, y + (size_t)b * t->ny, p + (size_t)b * t->np, H, n_sub, rtol, atol,
+                                   max_step, hint + b, stats + (size_t)b * GS_NSTATS);
+        failed += status[b] != 0;
+    }
+    return failed;
+}
+
+size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
+                          int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                          int32_t *status, int threads, double *out) {
+    const size_t no = (size_t)GS_TREE_NOUT(t);
+    int64_t n_sub = 1;
+    if (method == GS_EULER || method == GS_RK4) n_sub = gs_substeps(dt, max_step);
+    for (size_t b = 0; b < n; b++) gs_tree_outputs(t, y + b * t->ny, p + b * t->np, out + b * no);
+    if (!tree_method(method) || (n_sub == 0 && n_out > 0)) {
+        for (size_t b = 0; b < n; b++) status[b] = tree_method(method) ? 1 : -1;
+        return n;
+    }
+    size_t failed = 0;
+    const long long nn = (long long)n;
+#ifdef _OPENMP
+    const int nt = threads > 0 ? threads : omp_get_max_threads();
+#pragma omp parallel for schedule(dynamic) num_threads(nt) reduction(+:failed) if (n >= 4 && nt > 1)
+#else
+    (void)threads;
+#endif
+    for (long long bb = 0; bb < nn; bb++) {
+        const size_t b = (size_t)bb;
+        double *yb = y + b * t->ny;
+        const double *pb = p + b * t->np;
+        status[b] = 0;
+        for (int64_t k = 1; k <= n_out; k++) {
+            const int32_t s = advance_system(t, method, yb, pb, dt, n_sub, rtol, atol, max_step, hint + b,
+                                             stats + b * GS_NSTATS);
+            if (s) {
+                status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
+                for (int64_t r = k; r <= n_out; r++) {
+                    for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
+                }
+                failed += 1;
+                break;
+            }
+            gs_tree_outputs(t, yb, pb, out + ((size_t)k * n + b) * no);
+        }
+    }
+    return failed;
+}

@@ -1,0 +1,188 @@
+"""Trees of rigid bodies: the Python face of the engine's tree (``core/engine/gyrosim_tree.h``).
+
+A :class:`TreeBody` describes one body and its joint to its parent (DESIGN.md section 4b); :class:`TreeLayout`
+turns a tuple of them (topological order: a parent before its children) and the coupling springs into the arrays
+the engine takes: the description (int32), one system's parameter row and start state, and the names of the state
+and output columns.
+
+Units (SI): kg, m, s, rad, N*m. Frames: a body's frame has its origin at its joint point; world z up, gravity
+along -z. Quaternions (w, x, y, z), scalar first, rotating child-frame vectors into the parent frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _engine
+
+__all__ = ["TreeBody", "TreeLayout", "JOINTS", "JOINT_COORDS"]
+
+#: The joints and their engine codes (free_rotation is a ball whose joint point is the centre of mass).
+JOINTS = {"free_rotation": _engine.J_BALL, "ball": _engine.J_BALL, "hinge": _engine.J_HINGE,
+          "free": _engine.J_FREE, "fixed": _engine.J_FIXED}
+
+#: The state variables of each joint, in the engine's order.
+JOINT_COORDS = {
+    "free_rotation": ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z"),
+    "ball": ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z"),
+    "hinge": ("angle", "rate"),
+    "free": ("q_w", "q_x", "q_y", "q_z", "r_x", "r_y", "r_z", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"),
+    "fixed": (),
+}
+
+#: The outputs every body has besides its joint's state, and the scene-wide outputs.
+BODY_OUTPUTS = ("q_world_w", "q_world_x", "q_world_y", "q_world_z")
+SCENE_OUTPUTS = ("energy", "energy_error", "L_x", "L_y", "L_z")
+
+
+def _vec(x, n=3):
+    return np.array(x, dtype=float).reshape(n)
+
+
+@dataclass(frozen=True)
+class TreeBody:
+    """One body of a tree and its joint to its parent.
+
+    Attributes
+    ----------
+    name : str
+    parent : int
+        Index of the parent body in the tree (it comes before this one), -1 for the world.
+    joint : {"free_rotation", "ball", "hinge", "free", "fixed"}
+    pos : (3,) ndarray
+        The joint point in the parent's frame (the world for a root), m; the origin of this body's frame.
+    axis : (3,) ndarray
+        Unit hinge axis in the parent frame (equal in this body's frame).
+    mass : float
+        kg.
+    cm : (3,) ndarray
+        Centre of mass in the body frame, from the joint point, m.
+    inertia : (3, 3) ndarray
+        Inertia about the centre of mass in the body frame (matrix elements), kg*m^2.
+    stiffness, rest_angle, damping : float
+        Hinge spring (N*m/rad, rad) and the joint's viscous damping (hinge N*m*s/rad; ball and free N*m*s).
+    motor_input, torque_input : bool
+        A hinge motor-torque input ``motor_torque``; an external body-frame torque input ``tau_x..z``.
+    q0, omega0, angle0, rate0, r0, v0
+        Start state of the joint (only those of its kind are used).
+    """
+
+    name: str
+    parent: int = -1
+    joint: str = "free_rotation"
+    pos: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    mass: float = 0.0
+    cm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia: np.ndarray = field(default_factory=lambda: np.eye(3))
+    stiffness: float = 0.0
+    rest_angle: float = 0.0
+    damping: float = 0.0
+    motor_input: bool = False
+    torque_input: bool = False
+    q0: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    omega0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    angle0: float = 0.0
+    rate0: float = 0.0
+    r0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    v0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def coords(self) -> tuple[str, ...]:
+        """The joint's state variables, in the engine's order."""
+        return JOINT_COORDS[self.joint]
+
+    def principal(self) -> np.ndarray:
+        """(3,) the diagonal of the inertia (I1, I2, I3 when the body axes are principal), kg*m^2."""
+        return np.diag(self.inertia).copy()
+
+
+class TreeLayout:
+    """The engine's arrays for a tree: description, parameter row, start state and column names.
+
+    Parameters
+    ----------
+    bodies : sequence of TreeBody
+        In topological order.
+    couplings : sequence of (int, int, float)
+        Torsion springs between two hinge bodies (a, b, stiffness N*m/rad): torque -k (angle_a - angle_b) on a and
+        the opposite on b.
+
+    Attributes
+    ----------
+    desc : (2 + 2n + 2c,) int32 ndarray
+    nx, ny, np, nout : int
+        Joint coordinates, state length, parameter length and output row length of one system.
+    coord_slots : dict
+        ``(body index, variable) -> column`` of the joint coordinates in the state (and the output row).
+    output_names : list of (int or None, str)
+        ``(body index, name)`` of every output column (``None`` for the scene-wide outputs).
+    """
+
+    def __init__(self, bodies, couplings=()):
+        self.bodies = tuple(bodies)
+        self.couplings = tuple((int(a), int(b), float(k)) for a, b, k in couplings)
+        d = [len(self.bodies), len(self.couplings)]
+        for b in self.bodies:
+            d += [b.parent, JOINTS[b.joint]]
+        for a, b, _ in self.couplings:
+            d += [a, b]
+        self.desc = np.array(d, dtype=np.int32)
+        self.nx, self.ny, self.np, self.nout = _engine.tree_info(self.desc)
+        self.coord_slots = {}
+        self.output_names = []
+        at = 0
+        for i, b in enumerate(self.bodies):
+            for c in b.coords:
+                self.coord_slots[(i, c)] = at
+                self.output_names.append((i, c))
+                at += 1
+        for i, _ in enumerate(self.bodies):
+            for c in BODY_OUTPUTS:
+                self.output_names.append((i, c))
+        for c in SCENE_OUTPUTS:
+            self.output_names.append((None, c))
+        self.dof = sum({"hinge": 1, "free": 6, "fixed": 0}.get(b.joint, 3) for b in self.bodies)
+
+    def body_offset(self, i: int) -> int:
+        """Where body ``i``'s parameters start in a parameter row."""
+        return _engine.TP_HEAD + _engine.TB_NP * i
+
+    def params(self, g: float, max_drift: float) -> np.ndarray:
+        """(np,) the parameter row of the bodies' values (inputs at 0)."""
+        p = np.zeros(self.np)
+        p[0] = g
+        p[1] = max_drift
+        for i, b in enumerate(self.bodies):
+            o = self.body_offset(i)
+            p[o + _engine.TB_POS:o + _engine.TB_POS + 3] = _vec(b.pos)
+            p[o + _engine.TB_AXIS:o + _engine.TB_AXIS + 3] = _vec(b.axis)
+            p[o + _engine.TB_MASS] = b.mass
+            p[o + _engine.TB_CM:o + _engine.TB_CM + 3] = _vec(b.cm)
+            J = np.asarray(b.inertia, dtype=float)
+            p[o + _engine.TB_I:o + _engine.TB_I + 6] = [J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]]
+            p[o + _engine.TB_STIFF] = b.stiffness
+            p[o + _engine.TB_REST] = b.rest_angle
+            p[o + _engine.TB_DAMP] = b.damping
+        ko = self.body_offset(len(self.bodies))
+        for c, (_, _, k) in enumerate(self.couplings):
+            p[ko + c] = k
+        return p
+
+    def state(self) -> np.ndarray:
+        """(ny,) the start state of the bodies' values (the monitor's part zero: see ``_engine.tree_start``)."""
+        y = np.zeros(self.ny)
+        for i, b in enumerate(self.bodies):
+            vals = {"q": _vec(b.q0, 4), "omega": _vec(b.omega0), "r": _vec(b.r0), "v": _vec(b.v0)}
+            for c in b.coords:
+                k = self.coord_slots[(i, c)]
+                if c == "angle":
+                    y[k] = b.angle0
+                elif c == "rate":
+                    y[k] = b.rate0
+                else:
+                    head, tail = c.rsplit("_", 1)
+                    y[k] = vals[head]["wxyz".index(tail) if head == "q" else "xyz".index(tail)]
+        return y

@@ -1,0 +1,366 @@
+"""The engine's trees of bodies against an independent multibody library (Pinocchio) and closed forms.
+
+Tolerances: forward dynamics, energy and momentum against Pinocchio to 1e-10 relative to the largest value (both
+are exact algorithms in double precision: their differences are round-off, seen at 5e-14); closed forms of the
+integrated motion to the integrator's accuracy at the step or tolerance used (stated at each test).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import gyrosim
+import gyrosim.trajectory
+from gyrosim.core import _engine
+from gyrosim.core.analytic import SymmetricTop
+from gyrosim.core.tree import TreeBody, TreeLayout
+from gyrosim.errors import ConfigError, IntegrationError
+from gyrosim.model import Model
+from gyrosim.scene import load_scene, scene_from_dict
+from gyrosim.tree_model import TreeModel
+
+G = 9.81
+TREE_SCENES = ("gimbal_gyroscope", "spacecraft", "cmg_spacecraft", "double_pendulum", "coupled_pendula")
+
+
+def _layout(bodies, state):
+    """Our TreeLayout from a pin_reference tree (dicts) and its state."""
+    tb = []
+    for i, b in enumerate(bodies):
+        s = state[i]
+        kw = dict(name=f"b{i}", parent=b["parent"], joint=b["joint"], pos=b["pos"], axis=b.get("axis", [0, 0, 1]),
+                  mass=b["mass"], cm=b["cm"], inertia=b["inertia"])
+        if b["joint"] in ("ball", "free_rotation", "free"):
+            kw.update(q0=s["q"], omega0=s["omega"])
+        if b["joint"] == "free":
+            kw.update(r0=s["r"], v0=s["v"])
+        if b["joint"] == "hinge":
+            kw.update(angle0=s["angle"], rate0=s["rate"])
+        tb.append(TreeBody(**kw))
+    return TreeLayout(tb)
+
+
+def _flat(ref, bodies):
+    out = []
+    for r, b in zip(ref, bodies):
+        if b["joint"] == "fixed":
+            continue
+        if b["joint"] == "free":
+            out += list(r[0]) + list(r[1])
+        elif b["joint"] == "hinge":
+            out.append(r)
+        else:
+            out += list(r)
+    return np.array(out)
+
+
+def _close(a, b, rtol=1e-10):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    np.testing.assert_allclose(a, b, rtol=0, atol=rtol * max(1.0, float(np.max(np.abs(b)))))
+
+
+def _bodies_of(scene):
+    """pin_reference dicts of a tree scene's bodies."""
+    return [{"parent": b.parent, "joint": b.joint, "pos": np.asarray(b.pos), "axis": np.asarray(b.axis),
+             "mass": b.mass, "cm": np.asarray(b.cm), "inertia": np.asarray(b.inertia)} for b in scene.tree]
+
+
+# ------------------------------------------------------------------------------------------ against Pinocchio
+def test_forward_dynamics_energy_and_momentum_equal_pinocchio_on_random_trees():
+    pr = pytest.importorskip("pin_reference", reason="Pinocchio (pin) is a test dependency")
+    rng = np.random.default_rng(22)
+    kinds = set()
+    for _ in range(300):
+        n = int(rng.integers(1, 9))
+        bodies = pr.random_tree(rng, n)
+        kinds |= {b["joint"] for b in bodies}
+        state = pr.random_state(bodies, rng)
+        tau = [{"torque": float(rng.normal())} if b["joint"] == "hinge" else {} for b in bodies]
+        lay = _layout(bodies, state)
+        p = lay.params(G, 0.0)
+        for i, t in enumerate(tau):
+            if t:
+                p[lay.body_offset(i) + _engine.TB_MOTOR] = t["torque"]
+        y = lay.state()
+        qdd = np.zeros(lay.dof)
+        _engine.tree_accelerations(lay.desc, y, p, qdd)
+        _close(qdd, _flat(pr.forward_dynamics(bodies, G, state, tau), bodies))
+        out = np.empty(lay.nout)
+        _engine.tree_outputs(lay.desc, y, p, out)
+        _close(out[-5], pr.energy(bodies, G, state))
+        _close(out[-3:], pr.momentum_world(bodies, state))
+    assert kinds == {"free", "ball", "hinge", "free_rotation", "fixed"}
+
+
+@pytest.mark.parametrize("name", TREE_SCENES)
+def test_embedded_trees_equal_pinocchio_at_random_states(name):
+    pr = pytest.importorskip("pin_reference", reason="Pinocchio (pin) is a test dependency")
+    sc = load_scene(name)
+    bodies = _bodies_of(sc)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        state = pr.random_state(bodies, rng)
+        lay = TreeLayout(_layout(bodies, state).bodies, sc.couplings)
+        p = lay.params(sc.g, 0.0)
+        motors = rng.normal(size=len(bodies))
+        tau = []
+        for i, b in enumerate(sc.tree):
+            t = {}
+            if b.joint == "hinge":
+                p[lay.body_offset(i) + _engine.TB_MOTOR] = motors[i]
+                t = {"torque": motors[i] - b.stiffness * (state[i]["angle"] - b.rest_angle)
+                     - b.damping * state[i]["rate"]}
+            tau.append(t)
+        for a, b_, k in sc.couplings:  # the torsion spring as hinge torques on both
+            m = k * (state[a]["angle"] - state[b_]["angle"])
+            tau[a]["torque"] -= m
+            tau[b_]["torque"] += m
+        y = lay.state()
+        qdd = np.zeros(lay.dof)
+        _engine.tree_accelerations(lay.desc, y, p, qdd)
+        _close(qdd, _flat(pr.forward_dynamics(bodies, sc.g, state, tau), bodies))
+
+
+# ------------------------------------------------------------------------------------------ closed forms
+def test_double_pendulum_accelerations_equal_the_reference_closed_form():
+    """The physics reference's equations (point masses, theta2 absolute) at random states and parameters."""
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        m1, m2, L1, L2 = rng.uniform(0.2, 3.0, 4)
+        th1, th2 = rng.uniform(-math.pi, math.pi, 2)
+        w1, w2 = rng.uniform(-5, 5, 2)
+        m = Model("double_pendulum", parameters={"m1": m1, "m2": m2, "L1": L1, "L2": L2, "upper.angle": th1,
+                                                 "lower.angle": th2 - th1, "upper.rate": w1, "lower.rate": w2 - w1})
+        m.initialize()
+        dy = np.zeros(m.layout.nx + 1)
+        _engine.tree_derivatives(m.layout.desc, m._y[0], m._p[0], dy)
+        a1, a_rel = dy[1], dy[3]
+        d = th1 - th2
+        den = 2 * m1 + m2 - m2 * math.cos(2 * d)
+        ref1 = (-G * (2 * m1 + m2) * math.sin(th1) - m2 * G * math.sin(th1 - 2 * th2)
+                - 2 * math.sin(d) * m2 * (w2 ** 2 * L2 + w1 ** 2 * L1 * math.cos(d))) / (L1 * den)
+        ref2 = (2 * math.sin(d) * (w1 ** 2 * L1 * (m1 + m2) + G * (m1 + m2) * math.cos(th1)
+                                   + w2 ** 2 * L2 * m2 * math.cos(d))) / (L2 * den)
+        assert a1 == pytest.approx(ref1, rel=1e-11, abs=1e-11)
+        assert a1 + a_rel == pytest.approx(ref2, rel=1e-11, abs=1e-11)
+
+
+def test_reaction_wheel_spins_the_hub_as_the_closed_form():
+    """u on wheel x of a resting hub: omega_x = -u t / (I_x - J), Omega = -I_x omega_x / J relative to the hub
+    (I_x the whole craft's); total angular momentum kept to round-off. rk4 is exact here (the rates are linear in
+    t and the hub turns about one axis), so the tolerance is round-off."""
+    m = Model("spacecraft", parameters={"wheel_x.rate": 0.0, "wheel_z.rate": 0.0})
+    Ix, J, u, T = 1.0, 0.01, 1e-3, 10.0
+    m.set("wheel_x.motor_torque", u)
+    r = m.trajectory(0.1, int(T / 0.1))
+    names = gyrosim.trajectory.field_names(m)
+    col = {n: i for i, n in enumerate(names)}
+    t = np.arange(r.shape[0]) * 0.1
+    wx = r[:, 0, col["hub.omega_x"]]
+    np.testing.assert_allclose(wx, -u * t / (Ix - J), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(r[:, 0, col["wheel_x.rate"]], -Ix * wx / J, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(r[:, 0, [col["L_x"], col["L_y"], col["L_z"]]], 0.0, atol=1e-12 * J * 100)
+    assert np.max(np.abs(r[:, 0, col["energy_error"]])) < 1e-12
+
+
+def test_basilisk_reference_run_is_reproduced():
+    """The spacecraft of the issue (hub diag(1, 2, 3) with its wheels, J = 0.01, wheel speeds (100, 0, -50), then
+    1e-3 N*m on wheel 1 for 10 s) against Basilisk 2.12.1's RKF78 run at rel 1e-12 / abs 1e-14, produced by
+    ``/tmp/bskvenv/bin/python bench/bsk_spacecraft.py`` (Basilisk's hub inertia is the whole craft's; it converged:
+    its RK4 at dt = 1e-3 agrees to 4e-13). Ours: dop853 at tolerance 1e-13. Agreement to 1e-9 asked."""
+    hub_w = np.array([-0.0052507839563235206, 0.00025287883317413635, 0.003251257679941103])
+    wheels = np.array([101.00525078395614, -0.00025287883317413635, -50.003251257679899])
+    r = gyrosim.simulate("spacecraft", stop_time=10.0, output_interval=10.0, integrator="dop853",
+                         relative_tolerance=1e-13, max_step=0.1, start_values={"wheel_x.motor_torque": 1e-3},
+                         output=["hub.omega_x", "hub.omega_y", "hub.omega_z", "wheel_x.rate", "wheel_y.rate",
+                                 "wheel_z.rate"])
+    w = np.array([r["hub.omega_x"][-1], r["hub.omega_y"][-1], r["hub.omega_z"][-1]])
+    # Basilisk's wheel speed is relative to the hub about the wheel's axis, as ours
+    om = np.array([r["wheel_x.rate"][-1], r["wheel_y.rate"][-1], r["wheel_z.rate"][-1]])
+    np.testing.assert_allclose(w, hub_w, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(om, wheels, rtol=0, atol=1e-9)
+
+
+def test_coupled_pendula_normal_modes():
+    """In phase at sqrt(g/L); opposed at sqrt(g/L + 2k/(m L^2)); amplitude 1e-5 rad so the pendulum's nonlinearity
+    (theta0^2/16 relative) is 1e-11; dop853 at 1e-12 over 20 s."""
+    k, L, m = 0.5, 1.0, 1.0
+    for sign, w in ((1.0, math.sqrt(G / L)), (-1.0, math.sqrt(G / L + 2 * k / (m * L * L)))):
+        a0 = 1e-5
+        r = gyrosim.simulate("coupled_pendula", stop_time=20.0, output_interval=0.05, integrator="dop853",
+                             relative_tolerance=1e-12, max_step=0.05,
+                             start_values={"left.angle": a0, "right.angle": sign * a0},
+                             output=["left.angle", "right.angle"])
+        np.testing.assert_allclose(r["left.angle"], a0 * np.cos(w * r["time"]), rtol=0, atol=1e-9 * a0 * 100)
+        np.testing.assert_allclose(r["right.angle"], sign * a0 * np.cos(w * r["time"]), rtol=0, atol=1e-7 * a0)
+
+
+def _massless_gimbals(**start):
+    sv = {"outer.mass": 0.0, "outer.I1": 0.0, "outer.I2": 0.0, "outer.I3": 0.0,
+          "inner.mass": 0.0, "inner.I1": 0.0, "inner.I2": 0.0, "inner.I3": 0.0}
+    sv.update(start)
+    return sv
+
+
+def test_gimbal_gyroscope_with_massless_gimbals_is_the_lagrange_top():
+    """Outer = precession, inner = nutation, rotor = spin: theta(t) = inner.angle equals the exact Lagrange top
+    (elliptic functions, SymmetricTop.nutation), and L_z = p_phi, the energy kept. dop853 at 1e-12 over 5 s (several
+    nutation periods): 1e-8 rad."""
+    sc = load_scene("gimbal_gyroscope")
+    rotor = sc.tree[2]
+    mass, d = rotor.mass, rotor.cm[2]
+    I1 = rotor.inertia[0, 0] + mass * d * d
+    I3 = rotor.inertia[2, 2]
+    theta0, spin, prec = 1.0, 40.0, 0.3
+    r = gyrosim.simulate("gimbal_gyroscope", stop_time=5.0, output_interval=0.01, integrator="dop853",
+                         relative_tolerance=1e-12, max_step=0.01,
+                         start_values=_massless_gimbals(**{"inner.angle": theta0, "rotor.rate": spin,
+                                                           "outer.rate": prec}),
+                         output=["inner.angle", "outer.rate", "rotor.rate", "L_z", "energy", "energy_error"])
+    top = SymmetricTop(I1=I1, I3=I3, mass=mass, cm_height=d)
+    # ZYZ: phi = outer - pi/2, theta = inner, psi = rotor + pi/2 (Rz Rx Rz = Rz Ry Rz shifted by a quarter turn)
+    exact = top.nutation(theta0, prec, spin)
+    np.testing.assert_allclose(r["inner.angle"], exact.theta(r["time"]), rtol=0, atol=1e-8)
+    assert np.ptp(r["inner.angle"]) > 1e-2  # it nutates
+    np.testing.assert_allclose(r["L_z"], exact.p_phi, rtol=1e-10)
+    assert np.max(np.abs(r["energy_error"])) < 1e-10 * abs(exact.energy)
+
+
+def test_energy_balance_with_motors_springs_and_damping():
+    """energy_error (E - E0 - W_motors + W_damping) stays at the integrator's error: rk4 with h = 1e-4 s over 2 s
+    (error ~ h^4), dop853 at 1e-11."""
+    text = """
+[scene]
+name = "springs"
+g = 9.81
+[[body]]
+name = "a"
+joint = "hinge"
+axis = [0, 1, 0]
+mass = 1.0
+cm = [0, 0, -0.5]
+inertia = { principal = [0.01, 0.02, 0.01] }
+stiffness = 3.0
+rest_angle = 0.2
+joint_damping = 0.05
+motor_input = true
+angle = 0.5
+[[body]]
+name = "b"
+parent = "a"
+joint = "ball"
+position = [0, 0, -0.5]
+mass = 0.5
+cm = [0.1, 0, -0.2]
+inertia = { principal = [0.01, 0.015, 0.02] }
+damping = 0.01
+torque_input = true
+rates = { omega = [1.0, -2.0, 3.0] }
+"""
+    import tomllib
+
+    sc = scene_from_dict(tomllib.loads(text), "<test>")
+    for integ, ms, tol, bound in (("rk4", 1e-4, 1e-8, 1e-10), ("dop853", 0.01, 1e-11, 1e-9)):
+        m = Model(sc, parameters={"integrator": integ, "max_step": ms}, tolerance=tol)
+        m.set("a.motor_torque", 0.3)
+        m.set("b.tau_x", 0.05)
+        m.set("b.tau_z", -0.02)
+        r = m.trajectory(0.01, 200)
+        names = gyrosim.trajectory.field_names(m)
+        e = r[:, 0, names.index("energy")]
+        err = r[:, 0, names.index("energy_error")]
+        assert np.ptp(e) > 0.05  # the energy really changes
+        assert np.max(np.abs(err)) < bound, integ
+
+
+def test_spacecraft_keeps_its_angular_momentum_while_motors_work():
+    m = Model("spacecraft", parameters={"integrator": "dop853"}, tolerance=1e-12)
+    for n, u in (("wheel_x", 0.01), ("wheel_y", -0.02), ("wheel_z", 0.005)):
+        m.set(f"{n}.motor_torque", u)
+    L0 = np.array([m.get(n) for n in ("L_x", "L_y", "L_z")])
+    m.trajectory(0.1, 50)
+    L1 = np.array([m.get(n) for n in ("L_x", "L_y", "L_z")])
+    np.testing.assert_allclose(L1, L0, rtol=0, atol=1e-12 * np.linalg.norm(L0))
+    assert abs(m.get("hub.omega_x")) > 1e-4  # the hub turned
+
+
+# ------------------------------------------------------------------------------------------ gimbal lock, refusals
+def test_gimbal_lock_massive_gimbals_run_through_massless_are_reported():
+    """Massive gimbals: the inner gimbal driven through 0 (outer and rotor axes in line) runs through it with the
+    energy balance kept. Massless gimbals: the motion is singular at 0 (the mass matrix loses rank); a run started
+    there is reported with a message that names gimbal lock."""
+    start = {"inner.angle": 0.2, "inner.rate": -2.0, "rotor.rate": 50.0, "outer.rate": 1.0,
+             "inner.motor_torque": -0.05, "g": 0.0}
+    r = gyrosim.simulate("gimbal_gyroscope", stop_time=0.3, output_interval=0.01, integrator="rk4", max_step=1e-4,
+                         start_values=start, output=["inner.angle", "energy_error"])
+    assert r["inner.angle"].min() < 0 < r["inner.angle"].max()  # through 0
+    assert np.max(np.abs(r["energy_error"])) < 1e-8
+    with pytest.raises(IntegrationError, match="gimbal lock"):
+        gyrosim.simulate("gimbal_gyroscope", stop_time=0.3, output_interval=0.01, integrator="rk4", max_step=1e-4,
+                         start_values=_massless_gimbals(**{**start, "inner.angle": 0.0}))
+
+
+@pytest.mark.parametrize("integ", ["splitting", "splitting4", "exact"])
+def test_one_body_integrators_are_refused_for_a_tree(integ):
+    m = Model("spacecraft")
+    with pytest.raises(ConfigError, match="euler, rk4, adaptive, dop853"):
+        m.set("integrator", integ)
+    with pytest.raises(ConfigError, match="tree"):
+        scene_from_dict({"scene": {"name": "t", "integrator": integ},
+                         "body": [{"name": "a", "joint": "hinge", "inertia": {"principal": [1, 1, 1]}}]})
+
+
+@pytest.mark.parametrize("body,match", [
+    ({"name": "a", "parent": "nowhere", "inertia": {"principal": [1, 1, 1]}}, "parent"),
+    ({"name": "a", "joint": "hinj", "inertia": {"principal": [1, 1, 1]}}, "did you mean 'hinge'"),
+    ({"name": "a", "joint": "hinge", "damping": 1.0, "inertia": {"principal": [1, 1, 1]}}, "joint_damping"),
+    ({"name": "a", "joint": "hinge", "axis": [0, 0, 0], "inertia": {"principal": [1, 1, 1]}}, "non-zero"),
+    ({"name": "a", "joint": "ball", "inertia": {"principal": [-1, 1, 1]}}, ">= 0"),
+])
+def test_tree_scene_errors_name_the_key(body, match):
+    with pytest.raises(ConfigError, match=match):
+        scene_from_dict({"scene": {"name": "t"}, "body": [body]})
+
+
+def test_free_joint_only_at_a_root():
+    with pytest.raises(ConfigError, match="root"):
+        scene_from_dict({"scene": {"name": "t"}, "body": [
+            {"name": "a", "joint": "hinge", "inertia": {"principal": [1, 1, 1]}},
+            {"name": "b", "parent": "a", "joint": "free", "inertia": {"principal": [1, 1, 1]}}]})
+
+
+# ------------------------------------------------------------------------------------------ the model
+@pytest.mark.parametrize("name", TREE_SCENES)
+def test_step_loop_equals_simulate_to_the_bit(name):
+    m = Model(name)
+    assert isinstance(m, TreeModel)
+    rows = [m.outputs_array()[0]]
+    for _ in range(20):
+        m.step(0.01)
+        rows.append(m.outputs_array()[0])
+    r = gyrosim.simulate(name, stop_time=0.2, output_interval=0.01)
+    names = gyrosim.trajectory.field_names(m)
+    for j, n in enumerate(names):
+        assert np.array_equal(r[n], np.array(rows)[:, j]), n
+
+
+def test_state_save_restore_is_exact():
+    m = Model("cmg_spacecraft", parameters={"integrator": "adaptive"})
+    m.set("gimbal.motor_torque", 0.1)
+    m.step(0.05)
+    s = m.get_state()
+    blob = m.state_bytes()
+    m.step(0.05)
+    a = m.outputs_array()
+    m.set_state(s)
+    m.step(0.05)
+    assert np.array_equal(m.outputs_array(), a)
+    m.set_state_bytes(blob)
+    m.step(0.05)
+    assert np.array_equal(m.outputs_array(), a)
+
+
+def test_one_body_scenes_stay_on_the_one_body_engine():
+    for name in ("free_body", "heavy_top", "gyroscope"):
+        assert type(Model(name)) is Model
