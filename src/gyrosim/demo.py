@@ -4,7 +4,8 @@
 2. The model: the free body with every integrator against the exact (Jacobi elliptic) solution, and the
    gyroscope scene, with a plot.
 3. The FMU: build the gyroscope FMU, run it in FMPy beside the plain model, print the difference.
-4. The service: serve the gyroscope on a loopback Zenoh peer for a few seconds while a recorder writes MCAP,
+4. Trees of bodies: the gimbaled gyroscope drawn and run, a spacecraft slewing with its reaction wheels.
+5. The service: serve the gyroscope on a loopback Zenoh peer for a few seconds while a recorder writes MCAP,
    replay it, and print a summary with the paths of the plots.
 
 Parts whose optional dependencies are missing are skipped with a message saying which.
@@ -110,6 +111,11 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     out = Path(args.output)
     core_tour(out)
+    from .tree_demo import gimbal_tour, slew_tour
+
+    _hr("trees of bodies: the gimbaled gyroscope, a spacecraft slewing with its reaction wheels")
+    for tour in (gimbal_tour, slew_tour):
+        print(f"plot: {tour(out)}")
     # the FMU and the Zenoh service share this process, as a co-simulation that streams its state would
     from .fmu.demo import run as fmu_run
 

@@ -370,6 +370,10 @@ def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None
 
     sc, table = load_sweep_scene(scene)
     where = f"{sc.source} [sweep]"
+    if sc.is_tree:
+        raise ConfigError("scene", sc.name, "a one-body scene: a sweep replicates one body per sample, and "
+                          f"{sc.name!r} is a tree of {len(sc.body_names)} bodies (sweeps of trees are not built yet; "
+                          "run `gyrosim simulate` per sample)")
     if len(sc.bodies) != 1:
         raise ConfigError("scene", sc.name, f"a one-body scene: a sweep replicates its body once per sample (this "
                           f"scene has {len(sc.bodies)} bodies)")
