@@ -12,6 +12,12 @@
 #include <omp.h>
 #endif
 
+#if defined(__GNUC__)
+#define TREE_INLINE inline __attribute__((always_inline))
+#else
+#define TREE_INLINE inline
+#endif
+
 typedef double M3[3][3];
 typedef double M6[6][6];
 
@@ -57,30 +63,30 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
 
 /* ---------------------------------------------------------------------------------------------- small algebra */
 
-static void cross3(const double a[3], const double b[3], double c[3]) {
+static TREE_INLINE void cross3(const double a[3], const double b[3], double c[3]) {
     c[0] = a[1] * b[2] - a[2] * b[1];
     c[1] = a[2] * b[0] - a[0] * b[2];
     c[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static TREE_INLINE double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
-static void mv3(const M3 A, const double x[3], double y[3]) {
+static TREE_INLINE void mv3(const M3 A, const double x[3], double y[3]) {
     for (int i = 0; i < 3; i++) y[i] = A[i][0] * x[0] + A[i][1] * x[1] + A[i][2] * x[2];
 }
 
-static void mtv3(const M3 A, const double x[3], double y[3]) {   /* A^T x */
+static TREE_INLINE void mtv3(const M3 A, const double x[3], double y[3]) {   /* A^T x */
     for (int i = 0; i < 3; i++) y[i] = A[0][i] * x[0] + A[1][i] * x[1] + A[2][i] * x[2];
 }
 
-static void mm3(const M3 A, const M3 B, M3 C) {
+static TREE_INLINE void mm3(const M3 A, const M3 B, M3 C) {
     for (int i = 0; i < 3; i++) {
         for (int j = 0; j < 3; j++) C[i][j] = A[i][0] * B[0][j] + A[i][1] * B[1][j] + A[i][2] * B[2][j];
     }
 }
 
 /* rotation matrix (child -> parent) of a unit quaternion (w, x, y, z) */
-static void quat_to_mat(const double *q, M3 R) {
+static TREE_INLINE void quat_to_mat(const double *q, M3 R) {
     const double w = q[0], x = q[1], y = q[2], z = q[3];
     R[0][0] = 1.0 - 2.0 * (y * y + z * z);
     R[0][1] = 2.0 * (x * y - w * z);
@@ -108,7 +114,7 @@ static void quat_mul(const double a[4], const double b[4], double c[4]) {
     c[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
 }
 
-static void quat_rate(const double *q, const double *w, double *dq) {   /* q (0, w) / 2 */
+static TREE_INLINE void quat_rate(const double *q, const double *w, double *dq) {   /* q (0, w) / 2 */
     dq[0] = -0.5 * (q[1] * w[0] + q[2] * w[1] + q[3] * w[2]);
     dq[1] = 0.5 * (q[0] * w[0] + q[2] * w[2] - q[3] * w[1]);
     dq[2] = 0.5 * (q[0] * w[1] + q[3] * w[0] - q[1] * w[2]);
@@ -116,7 +122,7 @@ static void quat_rate(const double *q, const double *w, double *dq) {   /* q (0,
 }
 
 /* motion cross product v x m */
-static void crm(const double v[6], const double m[6], double out[6]) {
+static TREE_INLINE void crm(const double v[6], const double m[6], double out[6]) {
     double a[3], b[3];
     cross3(v, m, out);
     cross3(v, m + 3, a);
@@ -125,7 +131,7 @@ static void crm(const double v[6], const double m[6], double out[6]) {
 }
 
 /* force cross product v x* f */
-static void crf(const double v[6], const double f[6], double out[6]) {
+static TREE_INLINE void crf(const double v[6], const double f[6], double out[6]) {
     double a[3], b[3];
     cross3(v, f, a);
     cross3(v + 3, f + 3, b);
@@ -133,7 +139,7 @@ static void crf(const double v[6], const double f[6], double out[6]) {
     cross3(v, f + 3, out + 3);
 }
 
-static void mv6(const M6 A, const double x[6], double y[6]) {
+static TREE_INLINE void mv6(const M6 A, const double x[6], double y[6]) {
     for (int i = 0; i < 6; i++) {
         double s = 0.0;
         for (int j = 0; j < 6; j++) s += A[i][j] * x[j];
@@ -258,21 +264,6 @@ static void joint_forces(const gs_tree *t, const double *y, const double *p, dou
     }
 }
 
-/* the joint's motion subspace S (6 x k) in child coordinates */
-static int subspace(const gs_tree *t, const double *p, int i, double S[6][6]) {
-    const int k = gs_tree_ndof(t->joint[i]);
-    memset(S, 0, sizeof(double) * 36);
-    if (t->joint[i] == GS_J_HINGE) {
-        const double *ax = body_p(p, i) + GS_TB_AXIS;
-        S[0][0] = ax[0];
-        S[1][0] = ax[1];
-        S[2][0] = ax[2];
-    } else {
-        for (int a = 0; a < k; a++) S[a][a] = 1.0;
-    }
-    return k;
-}
-
 /* inverse of a k x k symmetric positive definite matrix (k <= 6) by Gauss-Jordan; 0 when singular */
 static int inverse(int k, double A[6][6], double Ai[6][6]) {
     double M[6][12];
@@ -310,6 +301,47 @@ static int inverse(int k, double A[6][6], double Ai[6][6]) {
     return 1;
 }
 
+/* out += X^T Ia X for the motion transform X = [E 0; -E [r]x E] (parent -> child) and a symmetric Ia = [A B; B^T C]:
+ * with A', B', C' the blocks turned into the parent's orientation (E^T . E), the result is
+ * [A' + rx B'^T - T rx, T; T^T, C'] with T = B' + rx C' (rx = [r]x). */
+static void add_transformed_inertia(const M3 E, const double r[3], const M6 Ia, M6 out) {
+    M3 blk[3], rot[3];
+    for (int a = 0; a < 3; a++) {
+        for (int b = 0; b < 3; b++) {
+            blk[0][a][b] = Ia[a][b];
+            blk[1][a][b] = Ia[a][3 + b];
+            blk[2][a][b] = Ia[3 + a][3 + b];
+        }
+    }
+    for (int k = 0; k < 3; k++) {
+        M3 t;
+        mm3(blk[k], E, t);   /* X E */
+        for (int a = 0; a < 3; a++) {
+            for (int b = 0; b < 3; b++) rot[k][a][b] = E[0][a] * t[0][b] + E[1][a] * t[1][b] + E[2][a] * t[2][b];
+        }
+    }
+    const M3 rx = {{0.0, -r[2], r[1]}, {r[2], 0.0, -r[0]}, {-r[1], r[0], 0.0}};
+    M3 T, rxC, rxBt, Trx;
+    mm3(rx, rot[2], rxC);
+    for (int a = 0; a < 3; a++) {
+        for (int b = 0; b < 3; b++) T[a][b] = rot[1][a][b] + rxC[a][b];
+    }
+    for (int a = 0; a < 3; a++) {
+        for (int b = 0; b < 3; b++) {
+            rxBt[a][b] = rx[a][0] * rot[1][b][0] + rx[a][1] * rot[1][b][1] + rx[a][2] * rot[1][b][2];
+        }
+    }
+    mm3(T, rx, Trx);
+    for (int a = 0; a < 3; a++) {
+        for (int b = 0; b < 3; b++) {
+            out[a][b] += rot[0][a][b] + rxBt[a][b] - Trx[a][b];
+            out[a][3 + b] += T[a][b];
+            out[3 + a][b] += T[b][a];
+            out[3 + a][3 + b] += rot[2][a][b];
+        }
+    }
+}
+
 /* the articulated-body algorithm: joint accelerations qdd[i][0:k] */
 static void aba(const gs_tree *t, const double *y, const double *p, const Kin *kin, double qdd[GS_TREE_MAX][6]) {
     M6 IA[GS_TREE_MAX];
@@ -334,28 +366,27 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
         }
     }
     for (int i = t->n - 1; i >= 0; i--) {
-        double S[6][6];
-        const int k = subspace(t, p, i, S);
+        /* S is (axis; 0) for a hinge and the first k unit columns for ball (3) and free (6) joints */
+        const int k = gs_tree_ndof(t->joint[i]);
         nd[i] = k;
         double D[6][6];
-        for (int a = 0; a < 6; a++) {
-            for (int j = 0; j < k; j++) {
-                double s = 0.0;
-                for (int l = 0; l < 6; l++) s += IA[i][a][l] * S[l][j];
-                U[i][a][j] = s;
+        if (t->joint[i] == GS_J_HINGE) {
+            const double *ax = body_p(p, i) + GS_TB_AXIS;
+            for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][0] * ax[0] + IA[i][a][1] * ax[1] + IA[i][a][2] * ax[2];
+            D[0][0] = ax[0] * U[i][0][0] + ax[1] * U[i][1][0] + ax[2] * U[i][2][0];
+            u[i][0] = tau[i][0] - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
+        } else {
+            for (int a = 0; a < 6; a++) {
+                for (int j = 0; j < k; j++) U[i][a][j] = IA[i][a][j];
+            }
+            for (int a = 0; a < k; a++) {
+                for (int j = 0; j < k; j++) D[a][j] = IA[i][a][j];
+                u[i][a] = tau[i][a] - pA[i][a];
             }
         }
-        for (int a = 0; a < k; a++) {
-            for (int j = 0; j < k; j++) {
-                double s = 0.0;
-                for (int l = 0; l < 6; l++) s += S[l][a] * U[i][l][j];
-                D[a][j] = s;
-            }
-            double s = 0.0;
-            for (int l = 0; l < 6; l++) s += S[l][a] * pA[i][l];
-            u[i][a] = tau[i][a] - s;
-        }
-        if (k > 0 && !inverse(k, D, Di[i])) {
+        if (k == 1) {
+            Di[i][0][0] = 1.0 / D[0][0];
+        } else if (k > 0 && !inverse(k, D, Di[i])) {
             for (int a = 0; a < k; a++) {
                 for (int j = 0; j < k; j++) Di[i][a][j] = NAN;
             }
@@ -387,36 +418,16 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
             pa[a] += pA[i][a] + s;
         }
         /* to the parent: IA_p += X^T Ia X, pA_p += X^T pa, X = [E 0; -E [r]x E] */
-        const M3 *E = &kin->E[i];
-        const double *r = kin->r[i];
-        M6 X, IX;
-        const double rx[3][3] = {{0.0, -r[2], r[1]}, {r[2], 0.0, -r[0]}, {-r[1], r[0], 0.0}};
-        for (int a = 0; a < 3; a++) {
-            for (int j = 0; j < 3; j++) {
-                X[a][j] = (*E)[a][j];
-                X[a][3 + j] = 0.0;
-                X[3 + a][3 + j] = (*E)[a][j];
-                double s = 0.0;
-                for (int l = 0; l < 3; l++) s += (*E)[a][l] * rx[l][j];
-                X[3 + a][j] = -s;
+        add_transformed_inertia(kin->E[i], kin->r[i], Ia, IA[par]);
+        {
+            double n[3], f[3], rf[3];
+            mtv3(kin->E[i], pa, n);
+            mtv3(kin->E[i], pa + 3, f);
+            cross3(kin->r[i], f, rf);
+            for (int a = 0; a < 3; a++) {
+                pA[par][a] += n[a] + rf[a];
+                pA[par][3 + a] += f[a];
             }
-        }
-        for (int a = 0; a < 6; a++) {
-            for (int j = 0; j < 6; j++) {
-                double s = 0.0;
-                for (int l = 0; l < 6; l++) s += Ia[a][l] * X[l][j];
-                IX[a][j] = s;
-            }
-        }
-        for (int a = 0; a < 6; a++) {
-            for (int j = 0; j < 6; j++) {
-                double s = 0.0;
-                for (int l = 0; l < 6; l++) s += X[l][a] * IX[l][j];
-                IA[par][a][j] += s;
-            }
-            double s = 0.0;
-            for (int l = 0; l < 6; l++) s += X[l][a] * pa[l];
-            pA[par][a] += s;
         }
     }
     double acc[GS_TREE_MAX][6];
@@ -437,8 +448,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
         }
         for (int a = 0; a < 6; a++) ap[a] += c[i][a];
         const int k = nd[i];
-        double S[6][6], rhs[6];
-        subspace(t, p, i, S);
+        double rhs[6];
         for (int a = 0; a < k; a++) {
             double s = 0.0;
             for (int l = 0; l < 6; l++) s += U[i][l][a] * ap[l];
@@ -449,10 +459,12 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
             for (int l = 0; l < k; l++) s += Di[i][a][l] * rhs[l];
             qdd[i][a] = s;
         }
-        for (int a = 0; a < 6; a++) {
-            double s = 0.0;
-            for (int l = 0; l < k; l++) s += S[a][l] * qdd[i][l];
-            acc[i][a] = ap[a] + s;
+        for (int a = 0; a < 6; a++) acc[i][a] = ap[a];
+        if (t->joint[i] == GS_J_HINGE) {
+            const double *ax = body_p(p, i) + GS_TB_AXIS;
+            for (int a = 0; a < 3; a++) acc[i][a] += ax[a] * qdd[i][0];
+        } else {
+            for (int a = 0; a < k; a++) acc[i][a] += qdd[i][a];
         }
     }
 }
