@@ -68,6 +68,7 @@ typedef struct {
     int joint[GS_TREE_MAX];      /* GS_J_* */
     int yi[GS_TREE_MAX];         /* offset of the body's joint coordinates in y */
     int cpl_a[GS_TREE_MAX], cpl_b[GS_TREE_MAX];   /* coupled hinge bodies */
+    int leaf[GS_TREE_MAX];       /* 1 when no body hangs from this one */
     int nx, ny, np;
 } gs_tree;
 

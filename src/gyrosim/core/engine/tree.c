@@ -44,6 +44,8 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
         if (j == GS_J_FREE && par != -1) return 6;               /* a free joint is a root */
         t->parent[i] = par;
         t->joint[i] = j;
+        t->leaf[i] = 1;
+        if (par >= 0) t->leaf[par] = 0;
         t->yi[i] = at;
         at += gs_tree_ncoord(j);
     }
@@ -149,6 +151,8 @@ static TREE_INLINE void mv6(const M6 A, const double x[6], double y[6]) {
 
 /* ---------------------------------------------------------------------------------------------- the model */
 
+static const double *body_p(const double *p, int i) { return p + GS_TP_HEAD + GS_TB_NP * i; }
+
 typedef struct {
     M3 E[GS_TREE_MAX];        /* parent coordinates -> child coordinates (R_rel^T) */
     double r[GS_TREE_MAX][3];  /* the child origin in parent coordinates */
@@ -157,9 +161,154 @@ typedef struct {
     double v[GS_TREE_MAX][6];  /* spatial velocity, child coordinates */
     double vj[GS_TREE_MAX][6]; /* the joint's velocity */
     double qd[GS_TREE_MAX][6]; /* the joint's generalized velocity (free: omega, v in child coordinates) */
+    int ident[GS_TREE_MAX];    /* E is the identity: a fixed joint, or a rotor computed in its parent's orientation */
+    int plane[GS_TREE_MAX];    /* 0, 1, 2: E turns about that coordinate axis by the angle of cs (a hinge along a
+                                * body axis: 4 products instead of 9); -1: the general E */
+    double cs[GS_TREE_MAX][2]; /* cos, sin of that angle */
+    int r0[GS_TREE_MAX];       /* the joint point is the parent's origin (r = 0) */
 } Kin;
 
-static const double *body_p(const double *p, int i) { return p + GS_TP_HEAD + GS_TB_NP * i; }
+/* A rotor: a leaf on a hinge, axisymmetric about its axis (inertia about the centre of mass aa^T-isotropic, the
+ * centre of mass on the axis) with no external torque. Its spatial inertia is the same in every frame turned about
+ * the axis, so it is computed in its parent's orientation (E = 1: no rotation, no sine): a change of coordinates,
+ * exact up to the round-off of the symmetry test (1e-15 of the inertia). Reaction wheels and gyroscope rotors. */
+static int rotor_frame(const gs_tree *t, const double *b, int i) {
+    if (t->joint[i] != GS_J_HINGE || !t->leaf[i]) return 0;
+    if (b[GS_TB_TAU] != 0.0 || b[GS_TB_TAU + 1] != 0.0 || b[GS_TB_TAU + 2] != 0.0) return 0;
+    const double *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *J = b + GS_TB_I;
+    const double M[3][3] = {{J[0], J[3], J[4]}, {J[3], J[1], J[5]}, {J[4], J[5], J[2]}};
+    double Ja[3];
+    for (int r = 0; r < 3; r++) Ja[r] = M[r][0] * a[0] + M[r][1] * a[1] + M[r][2] * a[2];
+    const double la = a[0] * Ja[0] + a[1] * Ja[1] + a[2] * Ja[2];
+    const double lt = 0.5 * (J[0] + J[1] + J[2] - la);
+    const double tol = 1e-15 * (fabs(J[0]) + fabs(J[1]) + fabs(J[2]));
+    for (int r = 0; r < 3; r++) {
+        for (int q = 0; q < 3; q++) {
+            const double want = (r == q ? lt : 0.0) + (la - lt) * a[r] * a[q];
+            if (fabs(M[r][q] - want) > tol) return 0;
+        }
+    }
+    const double cxa[3] = {c[1] * a[2] - c[2] * a[1], c[2] * a[0] - c[0] * a[2], c[0] * a[1] - c[1] * a[0]};
+    const double ctol = 1e-15 * (fabs(c[0]) + fabs(c[1]) + fabs(c[2]));
+    return fabs(cxa[0]) <= ctol && fabs(cxa[1]) <= ctol && fabs(cxa[2]) <= ctol;
+}
+
+/* What stays constant over a call (the parameters do): the bodies' spatial inertias, the rotors, the hinges
+ * along a coordinate axis. */
+typedef struct {
+    M6 I[GS_TREE_MAX];
+    int rotor[GS_TREE_MAX];
+    int axis_k[GS_TREE_MAX];   /* a hinge's axis is +e_k: k; else -1 */
+} Pre;
+
+static void body_inertia(const double *b, M6 I);
+
+static void precompute(const gs_tree *t, const double *p, Pre *d) {
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *a = b + GS_TB_AXIS;
+        body_inertia(b, d->I[i]);
+        d->rotor[i] = rotor_frame(t, b, i);
+        d->axis_k[i] = -1;
+        if (t->joint[i] == GS_J_HINGE) {
+            for (int k = 0; k < 3; k++) {
+                if (a[k] == 1.0 && a[(k + 1) % 3] == 0.0 && a[(k + 2) % 3] == 0.0) d->axis_k[i] = k;
+            }
+        }
+    }
+}
+
+/* E v */
+static TREE_INLINE void rot_v(const Kin *k, int i, const double v[3], double out[3]) {
+    const int pl = k->plane[i];
+    if (pl >= 0) {
+        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const double c = k->cs[i][0], s = k->cs[i][1];
+        out[a] = c * v[a] + s * v[b];
+        out[b] = c * v[b] - s * v[a];
+        out[pl] = v[pl];
+    } else {
+        mv3(k->E[i], v, out);
+    }
+}
+
+/* E^T v */
+static TREE_INLINE void rot_tv(const Kin *k, int i, const double v[3], double out[3]) {
+    const int pl = k->plane[i];
+    if (pl >= 0) {
+        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const double c = k->cs[i][0], s = k->cs[i][1];
+        out[a] = c * v[a] - s * v[b];
+        out[b] = c * v[b] + s * v[a];
+        out[pl] = v[pl];
+    } else {
+        mtv3(k->E[i], v, out);
+    }
+}
+
+/* E^T M E */
+static TREE_INLINE void rot_blk(const Kin *k, int i, const M3 M, M3 out) {
+    const int pl = k->plane[i];
+    if (pl >= 0) {
+        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const double c = k->cs[i][0], s = k->cs[i][1];
+        M3 N;   /* M E: columns a, b turned */
+        for (int r = 0; r < 3; r++) {
+            N[r][a] = c * M[r][a] - s * M[r][b];
+            N[r][b] = c * M[r][b] + s * M[r][a];
+            N[r][pl] = M[r][pl];
+        }
+        for (int q = 0; q < 3; q++) {   /* E^T (M E): rows a, b turned */
+            out[a][q] = c * N[a][q] - s * N[b][q];
+            out[b][q] = c * N[b][q] + s * N[a][q];
+            out[pl][q] = N[pl][q];
+        }
+    } else {
+        M3 t;
+        mm3(M, k->E[i], t);
+        for (int r = 0; r < 3; r++) {
+            for (int q = 0; q < 3; q++) out[r][q] = k->E[i][0][r] * t[0][q] + k->E[i][1][r] * t[1][q] + k->E[i][2][r] * t[2][q];
+        }
+    }
+}
+
+/* out = X m for a motion vector m of the parent: (E w, E (v - r x w)) */
+static TREE_INLINE void xm(const Kin *k, int i, const double m[6], double out[6]) {
+    double tmp[3];
+    if (k->r0[i]) {
+        memcpy(tmp, m + 3, sizeof(tmp));
+    } else {
+        cross3(k->r[i], m, tmp);
+        for (int a = 0; a < 3; a++) tmp[a] = m[3 + a] - tmp[a];
+    }
+    if (k->ident[i]) {
+        memcpy(out, m, 3 * sizeof(double));
+        memcpy(out + 3, tmp, sizeof(tmp));
+    } else {
+        rot_v(k, i, m, out);
+        rot_v(k, i, tmp, out + 3);
+    }
+}
+
+/* out += X^T f for a force f of the child: (E^T n + r x E^T f, E^T f) */
+static TREE_INLINE void add_xtf(const Kin *k, int i, const double f[6], double out[6]) {
+    double n[3], fl[3], rf[3];
+    if (k->ident[i]) {
+        memcpy(n, f, sizeof(n));
+        memcpy(fl, f + 3, sizeof(fl));
+    } else {
+        rot_tv(k, i, f, n);
+        rot_tv(k, i, f + 3, fl);
+    }
+    if (!k->r0[i]) {
+        cross3(k->r[i], fl, rf);
+        for (int a = 0; a < 3; a++) n[a] += rf[a];
+    }
+    for (int a = 0; a < 3; a++) {
+        out[a] += n[a];
+        out[3 + a] += fl[a];
+    }
+}
+
 
 /* spatial inertia about the body origin, body coordinates */
 static void body_inertia(const double *b, M6 I) {
@@ -182,22 +331,42 @@ static void body_inertia(const double *b, M6 I) {
     }
 }
 
-/* positions and velocities of every body (pass 1 without the accelerations) */
-static void kinematics(const gs_tree *t, const double *y, const double *p, Kin *k) {
+/* positions and velocities of every body (pass 1 without the accelerations); world: also every body's world
+ * rotation and origin (the roots' always) */
+static void kinematics(const gs_tree *t, const double *y, const double *p, const Pre *pre, Kin *k, int world) {
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *s = y + t->yi[i];
         M3 R;
         double vj[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
         memcpy(k->r[i], b + GS_TB_POS, sizeof(k->r[i]));
+        k->ident[i] = 0;
+        k->plane[i] = -1;
         switch (t->joint[i]) {
             case GS_J_BALL:
                 quat_to_mat(s, R);
                 memcpy(vj, s + 4, 3 * sizeof(double));
                 break;
             case GS_J_HINGE: {
-                double q[4];
-                hinge_quat(b + GS_TB_AXIS, s[0], q);
-                quat_to_mat(q, R);
+                const int ak = pre->axis_k[i];
+                if (pre->rotor[i]) {
+                    k->ident[i] = 1;
+                } else if (ak >= 0) {   /* about a body axis: R from the angle's cosine and sine */
+                    const double c = cos(s[0]), sn = sin(s[0]);
+                    const int a1 = (ak + 1) % 3, a2 = (ak + 2) % 3;
+                    k->plane[i] = ak;
+                    k->cs[i][0] = c;
+                    k->cs[i][1] = sn;
+                    memset(R, 0, sizeof(M3));
+                    R[ak][ak] = 1.0;
+                    R[a1][a1] = c;
+                    R[a1][a2] = -sn;
+                    R[a2][a1] = sn;
+                    R[a2][a2] = c;
+                } else {
+                    double q[4];
+                    hinge_quat(b + GS_TB_AXIS, s[0], q);
+                    quat_to_mat(q, R);
+                }
                 for (int a = 0; a < 3; a++) vj[a] = b[GS_TB_AXIS + a] * s[1];
                 break;
             }
@@ -208,11 +377,17 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, Kin *
                 mtv3(R, s + 10, vj + 3);   /* v in child coordinates */
                 break;
             default:
-                memset(R, 0, sizeof(M3));
-                R[0][0] = R[1][1] = R[2][2] = 1.0;
+                k->ident[i] = 1;
         }
-        for (int a = 0; a < 3; a++) {
-            for (int c = 0; c < 3; c++) k->E[i][a][c] = R[c][a];
+        if (k->ident[i]) {
+            memset(R, 0, sizeof(M3));
+            R[0][0] = R[1][1] = R[2][2] = 1.0;
+        }
+        k->r0[i] = t->joint[i] != GS_J_FREE && k->r[i][0] == 0.0 && k->r[i][1] == 0.0 && k->r[i][2] == 0.0;
+        if (k->plane[i] < 0 && !k->ident[i]) {
+            for (int a = 0; a < 3; a++) {
+                for (int c = 0; c < 3; c++) k->E[i][a][c] = R[c][a];
+            }
         }
         memcpy(k->vj[i], vj, sizeof(vj));
         memcpy(k->qd[i], vj, sizeof(vj));
@@ -222,15 +397,14 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, Kin *
             memcpy(k->ow[i], k->r[i], sizeof(k->ow[i]));
             memcpy(k->v[i], vj, sizeof(vj));
         } else {
-            double d[3], tmp[3], vp[6];
-            mm3(k->Rw[par], R, k->Rw[i]);
-            mv3(k->Rw[par], k->r[i], d);
-            for (int a = 0; a < 3; a++) k->ow[i][a] = k->ow[par][a] + d[a];
-            /* X v_parent: (E w, E (v - r x w)) */
-            mv3(k->E[i], k->v[par], vp);
-            cross3(k->r[i], k->v[par], tmp);
-            for (int a = 0; a < 3; a++) tmp[a] = k->v[par][3 + a] - tmp[a];
-            mv3(k->E[i], tmp, vp + 3);
+            if (world) {
+                double d[3];
+                mm3(k->Rw[par], R, k->Rw[i]);
+                mv3(k->Rw[par], k->r[i], d);
+                for (int a = 0; a < 3; a++) k->ow[i][a] = k->ow[par][a] + d[a];
+            }
+            double vp[6];
+            xm(k, i, k->v[par], vp);
             for (int a = 0; a < 6; a++) k->v[i][a] = vp[a] + vj[a];
         }
     }
@@ -304,8 +478,16 @@ static int inverse(int k, double A[6][6], double Ai[6][6]) {
 /* out += X^T Ia X for the motion transform X = [E 0; -E [r]x E] (parent -> child) and a symmetric Ia = [A B; B^T C]:
  * with A', B', C' the blocks turned into the parent's orientation (E^T . E), the result is
  * [A' + rx B'^T - T rx, T; T^T, C'] with T = B' + rx C' (rx = [r]x). */
-static void add_transformed_inertia(const M3 E, const double r[3], const M6 Ia, M6 out) {
+static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) {
+    const int ident = kin->ident[i], r0 = kin->r0[i];
+    const double *r = kin->r[i];
     M3 blk[3], rot[3];
+    if (ident && r0) {
+        for (int a = 0; a < 6; a++) {
+            for (int b = 0; b < 6; b++) out[a][b] += Ia[a][b];
+        }
+        return;
+    }
     for (int a = 0; a < 3; a++) {
         for (int b = 0; b < 3; b++) {
             blk[0][a][b] = Ia[a][b];
@@ -313,12 +495,21 @@ static void add_transformed_inertia(const M3 E, const double r[3], const M6 Ia, 
             blk[2][a][b] = Ia[3 + a][3 + b];
         }
     }
-    for (int k = 0; k < 3; k++) {
-        M3 t;
-        mm3(blk[k], E, t);   /* X E */
+    if (ident) {
+        memcpy(rot, blk, sizeof(rot));
+    } else {
+        for (int k = 0; k < 3; k++) rot_blk(kin, i, blk[k], rot[k]);
+    }
+    if (r0) {
         for (int a = 0; a < 3; a++) {
-            for (int b = 0; b < 3; b++) rot[k][a][b] = E[0][a] * t[0][b] + E[1][a] * t[1][b] + E[2][a] * t[2][b];
+            for (int b = 0; b < 3; b++) {
+                out[a][b] += rot[0][a][b];
+                out[a][3 + b] += rot[1][a][b];
+                out[3 + a][b] += rot[1][b][a];
+                out[3 + a][3 + b] += rot[2][a][b];
+            }
         }
+        return;
     }
     const M3 rx = {{0.0, -r[2], r[1]}, {r[2], 0.0, -r[0]}, {-r[1], r[0], 0.0}};
     M3 T, rxC, rxBt, Trx;
@@ -343,7 +534,8 @@ static void add_transformed_inertia(const M3 E, const double r[3], const M6 Ia, 
 }
 
 /* the articulated-body algorithm: joint accelerations qdd[i][0:k] */
-static void aba(const gs_tree *t, const double *y, const double *p, const Kin *kin, double qdd[GS_TREE_MAX][6]) {
+static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
+                double qdd[GS_TREE_MAX][6]) {
     M6 IA[GS_TREE_MAX];
     double pA[GS_TREE_MAX][6], c[GS_TREE_MAX][6], U[GS_TREE_MAX][6][6], Di[GS_TREE_MAX][6][6], u[GS_TREE_MAX][6];
     double tau[GS_TREE_MAX][6];
@@ -352,7 +544,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i);
         double h[6], f[6];
-        body_inertia(b, IA[i]);
+        memcpy(IA[i], pre->I[i], sizeof(M6));
         mv6(IA[i], kin->v[i], h);
         crf(kin->v[i], h, f);
         for (int a = 0; a < 3; a++) {
@@ -370,7 +562,12 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
         const int k = gs_tree_ndof(t->joint[i]);
         nd[i] = k;
         double D[6][6];
-        if (t->joint[i] == GS_J_HINGE) {
+        if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
+            const int ak = pre->axis_k[i];
+            for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][ak];
+            D[0][0] = U[i][ak][0];
+            u[i][0] = tau[i][0] - pA[i][ak];
+        } else if (t->joint[i] == GS_J_HINGE) {
             const double *ax = body_p(p, i) + GS_TB_AXIS;
             for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][0] * ax[0] + IA[i][a][1] * ax[1] + IA[i][a][2] * ax[2];
             D[0][0] = ax[0] * U[i][0][0] + ax[1] * U[i][1][0] + ax[2] * U[i][2][0];
@@ -386,6 +583,20 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
         }
         if (k == 1) {
             Di[i][0][0] = 1.0 / D[0][0];
+        } else if (k == 3) {
+            const double c00 = D[1][1] * D[2][2] - D[1][2] * D[2][1], c01 = D[1][2] * D[2][0] - D[1][0] * D[2][2],
+                         c02 = D[1][0] * D[2][1] - D[1][1] * D[2][0];
+            const double det = D[0][0] * c00 + D[0][1] * c01 + D[0][2] * c02;
+            const double id = 1.0 / det;
+            Di[i][0][0] = c00 * id;
+            Di[i][1][0] = c01 * id;
+            Di[i][2][0] = c02 * id;
+            Di[i][0][1] = (D[0][2] * D[2][1] - D[0][1] * D[2][2]) * id;
+            Di[i][1][1] = (D[0][0] * D[2][2] - D[0][2] * D[2][0]) * id;
+            Di[i][2][1] = (D[0][1] * D[2][0] - D[0][0] * D[2][1]) * id;
+            Di[i][0][2] = (D[0][1] * D[1][2] - D[0][2] * D[1][1]) * id;
+            Di[i][1][2] = (D[0][2] * D[1][0] - D[0][0] * D[1][2]) * id;
+            Di[i][2][2] = (D[0][0] * D[1][1] - D[0][1] * D[1][0]) * id;
         } else if (k > 0 && !inverse(k, D, Di[i])) {
             for (int a = 0; a < k; a++) {
                 for (int j = 0; j < k; j++) Di[i][a][j] = NAN;
@@ -395,40 +606,46 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
         if (par < 0) continue;
         /* Ia = IA - U D^-1 U^T, pa = pA + Ia c + U D^-1 u */
         M6 Ia;
-        double pa[6], UDi[6][6], Du[6];
-        for (int a = 0; a < 6; a++) {
-            for (int j = 0; j < k; j++) {
-                double s = 0.0;
-                for (int l = 0; l < k; l++) s += U[i][a][l] * Di[i][l][j];
-                UDi[a][j] = s;
+        double pa[6];
+        if (k == 1) {   /* a hinge: D^-1 is a number */
+            double Ud[6];
+            for (int a = 0; a < 6; a++) Ud[a] = U[i][a][0] * Di[i][0][0];
+            for (int a = 0; a < 6; a++) {
+                for (int j = a; j < 6; j++) {
+                    Ia[a][j] = IA[i][a][j] - Ud[a] * U[i][j][0];
+                    Ia[j][a] = Ia[a][j];
+                }
             }
-        }
-        for (int a = 0; a < 6; a++) {
-            for (int j = 0; j < 6; j++) {
-                double s = 0.0;
-                for (int l = 0; l < k; l++) s += UDi[a][l] * U[i][j][l];
-                Ia[a][j] = IA[i][a][j] - s;
+            mv6(Ia, c[i], pa);
+            for (int a = 0; a < 6; a++) pa[a] += pA[i][a] + Ud[a] * u[i][0];
+        } else {
+            double UDi[6][6], Du[6];
+            for (int a = 0; a < 6; a++) {
+                for (int j = 0; j < k; j++) {
+                    double s = 0.0;
+                    for (int l = 0; l < k; l++) s += U[i][a][l] * Di[i][l][j];
+                    UDi[a][j] = s;
+                }
             }
-        }
-        for (int a = 0; a < k; a++) Du[a] = u[i][a];
-        mv6(Ia, c[i], pa);
-        for (int a = 0; a < 6; a++) {
-            double s = 0.0;
-            for (int l = 0; l < k; l++) s += UDi[a][l] * Du[l];
-            pa[a] += pA[i][a] + s;
+            for (int a = 0; a < 6; a++) {   /* symmetric: the upper triangle, mirrored */
+                for (int j = a; j < 6; j++) {
+                    double s = 0.0;
+                    for (int l = 0; l < k; l++) s += UDi[a][l] * U[i][j][l];
+                    Ia[a][j] = IA[i][a][j] - s;
+                    Ia[j][a] = Ia[a][j];
+                }
+            }
+            for (int a = 0; a < k; a++) Du[a] = u[i][a];
+            mv6(Ia, c[i], pa);
+            for (int a = 0; a < 6; a++) {
+                double s = 0.0;
+                for (int l = 0; l < k; l++) s += UDi[a][l] * Du[l];
+                pa[a] += pA[i][a] + s;
+            }
         }
         /* to the parent: IA_p += X^T Ia X, pA_p += X^T pa, X = [E 0; -E [r]x E] */
-        add_transformed_inertia(kin->E[i], kin->r[i], Ia, IA[par]);
-        {
-            double n[3], f[3], rf[3];
-            mtv3(kin->E[i], pa, n);
-            mtv3(kin->E[i], pa + 3, f);
-            cross3(kin->r[i], f, rf);
-            for (int a = 0; a < 3; a++) {
-                pA[par][a] += n[a] + rf[a];
-                pA[par][3 + a] += f[a];
-            }
-        }
+        add_transformed_inertia(kin, i, Ia, IA[par]);
+        add_xtf(kin, i, pa, pA[par]);
     }
     double acc[GS_TREE_MAX][6];
     const double g = p[GS_TP_G];
@@ -436,15 +653,10 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
         const int par = t->parent[i];
         double ap[6];
         if (par < 0) {
-            const double up[3] = {0.0, 0.0, g};   /* gravity: the world accelerates upwards */
-            ap[0] = ap[1] = ap[2] = 0.0;
-            mv3(kin->E[i], up, ap + 3);
+            const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
+            xm(kin, i, up, ap);
         } else {
-            double tmp[3];
-            mv3(kin->E[i], acc[par], ap);
-            cross3(kin->r[i], acc[par], tmp);
-            for (int a = 0; a < 3; a++) tmp[a] = acc[par][3 + a] - tmp[a];
-            mv3(kin->E[i], tmp, ap + 3);
+            xm(kin, i, acc[par], ap);
         }
         for (int a = 0; a < 6; a++) ap[a] += c[i][a];
         const int k = nd[i];
@@ -460,7 +672,9 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Kin *k
             qdd[i][a] = s;
         }
         for (int a = 0; a < 6; a++) acc[i][a] = ap[a];
-        if (t->joint[i] == GS_J_HINGE) {
+        if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
+            acc[i][pre->axis_k[i]] += qdd[i][0];
+        } else if (t->joint[i] == GS_J_HINGE) {
             const double *ax = body_p(p, i) + GS_TB_AXIS;
             for (int a = 0; a < 3; a++) acc[i][a] += ax[a] * qdd[i][0];
         } else {
@@ -491,11 +705,11 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
     return P;
 }
 
-void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
+static void derivs(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *dy) {
     Kin kin;
     double qdd[GS_TREE_MAX][6];
-    kinematics(t, y, p, &kin);
-    aba(t, y, p, &kin, qdd);
+    kinematics(t, y, p, pre, &kin, 0);
+    aba(t, y, p, pre, &kin, qdd);
     for (int i = 0; i < t->n; i++) {
         const double *s = y + t->yi[i];
         double *d = dy + t->yi[i];
@@ -523,6 +737,12 @@ void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, dou
         }
     }
     dy[t->nx] = power(t, y, p, &kin);
+}
+
+void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
+    static _Thread_local Pre pre;   /* 9 kB: off the stack of FMU hosts' threads */
+    precompute(t, p, &pre);
+    derivs(t, y, p, &pre, dy);
 }
 
 void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd_out) {
@@ -564,7 +784,9 @@ static int root_of(const gs_tree *t, int i) {
 
 static void totals(const gs_tree *t, const double *y, const double *p, Totals *s) {
     Kin kin;
-    kinematics(t, y, p, &kin);
+    static _Thread_local Pre pre;
+    precompute(t, p, &pre);
+    kinematics(t, y, p, &pre, &kin, 1);
     const double g = p[GS_TP_G];
     s->T = s->V = s->pot_scale = s->inertia = 0.0;
     s->L[0] = s->L[1] = s->L[2] = 0.0;
@@ -671,7 +893,9 @@ double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double 
 
 double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) {
     Kin kin;
-    kinematics(t, y, p, &kin);
+    static _Thread_local Pre pre;
+    precompute(t, p, &pre);
+    kinematics(t, y, p, &pre, &kin, 0);
     double w = 0.0;
     for (int i = 0; i < t->n; i++) {
         w = fmax(w, norm3(kin.v[i]));
@@ -712,11 +936,12 @@ void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double 
 typedef struct {
     const gs_tree *t;
     const double *p;
+    const Pre *pre;
 } Ctx;
 
 static void ode_rhs(const void *ctx, const double *y, double *dy) {
     const Ctx *c = (const Ctx *)ctx;
-    gs_tree_derivatives(c->t, y, c->p, dy);
+    derivs(c->t, y, c->p, c->pre, dy);
 }
 
 static void ode_project(const void *ctx, double *y) {
@@ -748,7 +973,9 @@ static int ode_check(const void *ctx, double *y) {
 
 static int32_t advance_system(const gs_tree *t, int method, double *y, const double *p, double H, int64_t n_sub,
                               double rtol, double atol, double max_step, double *hint, int64_t *stats) {
-    Ctx ctx = {t, p};
+    static _Thread_local Pre pre;
+    precompute(t, p, &pre);
+    Ctx ctx = {t, p, &pre};
     gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
     const int64_t k = gs_ode_advance(method, &o, y, H, n_sub, rtol, atol, max_step, hint, stats);
     return (int32_t)(k > 2147483647 ? 2147483647 : k);
