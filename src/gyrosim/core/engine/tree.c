@@ -197,16 +197,21 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
  * along a coordinate axis. */
 typedef struct {
     M6 I[GS_TREE_MAX];
+    M6 IAbase[GS_TREE_MAX];    /* I plus the (constant) articulated inertias of the rotors hanging from the body */
     int rotor[GS_TREE_MAX];
     int axis_k[GS_TREE_MAX];   /* a hinge's axis is +e_k: k; else -1 */
+    double rotU[GS_TREE_MAX][6], rotDi[GS_TREE_MAX];   /* a rotor's U = I S and 1 / (S^T U) */
+    M6 rotIa[GS_TREE_MAX];     /* a rotor's I - U U^T / D */
 } Pre;
 
 static void body_inertia(const double *b, M6 I);
+static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out);
 
 static void precompute(const gs_tree *t, const double *p, Pre *d) {
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *a = b + GS_TB_AXIS;
         body_inertia(b, d->I[i]);
+        memcpy(d->IAbase[i], d->I[i], sizeof(M6));
         d->rotor[i] = rotor_frame(t, b, i);
         d->axis_k[i] = -1;
         if (t->joint[i] == GS_J_HINGE) {
@@ -214,6 +219,25 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
                 if (a[k] == 1.0 && a[(k + 1) % 3] == 0.0 && a[(k + 2) % 3] == 0.0) d->axis_k[i] = k;
             }
         }
+    }
+    /* a rotor's articulated inertia does not change (a leaf, in its parent's orientation): fold it in once */
+    static _Thread_local Kin kt;
+    for (int i = 0; i < t->n; i++) {
+        if (!d->rotor[i]) continue;
+        const double *b = body_p(p, i), *a = b + GS_TB_AXIS;
+        for (int r = 0; r < 6; r++) d->rotU[i][r] = d->I[i][r][0] * a[0] + d->I[i][r][1] * a[1] + d->I[i][r][2] * a[2];
+        d->rotDi[i] = 1.0 / (a[0] * d->rotU[i][0] + a[1] * d->rotU[i][1] + a[2] * d->rotU[i][2]);
+        for (int r = 0; r < 6; r++) {
+            for (int q = r; q < 6; q++) {
+                d->rotIa[i][r][q] = d->I[i][r][q] - d->rotU[i][r] * d->rotDi[i] * d->rotU[i][q];
+                d->rotIa[i][q][r] = d->rotIa[i][r][q];
+            }
+        }
+        memcpy(kt.r[0], b + GS_TB_POS, sizeof(kt.r[0]));
+        kt.ident[0] = 1;
+        kt.plane[0] = -1;
+        kt.r0[0] = kt.r[0][0] == 0.0 && kt.r[0][1] == 0.0 && kt.r[0][2] == 0.0;
+        add_transformed_inertia(&kt, 0, d->rotIa[i], d->IAbase[t->parent[i]]);
     }
 }
 
@@ -544,8 +568,8 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i);
         double h[6], f[6];
-        memcpy(IA[i], pre->I[i], sizeof(M6));
-        mv6(IA[i], kin->v[i], h);
+        memcpy(IA[i], pre->IAbase[i], sizeof(M6));
+        mv6(pre->I[i], kin->v[i], h);
         crf(kin->v[i], h, f);
         for (int a = 0; a < 3; a++) {
             pA[i][a] = f[a] - b[GS_TB_TAU + a];
@@ -562,6 +586,20 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         const int k = gs_tree_ndof(t->joint[i]);
         nd[i] = k;
         double D[6][6];
+        if (pre->rotor[i]) {   /* U, D and the articulated inertia were made once (precompute) */
+            const double *ax = body_p(p, i) + GS_TB_AXIS;
+            for (int a = 0; a < 6; a++) U[i][a][0] = pre->rotU[i][a];
+            Di[i][0][0] = pre->rotDi[i];
+            u[i][0] = tau[i][0] - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
+            double pa[6], Ud[6];
+            mv6(pre->rotIa[i], c[i], pa);
+            for (int a = 0; a < 6; a++) {
+                Ud[a] = U[i][a][0] * Di[i][0][0];
+                pa[a] += pA[i][a] + Ud[a] * u[i][0];
+            }
+            add_xtf(kin, i, pa, pA[t->parent[i]]);
+            continue;
+        }
         if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
             const int ak = pre->axis_k[i];
             for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][ak];
