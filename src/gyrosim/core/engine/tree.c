@@ -499,6 +499,29 @@ static int inverse(int k, double A[6][6], double Ai[6][6]) {
     return 1;
 }
 
+/* out += X^T Ia X, X = diag(E, E) with E the turn by (c, sn) in the plane (pa, pb) about axis pl (the indices are
+ * constants where it is inlined: the loops unroll) */
+static TREE_INLINE void turn_add(const M6 Ia, M6 out, const int pa, const int pb, const int pl, const double c,
+                                 const double sn) {
+    M6 N;   /* Ia X: columns (pa, pb), (3 + pa, 3 + pb) turned */
+    for (int row = 0; row < 6; row++) {
+        for (int h = 0; h < 6; h += 3) {
+            const double xa = Ia[row][h + pa], xb = Ia[row][h + pb];
+            N[row][h + pa] = c * xa - sn * xb;
+            N[row][h + pb] = c * xb + sn * xa;
+            N[row][h + pl] = Ia[row][h + pl];
+        }
+    }
+    for (int h = 0; h < 6; h += 3) {   /* X^T N: rows (pa, pb), (3 + pa, 3 + pb) turned */
+        for (int col = 0; col < 6; col++) {
+            const double ya = N[h + pa][col], yb = N[h + pb][col];
+            out[h + pa][col] += c * ya - sn * yb;
+            out[h + pb][col] += c * yb + sn * ya;
+            out[h + pl][col] += N[h + pl][col];
+        }
+    }
+}
+
 /* out += X^T Ia X for the motion transform X = [E 0; -E [r]x E] (parent -> child) and a symmetric Ia = [A B; B^T C]:
  * with A', B', C' the blocks turned into the parent's orientation (E^T . E), the result is
  * [A' + rx B'^T - T rx, T; T^T, C'] with T = B' + rx C' (rx = [r]x). */
@@ -509,6 +532,15 @@ static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) 
     if (ident && r0) {
         for (int a = 0; a < 6; a++) {
             for (int b = 0; b < 6; b++) out[a][b] += Ia[a][b];
+        }
+        return;
+    }
+    if (r0 && kin->plane[i] >= 0) {   /* X = diag(E, E), E a turn in one coordinate plane */
+        const double c = kin->cs[i][0], sn = kin->cs[i][1];
+        switch (kin->plane[i]) {
+            case 0: turn_add(Ia, out, 1, 2, 0, c, sn); break;
+            case 1: turn_add(Ia, out, 2, 0, 1, c, sn); break;
+            default: turn_add(Ia, out, 0, 1, 2, c, sn); break;
         }
         return;
     }
@@ -569,7 +601,17 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         const double *b = body_p(p, i);
         double h[6], f[6];
         memcpy(IA[i], pre->IAbase[i], sizeof(M6));
-        mv6(pre->I[i], kin->v[i], h);
+        {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product) */
+            const double m = b[GS_TB_MASS], *cm = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin->v[i], *vl = kin->v[i] + 3;
+            double wc[3], vc[3], cvc[3];
+            cross3(w, cm, wc);
+            for (int a = 0; a < 3; a++) vc[a] = m * (vl[a] + wc[a]);   /* momentum: m (v + w x c) */
+            cross3(cm, vc, cvc);
+            h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2] + cvc[0];
+            h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2] + cvc[1];
+            h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cvc[2];
+            memcpy(h + 3, vc, sizeof(vc));
+        }
         crf(kin->v[i], h, f);
         for (int a = 0; a < 3; a++) {
             pA[i][a] = f[a] - b[GS_TB_TAU + a];
