@@ -350,5 +350,45 @@ def main() -> None:
     print(f"RKF78 time per dt step (rel 1e-12/abs 1e-14, 5000 steps): {t_78 * 1e6:.3f} us")
 
 
+def _json_main(argv=None) -> int:
+    """``--time``: RK4 cost per step as JSON; ``--state``: the full case's final state as JSON (for gyrosim's
+    tree_bench, which runs this file with the Basilisk venv's interpreter)."""
+    import argparse
+    import json
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--time", action="store_true", help="print the RK4 cost per step (JSON) and exit")
+    ap.add_argument("--steps", type=int, default=20000, help="timed RK4 steps per repeat (--time)")
+    ap.add_argument("--repeats", type=int, default=5, help="repeats (--time); the minimum is the result")
+    ap.add_argument("--state", action="store_true",
+                    help="print the full case's state after --duration s (rkf78 rel 1e-12, abs 1e-14) as JSON")
+    ap.add_argument("--duration", type=float, default=10.0)
+    a = ap.parse_args(argv)
+    if not (a.time or a.state):
+        main()
+        return 0
+    out = {"basilisk_version": _bsk_version()}
+    if a.time:
+        times = [time_rk4_step(a.steps) for _ in range(a.repeats)]
+        out.update({"rk4_s_per_step": times, "rk4_s_per_step_min": min(times), "steps": a.steps, "dt": 0.01,
+                    "warmup_steps": 1000})
+    if a.state:
+        r = run_basilisk(duration=a.duration)
+        out["state"] = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in r.items()}
+    print(json.dumps(out))
+    return 0
+
+
+def _bsk_version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("bsk")
+    except Exception:  # noqa: BLE001 - informational only
+        return "unknown"
+
+
 if __name__ == "__main__":
-    main()
+    import sys
+
+    sys.exit(_json_main())

@@ -362,7 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--output", "-o", default="docs/study", help="folder for plots and tables")
     b.add_argument("--quick", action="store_true", help="a short ladder (seconds, for a smoke test)")
     b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, "
-                   "startup, peers, fmu, service, sweep), merged into the folder's earlier results")
+                   "startup, peers, fmu, service, sweep, tree), merged into the folder's earlier results")
     add_verbosity(b)
     b.set_defaults(func=cmd_bench)
     for mod in _PLUGINS:

@@ -59,7 +59,7 @@ ADAPTIVE = ("adaptive", "dop853")
 INTEGRATORS = FIXED + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
-PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "service", "sweep")
+PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "service", "sweep", "tree")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1163,7 +1163,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
     """
     import importlib.util
 
-    mods = {"fmu": ("gyrosim.fmu.bench",), "service": ("gyrosim.service.bench",), "sweep": ("gyrosim.sweep.bench",)}
+    mods = {"fmu": ("gyrosim.fmu.bench",), "service": ("gyrosim.service.bench",), "sweep": ("gyrosim.sweep.bench",),
+            "tree": ("gyrosim.tree_bench",)}
     msgs = []
     for name in mods[part]:
         try:
@@ -1208,7 +1209,7 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 #: results.json keys that each part writes (fmu and service leave their own files)
 PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
              "stability": ("stability",), "startup": ("startup",), "peers": ("peers",), "fmu": (), "service": (),
-             "sweep": ()}
+             "sweep": (), "tree": ()}
 #: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
 SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
 
@@ -1229,7 +1230,7 @@ def _legacy_blocks(out: Path, old: dict) -> dict:
              "accuracy": [f"accuracy_{c}" for c in old.get("accuracy", {})] + ["orders"]}
     for m in old.get("messages", []):  # fmu / service: the markdown files their message says they wrote
         part = m.split(":", 1)[0]
-        if part in ("fmu", "service", "sweep") and "(wrote " in m:
+        if part in ("fmu", "service", "sweep", "tree") and "(wrote " in m:
             files = m.split("(wrote ", 1)[1].split(")", 1)[0].split(", ")
             names[part] = [f[:-3] for f in files if f.endswith(".md")]
     blocks = {}
@@ -1383,7 +1384,7 @@ def main(args) -> int:
                 if res.get("note"):
                     messages.append(f"peers: {res['note']}")
                 bar.update()
-            elif part in ("fmu", "service", "sweep"):
+            elif part in ("fmu", "service", "sweep", "tree"):
                 bar.set_postfix_str(part)
                 try:
                     messages += _external_bench(part, out, quick, plan.external)
