@@ -129,6 +129,8 @@ class Scene:
     couplings: tuple = ()
     coupling_names: tuple = ()
     aliases: tuple = ()
+    #: copies of the tree a model of this scene holds (sweeps: one copy per sample, stepped in one engine call)
+    systems: int = 1
 
     @property
     def is_tree(self) -> bool:

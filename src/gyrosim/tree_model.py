@@ -19,7 +19,7 @@ from .core.tree import BODY_OUTPUTS, SCENE_OUTPUTS, TreeLayout
 from .errors import ConfigError, IntegrationError, StepError
 from .model import Model, ModelState, Variable, _positive_step
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean, load_scene
-from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS, body_with
+from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS
 
 __all__ = ["TreeModel", "tree_variables", "tree_output_names"]
 
@@ -128,12 +128,25 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     return {v.name: v for v in V}
 
 
+_BODY_COLS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 1, "I3": _engine.TB_I + 2,
+              "cm_x": _engine.TB_CM, "cm_y": _engine.TB_CM + 1, "cm_z": _engine.TB_CM + 2,
+              "pos_x": _engine.TB_POS, "pos_y": _engine.TB_POS + 1, "pos_z": _engine.TB_POS + 2,
+              "stiffness": _engine.TB_STIFF, "rest_angle": _engine.TB_REST, "joint_damping": _engine.TB_DAMP,
+              "damping": _engine.TB_DAMP, "motor_torque": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU,
+              "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
+_NON_NEGATIVE = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
+
+
 class TreeModel(Model):
     """Step-based model of a tree of bodies (built by ``Model(scene)`` for a tree scene).
 
     Variables are named ``<body>.<name>`` (``rotor.angle``, ``wheel_x.motor_torque``); the scene-wide ones bare
     (``energy``, ``L_z``, ``g``, ``integrator``). ``set``, ``get`` and ``outputs`` take the full name, or the body's
     own name with ``body=``.
+
+    A scene with ``systems = k`` (the sweeps' replicas) holds k copies of the tree, stepped in one engine call:
+    :meth:`set` sets every copy, :meth:`set_many` one value per copy, :meth:`outputs_array` and
+    :meth:`trajectory` have a row per copy.
 
     Examples
     --------
@@ -152,22 +165,21 @@ class TreeModel(Model):
         self.variables = tree_variables(sc)
         self.body_names = sc.body_names
         self.n_bodies = len(self.body_names)
+        self.n_systems = k = max(1, int(getattr(sc, "systems", 1)))
         self._index = {b: i for i, b in enumerate(self.body_names)}
         self._out_names = tree_output_names(sc)
         self._out_index = {n: i for i, n in enumerate(self._out_names)}
         self._bodies = list(sc.tree)
-        self._couplings = [k for _, _, k in sc.couplings]
-        self._aliases = {a.name: float(a.value) for a in sc.aliases}
-        self._g = float(sc.g)
-        self._motor = np.zeros(self.n_bodies)
-        self._tau = np.zeros((self.n_bodies, 3))
-        self._y = self.layout.state().reshape(1, -1)
-        self._hint = np.zeros(1)
-        self._stats = np.zeros((1, 3), dtype=np.int64)
-        self._status = np.zeros(1, dtype=np.int32)
+        self._alias_names = [a.name for a in sc.aliases]
+        self._alias_vals = np.tile(np.array([a.value for a in sc.aliases], dtype=float), (k, 1))
+        self.max_drift = float(sc.max_drift)
+        self._pp = np.tile(self.layout.params(float(sc.g), self.max_drift), (k, 1))  # the parameters as set
+        self._y = np.tile(self.layout.state(), (k, 1))
+        self._hint = np.zeros(k)
+        self._stats = np.zeros((k, 3), dtype=np.int64)
+        self._status = np.zeros(k, dtype=np.int32)
         self.integrator = sc.integrator
         self.max_step = float(sc.max_step)
-        self.max_drift = float(sc.max_drift)
         self.tolerance = float(sc.tolerance if tolerance is None else tolerance)
         if tolerance is not None:
             self._check_positive("tolerance", self.tolerance)
@@ -179,9 +191,9 @@ class TreeModel(Model):
         self._initialized = False
         self._state_dirty = True
         self._out = None
-        self._p = None
-        for k, v in (parameters or {}).items():
-            self.set(k, v)
+        self._p = None  # the parameters the running state was started or moved with
+        for key, v in (parameters or {}).items():
+            self.set(key, v)
 
     # ----------------------------------------------------------------------------------------------- variables
     def _full(self, name, body) -> str:
@@ -202,8 +214,53 @@ class TreeModel(Model):
                               f"{did_you_mean(name, self.variables)}: " + ", ".join(list(self.variables)[:40]))
         return v
 
+    def _columns(self, name: str) -> list:
+        """Where a parameter or input lives in a parameter row: [(column, factor), ...]."""
+        if name == "g":
+            return [(0, 1.0)]
+        if name in self._alias_names:
+            a = self.scene.aliases[self._alias_names.index(name)]
+            return [(self.layout.body_offset(bi) + _BODY_COLS[pn], f) for bi, pn, f in a.sets]
+        if name in self.scene.coupling_names:
+            return [(self.layout.body_offset(self.n_bodies) + self.scene.coupling_names.index(name), 1.0)]
+        bname, _, short = name.rpartition(".")
+        return [(self.layout.body_offset(self._index[bname]) + _BODY_COLS[short], 1.0)]
+
+    def _check_value(self, name: str, x: np.ndarray, unit: str) -> None:
+        short = name.rpartition(".")[2]
+        bad = ~np.isfinite(x)
+        if short in _NON_NEGATIVE or name == "g" or name in self.scene.coupling_names:
+            bad |= ~(x >= 0)
+        if bad.any():
+            v = float(x[np.flatnonzero(bad)[0]])
+            rule = "a finite number" if not np.isfinite(v) else "a number >= 0"
+            raise ConfigError(name, v, f"{rule} in {unit or '1'}")
+
+    def _assign(self, name: str, v: Variable, x: np.ndarray) -> None:
+        """Set parameter/input/start ``name`` to ``x`` (one value per system)."""
+        self._check_value(name, x, v.unit)
+        if v.causality == "output":
+            if v.start is None:
+                raise ConfigError(name, float(x[0]), "a parameter, an input or a joint's start state; "
+                                  f"{name} is a derived output")
+            bname, _, short = name.rpartition(".")
+            self._y[:, self.layout.coord_slots[(self._index[bname], short)]] = x
+            self._state_dirty = True
+            self._out = None
+            return
+        if name in self._alias_names:
+            self._alias_vals[:, self._alias_names.index(name)] = x
+        for col, f in self._columns(name):
+            self._pp[:, col] = f * x
+            if v.causality == "input" and self._p is not None:
+                self._p[:, col] = f * x  # inputs act at once (the balance integrates their work)
+        if v.causality == "parameter":
+            self._initialized = False
+        self._out = None
+
     def set(self, name: str, value, body=None) -> None:
-        """Set a parameter, input or start state by name (``rotor.rate``; or ``rate`` with ``body="rotor"``).
+        """Set a parameter, input or start state by name (``rotor.rate``; or ``rate`` with ``body="rotor"``), for
+        every copy of the tree.
 
         Raises
         ------
@@ -230,7 +287,6 @@ class TreeModel(Model):
             raise ConfigError(name, value, f"a real number in {v.unit or '1'}") from None
         if not math.isfinite(x):
             raise ConfigError(name, value, f"a finite number in {v.unit or '1'}")
-        bname, _, short = name.rpartition(".")
         if name == "max_step":
             self._check_positive(name, x)
             self.max_step = x
@@ -238,86 +294,44 @@ class TreeModel(Model):
             if x < 0:
                 raise ConfigError(name, value, "a number >= 0 (0: the health monitor off)")
             self.max_drift = x
+            self._pp[:, 1] = x
             if self._p is not None:
                 self._p[:, 1] = x
-        elif name == "g":
-            if x < 0:
-                raise ConfigError(name, value, "a number >= 0 in m/s2")
-            self._g = x
-            self._initialized = False
-        elif name in self._aliases:
-            a = next(a for a in self.scene.aliases if a.name == name)
-            for bi, pn, f in a.sets:
-                self._check_body_param(pn, f * x, self.body_names[bi], name)
-            self._aliases[name] = x
-            for bi, pn, f in a.sets:
-                self._bodies[bi] = body_with(self._bodies[bi], pn, f * x)
-            self._initialized = False
-        elif name in self.scene.coupling_names:
-            if x < 0:
-                raise ConfigError(name, value, "a number >= 0 in N.m/rad")
-            self._couplings[self.scene.coupling_names.index(name)] = x
-            self._initialized = False
-        elif v.causality == "input":
-            i = self._index[bname]
-            if short == "motor_torque":
-                self._motor[i] = x
-                if self._p is not None:
-                    self._p[0, self.layout.body_offset(i) + _engine.TB_MOTOR] = x
-            else:
-                k = "xyz".index(short[-1])
-                self._tau[i, k] = x
-                if self._p is not None:
-                    self._p[0, self.layout.body_offset(i) + _engine.TB_TAU + k] = x
-        elif v.causality == "parameter":
-            i = self._index[bname]
-            self._check_body_param(short, x, bname, name)
-            self._bodies[i] = body_with(self._bodies[i], short, x)
-            self._initialized = False
-        elif v.start is not None:  # a joint coordinate: a start state
-            self._y[0, self.layout.coord_slots[(self._index[bname], short)]] = x
-            self._state_dirty = True
-            self._out = None
         else:
-            raise ConfigError(name, value, "a parameter, an input or a joint's start state; "
-                              f"{name} is a derived output")
-
-    @staticmethod
-    def _check_body_param(short, x, bname, name):
-        if short in ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping") and x < 0:
-            raise ConfigError(name, x, f"a number >= 0 ({short} of body {bname!r})")
+            self._assign(name, v, np.full(self.n_systems, x))
 
     def set_many(self, name: str, values) -> None:
-        raise ConfigError(name, "an array", "one value: a tree scene is one system (use Model.set)")
+        """One value per copy of the tree (``(n_systems,)``, sweeps); names and rules as :meth:`set`."""
+        v = self._var(name)
+        if v.type == "String" or name in ("max_step", "max_drift"):
+            raise ConfigError(name, "an array", "one value for every copy: use Model.set")
+        try:
+            x = np.asarray(values, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError(name, values, f"an array of real numbers in {v.unit or '1'}") from None
+        if x.shape != (self.n_systems,):
+            raise ConfigError(name, f"an array of shape {x.shape}", f"an array of shape ({self.n_systems},)")
+        self._assign(name, v, x)
 
-    def get(self, name: str, body=None):
-        """Value of a variable by full name (or the body's own name with ``body=``)."""
+    def get(self, name: str, body=None, system: int = 0):
+        """Value of a variable by full name (or the body's own name with ``body=``), of copy ``system``."""
         name = self._full(name, body)
         v = self._var(name)
         if v.type == "String":
             return self.integrator
         if v.causality == "output":
-            return float(self._outputs_array()[0, self._out_index[name]])
-        bname, _, short = name.rpartition(".")
+            return float(self._outputs_array()[system, self._out_index[name]])
         if name == "max_step":
             return self.max_step
         if name == "max_drift":
             return self.max_drift
-        if name == "g":
-            return self._g
-        if name in self._aliases:
-            return self._aliases[name]
-        if name in self.scene.coupling_names:
-            return self._couplings[self.scene.coupling_names.index(name)]
-        i = self._index[bname]
-        if short == "motor_torque":
-            return float(self._motor[i])
-        if short in ("tau_x", "tau_y", "tau_z"):
-            return float(self._tau[i, "xyz".index(short[-1])])
-        return _body_param_value(self._bodies[i], short)
+        if name in self._alias_names:
+            return float(self._alias_vals[system, self._alias_names.index(name)])
+        col, f = self._columns(name)[0]
+        return float(self._pp[system, col] / f)
 
     def outputs(self, body=None) -> dict[str, float]:
-        """Every output by full name (``body``: only that body's, by its own names)."""
+        """Every output by full name (``body``: only that body's, by its own names), of the first copy."""
         row = self._outputs_array()[0]
         if body is None:
             return {n: float(row[k]) for k, n in enumerate(self._out_names)}
@@ -325,7 +339,7 @@ class TreeModel(Model):
         return {n[len(pre):]: float(row[k]) for k, n in enumerate(self._out_names) if n.startswith(pre)}
 
     def outputs_array(self) -> np.ndarray:
-        """(1, nout) outputs in the order of :func:`tree_output_names` (a copy)."""
+        """(n_systems, nout) outputs in the order of :func:`tree_output_names` (a copy)."""
         return self._outputs_array().copy()
 
     def parameters(self, body=None) -> dict:
@@ -335,20 +349,11 @@ class TreeModel(Model):
         return {n: self.get(n) for n, v in self.variables.items() if v.causality == "input"}
 
     # ----------------------------------------------------------------------------------------------- stepping
-    def _params(self) -> np.ndarray:
-        lay = TreeLayout(self._bodies, [(a, b, k) for (a, b, _), k in zip(self.scene.couplings, self._couplings)])
-        p = lay.params(self._g, self.max_drift)
-        for i in range(self.n_bodies):
-            o = self.layout.body_offset(i)
-            p[o + _engine.TB_MOTOR] = self._motor[i]
-            p[o + _engine.TB_TAU:o + _engine.TB_TAU + 3] = self._tau[i]
-        return p.reshape(1, -1)
-
     def initialize(self) -> None:
-        """Build the parameter row and start the state (quaternions normalised, the health monitor started)."""
+        """Take the parameters and start the state (quaternions normalised, the health monitor started)."""
         p_old = self._p if not self._state_dirty else None
         if not self._initialized:
-            self._p = self._params()
+            self._p = self._pp.copy()
             self._initialized = True
             if p_old is not None:
                 _engine.tree_reparam(self.layout.desc, self._y, p_old, self._p)
@@ -358,10 +363,10 @@ class TreeModel(Model):
                 for b, body in enumerate(self._bodies):
                     if body.joint in ("ball", "free_rotation", "free"):
                         k = self.layout.coord_slots[(b, "q_w")]
-                        q = self._y[0, k:k + 4]
+                        q = self._y[bad, k:k + 4]
                         if not np.linalg.norm(q) > 0:
                             raise ConfigError(f"{body.name}.q", q.tolist(), "a non-zero quaternion (it is normalised)")
-                raise ConfigError("state", self._y[0, :self.layout.nx].tolist(), "finite start values")
+                raise ConfigError("state", self._y[bad, :self.layout.nx].tolist(), "finite start values")
             self._state_dirty = False
             self._out = None
 
@@ -377,10 +382,12 @@ class TreeModel(Model):
         failed = _engine.tree_advance(self.layout.desc, method, self._y, self._p, h, self.tolerance, self.tolerance,
                                       self.max_step, self._hint, self._stats, self._status, 0)
         if failed:
-            k = int(self._status[0])
+            b = int(np.flatnonzero(self._status)[0])
+            k = int(self._status[b])
             self._status[:] = 0
             self._y, self._hint = saved
-            raise IntegrationError(self._blowup(self._y[0], t, h, k, f"the step from t = {t!r} s with h = {h!r} s"))
+            raise IntegrationError(self._blowup(b, self._y[b], t, h, k,
+                                                f"the step from t = {t!r} s with h = {h!r} s"))
 
     def step(self, h: float) -> None:
         """Advance one communication step of ``h`` s, holding the inputs (see :meth:`Model.step`)."""
@@ -401,15 +408,17 @@ class TreeModel(Model):
             self._h = h
         self._out = None
 
-    def gimbal_lock(self, y=None) -> str | None:
-        """A message naming gimbal lock when two hinge axes of a chain line up at the state ``y`` (default: now)
-        and the bodies between them carry (almost) no inertia about the lost axis, else None."""
-        y = self._y[0] if y is None else y
+    def gimbal_lock(self, y=None, system: int = 0) -> str | None:
+        """A message naming gimbal lock when two hinge axes of a chain are within 0.1 rad of lining up at the state
+        ``y`` (default: now) of copy ``system``, else None."""
+        if not self._initialized or self._state_dirty:
+            self.initialize()
+        y = self._y[system] if y is None else y
         hinges = [i for i, b in enumerate(self._bodies) if b.joint == "hinge"]
         from .core.rotations import quat_to_matrix
 
         out = np.empty(self.layout.nout)
-        _engine.tree_outputs(self.layout.desc, y.reshape(1, -1), self._p, out)
+        _engine.tree_outputs(self.layout.desc, y.reshape(1, -1), self._p[system], out)
         qw = {i: out[self.layout.nx + 4 * i:self.layout.nx + 4 * i + 4] for i in range(self.n_bodies)}
 
         def axis_world(i):
@@ -429,22 +438,25 @@ class TreeModel(Model):
                 j = self._bodies[j].parent
         return None
 
-    def _blowup(self, y0: np.ndarray, t: float, h: float, k: int, where: str) -> str:
-        lock = self.gimbal_lock(y0)
-        rate = float(_engine.tree_scalar(self.layout.desc, y0.reshape(1, -1), self._p, 1))
+    def _blowup(self, b: int, y0: np.ndarray, t: float, h: float, k: int, where: str) -> str:
+        """The message for copy ``b`` failing from state ``y0``: what drifted (the interval again with the monitor
+        off), gimbal lock where the axes line up, and advice."""
+        lock = self.gimbal_lock(y0, b)
+        pb = self._p[b:b + 1]
+        rate = float(_engine.tree_scalar(self.layout.desc, y0.reshape(1, -1), pb, 1))
         n_sub = _engine.substeps(h, self.max_step) if self.integrator in ("euler", "rk4") else 0
         at = f" at internal step {k} of {n_sub}" if n_sub > 1 else ""
         y = y0.reshape(1, -1).copy()
-        p = self._p.copy()
+        p = pb.copy()
         p[:, 1] = 0.0
-        hint, stats, st = self._hint.copy(), np.zeros((1, 3), dtype=np.int64), np.zeros(1, dtype=np.int32)
+        hint, stats, st = self._hint[b:b + 1].copy(), np.zeros((1, 3), dtype=np.int64), np.zeros(1, dtype=np.int32)
         fails = _engine.tree_advance(self.layout.desc, _METHOD_CODES[self.integrator], y, p, h, self.tolerance,
                                      self.tolerance, self.max_step, hint, stats, st, 1)
         if fails:
             cause = f"the state became non-finite or overflowed{at}"
         else:
             d = np.empty((1, 2))
-            _engine.tree_drift(self.layout.desc, y, self._p, d)
+            _engine.tree_drift(self.layout.desc, y, pb, d)
             i = int(np.argmax(d[0]))
             cause = (f"{('the energy balance', 'the angular momentum')[i]} drifted by {d[0, i]:.3g} of its scale{at} "
                      f"(max_drift = {self.max_drift:g}, the health monitor's bound)")
@@ -463,13 +475,19 @@ class TreeModel(Model):
                    status: np.ndarray | None = None) -> np.ndarray:
         """Advance ``n`` output intervals of ``dt`` s in one engine call: the bits of ``n`` calls of :meth:`step`.
 
+        ``status``: an (n_systems,) int32 array to keep going when copies blow up (sweeps): a failing copy gets the
+        output interval (1-based) in which it failed and NaN rows from there; the others run to the end.
+
         Returns
         -------
-        (n + 1, 1, nout) ndarray
+        (n + 1, n_systems, nout) ndarray
             The outputs (:func:`tree_output_names`) at ``time + k*dt``, ``k = 0..n``.
         """
         del angles, momentum  # every output of a tree is computed
         keep_going = status is not None
+        if keep_going and not (isinstance(status, np.ndarray) and status.dtype == np.int32
+                               and status.shape == (self.n_systems,)):
+            raise ConfigError("status", type(status).__name__, f"an int32 array of shape ({self.n_systems},)")
         dt = _positive_step(dt, "output interval dt")
         if not (isinstance(n, (int, np.integer)) and n >= 0):
             raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
@@ -481,22 +499,23 @@ class TreeModel(Model):
         if not self._initialized or self._state_dirty:
             self.initialize()
         self._check_call(dt, "output interval dt")
-        out = np.empty((n + 1, 1, self.layout.nout))
-        st = status if keep_going else np.zeros(1, dtype=np.int32)
+        out = np.empty((n + 1, self.n_systems, self.layout.nout))
+        st = status if keep_going else np.zeros(self.n_systems, dtype=np.int32)
         saved = (self._y.copy(), self._hint.copy())
         failed = _engine.tree_trajectory(self.layout.desc, _METHOD_CODES[self.integrator], self._y, self._p, dt, n,
                                          self.tolerance, self.tolerance, self.max_step, self._hint, self._stats, st,
                                          0, out)
         if failed and not keep_going:
-            k = int(st[0])
+            b = int(np.flatnonzero(st)[0])
+            k = int(st[b])
             t_k = t + (k - 1) * dt
-            msg = self._blowup(self._y[0], t_k, dt, 1, f"the output interval from t = {t_k!r} s to {t + k * dt!r} s "
-                               f"(interval {k} of {n})")
+            msg = self._blowup(b, self._y[b], t_k, dt, 1, f"the output interval from t = {t_k!r} s to "
+                               f"{t + k * dt!r} s (interval {k} of {n})")
             self._y, self._hint = saved
             err = IntegrationError(msg)
             err.rows = out[:k]
             raise err
-        done = n if not failed else int(st[0]) - 1
+        done = n
         if done:
             if dt == self._h:
                 self._n += done
@@ -511,13 +530,13 @@ class TreeModel(Model):
         if self._out is None:
             if not self._initialized or self._state_dirty:
                 self.initialize()
-            out = np.empty((1, self.layout.nout))
+            out = np.empty((self.n_systems, self.layout.nout))
             _engine.tree_outputs(self.layout.desc, self._y, self._p, out)
             self._out = out
         return self._out
 
     # ----------------------------------------------------------------------------------------------- state
-    _STATE_FIELDS = ("_bodies", "_couplings", "_aliases", "_g", "_motor", "_tau", "_y", "_hint", "_stats", "_p",
+    _STATE_FIELDS = ("_pp", "_alias_vals", "_y", "_hint", "_stats", "_p",
                      "integrator", "max_step", "max_drift", "tolerance", "start_time", "stop_time", "_t_base", "_n",
                      "_h", "_initialized", "_state_dirty")
 

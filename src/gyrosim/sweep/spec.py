@@ -49,13 +49,24 @@ SWEEP_KEYS = ("samples", "seed", "chunk_size", "stop_time", "output_interval", "
 DEFAULT_CHUNK = 2000
 
 
+#: A tree's joint coordinates (``<body>.<name>``): state starts too
+_TREE_STATES = _STATES + ("angle", "rate", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
+
+
 def column_name(name: str) -> str:
-    """The Parquet column of a varied variable: ``<name>_start`` for a state start (``omega_x_start``)."""
+    """The Parquet column of a varied variable: ``<name>_start`` for a state start (``omega_x_start``,
+    ``rotor.rate_start``)."""
+    if "." in name:
+        return f"{name}_start" if name.rpartition(".")[2] in _TREE_STATES else name
     return f"{name}_start" if name in _STATES else name
 
 
 def _rule(name: str, unit: str) -> tuple[str, object]:
     """What a value of ``name`` must be: (text, vectorised predicate on a float array)."""
+    if "." in name:  # a tree body's parameter: point masses and massless gimbals are allowed
+        if name.rpartition(".")[2] in ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping"):
+            return f"a finite number >= 0 in {unit}", lambda x: np.isfinite(x) & (x >= 0)
+        return f"a finite number in {unit}", np.isfinite
     if name in ("I1", "I2", "I3", "mass", "max_step", "tolerance"):
         return f"a finite number > 0 in {unit}", lambda x: np.isfinite(x) & (x > 0)
     if name in ("cm_distance", "g", "damping", "max_drift"):
@@ -211,7 +222,17 @@ class SweepSpec:
 
     def scene_dict(self) -> dict:
         """The scene as JSON-able data (Parquet metadata ``gyrosim.scene``)."""
-        sc, b = self.scene, self.scene.bodies[0]
+        sc = self.scene
+        if sc.is_tree:
+            return {"name": sc.name, "source": sc.source, "description": sc.description, "integrator": sc.integrator,
+                    "max_step": sc.max_step, "max_drift": sc.max_drift, "tolerance": sc.tolerance,
+                    "output_interval": sc.output_interval, "stop_time": sc.stop_time, "g": sc.g,
+                    "tree": [{"name": b.name, "parent": b.parent, "joint": b.joint,
+                              "pos": [float(x) for x in b.pos], "axis": [float(x) for x in b.axis],
+                              "mass": float(b.mass), "cm": [float(x) for x in b.cm],
+                              "inertia": [float(x) for x in np.asarray(b.inertia).ravel()]} for b in sc.tree],
+                    "couplings": [list(c) for c in sc.couplings]}
+        b = sc.bodies[0]
         return {"name": sc.name, "source": sc.source, "description": sc.description, "gravity": sc.gravity,
                 "damping": sc.damping, "torque": sc.torque, "integrator": sc.integrator, "max_step": sc.max_step,
                 "max_drift": sc.max_drift, "tolerance": sc.tolerance, "output_interval": sc.output_interval,
@@ -233,7 +254,9 @@ class SweepSpec:
 def load_sweep_scene(scene) -> tuple[Scene, dict]:
     """The scene and its ``[sweep]`` table (``{}`` when it has none): a TOML file's ``[sweep]`` is taken out before
     the scene is validated; embedded names, ``None`` and :class:`Scene` objects have none."""
-    if isinstance(scene, (str, Path)) and str(scene) not in ("free_body", "heavy_top", "gyroscope", "full") \
+    from ..scene import EMBEDDED_SCENES
+
+    if isinstance(scene, (str, Path)) and str(scene) not in EMBEDDED_SCENES + ("full",) \
             and Path(scene).is_file():
         path = Path(scene)
         try:
@@ -279,12 +302,22 @@ def _positive_float(value, name: str, where: str | None = None) -> float:
     return v
 
 
+def _variables(scene: Scene) -> dict:
+    from ..model import variables_for
+
+    if scene.is_tree:
+        from ..tree_model import tree_variables
+
+        return tree_variables(scene)
+    return variables_for(scene)
+
+
 def _settable(scene: Scene) -> dict:
     """name -> Variable of the names a sweep may set or vary in ``scene`` (plus ``tolerance``)."""
-    from ..model import Variable, variables_for
+    from ..model import Variable
 
-    v = {n: var for n, var in variables_for(scene).items() if var.causality in ("parameter", "input")
-         or n in _STATES}
+    v = {n: var for n, var in _variables(scene).items() if var.causality in ("parameter", "input")
+         or n in _STATES or (scene.is_tree and var.causality == "output" and var.start is not None)}
     v["tolerance"] = Variable("tolerance", "parameter", "fixed", "Real", "1",
                               "relative and absolute tolerance of adaptive and dop853", scene.tolerance)
     return v
@@ -299,10 +332,8 @@ _TERMS = {"mass": "gravity (a body with cm_distance)", "cm_distance": "gravity (
 def _check_name(name: str, scene: Scene, settable: dict, flag: str) -> None:
     if name in settable:
         return
-    from ..model import variables_for
-
     allowed = list(settable)
-    if name in variables_for(scene):
+    if name in _variables(scene):
         raise ConfigError(flag, name, "a parameter, an input or a state start (q_*, omega_*); "
                           f"{name} is a derived output")
     why = f" (it has no {_TERMS[name]}: use a scene file that has the term)" if name in _TERMS else ""
@@ -357,7 +388,8 @@ def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None
     Parameters
     ----------
     scene : str, Path, Scene or None
-        A one-body scene: embedded name, TOML path (which may carry ``[sweep]``), Scene, or None (the full model).
+        A one-body scene or a tree (one copy of it per sample): embedded name, TOML path (which may carry
+        ``[sweep]``), Scene, or None (the full model).
     vary : list of "NAME=DIST" or dict {name: DIST text}
     set : list of "NAME=VALUE" or dict {name: value}
 
@@ -370,11 +402,7 @@ def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None
 
     sc, table = load_sweep_scene(scene)
     where = f"{sc.source} [sweep]"
-    if sc.is_tree:
-        raise ConfigError("scene", sc.name, "a one-body scene: a sweep replicates one body per sample, and "
-                          f"{sc.name!r} is a tree of {len(sc.body_names)} bodies (sweeps of trees are not built yet; "
-                          "run `gyrosim simulate` per sample)")
-    if len(sc.bodies) != 1:
+    if not sc.is_tree and len(sc.bodies) != 1:
         raise ConfigError("scene", sc.name, f"a one-body scene: a sweep replicates its body once per sample (this "
                           f"scene has {len(sc.bodies)} bodies)")
     settable = _settable(sc)
@@ -506,7 +534,7 @@ def check_block(spec: SweepSpec, a: int, draws: dict) -> None:
     def arr(k):
         return np.asarray(draws[k], dtype=float) if k in draws else np.full(n, float(base[k]))
 
-    if any(k in draws for k in ("I1", "I2", "I3")):
+    if not spec.scene.is_tree and any(k in draws for k in ("I1", "I2", "I3")):
         from ..core.inertia import TRIANGLE_RTOL
 
         I = np.stack([arr("I1"), arr("I2"), arr("I3")], axis=1)
