@@ -11,6 +11,11 @@ named ``<body>.<name>`` (``fast.q_w``), with ``integrator`` and ``max_step`` sha
 adds the state derivatives ``der(q_w)`` ... ``der(omega_z)`` (``der(fast.q_w)``), local variables after all the
 others (the value references of the co-simulation variables do not change): the continuous states are q and omega of
 every body, 7 per body, and their derivatives the engine's right-hand side (``gs_derivatives``).
+
+A tree scene (bodies joined by joints, ``Scene.is_tree``) builds from the engine's tree (``tree.c``, ``rk.c``) and
+one generic glue, ``c/gyrosim_tree_model.c``, chosen at compile time by ``GS_TREE`` in the generated configuration;
+its variables are :func:`gyrosim.tree_model.tree_variables` and the configuration carries the scene as a table
+(:mod:`gyrosim.fmu.tree_fmu`).
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..model import variables_for
-from ..scene import INTEGRATORS, Scene, load_scene
+from ..scene import INTEGRATORS, TREE_INTEGRATORS, Scene, load_scene
 
 __all__ = ["build_fmu", "model_identifier", "fmi_include_dir", "compile_command", "binary_path", "C_FLAGS",
            "DEFAULT_OUTPUT", "WINDOWS_CC", "WINDOWS_C_FLAGS", "windows_compiler", "PLATFORMS", "engine_sources",
@@ -72,6 +77,9 @@ _UNITS = {  # unit -> SI base-unit exponents
     "N.m.s": {"kg": 1, "m": 2, "s": -1}, "s": {"s": 1}, "1": {}, "rad/s": {"rad": 1, "s": -1},
     "N.m": {"kg": 1, "m": 2, "s": -2}, "rad": {"rad": 1}, "kg.m2/s": {"kg": 1, "m": 2, "s": -1},
     "J": {"kg": 1, "m": 2, "s": -2}, "1/s": {"s": -1}, "rad/s2": {"rad": 1, "s": -2},
+    # tree scenes
+    "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1}, "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
+    "m/s": {"m": 1, "s": -1}, "W": {"kg": 1, "m": 2, "s": -3},
 }
 _TOKEN = "@INSTANTIATION_TOKEN@"
 #: ``fmi_type`` values: co-simulation, model exchange, or both interfaces in one FMU.
@@ -94,12 +102,15 @@ def _engine_methods() -> tuple[str, ...]:
     return _engine.METHODS
 
 
-def engine_sources() -> dict[str, str]:
-    """The C sources an FMU is compiled from, ``{file name: text}`` (engine, then glue; no generated config)."""
+def engine_sources(tree: bool = False) -> dict[str, str]:
+    """The C sources an FMU is compiled from, ``{file name: text}`` (engine, then glue; no generated config);
+    ``tree``: those of a tree scene's FMU (the engine's tree and the generic tree glue)."""
+    from .tree_fmu import TREE_ENGINE, TREE_GLUE
+
     eng = resources.files("gyrosim.core").joinpath("engine")
     glue = resources.files(__package__).joinpath("c")
-    out = {name: eng.joinpath(name).read_text() for name in _ENGINE}
-    out.update({name: glue.joinpath(name).read_text() for name in _GLUE})
+    out = {name: eng.joinpath(name).read_text() for name in (TREE_ENGINE if tree else _ENGINE)}
+    out.update({name: glue.joinpath(name).read_text() for name in (TREE_GLUE if tree else _GLUE)})
     return out
 
 
@@ -277,19 +288,13 @@ def content_token(*parts: str) -> str:
     return "{" + str(uuid.UUID(bytes=h.digest()[:16], version=5)) + "}"
 
 
-def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs",
-                       platforms=("linux",)) -> str:
+def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: str, sources, fmi_type: str,
+                     units) -> ET.Element:
+    """The root of a model description up to its variables: the attributes, the interfaces (co-simulation, model
+    exchange), the units (``units``, and ``s``), log categories and the default experiment of scene ``sc``."""
     from .. import __version__
 
     has_cs, has_me = fmi_type in ("cs", "both"), fmi_type in ("me", "both")
-    integ = [i if i != "exact" or sc.torque_free else "exact (a torque-free body only)" for i in INTEGRATORS]
-    kind = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[fmi_type]
-    desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
-            f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python), {kind}; "
-            f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + "."
-            + (" " + _ME_NOTE if has_me else "") + " " + _platforms_note(platforms))
-    ders = derivative_rows(sc, rows) if has_me else []
-    is_state = {i for _, _, i, _ in ders}
     root = ET.Element("fmiModelDescription")
     root.set("fmiVersion", "2.0" if fmi_version == 2 else "3.0")
     root.set("modelName", ident)
@@ -336,7 +341,7 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
         cs.set(k, v)
     if fmi_version == 2:
         source_files(cs, sources)
-    units = sorted({v.unit for _, _, v in rows if v.unit} | {"s"} | ({"1/s", "rad/s2"} if has_me else set()))
+    units = sorted(set(units) | {"s"})
     ud = ET.SubElement(root, "UnitDefinitions")
     for u in units:
         ue = ET.SubElement(ud, "Unit", name=u)
@@ -346,6 +351,22 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
         ET.SubElement(lc, "Category", name=name, description=d)
     ET.SubElement(root, "DefaultExperiment", startTime="0", stopTime=_fmt(sc.stop_time),
                   tolerance=_fmt(sc.tolerance), stepSize=_fmt(sc.output_interval))
+    return root
+
+
+def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs",
+                       platforms=("linux",)) -> str:
+    has_me = fmi_type in ("me", "both")
+    integ = [i if i != "exact" or sc.torque_free else "exact (a torque-free body only)" for i in INTEGRATORS]
+    kind = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[fmi_type]
+    desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
+            f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python), {kind}; "
+            f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + "."
+            + (" " + _ME_NOTE if has_me else "") + " " + _platforms_note(platforms))
+    ders = derivative_rows(sc, rows) if has_me else []
+    is_state = {i for _, _, i, _ in ders}
+    units = {v.unit for _, _, v in rows if v.unit} | ({"1/s", "rad/s2"} if has_me else set())
+    root = description_head(sc, ident, token, fmi_version, desc, sources, fmi_type, units)
     mv = ET.SubElement(root, "ModelVariables")
     if fmi_version == 3:
         ET.SubElement(mv, "Float64", name="time", valueReference="0", causality="independent",
@@ -450,14 +471,18 @@ def _build_description(ident: str, sources) -> str:
 
 
 def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None = None,
-                    platform: str = "linux") -> list[str]:
+                    platform: str = "linux", *, tree: bool = False) -> list[str]:
     """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources);
-    ``platform`` "windows" cross-compiles the DLL with MinGW-w64 (``cc`` default :data:`WINDOWS_CC`)."""
+    ``platform`` "windows" cross-compiles the DLL with MinGW-w64 (``cc`` default :data:`WINDOWS_CC`); ``tree``:
+    the FMU of a tree scene (the engine's tree and the generic tree glue)."""
     if platform == "windows":
         cc, flags = cc or WINDOWS_CC, WINDOWS_C_FLAGS
     else:
         cc, flags = cc or os.environ.get("CC", "gcc"), C_FLAGS
-    srcs = ["engine.c", "exact.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
+    if tree:
+        srcs = ["engine.c", "exact.c", "rk.c", "tree.c", "gyrosim_tree_model.c", f"fmi{fmi_version}Functions.c"]
+    else:
+        srcs = ["engine.c", "exact.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
     return [cc, *flags, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 
@@ -471,7 +496,9 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     ----------
     scene : str, Path, Scene or None
         Embedded scene name, TOML path or :class:`~gyrosim.scene.Scene`; ``None`` is the full model
-        (``RigidBody.fmu``) with every variable of DESIGN.md section 4. Every body of the scene is exported.
+        (``RigidBody.fmu``) with every variable of DESIGN.md section 4. Every body of the scene is exported. A tree
+        scene (bodies joined by joints) exports :func:`gyrosim.tree_model.tree_variables` through the generic tree
+        glue (:mod:`gyrosim.fmu.tree_fmu`); its integrators are euler, rk4, adaptive and dop853.
     fmi_version : {2, 3}
     output_dir : path
         Created if missing.
@@ -508,9 +535,13 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise ConfigError("fmi_type", fmi_type, "one of " + ", ".join(FMI_TYPES))
     sc = load_scene(scene)
     integrator = sc.integrator if integrator is None else integrator
-    if integrator not in INTEGRATORS:
+    if sc.is_tree:
+        if integrator not in TREE_INTEGRATORS:
+            raise ConfigError("integrator", integrator, "one of " + ", ".join(TREE_INTEGRATORS) + " (a tree of "
+                              "bodies is integrated by the tree engine)")
+    elif integrator not in INTEGRATORS:
         raise ConfigError("integrator", integrator, "one of " + ", ".join(INTEGRATORS))
-    if integrator == "exact" and sc.torque_free_start() is not None:
+    elif integrator == "exact" and sc.torque_free_start() is not None:
         raise ConfigError("integrator", integrator, "a general integrator: 'exact' solves a torque-free body only, "
                           f"and scene {sc.name!r} starts with {sc.torque_free_start()}")
     ident = model_identifier(scene)
@@ -519,14 +550,23 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise RuntimeError(f"the Windows binary needs the MinGW-w64 cross-compiler {WINDOWS_CC!r} on PATH "
                            "(Debian/Ubuntu: apt-get install gcc-mingw-w64-x86-64)")
     platforms = ("linux", "windows") if win_cc else ("linux",)
-    rows = fmu_variables(sc)
-    texts = engine_sources()
+    texts = engine_sources(tree=sc.is_tree)
     texts[f"fmi{fmi_version}Functions.c"] = resources.files(__package__).joinpath(
         "c", f"fmi{fmi_version}Functions.c").read_text()
     sources = [*texts, "gyrosim_config.h"]
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
-    md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type, platforms)
-    config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
+    if sc.is_tree:   # the generic tree glue and the scene's variable table (tree_fmu)
+        from .tree_fmu import tree_config_header, tree_me_rows, tree_model_description, tree_rows
+
+        rows = tree_rows(sc)
+        me_rows = tree_me_rows(sc, rows)
+        md = tree_model_description(sc, rows, me_rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type,
+                                    platforms)
+        config = tree_config_header(sc, rows, me_rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
+    else:
+        rows = fmu_variables(sc)
+        md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type, platforms)
+        config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
     token = content_token(md, config, *texts.values())
     md, config = md.replace(_TOKEN, token), config.replace(_TOKEN, token)
     output_dir = Path(output_dir)
@@ -546,8 +586,8 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         for platform in platforms:
             so = root / binary_path(fmi_version, ident, platform)
             so.parent.mkdir(parents=True)
-            cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows") if platform == "windows"
-                   else compile_command(src_dir, so, fmi_version, cc))
+            cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows", tree=sc.is_tree)
+                   if platform == "windows" else compile_command(src_dir, so, fmi_version, cc, tree=sc.is_tree))
             try:
                 jobs.append((platform, cmd, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                                               text=True)))

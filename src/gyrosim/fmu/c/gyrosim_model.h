@@ -16,6 +16,11 @@
 
 #include "gyrosim_config.h"   /* generated: GS_N_BODIES, GS_FLAGS, value references, start values */
 
+#if defined(GS_TREE)
+/* A tree scene (bodies joined by joints): the generic tree glue (gyrosim_tree_model.c) behind the same functions */
+#include "gyrosim_tree_model.h"
+#else
+
 /* Variable kinds; the generated gyrosim_config.h maps value references to (body, kind). */
 enum {
     GS_V_NONE = 0, GS_V_TIME,
@@ -147,5 +152,7 @@ void gs_restore(GsInstance *m, const GsData *d);
 #else
 #define GS_EXACT_LIST ""
 #endif
+
+#endif   /* GS_TREE */
 
 #endif

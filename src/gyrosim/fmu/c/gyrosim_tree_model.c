@@ -1,0 +1,784 @@
+/*
+ * gyrosim FMU glue for tree scenes: gyrosim.tree_model.TreeModel in C, generic over the scene's variable table.
+ *
+ * The variables are rows of the generated table GS_TREE_VARS (value reference -> kind, index, flags, name, unit;
+ * see gyrosim_tree_model.h): setting and getting a variable, its checks and its messages are the same code for
+ * every scene. The rules follow src/gyrosim/tree_model.py:
+ *   - parameters (g, body parameters, couplings, scene parameters) go into the parameter row `par` and make the
+ *     engine's row `p` stale (initialized = 0); inputs and max_drift go into both rows at once;
+ *   - a start state (a joint coordinate) marks the state dirty: the next initialisation normalises the
+ *     quaternions and starts the health monitor (gs_tree_start);
+ *   - initialisation: p = par; when p had been built before and the state is not dirty, the energy balance moves by
+ *     the energy the new parameters make (gs_tree_reparam), as TreeModel.initialize;
+ *   - doStep: gs_tree_advance(method, y, p, h, rtol = atol = tolerance, max_step) on one system; a failure leaves
+ *     the instance as before the call and returns Error with what went wrong (TreeModel._blowup).
+ * Model exchange: the continuous states are y[0:nx] (every joint's coordinates) and y[nx] (the energy the
+ * work-energy balance expects, E(0) + W); derivatives from gs_tree_derivatives. The host's solver lets |q| of a
+ * ball or free joint drift by its error: dq/dt is taken of q as it is, the rest of the right-hand side of q / |q|,
+ * and a completed integrator step with | |q| - 1 | > GS_ME_NORM_TOL asks for a step event that renormalises q.
+ * The joint coordinates output as the host integrates them; the derived outputs use q normalised.
+ */
+#include "gyrosim_model.h"   /* first: the engine's FP_CONTRACT pragma (it includes gyrosim_tree_model.h) */
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const GsTreeVar VARS[] = GS_TREE_VARS;
+#define N_VR ((uint32_t)(sizeof(VARS) / sizeof(VARS[0])))
+static const int32_t DESC[] = GS_TREE_DESC;
+static const double START_P[GS_SYS_NP] = GS_START_P;
+static const double START_Y[GS_SYS_NY] = GS_START_Y;
+static const double START_ALIAS[GS_N_ALIAS_ROWS] = GS_START_ALIASES;
+static const GsAliasTarget ALIAS_TARGETS[] = GS_ALIAS_TARGETS;   /* a row {-1, ...} when there are none */
+#define N_ALIAS_TARGETS (sizeof(ALIAS_TARGETS) / sizeof(ALIAS_TARGETS[0]))
+static const double NOMINALS[GS_NX] = GS_NOMINALS;
+/* the ball and free joints' quaternions: their slot in y and their body's name */
+static const int QUAT_SLOT[] = GS_QUAT_SLOTS;
+static const char *const QUAT_BODY[] = GS_QUAT_BODIES;
+
+/* ------------------------------------------------------------------------------------------ helpers */
+
+static char *dup_string(const char *s) {
+    const size_t n = strlen(s) + 1;
+    char *r = (char *)malloc(n);
+    if (r) memcpy(r, s, n);
+    return r;
+}
+
+/* The shortest %g form that reads back to the same double (like Python's repr). */
+typedef struct { char s[40]; } Num;
+
+static Num num(double x) {
+    Num r;
+    for (int prec = 1; prec <= 17; prec++) {
+        snprintf(r.s, sizeof(r.s), "%.*g", prec, x);
+        if (!isfinite(x) || strtod(r.s, NULL) == x) break;
+    }
+    return r;
+}
+
+static uint64_t fnv1a(const char *s) {
+    uint64_t h = 1469598103934665603ULL;
+    for (; *s; s++) {
+        h ^= (unsigned char)*s;
+        h *= 1099511628211ULL;
+    }
+    return h;
+}
+
+static void vlog(GsInstance *m, int status, const char *category, const char *fmt, va_list args) {
+    char buf[1024];
+    size_t n = 0;
+    if (!m || !m->log) return;
+    if (m->fn) n = (size_t)snprintf(buf, sizeof(buf), "%s: ", m->fn);
+    if (n < sizeof(buf)) vsnprintf(buf + n, sizeof(buf) - n, fmt, args);
+    m->log(m->env, status, category, buf);
+}
+
+void gs_log_error(GsInstance *m, const char *fmt, ...) {
+    if (!m || !m->log_errors) return;
+    va_list args;
+    va_start(args, fmt);
+    vlog(m, GS_ERROR, "logStatusError", fmt, args);
+    va_end(args);
+}
+
+void gs_log_event(GsInstance *m, const char *fmt, ...) {
+    if (!m || !m->log_events) return;
+    va_list args;
+    va_start(args, fmt);
+    vlog(m, GS_OK, "logEvents", fmt, args);
+    va_end(args);
+}
+
+int gs_set_debug_logging(GsInstance *m, int logging_on, size_t n, const char *const categories[]) {
+    if (n == 0) {
+        m->log_events = logging_on;
+        m->log_errors = logging_on;
+        return GS_OK;
+    }
+    if (!categories) {
+        gs_log_error(m, "categories = NULL is not allowed with nCategories = %zu", n);
+        return GS_ERROR;
+    }
+    for (size_t i = 0; i < n; i++) {
+        const char *c = categories[i];
+        if (c && strcmp(c, "logEvents") == 0) {
+            m->log_events = logging_on;
+        } else if (c && strcmp(c, "logStatusError") == 0) {
+            m->log_errors = logging_on;
+        } else if (c && (strcmp(c, "logStatusWarning") == 0 || strcmp(c, "logStatusFatal") == 0)) {
+            /* declared by convention; this FMU never returns Warning or Fatal */
+        } else {
+            gs_log_error(m, "categories[%zu] = \"%s\" is not allowed: one of \"logEvents\", \"logStatusWarning\", "
+                         "\"logStatusError\", \"logStatusFatal\"", i, c ? c : "(null)");
+            return GS_ERROR;
+        }
+    }
+    return GS_OK;
+}
+
+static const char *state_name(int state) {
+    switch (state) {
+        case GS_INSTANTIATED: return "Instantiated";
+        case GS_INIT: return "InitializationMode";
+#if FMI_VERSION == 2
+        case GS_STEP: return "StepComplete";
+#else
+        case GS_STEP: return "StepMode";
+#endif
+        case GS_TERMINATED: return "Terminated";
+        case GS_EVENT: return "EventMode";
+        case GS_CONT: return "ContinuousTimeMode";
+        default: return "?";
+    }
+}
+
+int gs_check_state(GsInstance *m, int mask, const char *function) {
+    if (!m) return 0;
+    if (m->d.fmi_state & mask) return 1;
+    char allowed[128] = "";
+    for (int s = GS_INSTANTIATED; s <= GS_CONT; s <<= 1) {
+        if (mask & s) {
+            if (allowed[0]) strncat(allowed, ", ", sizeof(allowed) - strlen(allowed) - 1);
+            strncat(allowed, state_name(s), sizeof(allowed) - strlen(allowed) - 1);
+        }
+    }
+    m->fn = function;
+    gs_log_error(m, "Illegal call sequence: the instance is in state %s; allowed in %s.",
+                 state_name(m->d.fmi_state), allowed);
+    return 0;
+}
+
+static int tree_method(int method) {
+    return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853;
+}
+
+static double norm4(const double *q) {
+    return sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+}
+
+/* ------------------------------------------------------------------------------------------ life cycle */
+
+void gs_set_start_values(GsInstance *m) {
+    GsData *d = &m->d;
+    const int32_t me = d->me;   /* the interface chosen at instantiation */
+    memset(d, 0, sizeof(*d));
+    d->me = me;
+    d->token_hash = fnv1a(INSTANTIATION_TOKEN);
+    d->fmi_state = GS_INSTANTIATED;
+    d->integrator = GS_START_INTEGRATOR_CODE;
+    d->max_step = GS_START_MAX_STEP;
+    d->tolerance = GS_START_TOLERANCE;
+    memcpy(d->alias, START_ALIAS, sizeof(d->alias));
+    memcpy(d->par, START_P, sizeof(d->par));
+    memcpy(d->y, START_Y, sizeof(d->y));
+    d->state_dirty = 1;
+    m->outputs_valid = 0;
+}
+
+GsInstance *gs_new(const char *instance_name, void *env, GsLogger log, int logging_on) {
+    GsInstance *m = (GsInstance *)calloc(1, sizeof(GsInstance));
+    if (!m) return NULL;
+    m->instance_name = dup_string(instance_name ? instance_name : "");
+    if (!m->instance_name || gs_tree_init(&m->tree, DESC, sizeof(DESC) / sizeof(DESC[0])) != 0 ||
+        m->tree.nx != GS_SYS_NX || m->tree.ny != GS_SYS_NY || m->tree.np != GS_SYS_NP) {
+        free(m->instance_name);
+        free(m);
+        return NULL;
+    }
+    m->env = env;
+    m->log = log;
+    m->log_events = logging_on;
+    m->log_errors = 1;  /* errors are always reported, as the Reference FMUs do */
+    gs_set_start_values(m);
+    return m;
+}
+
+void gs_free(GsInstance *m) {
+    if (!m) return;
+    free(m->instance_name);
+    free(m);
+}
+
+static double gs_time_data(const GsData *d) {
+    return d->t_base + (double)d->n * d->h;
+}
+
+double gs_time(const GsInstance *m) {
+    return gs_time_data(&m->d);
+}
+
+int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double start_time, int stop_defined,
+             double stop_time) {
+    if (tolerance_defined && !(isfinite(tolerance) && tolerance > 0.0)) {
+        gs_log_error(m, "tolerance = %s is not allowed: a finite number > 0", num(tolerance).s);
+        return GS_ERROR;
+    }
+    if (!isfinite(start_time)) {
+        gs_log_error(m, "startTime = %s is not allowed: a finite number in s", num(start_time).s);
+        return GS_ERROR;
+    }
+    if (stop_defined && !(isfinite(stop_time) && stop_time >= start_time)) {
+        gs_log_error(m, "stopTime = %s is not allowed: a finite number >= startTime = %s s", num(stop_time).s,
+                     num(start_time).s);
+        return GS_ERROR;
+    }
+    if (tolerance_defined) {
+        m->d.tolerance = tolerance;
+        m->d.tolerance_defined = 1;
+    }
+    m->d.start_time = start_time;
+    m->d.t_base = start_time;
+    m->d.n = 0;
+    m->d.h = 0.0;
+    m->d.stop_defined = stop_defined ? 1 : 0;
+    m->d.stop_time = stop_defined ? stop_time : 0.0;
+    return GS_OK;
+}
+
+/* TreeModel.initialize */
+int gs_initialize(GsInstance *m) {
+    GsData *d = &m->d;
+    if (!d->initialized) {
+        const int moved = d->p_valid && !d->state_dirty;
+        double p_old[GS_SYS_NP];
+        memcpy(p_old, d->p, sizeof(p_old));
+        memcpy(d->p, d->par, sizeof(d->p));
+        d->initialized = 1;
+        d->p_valid = 1;
+        if (moved) gs_tree_reparam(&m->tree, d->y, p_old, d->p);
+        m->outputs_valid = 0;
+    }
+    if (d->state_dirty) {
+        double y[GS_SYS_NY];
+        memcpy(y, d->y, sizeof(y));
+        if (!gs_tree_start(&m->tree, y, d->p)) {
+            for (size_t i = 0; i < sizeof(QUAT_SLOT) / sizeof(QUAT_SLOT[0]); i++) {
+                const int k = QUAT_SLOT[i];
+                if (k >= 0 && !(norm4(d->y + k) > 0.0)) {
+                    gs_log_error(m, "%s.q = [%s, %s, %s, %s] is not allowed: a non-zero quaternion (it is "
+                                 "normalised)", QUAT_BODY[i], num(d->y[k]).s, num(d->y[k + 1]).s,
+                                 num(d->y[k + 2]).s, num(d->y[k + 3]).s);
+                    return GS_ERROR;
+                }
+            }
+            for (uint32_t vr = 0; vr < N_VR; vr++) {
+                if (VARS[vr].kind == GS_K_STATE && !isfinite(d->y[VARS[vr].index])) {
+                    gs_log_error(m, "%s = %s is not allowed: a finite start value in %s", VARS[vr].name,
+                                 num(d->y[VARS[vr].index]).s, VARS[vr].unit);
+                    return GS_ERROR;
+                }
+            }
+            gs_log_error(m, "the start state is not allowed: finite start values");
+            return GS_ERROR;
+        }
+        memcpy(d->y, y, sizeof(y));
+        d->state_dirty = 0;
+        m->outputs_valid = 0;
+    }
+    return GS_OK;
+}
+
+/* ------------------------------------------------------------------------------------------ variables */
+
+/* y with every quaternion normalised (model exchange: the host's states as they are otherwise) */
+static void normalised(const GsData *d, double *y) {
+    memcpy(y, d->y, sizeof(d->y));
+    for (size_t i = 0; i < sizeof(QUAT_SLOT) / sizeof(QUAT_SLOT[0]); i++) {
+        const int k = QUAT_SLOT[i];
+        if (k < 0) continue;
+        const double nq = norm4(y + k);
+        if (nq > 0.0 && nq != 1.0 && isfinite(nq)) {
+            for (int a = 0; a < 4; a++) y[k + a] /= nq;
+        }
+    }
+}
+
+static int outputs(GsInstance *m) {
+    if (!m->outputs_valid) {
+        if (gs_initialize(m) != GS_OK) return GS_ERROR;
+        if (m->d.me) {   /* the derived outputs of q normalised; the joint coordinates as the host has them */
+            double y[GS_SYS_NY];
+            normalised(&m->d, y);
+            gs_tree_outputs(&m->tree, y, m->d.p, m->outputs);
+            memcpy(m->outputs, m->d.y, GS_SYS_NX * sizeof(double));
+        } else {
+            gs_tree_outputs(&m->tree, m->d.y, m->d.p, m->outputs);
+        }
+        m->outputs_valid = 1;
+    }
+    return GS_OK;
+}
+
+/* Model exchange: the derivatives of the continuous states, dx[GS_NX] (p current). */
+static void me_rhs(GsInstance *m, double *dx) {
+    const GsData *d = &m->d;
+    double dy[GS_ODE_MAX + 1];
+    gs_tree_derivatives(&m->tree, d->y, d->p, dy);
+    double y[GS_SYS_NY];
+    normalised(d, y);
+    if (memcmp(y, d->y, sizeof(y)) != 0) {   /* dq/dt of q as it is, the rest of q normalised */
+        double dn[GS_ODE_MAX + 1];
+        gs_tree_derivatives(&m->tree, y, d->p, dn);
+        for (int i = 0; i < GS_NX; i++) {
+            int in_q = 0;
+            for (size_t j = 0; j < sizeof(QUAT_SLOT) / sizeof(QUAT_SLOT[0]); j++) {
+                if (QUAT_SLOT[j] >= 0 && i >= QUAT_SLOT[j] && i < QUAT_SLOT[j] + 4) in_q = 1;
+            }
+            if (!in_q) dy[i] = dn[i];
+        }
+    }
+    memcpy(dx, dy, GS_NX * sizeof(double));
+}
+
+static int unknown_vr(GsInstance *m, uint32_t vr, const char *type) {
+    gs_log_error(m, "value reference %u is not allowed: the value reference of a %s variable of this FMU "
+                 "(see modelDescription.xml)", (unsigned)vr, type);
+    return GS_ERROR;
+}
+
+static const GsTreeVar *var_of(uint32_t vr) {
+    return vr < N_VR ? &VARS[vr] : NULL;
+}
+
+int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
+    const GsTreeVar *v = var_of(vr);
+    GsData *d = &m->d;
+    if (!v) return unknown_vr(m, vr, "Real");
+    switch (v->kind) {
+        case GS_K_TIME: *value = gs_time(m); return GS_OK;
+        case GS_K_PARAM: case GS_K_MAX_DRIFT: case GS_K_INPUT: *value = d->par[v->index]; return GS_OK;
+        case GS_K_ALIAS: *value = d->alias[v->index]; return GS_OK;
+        case GS_K_MAX_STEP: *value = d->max_step; return GS_OK;
+        case GS_K_STATE: case GS_K_OUTPUT:
+            if (outputs(m) != GS_OK) return GS_ERROR;
+            *value = m->outputs[v->index];
+            return GS_OK;
+        case GS_K_WORK:
+            if (gs_initialize(m) != GS_OK) return GS_ERROR;
+            *value = d->y[GS_SYS_NX];
+            return GS_OK;
+        case GS_K_DER: {
+            if (gs_initialize(m) != GS_OK) return GS_ERROR;
+            double dx[GS_NX];
+            me_rhs(m, dx);
+            *value = dx[v->index];
+            return GS_OK;
+        }
+        default:
+            return unknown_vr(m, vr, "Real");
+    }
+}
+
+static int not_negative(GsInstance *m, const char *name, const char *unit, double x, const char *via) {
+    if (x < 0.0) {
+        if (via) {
+            gs_log_error(m, "%s = %s is not allowed: it sets %s to %s, and %s must be a number >= 0 in %s", via,
+                         num(x).s, name, num(x).s, name, unit[0] ? unit : "1");
+        } else {
+            gs_log_error(m, "%s = %s is not allowed: a number >= 0 in %s", name, num(x).s, unit[0] ? unit : "1");
+        }
+        return 0;
+    }
+    return 1;
+}
+
+int gs_set_real(GsInstance *m, uint32_t vr, double x) {
+    const GsTreeVar *v = var_of(vr);
+    GsData *d = &m->d;
+    if (!v || v->kind == GS_K_NONE || v->kind == GS_K_INTEGRATOR) return unknown_vr(m, vr, "Real");
+    if (v->kind == GS_K_TIME) {
+        gs_log_error(m, "time cannot be set: it is the independent variable");
+        return GS_ERROR;
+    }
+    if (v->kind == GS_K_OUTPUT || v->kind == GS_K_WORK || v->kind == GS_K_DER) {
+        gs_log_error(m, "%s = %s is not allowed: a parameter, an input or a joint's start state; %s is a %s",
+                     v->name, num(x).s, v->name, v->kind == GS_K_OUTPUT ? "derived output" :
+                     v->kind == GS_K_WORK ? "continuous state computed at initialisation" : "state derivative");
+        return GS_ERROR;
+    }
+    if (v->kind != GS_K_INPUT && !(d->fmi_state & (GS_INSTANTIATED | GS_INIT))) {
+        gs_log_error(m, "%s cannot be set in state %s: only the inputs can be set after initialisation (%s is a "
+                     "%s)", v->name, state_name(d->fmi_state), v->name,
+                     v->kind == GS_K_STATE ? "start state" : "fixed parameter");
+        return GS_ERROR;
+    }
+    if (!isfinite(x)) {
+        gs_log_error(m, "%s = %s is not allowed: a finite number in %s", v->name, num(x).s,
+                     v->unit[0] ? v->unit : "1");
+        return GS_ERROR;
+    }
+    switch (v->kind) {
+        case GS_K_PARAM:
+            if ((v->flags & GS_F_NONNEG) && !not_negative(m, v->name, v->unit, x, NULL)) return GS_ERROR;
+            d->par[v->index] = x;
+            d->initialized = 0;
+            break;
+        case GS_K_MAX_DRIFT:
+            if (!(x >= 0.0)) {
+                gs_log_error(m, "max_drift = %s is not allowed: a number >= 0 (0: the health monitor off)",
+                             num(x).s);
+                return GS_ERROR;
+            }
+            d->par[v->index] = x;
+            if (d->p_valid) d->p[v->index] = x;
+            break;
+        case GS_K_INPUT:
+            d->par[v->index] = x;
+            if (d->p_valid) d->p[v->index] = x;
+            break;
+        case GS_K_ALIAS:
+            for (size_t i = 0; i < N_ALIAS_TARGETS; i++) {
+                const GsAliasTarget *a = &ALIAS_TARGETS[i];
+                if (a->alias == v->index && (a->flags & GS_F_NONNEG) &&
+                    !not_negative(m, a->name, v->unit, a->factor * x, v->name)) {
+                    return GS_ERROR;
+                }
+            }
+            d->alias[v->index] = x;
+            for (size_t i = 0; i < N_ALIAS_TARGETS; i++) {
+                const GsAliasTarget *a = &ALIAS_TARGETS[i];
+                if (a->alias == v->index) d->par[a->slot] = a->factor * x;
+            }
+            d->initialized = 0;
+            break;
+        case GS_K_MAX_STEP:
+            if (!(x > 0.0)) {
+                gs_log_error(m, "max_step = %s is not allowed: a finite number > 0 in s", num(x).s);
+                return GS_ERROR;
+            }
+            d->max_step = x;
+            break;
+        case GS_K_STATE:
+            d->y[v->index] = x;
+            d->state_dirty = 1;
+            break;
+        default:
+            return unknown_vr(m, vr, "Real");
+    }
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+int gs_get_string(GsInstance *m, uint32_t vr, const char **value) {
+    const GsTreeVar *v = var_of(vr);
+    if (!v || v->kind != GS_K_INTEGRATOR) return unknown_vr(m, vr, "String");
+    *value = gs_method_names[m->d.integrator];
+    return GS_OK;
+}
+
+int gs_set_string(GsInstance *m, uint32_t vr, const char *value) {
+    const GsTreeVar *v = var_of(vr);
+    if (!v || v->kind != GS_K_INTEGRATOR) return unknown_vr(m, vr, "String");
+    if (!(m->d.fmi_state & (GS_INSTANTIATED | GS_INIT))) {
+        gs_log_error(m, "integrator cannot be set in state %s: it is a fixed parameter",
+                     state_name(m->d.fmi_state));
+        return GS_ERROR;
+    }
+    if (!value) {
+        gs_log_error(m, "integrator = NULL is not allowed: one of " GS_INTEGRATOR_LIST);
+        return GS_ERROR;
+    }
+    const int code = gs_method_code(value);
+    if (code < 0 || !tree_method(code)) {
+        gs_log_error(m, "integrator = '%.64s' is not allowed: %sone of " GS_INTEGRATOR_LIST, value,
+                     code >= 0 ? "it solves one body; a tree of bodies takes " : "");
+        return GS_ERROR;
+    }
+    if (code != m->d.integrator) m->d.hint = 0.0;   /* TreeModel.set: a new integrator starts without history */
+    m->d.integrator = code;
+    return GS_OK;
+}
+
+/* ------------------------------------------------------------------------------------------ stepping */
+
+/* TreeModel._blowup: what went wrong in the step from y0 (the state before it) */
+static void blowup(GsInstance *m, const double *y0, double t, double h, int32_t k) {
+    const GsData *d = &m->d;
+    const int method = d->integrator;
+    const double rate = gs_tree_fastest_rate(&m->tree, y0, d->p);
+    const int64_t n_sub = method == GS_EULER || method == GS_RK4 ? gs_substeps(h, d->max_step) : 0;
+    char at[80] = "", cause[320], advice[240];
+    if (n_sub > 1) snprintf(at, sizeof(at), " at internal step %d of %lld", (int)k, (long long)n_sub);
+    /* the step again with the health monitor off */
+    double y[GS_SYS_NY], p[GS_SYS_NP], hint = d->hint;
+    int64_t stats[GS_NSTATS] = {0, 0, 0};
+    int32_t status = 0;
+    memcpy(y, y0, sizeof(y));
+    memcpy(p, d->p, sizeof(p));
+    p[GS_TP_DRIFT] = 0.0;
+    if (gs_tree_advance(&m->tree, method, 1, y, p, h, d->tolerance, d->tolerance, d->max_step, &hint, stats,
+                        &status, 1)) {
+        snprintf(cause, sizeof(cause), "the state became non-finite or overflowed%s", at);
+    } else {
+        static const char *const what[2] = {"the energy balance", "the angular momentum"};
+        double dr[2];
+        gs_tree_drift(&m->tree, y, d->p, dr);
+        const int i = dr[1] > dr[0] ? 1 : 0;
+        snprintf(cause, sizeof(cause), "%s drifted by %.3g of its scale%s (max_drift = %g, the health monitor's "
+                 "bound)", what[i], dr[i], at, d->p[GS_TP_DRIFT]);
+    }
+    if (method == GS_ADAPTIVE || method == GS_DOP853) {
+        snprintf(advice, sizeof(advice), "tighten or loosen the tolerance, check the parameters, or try the "
+                 "integrator 'rk4'");
+    } else if (rate > 0.0) {
+        snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s; use max_step <= %.3g s or "
+                 "the integrator 'dop853'", rate, 0.5 / rate);
+    } else {
+        snprintf(advice, sizeof(advice), "check the parameters, or try the integrator 'dop853'");
+    }
+    gs_log_error(m, "integrator '%s' blew up in the step from t = %s s with h = %s s: %s; %s",
+                 gs_method_names[method], num(t).s, num(h).s, cause, advice);
+}
+
+/* TreeModel.step (with the FMU's check of the current communication point) */
+int gs_do_step(GsInstance *m, double current_time, double h) {
+    GsData *d = &m->d;
+    const double t = gs_time(m);
+    const double at = fabs(t);
+    if (!(isfinite(current_time) && fabs(current_time - t) <= 1e-9 * (at > 1.0 ? at : 1.0))) {
+        gs_log_error(m, "currentCommunicationPoint = %s s is not allowed: the FMU's time is %s s (a step must "
+                     "start where the previous one ended)", num(current_time).s, num(t).s);
+        return GS_ERROR;
+    }
+    if (!(isfinite(h) && h > 0.0)) {
+        gs_log_error(m, "communication step h = %s is not allowed: a finite number > 0 in s", num(h).s);
+        return GS_ERROR;
+    }
+    if (d->stop_defined && t + h > d->stop_time + 1e-9 * (fabs(d->stop_time) > 1.0 ? fabs(d->stop_time) : 1.0)) {
+        gs_log_error(m, "a step of h = %s s from t = %s s ends at %s s, after the stop time %s s", num(h).s,
+                     num(t).s, num(t + h).s, num(d->stop_time).s);
+        return GS_ERROR;
+    }
+    if ((!d->initialized || d->state_dirty) && gs_initialize(m) != GS_OK) return GS_ERROR;
+    const int method = d->integrator;
+    if (!tree_method(method)) {   /* only a damaged state gets here: gs_set_string and gs_deserialize check */
+        gs_log_error(m, "integrator code %d is not allowed: one of " GS_INTEGRATOR_LIST, method);
+        return GS_ERROR;
+    }
+    if ((method == GS_EULER || method == GS_RK4) && gs_substeps(h, d->max_step) == 0) {
+        gs_log_error(m, "a step of h = %s s with max_step = %s s needs %.3g internal steps, more than the %d one "
+                     "doStep may take; raise max_step or take shorter steps", num(h).s, num(d->max_step).s,
+                     h / d->max_step, GS_MAX_WORK);
+        return GS_ERROR;
+    }
+    double y0[GS_SYS_NY];
+    const double hint0 = d->hint;
+    memcpy(y0, d->y, sizeof(y0));
+    int32_t status = 0;
+    const size_t failed = gs_tree_advance(&m->tree, method, 1, d->y, d->p, h, d->tolerance, d->tolerance,
+                                          d->max_step, &d->hint, d->stats, &status, 1);
+    if (failed) {
+        memcpy(d->y, y0, sizeof(y0));
+        d->hint = hint0;
+        blowup(m, y0, t, h, status);
+        return GS_ERROR;
+    }
+    if (h == d->h) {
+        d->n += 1;
+    } else {
+        d->t_base = t;
+        d->n = 1;
+        d->h = h;
+    }
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+/* ------------------------------------------------------------------------------------------ model exchange */
+
+static int check_nx(GsInstance *m, const void *x, size_t nx, const char *what) {
+    if (!x && nx > 0) {
+        gs_log_error(m, "%s = NULL is not allowed", what);
+        return 0;
+    }
+    if (nx != GS_NX) {
+        gs_log_error(m, "nx = %zu is not allowed: this FMU has %d continuous states (the joints' coordinates and "
+                     "energy_expected)", nx, GS_NX);
+        return 0;
+    }
+    return 1;
+}
+
+void gs_me_start(GsInstance *m) {
+    m->outputs_valid = 0;
+}
+
+int gs_me_set_time(GsInstance *m, double t) {
+    if (!isfinite(t)) {
+        gs_log_error(m, "time = %s is not allowed: a finite number in s", num(t).s);
+        return GS_ERROR;
+    }
+    m->d.t_base = t;
+    m->d.n = 0;
+    m->d.h = 0.0;
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+int gs_me_get_states(GsInstance *m, double x[], size_t nx) {
+    if (!check_nx(m, x, nx, "x[]")) return GS_ERROR;
+    if (gs_initialize(m) != GS_OK) return GS_ERROR;
+    memcpy(x, m->d.y, GS_NX * sizeof(double));
+    return GS_OK;
+}
+
+int gs_me_set_states(GsInstance *m, const double x[], size_t nx) {
+    if (!check_nx(m, x, nx, "x[]")) return GS_ERROR;
+    memcpy(m->d.y, x, GS_NX * sizeof(double));
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+int gs_me_derivatives(GsInstance *m, double dx[], size_t nx) {
+    if (!check_nx(m, dx, nx, "derivatives[]")) return GS_ERROR;
+    if (gs_initialize(m) != GS_OK) return GS_ERROR;
+    me_rhs(m, dx);
+    return GS_OK;
+}
+
+int gs_me_nominals(GsInstance *m, double x[], size_t nx) {
+    if (!check_nx(m, x, nx, "x_nominal[]")) return GS_ERROR;
+    memcpy(x, NOMINALS, GS_NX * sizeof(double));
+    return GS_OK;
+}
+
+static int norm_drifted(const GsData *d, int k) {
+    return !(fabs(norm4(d->y + k) - 1.0) <= GS_ME_NORM_TOL);
+}
+
+int gs_me_completed_step(GsInstance *m, int *enter_event_mode, int *terminate) {
+    GsData *d = &m->d;
+    *enter_event_mode = 0;
+    *terminate = 0;
+    for (int i = 0; i < GS_NX; i++) {
+        if (!isfinite(d->y[i])) {
+            gs_log_error(m, "the state at t = %s s is not allowed: continuous state %d is %s (the host's solver "
+                         "blew up; tighten its tolerance or shorten its step)", num(gs_time(m)).s, i,
+                         num(d->y[i]).s);
+            *terminate = 1;
+            return GS_ERROR;
+        }
+    }
+    for (size_t i = 0; i < sizeof(QUAT_SLOT) / sizeof(QUAT_SLOT[0]); i++) {
+        const int k = QUAT_SLOT[i];
+        if (k < 0) continue;
+        if (!(norm4(d->y + k) > 0.5)) {
+            gs_log_error(m, "the state at t = %s s is not allowed: %s.q = [%s, %s, %s, %s] has |q| < 0.5 (the "
+                         "host's solver blew up; tighten its tolerance or shorten its step)", num(gs_time(m)).s,
+                         QUAT_BODY[i], num(d->y[k]).s, num(d->y[k + 1]).s, num(d->y[k + 2]).s, num(d->y[k + 3]).s);
+            *terminate = 1;
+            return GS_ERROR;
+        }
+        if (norm_drifted(d, k)) *enter_event_mode = 1;
+    }
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
+void gs_me_enter_event_mode(GsInstance *m) {
+    m->outputs_valid = 0;
+}
+
+int gs_me_update(GsInstance *m, int *values_changed) {
+    GsData *d = &m->d;
+    *values_changed = 0;
+    for (size_t i = 0; i < sizeof(QUAT_SLOT) / sizeof(QUAT_SLOT[0]); i++) {
+        const int k = QUAT_SLOT[i];
+        if (k < 0 || !norm_drifted(d, k)) continue;
+        const double nq = norm4(d->y + k);
+        if (!(nq > 0.0 && isfinite(nq))) {
+            gs_log_error(m, "%s.q has norm %s: it cannot be renormalised", QUAT_BODY[i], num(nq).s);
+            return GS_ERROR;
+        }
+        for (int a = 0; a < 4; a++) d->y[k + a] /= nq;
+        d->norm_events += 1;
+        *values_changed = 1;
+        gs_log_event(m, "t = %s s: %s.q renormalised (|q| - 1 = %.3g, beyond %g); renormalisation %d",
+                     num(gs_time(m)).s, QUAT_BODY[i], nq - 1.0, GS_ME_NORM_TOL, (int)d->norm_events);
+    }
+    if (*values_changed) m->outputs_valid = 0;
+    return GS_OK;
+}
+
+/* ------------------------------------------------------------------------------------------ state */
+
+#define GS_MAGIC 0x54535947u  /* "GYST" */
+
+typedef struct {
+    uint32_t magic;
+    uint32_t size;
+} GsHeader;
+
+GsData *gs_state_alloc(GsInstance *m) {
+    GsData *s = (GsData *)malloc(sizeof(GsData));
+    if (!s) gs_log_error(m, "out of memory (an FMU state of %zu bytes)", sizeof(GsData));
+    return s;
+}
+
+size_t gs_serialized_size(void) {
+    return sizeof(GsHeader) + sizeof(GsData);
+}
+
+void gs_serialize(const GsData *d, unsigned char *out) {
+    GsHeader h;
+    h.magic = GS_MAGIC;
+    h.size = (uint32_t)sizeof(GsData);
+    memcpy(out, &h, sizeof(h));
+    memcpy(out + sizeof(h), d, sizeof(GsData));
+}
+
+int gs_check_state_data(GsInstance *m, const GsData *d) {
+    if (d->token_hash != m->d.token_hash) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
+        return GS_ERROR;
+    }
+    if (d->me != m->d.me) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to a %s instance, and this one is %s",
+                     d->me ? "model exchange" : "co-simulation", m->d.me ? "model exchange" : "co-simulation");
+        return GS_ERROR;
+    }
+    return GS_OK;
+}
+
+void gs_restore(GsInstance *m, const GsData *d) {
+    memcpy(&m->d, d, sizeof(GsData));
+    m->outputs_valid = 0;
+}
+
+int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *out) {
+    GsHeader h;
+    if (!in || size != gs_serialized_size()) {
+        gs_log_error(m, "size = %zu is not allowed: a state serialised by this FMU has %zu bytes", size,
+                     gs_serialized_size());
+        return GS_ERROR;
+    }
+    memcpy(&h, in, sizeof(h));
+    if (h.magic != GS_MAGIC || h.size != sizeof(GsData)) {
+        gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU (wrong header)");
+        return GS_ERROR;
+    }
+    uint64_t token;
+    memcpy(&token, in + sizeof(h) + offsetof(GsData, token_hash), sizeof(token));
+    if (token != m->d.token_hash) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
+        return GS_ERROR;
+    }
+    memcpy(out, in + sizeof(h), sizeof(GsData));
+    /* the bytes may have been altered: check every field that indexes or divides before the state is used */
+    const int ok = (out->fmi_state == GS_INSTANTIATED || out->fmi_state == GS_INIT || out->fmi_state == GS_STEP ||
+                    out->fmi_state == GS_TERMINATED || out->fmi_state == GS_EVENT || out->fmi_state == GS_CONT) &&
+                   out->me == m->d.me && tree_method(out->integrator) &&
+                   isfinite(out->max_step) && out->max_step > 0.0 && isfinite(out->tolerance) &&
+                   out->tolerance > 0.0 && out->n >= 0 && isfinite(out->h) && isfinite(out->t_base) &&
+                   out->par[GS_TP_DRIFT] >= 0.0;
+    if (!ok) {
+        gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU (inconsistent content)");
+        return GS_ERROR;
+    }
+    return GS_OK;
+}
