@@ -18,15 +18,17 @@ pytest.importorskip("foxglove")
 TOPICS = {f"/gyrosim/gyroscope/gyro/{k}" for k in ("state", "tf", "imu")}
 
 
-async def _session(url: str, per_topic: int = 5):
+async def _session(url: str, per_topic: int = 5, topics=TOPICS):
     """Connect, read serverInfo and advertisements, subscribe to every channel, collect decoded messages."""
     from websockets.asyncio.client import connect
 
+    # close_timeout: the server may not answer the closing handshake while it streams (websockets then waits
+    # close_timeout, 10 s by default, before it drops the connection itself)
     async with connect(url, subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=30,
-                       max_size=None) as ws:
+                       max_size=None, close_timeout=1) as ws:
         assert ws.subprotocol in ("foxglove.sdk.v1", "foxglove.websocket.v1")
         info, channels = None, {}
-        while info is None or set(c["topic"] for c in channels.values()) < TOPICS:
+        while info is None or set(c["topic"] for c in channels.values()) < topics:
             frame = await asyncio.wait_for(ws.recv(), 60)
             assert isinstance(frame, str)
             m = json.loads(frame)
@@ -38,10 +40,12 @@ async def _session(url: str, per_topic: int = 5):
         await ws.send(json.dumps({"op": "subscribe",
                                   "subscriptions": [{"id": sid, "channelId": cid} for sid, cid in subs.items()]}))
         got: dict[str, list] = {}
-        while any(len(got.get(t, [])) < per_topic for t in TOPICS):
+        while any(len(got.get(t, [])) < per_topic for t in topics):
             frame = await asyncio.wait_for(ws.recv(), 60)
-            if isinstance(frame, str):
-                continue  # e.g. more advertisements or status
+            if isinstance(frame, str):  # e.g. more advertisements or a status; a refused subscription fails
+                m = json.loads(frame)
+                assert not (m["op"] == "status" and m.get("level", 0) >= 2), m
+                continue
             assert frame[0] == 0x01  # messageData
             sid, log_time = struct.unpack_from("<IQ", frame, 1)
             got.setdefault(channels[subs[sid]]["topic"], []).append((log_time, bytes(frame[13:])))
@@ -84,6 +88,30 @@ def test_serve_streams_the_same_channels_to_a_foxglove_websocket_client(tmp_path
     assert imu.header.frame_id == "gyro" and imu.angular_velocity.z == pytest.approx(200.0, rel=1e-6)
     # log times: the wall clock at publication, ns since the Unix epoch (as in the recordings)
     assert all(lt > 1_600_000_000 * 10**9 for lt, _ in got["/gyrosim/gyroscope/gyro/state"])
+
+
+def test_the_live_view_of_a_tree_scene_draws_every_body_from_its_parent_frame():
+    port = free_port()
+    srv = start("serve", "gimbal_gyroscope", "-l", endpoint(free_port()), "--foxglove", f"127.0.0.1:{port}",
+                "--wall-duration", 600)
+    wait_for_line(srv, f"ws://127.0.0.1:{port}", timeout=60)
+    bodies = {"outer": "world", "inner": "outer", "rotor": "inner"}
+    topics = {f"/gyrosim/gimbal_gyroscope/{b}/{k}" for b in bodies for k in ("state", "tf", "imu")}
+    try:
+        info, channels, got = asyncio.run(_session(f"ws://127.0.0.1:{port}", per_topic=3, topics=topics))
+    finally:
+        code, out, err = stop(srv)
+    assert code == 0, err
+    for c in channels.values():
+        if c["topic"] in topics and c["encoding"] == "json":
+            assert check_foxglove_schema_data(c["schema"], c["schemaName"]) == []
+    for body, parent in bodies.items():
+        tfs = [json.loads(d) for _, d in got[f"/gyrosim/gimbal_gyroscope/{body}/tf"]]
+        assert {(t["parent_frame_id"], t["child_frame_id"]) for t in tfs} == {(parent, body)}
+        states = [json.loads(d) for _, d in got[f"/gyrosim/gimbal_gyroscope/{body}/state"]]
+        assert all(s["parent"] == parent and s["joint_type"] == "hinge" and "angle" in s["joint"] for s in states)
+    inner = json.loads(got["/gyrosim/gimbal_gyroscope/inner/tf"][0][1])["rotation"]
+    assert inner["y"] == inner["z"] == 0.0 and inner["x"] > 0.4  # a hinge about the outer's x, tilted ~1 rad
 
 
 def test_a_taken_foxglove_port_is_one_line_naming_the_flag(tmp_path):

@@ -55,8 +55,10 @@ def test_the_checker_accepts_what_foxglove_reads():
 def _every_json_schema():
     yield msg.STATE_SCHEMA_NAME, msg.BODY_STATE_JSON_SCHEMA
     yield msg.TORQUE_SCHEMA_NAME, msg.TORQUE_JSON_SCHEMA
+    yield msg.MOTOR_SCHEMA_NAME, msg.MOTOR_JSON_SCHEMA
     yield msg.FRAME_TRANSFORM_SCHEMA_NAME, msg.FRAME_TRANSFORM_JSON_SCHEMA
-    for enc, key in ((msg.STATE_ENCODING, f"{KEY}/state"), (msg.TORQUE_ENCODING, f"{KEY}/torque")):
+    for enc, key in ((msg.STATE_ENCODING, f"{KEY}/state"), (msg.TORQUE_ENCODING, f"{KEY}/torque"),
+                     (msg.MOTOR_ENCODING, "gyrosim/spacecraft/wheel_x/motor")):
         cs = msg.schema_for_encoding(enc, key=key)
         assert cs.encoding == "jsonschema"
         yield cs.name + " (as stored)", json.loads(cs.data)
@@ -131,18 +133,28 @@ def _field_exists(schema: dict, path: str) -> bool:
 
 
 def test_the_foxglove_layout_shows_the_frame_angles_rates_and_energy_of_real_fields():
+    from gyrosim.model import Model
+
     layout = json.loads(LAYOUT.read_text())
     panels = layout["configById"]
     three_d = [v for k, v in panels.items() if k.startswith("3D!")]
     assert three_d and three_d[0]["followTf"] == "world" and "frame:gyro" in three_d[0]["transforms"]
+    # the tree of gimbal_gyroscope: every body's frame shown, every body's tf topic visible
+    gimbal = Model("gimbal_gyroscope").body_names
+    assert all(three_d[0]["transforms"][f"frame:{b}"]["visible"] for b in gimbal)
+    assert all(three_d[0]["topics"][f"/gyrosim/gimbal_gyroscope/{b}/tf"]["visible"] for b in gimbal)
     plotted = [p["value"] for k, v in panels.items() if k.startswith("Plot!") for p in v["paths"]]
-    fields = set()
+    fields, tree_fields = set(), set()
     for value in plotted:
         topic, _, field = value.partition(".")
-        assert topic == f"/{KEY}/state", value
+        if topic == f"/{KEY}/state":
+            fields.add(field.split("[")[0])
+        else:
+            assert topic in {f"/gyrosim/gimbal_gyroscope/{b}/state" for b in gimbal}, value
+            tree_fields.add(field)
         assert _field_exists(msg.BODY_STATE_JSON_SCHEMA, field), value
-        fields.add(field.split("[")[0])
     assert {"phi", "theta", "psi", "omega", "energy"} <= fields
+    assert tree_fields == {"joint.angle"}
 
     def ids(node):
         return [node] if isinstance(node, str) else ids(node["first"]) + ids(node["second"])

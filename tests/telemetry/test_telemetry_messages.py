@@ -30,6 +30,8 @@ def test_keys_follow_the_contract():
     assert K.parse_key("lab/a/s/b/imu") == K.KeyParts("lab/a", "s", "b", "imu")
     assert K.parse_key("gyrosim/s/alive") == K.KeyParts("gyrosim", "s", None, "alive")
     assert K.parse_key("some/other/key") is None
+    assert K.BodyKeys("spacecraft", "wheel_x").motor == "gyrosim/spacecraft/wheel_x/motor"
+    assert K.parse_key("gyrosim/spacecraft/wheel_x/motor") == K.KeyParts("gyrosim", "spacecraft", "wheel_x", "motor")
     assert K.topic_for_key(k.state) == "/gyrosim/gyroscope/gyro/state"
     assert K.key_for_topic(K.topic_for_key(k.state)) == k.state
 
@@ -58,6 +60,27 @@ def test_state_json_round_trip_is_exact_and_valid_against_its_schema():
     assert d["t"] == 1.234 and d["seq"] == 7 and tuple(d["q"]) == Q and tuple(d["omega"]) == OMEGA
     assert (d["phi"], d["theta"], d["psi"], d["energy"]) == (0.1, 1.2, 33.0, 200.0003759)
     assert d["L"] == [1.0, 2.0, 3.0] and d["inputs"] == {"tau_x": 0.5, "tau_y": 0.0, "tau_z": -1.0}
+
+
+def test_a_tree_bodys_state_carries_its_parent_joint_and_the_scene_wide_values():
+    jsonschema = pytest.importorskip("jsonschema")
+    s = msg.BodyState.from_tree_outputs(
+        0.5, 3, q_world=Q, omega=OMEGA, parent="inner", joint_type="hinge", joint={"angle": 12.5, "rate": 199.9},
+        scene_outputs={"energy": 200.25, "energy_error": -1e-10, "L_x": 0.1, "L_y": -1.6, "L_z": 1.08},
+        inputs={"motor_torque": 0.05}, scene="gimbal_gyroscope", body="rotor", wall_ns=7)
+    d = msg.decode_state(msg.encode_state(s))
+    jsonschema.validate(d, msg.BODY_STATE_JSON_SCHEMA)
+    assert (d["parent"], d["joint_type"], d["joint"]) == ("inner", "hinge", {"angle": 12.5, "rate": 199.9})
+    assert tuple(d["q"]) == Q and tuple(d["omega"]) == OMEGA and d["inputs"] == {"motor_torque": 0.05}
+    assert d["L"] == [0.1, -1.6, 1.08] and d["energy"] == 200.25 and d["energy_error"] == -1e-10
+    assert not {"phi", "theta", "psi"} & set(d)  # a tree body has no ZYZ angles of its own
+    # every joint variable and input name it may carry is a property of the schema (Foxglove plots them by path)
+    props = msg.BODY_STATE_JSON_SCHEMA["properties"]
+    assert set(props["joint"]["properties"]) == set(msg.JOINT_VARIABLES) >= {"angle", "rate", "q_w", "omega_z",
+                                                                           "r_x", "v_z"}
+    assert set(props["inputs"]["properties"]) == {"tau_x", "tau_y", "tau_z", "motor_torque"}
+    # a one-body scene's state has none of the tree fields: its messages are unchanged
+    assert not {"parent", "joint_type", "joint"} & set(msg.decode_state(msg.encode_state(_state())))
 
 
 def test_state_with_non_finite_numbers_is_still_valid_json():
@@ -211,6 +234,26 @@ def test_torque_rejections_say_why(payload, reason):
     assert reason in e.value.reason
     assert str(e.value).startswith("torque command rejected: ")
     assert isinstance(e.value, ConfigError)
+
+
+def test_motor_commands_are_parsed_and_rejected_as_torque_commands():
+    assert msg.parse_motor(b'{"torque": -0.25}', limit=1.0) == msg.MotorTorque(-0.25)
+    assert msg.parse_motor(msg.encode_motor(0.05)).as_inputs() == {"motor_torque": 0.05}
+    for payload, reason in [(b'{"torque": 2}', "|torque| = 2 N*m exceeds the limit 1 N*m"),
+                            (b'{"x": 0, "y": 0, "z": 0}', "missing member(s) torque"),
+                            (b'{"torque": 0, "x": 1}', "unknown member(s) x"),
+                            (b'{"torque": "1"}', "torque = '1' is a str"),
+                            (b'{"torque": NaN}', "NaN is not a finite number"),
+                            (b"[0.1]", 'expected a JSON object {"torque"}'),
+                            (b"\xff", "not UTF-8")]:
+        with pytest.raises(msg.MotorRejected) as e:
+            msg.parse_motor(payload, limit=1.0)
+        assert reason in e.value.reason, (payload, e.value.reason)
+        assert str(e.value).startswith("motor command rejected: ")
+        assert isinstance(e.value, msg.TorqueRejected) and isinstance(e.value, ConfigError)
+    cs = msg.schema_for_encoding(msg.MOTOR_ENCODING, key="gyrosim/spacecraft/wheel_x/motor")
+    assert (cs.message_encoding, cs.name, cs.encoding) == ("json", msg.MOTOR_SCHEMA_NAME, "jsonschema")
+    assert json.loads(cs.data) == msg.MOTOR_JSON_SCHEMA
 
 
 def test_params_reply_is_strict_json():

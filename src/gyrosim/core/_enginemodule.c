@@ -667,7 +667,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
             {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
             {"TB_POS", GS_TB_POS}, {"TB_AXIS", GS_TB_AXIS}, {"TB_MASS", GS_TB_MASS}, {"TB_CM", GS_TB_CM},
             {"TB_I", GS_TB_I}, {"TB_STIFF", GS_TB_STIFF}, {"TB_REST", GS_TB_REST}, {"TB_DAMP", GS_TB_DAMP},
-            {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}};
+            {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}, {"TP_G", GS_TP_G}, {"TP_DRIFT", GS_TP_DRIFT}};
         for (size_t i = 0; i < sizeof(tc) / sizeof(tc[0]); i++) PyModule_AddIntConstant(m, tc[i].name, tc[i].value);
     }
     PyModule_AddIntConstant(m, "NY", GS_NY);

@@ -153,8 +153,8 @@ class TreeLayout:
     def params(self, g: float, max_drift: float) -> np.ndarray:
         """(np,) the parameter row of the bodies' values (inputs at 0)."""
         p = np.zeros(self.np)
-        p[0] = g
-        p[1] = max_drift
+        p[_engine.TP_G] = g
+        p[_engine.TP_DRIFT] = max_drift
         for i, b in enumerate(self.bodies):
             o = self.body_offset(i)
             p[o + _engine.TB_POS:o + _engine.TB_POS + 3] = _vec(b.pos)

@@ -47,7 +47,7 @@ _KIND_C = {"none": "GS_K_NONE", "time": "GS_K_TIME", "param": "GS_K_PARAM", "max
            "input": "GS_K_INPUT", "alias": "GS_K_ALIAS", "state": "GS_K_STATE", "output": "GS_K_OUTPUT",
            "integrator": "GS_K_INTEGRATOR", "max_step": "GS_K_MAX_STEP", "work": "GS_K_WORK", "der": "GS_K_DER"}
 #: g and max_drift in the parameter row (gyrosim_tree.h GS_TP_G, GS_TP_DRIFT; TreeLayout.params)
-_TP_G, _TP_DRIFT = 0, 1
+_TP_G, _TP_DRIFT = _engine.TP_G, _engine.TP_DRIFT
 #: Parameters that must be >= 0 (TreeModel: g, couplings, and these body parameters).
 _NONNEG = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
 #: A body parameter's slot in the body's block of the parameter row (core/engine/gyrosim_tree.h GS_TB_*).

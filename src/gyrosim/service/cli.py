@@ -125,11 +125,13 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "serve", help="Run a scene in real time and publish it on Zenoh",
         description="Step a scene's model in real time (or faster) and publish each body's state (JSON), "
-                    "transform (CDR tf2_msgs/msg/TFMessage) and IMU (CDR sensor_msgs/msg/Imu) on Zenoh; take "
-                    "torque commands, answer params queries, hold a liveliness token. Default: a Zenoh peer "
+                    "transform (CDR tf2_msgs/msg/TFMessage, from its parent frame in a tree scene) and IMU "
+                    "(CDR sensor_msgs/msg/Imu) on Zenoh; take torque commands (.../torque) and hinge motor "
+                    "commands (.../motor), answer params queries, hold a liveliness token. Default: a Zenoh peer "
                     "listening on tcp/127.0.0.1:7447 with scouting off (no router needed).")
     p.add_argument("scene", nargs="?", default=None,
-                   help="Embedded scene (free_body, heavy_top, gyroscope) or TOML file; default: full model.")
+                   help="Embedded scene (free_body, heavy_top, gyroscope; trees: gimbal_gyroscope, spacecraft, "
+                        "cmg_spacecraft, double_pendulum, coupled_pendula) or TOML file; default: full model.")
     p.add_argument("--record", metavar="FILE.mcap", help="Also record everything published into this file.")
     _durations(p, "to run (default: until SIGINT/SIGTERM)")
     p.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", metavar="[HOST:]PORT",
@@ -182,7 +184,8 @@ def register(subparsers) -> None:
                    help="Replay speed factor (default 1; 0: as fast as possible).")
     p.add_argument("--loop", action="store_true", help="Start again at the end until SIGINT/SIGTERM.")
     _durations(p, "of the recording to replay, from its first message")
-    p.add_argument("--include-torque", action="store_true", help="Also republish recorded torque commands.")
+    p.add_argument("--include-torque", action="store_true",
+                   help="Also republish recorded commands (torque, and motor of tree scenes).")
     p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
                    help="Wait up to S seconds for a subscriber on every key before starting.")
     add_verbosity(p)

@@ -6,6 +6,7 @@ Keys (DESIGN.md section 6; the prefix defaults to ``gyrosim``)::
     <prefix>/<scene>/<body>/tf       application/cdr;tf2_msgs/msg/TFMessage
     <prefix>/<scene>/<body>/imu      application/cdr;sensor_msgs/msg/Imu
     <prefix>/<scene>/<body>/torque   application/json {"x", "y", "z"} (subscribed by the service)
+    <prefix>/<scene>/<body>/motor    application/json {"torque"} (subscribed: a tree body's hinge motor)
     <prefix>/<scene>/<body>/params   queryable: current parameters as JSON
     <prefix>/<scene>/alive           liveliness token
 
@@ -34,6 +35,7 @@ __all__ = [
     "DEFAULT_PREFIX",
     "BODY_KINDS",
     "PUBLISHED_KINDS",
+    "COMMAND_KINDS",
     "BodyKeys",
     "KeyParts",
     "body_key",
@@ -48,8 +50,10 @@ __all__ = [
 
 #: Default first chunk of every key.
 DEFAULT_PREFIX = "gyrosim"
-#: The per-body key kinds, in the order of DESIGN.md section 6.
-BODY_KINDS = ("state", "tf", "imu", "torque", "params")
+#: The per-body key kinds, in the order of DESIGN.md section 6 (``motor``: tree scenes' hinge motors).
+BODY_KINDS = ("state", "tf", "imu", "torque", "params", "motor")
+#: The kinds the service subscribes: commands (inputs) it takes.
+COMMAND_KINDS = ("torque", "motor")
 #: The kinds the service publishes (and records) for every body.
 PUBLISHED_KINDS = ("state", "tf", "imu")
 
@@ -148,6 +152,10 @@ class BodyKeys:
     @property
     def params(self) -> str:
         return self.key("params")
+
+    @property
+    def motor(self) -> str:
+        return self.key("motor")
 
 
 @dataclass(frozen=True)

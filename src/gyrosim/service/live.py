@@ -5,8 +5,9 @@ Per body, on the topics of the MCAP recordings (``"/" + key``):
 
 * ``.../state``: the same JSON ``gyrosim.BodyState`` bytes, with its JSON schema (Foxglove's rules);
 * ``.../imu``: the same CDR ``sensor_msgs/msg/Imu`` bytes with the ``ros2msg`` definition;
-* ``.../tf``: the transform ``world`` -> body as JSON ``foxglove.FrameTransform``, the schema Foxglove's 3D
-  panel draws without any ROS support (the Zenoh key and the recordings keep CDR ``tf2_msgs/msg/TFMessage``).
+* ``.../tf``: the transform parent -> body (``world`` -> body; in a tree scene from the parent body's frame, so
+  the 3D panel draws the whole tree) as JSON ``foxglove.FrameTransform``, the schema Foxglove's 3D panel draws
+  without any ROS support (the Zenoh key and the recordings keep CDR ``tf2_msgs/msg/TFMessage``).
 
 Log times are the wall clock at publication (ns since the Unix epoch), as in the recordings; the simulation
 time is in the messages (``t``, header stamps, ``timestamp``). The server has its own ``foxglove.Context``, so
@@ -65,6 +66,11 @@ class LiveView:
         Where to listen (port 0: a free port; :attr:`port` tells which).
     name : str
         Server name shown by Foxglove.
+    bodies : iterable of gyrosim.service.keys.BodyKeys, optional
+        Bodies whose channels are created before the server starts listening, so that a client connecting at
+        any time sees them all in its first advertisement. (A channel created while a client is connected is
+        advertised to it, but a subscription that arrives at once can be refused with "Unknown channel ID";
+        that client then never gets the channel's messages.)
 
     Raises
     ------
@@ -73,13 +79,16 @@ class LiveView:
         flag to change).
     """
 
-    def __init__(self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, name: str = "gyrosim"):
+    def __init__(self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, name: str = "gyrosim", bodies=()):
         try:
             import foxglove
         except ImportError:
             raise GyrosimError("--foxglove needs the foxglove-sdk package: pip install 'gyrosim[service]'") from None
         self._foxglove = foxglove
         self.context = foxglove.Context()
+        self._channels: dict[str, object] = {}
+        for keys in bodies:
+            self.add_body(keys)
         try:
             self.server = foxglove.start_server(name=name, host=host, port=int(port), context=self.context)
         except Exception as e:  # noqa: BLE001 - the SDK raises RuntimeError / its own errors
@@ -90,7 +99,6 @@ class LiveView:
                                "another with --foxglove HOST:PORT") from None
         self.host = host
         self.port = int(self.server.port)
-        self._channels: dict[str, object] = {}
         log.info("Foxglove live view on ws://%s:%d (Foxglove: Open connection > Foxglove WebSocket)",
                  host if ":" not in host else f"[{host}]", self.port)
 
@@ -109,7 +117,8 @@ class LiveView:
         return ch
 
     def add_body(self, keys) -> None:
-        """Advertise the state, tf and imu channels of one body (:class:`gyrosim.service.keys.BodyKeys`)."""
+        """Advertise the state, tf and imu channels of one body (:class:`gyrosim.service.keys.BodyKeys`); a no-op
+        for channels that exist."""
         state = msg.schema_for_encoding(msg.STATE_ENCODING)
         self._channel(topic_for_key(keys.state), "json", state.name, state.encoding, state.data)
         self._channel(topic_for_key(keys.tf), "json", msg.FRAME_TRANSFORM_SCHEMA_NAME, "jsonschema",

@@ -39,7 +39,7 @@ class ReplayOptions:
     loop : bool
         Start again at the end until stopped.
     include_torque : bool
-        Also republish recorded ``.../torque`` commands.
+        Also republish recorded commands, ``.../torque`` and ``.../motor`` (they would drive a running service).
     wait_subscribers : float
         Before the first pass, wait up to this many seconds for a subscriber on every key.
     duration : float or None
@@ -121,7 +121,7 @@ def main(conf, path, *, options: ReplayOptions = ReplayOptions(), stop: threadin
         with open_session(conf, fallback_port=options.fallback_port, log=log) as session:
             pubs = {}
             for cid, (key, encoding) in channels.items():
-                if key.endswith("/torque") and not options.include_torque:
+                if key.endswith(("/torque", "/motor")) and not options.include_torque:
                     continue
                 pubs[cid] = session.declare_publisher(key, encoding=zenoh.Encoding(encoding),
                                                       congestion_control=zenoh.CongestionControl.BLOCK,

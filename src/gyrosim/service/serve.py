@@ -6,10 +6,17 @@ session``. For every body of the scene it publishes, after each communication st
 * ``<prefix>/<scene>/<body>/state`` JSON BodyState, ``.../tf`` CDR TFMessage, ``.../imu`` CDR Imu
   (reliable, ``CongestionControl.BLOCK``: a slow subscriber slows the service down instead of losing data),
 
-subscribes ``.../torque`` (``{"x", "y", "z"}`` N*m, body frame, held until the next command; malformed or
-out-of-limit commands are logged, counted and ignored), answers ``.../params`` queries with the current
-parameters, inputs and counters, and holds the liveliness token ``<prefix>/<scene>/alive``. Zenoh's
+subscribes ``.../torque`` (``{"x", "y", "z"}`` N*m, body frame, held until the next command) and ``.../motor``
+(``{"torque": x}`` N*m about a tree body's hinge axis, held likewise; malformed or out-of-limit commands, and
+commands to a body without that input, are logged, counted and ignored), answers ``.../params`` queries with
+the current parameters, inputs and counters, and holds the liveliness token ``<prefix>/<scene>/alive``. Zenoh's
 callbacks only queue (``FifoChannel``); all work happens in the stepping thread.
+
+Tree scenes (bodies joined by joints, DESIGN.md section 4b): every body's ``tf`` is the transform from its
+parent frame (``frame_id`` the parent body's name, ``world`` for a root; translation the joint point, rotation
+the joint's), its ``state`` carries its world attitude ``q``, its angular velocity, its joint variables
+(``joint``) and the scene-wide energy and angular momentum, its ``imu`` the world attitude and angular velocity
+(:mod:`gyrosim.service.tree`).
 
 With ``foxglove`` set, a Foxglove WebSocket server (:mod:`gyrosim.service.live`) streams the same channels
 for a live view in Foxglove.
@@ -32,6 +39,7 @@ from ..errors import ConfigError, GyrosimError, IntegrationError, StepError
 from ..telemetry import messages as msg
 from . import keys as K
 from .config import open_session, zenoh_error
+from .tree import SCENE_OUTPUTS, TreeFrames
 
 __all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals"]
 
@@ -101,6 +109,8 @@ class ServeStats:
     published: int = 0
     torque_accepted: int = 0
     torque_rejected: int = 0
+    motor_accepted: int = 0
+    motor_rejected: int = 0
     last_rejection: str | None = None
     queries: int = 0
     sim_time: float = 0.0
@@ -115,6 +125,8 @@ class ServeStats:
              f"{rate:.1f} steps/s), published {self.published} messages, torque commands: "
              f"{self.torque_accepted} accepted, {self.torque_rejected} rejected; "
              f"{self.queries} params queries; largest lag behind schedule {self.max_lag * 1e3:.1f} ms")
+        if self.motor_accepted or self.motor_rejected:
+            s += f"; motor commands: {self.motor_accepted} accepted, {self.motor_rejected} rejected"
         if self.recorded:
             s += f"; recorded {self.recorded} messages"
         if self.stopped_by:
@@ -183,7 +195,16 @@ class Service:
         self.keys = [K.BodyKeys(self.scene, b, options.prefix) for b in self.bodies]
         self.h = 1.0 / options.rate
         self._seq = [0] * len(self.bodies)
-        self._torque_bodies = [i for i in range(len(self.bodies)) if "tau_x" in model.inputs(i)]
+        self.tree = None
+        if getattr(model.scene, "is_tree", False):
+            self.tree = TreeFrames(model)
+            # a tree model's inputs are named <body>.<name>: each body's own, by their short names
+            names = [n for n, v in model.variables.items() if v.causality == "input"]
+            self._input_names = [[(n[len(b) + 1:], n) for n in names if n.startswith(b + ".")] for b in self.bodies]
+        else:
+            self._input_names = None
+        self._torque_bodies = [i for i in range(len(self.bodies)) if "tau_x" in self.body_inputs(i)]
+        self._motor_bodies = [i for i in range(len(self.bodies)) if "motor_torque" in self.body_inputs(i)]
         self._rejections_logged = 0
 
         def pub(key, encoding):
@@ -197,9 +218,11 @@ class Service:
             for k in self.keys
         ]
         self.torque_subs = {}
+        self.motor_subs = {}
         for i, k in enumerate(self.keys):
-            # every body gets the subscriber: a body without torque inputs answers with a clear rejection
+            # every body gets the subscribers: a body without such inputs answers with a clear rejection
             self.torque_subs[i] = session.declare_subscriber(k.torque, zenoh.handlers.FifoChannel(1024))
+            self.motor_subs[i] = session.declare_subscriber(k.motor, zenoh.handlers.FifoChannel(1024))
         self.queryables = [session.declare_queryable(k.params, zenoh.handlers.FifoChannel(64))
                            for k in self.keys]
         self.token = session.liveliness().declare_token(K.alive_key(self.scene, prefix=options.prefix))
@@ -208,38 +231,58 @@ class Service:
                 live.add_body(k)
 
     # --------------------------------------------------------------------------------------------- inputs
-    def _reject(self, key: str, reason: str) -> None:
-        self.stats.torque_rejected += 1
+    def body_inputs(self, body: int) -> dict[str, float]:
+        """The inputs of one body by their short names (``tau_x``, ``motor_torque``)."""
+        if self._input_names is None:
+            return self.model.inputs(body)
+        return {short: self.model.get(full) for short, full in self._input_names[body]}
+
+    def _reject(self, key: str, reason: str, kind: str = "torque") -> None:
+        setattr(self.stats, f"{kind}_rejected", getattr(self.stats, f"{kind}_rejected") + 1)
         self.stats.last_rejection = reason
         self._rejections_logged += 1
-        n = self.stats.torque_rejected
+        n = getattr(self.stats, f"{kind}_rejected")
         if n <= 20 or n % 1000 == 0:
-            log.warning("torque command on %s rejected (%d so far): %s", key, n, reason)
+            log.warning("%s command on %s rejected (%d so far): %s", kind, key, n, reason)
+
+    def _apply(self, kind: str, i: int, sample) -> None:
+        """Validate one command of ``kind`` (torque, motor) for body ``i``; set the inputs or reject it."""
+        key = self.keys[i].key(kind)
+        payload = sample.payload.to_bytes()
+        try:
+            if kind == "torque":
+                cmd = msg.parse_torque(payload, self.options.torque_limit)
+                if i not in self._torque_bodies:
+                    raise msg.TorqueRejected(f"body {self.bodies[i]!r} of scene {self.scene!r} has no "
+                                             "torque input (scene: torque_input = true)")
+            else:
+                cmd = msg.parse_motor(payload, self.options.torque_limit)
+                if i not in self._motor_bodies:
+                    raise msg.MotorRejected(f"body {self.bodies[i]!r} of scene {self.scene!r} has no motor "
+                                            "input (a hinge with motor_input = true)")
+            for name, value in cmd.as_inputs().items():
+                self.model.set(name, value, body=i)
+        except msg.TorqueRejected as e:  # MotorRejected too
+            self._reject(key, e.reason, kind)
+            return
+        except ConfigError as e:  # the model refused it
+            self._reject(key, str(e), kind)
+            return
+        setattr(self.stats, f"{kind}_accepted", getattr(self.stats, f"{kind}_accepted") + 1)
+        if self.recorder is not None:
+            encoding = msg.TORQUE_ENCODING if kind == "torque" else msg.MOTOR_ENCODING
+            self.recorder.write_sample(key, encoding, payload, publish_time_ns=msg.seconds_to_ns(self.model.time))
+        if kind == "torque":
+            log.info("torque on %s: %s N*m", self.bodies[i], (cmd.x, cmd.y, cmd.z))
+        else:
+            log.info("motor torque on %s: %s N*m", self.bodies[i], cmd.torque)
 
     def poll_inputs(self) -> None:
-        """Apply queued torque commands and answer queued params queries (stepping thread only)."""
-        for i, sub in self.torque_subs.items():
-            while (sample := sub.try_recv()) is not None:
-                key = self.keys[i].torque
-                payload = sample.payload.to_bytes()
-                try:
-                    cmd = msg.parse_torque(payload, self.options.torque_limit)
-                    if i not in self._torque_bodies:
-                        raise msg.TorqueRejected(f"body {self.bodies[i]!r} of scene {self.scene!r} has no "
-                                                 "torque input (scene: torque_input = true)")
-                    for name, value in cmd.as_inputs().items():
-                        self.model.set(name, value, body=i)
-                except msg.TorqueRejected as e:
-                    self._reject(key, e.reason)
-                    continue
-                except ConfigError as e:  # the model refused it
-                    self._reject(key, str(e))
-                    continue
-                self.stats.torque_accepted += 1
-                if self.recorder is not None:
-                    self.recorder.write_sample(key, msg.TORQUE_ENCODING, payload,
-                                               publish_time_ns=msg.seconds_to_ns(self.model.time))
-                log.info("torque on %s: %s N*m", self.bodies[i], (cmd.x, cmd.y, cmd.z))
+        """Apply queued torque and motor commands and answer queued params queries (stepping thread only)."""
+        for kind, subs in (("torque", self.torque_subs), ("motor", self.motor_subs)):
+            for i, sub in subs.items():
+                while (sample := sub.try_recv()) is not None:
+                    self._apply(kind, i, sample)
         for i, q in enumerate(self.queryables):
             while (query := q.try_recv()) is not None:
                 self.stats.queries += 1
@@ -251,20 +294,38 @@ class Service:
                 finally:
                     query.drop()
 
+    def body_parameters(self, body: int) -> dict:
+        """The parameters of one body by their short names; a tree body's also the scene-wide ones (``g``,
+        ``integrator``, ``max_step``, scene parameters such as ``L1``), which have no body prefix."""
+        if self._input_names is None:
+            return self.model.parameters(body)
+        pre = self.bodies[body] + "."
+        every = self.model.parameters()
+        out = {n: v for n, v in every.items() if "." not in n}
+        out.update({n[len(pre):]: v for n, v in every.items() if n.startswith(pre)})
+        return out
+
     def params_info(self, body: int) -> dict:
         """What a ``.../params`` query answers for one body."""
         m = self.model
-        return {
+        info = {
             "scene": self.scene, "body": self.bodies[body], "time": m.time,
-            "parameters": m.parameters(body), "inputs": m.inputs(body),
+            "parameters": self.body_parameters(body), "inputs": self.body_inputs(body),
             "service": {"rate": self.options.rate, "realtime_factor": self.options.realtime_factor,
                         "torque_limit": self.options.torque_limit, "prefix": self.options.prefix,
                         "stats": asdict(self.stats)},
         }
+        if self.tree is not None:
+            f = self.tree.bodies[body]
+            info.update(parent=f.parent, joint=f.joint)
+        return info
 
     # ------------------------------------------------------------------------------------------- stepping
     def publish(self) -> None:
         """Publish (and record) every body's state, tf and imu at the model's current time."""
+        if self.tree is not None:
+            self._publish_tree()
+            return
         m = self.model
         t = m.time
         t_ns = msg.seconds_to_ns(t)
@@ -278,20 +339,48 @@ class Service:
             payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state)),
                         ("tf", msg.TF_ENCODING, msg.encode_tf(t, q, child_frame_id=body)),
                         ("imu", msg.IMU_ENCODING, msg.encode_imu(t, q, omega, frame_id=body)))
-            pubs = self.publishers[i]
-            for kind, encoding, data in payloads:
-                pubs[kind].put(data)
-                if self.recorder is not None:
-                    self.recorder.write_sample(self.keys[i].key(kind), encoding, data, log_time_ns=wall,
-                                               publish_time_ns=t_ns, sequence=self._seq[i])
-                    self.stats.recorded += 1
+            live_tf = (msg.encode_frame_transform(t, q, child_frame_id=body) if self.live is not None else None)
+            self._emit(i, payloads, wall, t_ns, live_tf)
+
+    def _publish_tree(self) -> None:
+        """:meth:`publish` for a tree scene: transforms from the parent frames (:mod:`gyrosim.service.tree`)."""
+        m = self.model
+        t = m.time
+        t_ns = msg.seconds_to_ns(t)
+        out = m.outputs()
+        scene_out = {k: out[k] for k in SCENE_OUTPUTS if k in out}
+        for i, (body, frame, f) in enumerate(zip(self.bodies, self.tree.bodies, self.tree.at(out))):
+            wall = time.time_ns()
+            state = msg.BodyState.from_tree_outputs(
+                t, self._seq[i], q_world=f.q_world, omega=f.omega, parent=frame.parent, joint_type=frame.joint,
+                joint=f.joint, scene_outputs=scene_out, inputs=self.body_inputs(i), scene=self.scene, body=body,
+                wall_ns=wall)
+            payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state)),
+                        ("tf", msg.TF_ENCODING, msg.encode_tf(t, f.rotation, child_frame_id=body,
+                                                              frame_id=frame.parent, translation=f.translation)),
+                        ("imu", msg.IMU_ENCODING, msg.encode_imu(t, f.q_world, f.omega, frame_id=body)))
+            live_tf = None
             if self.live is not None:
-                key = self.keys[i]
-                self.live.log(key.state, payloads[0][2], wall)
-                self.live.log(key.tf, msg.encode_frame_transform(t, q, child_frame_id=body), wall)
-                self.live.log(key.imu, payloads[2][2], wall)
-            self.stats.published += len(payloads)
-            self._seq[i] += 1
+                live_tf = msg.encode_frame_transform(t, f.rotation, child_frame_id=body,
+                                                     parent_frame_id=frame.parent, translation=f.translation)
+            self._emit(i, payloads, wall, t_ns, live_tf)
+
+    def _emit(self, i: int, payloads, wall: int, t_ns: int, live_tf: bytes | None) -> None:
+        """Put one body's payloads ((kind, encoding, bytes) for state, tf, imu), record them, stream them live."""
+        pubs = self.publishers[i]
+        for kind, encoding, data in payloads:
+            pubs[kind].put(data)
+            if self.recorder is not None:
+                self.recorder.write_sample(self.keys[i].key(kind), encoding, data, log_time_ns=wall,
+                                           publish_time_ns=t_ns, sequence=self._seq[i])
+                self.stats.recorded += 1
+        if self.live is not None:
+            key = self.keys[i]
+            self.live.log(key.state, payloads[0][2], wall)
+            self.live.log(key.tf, live_tf, wall)
+            self.live.log(key.imu, payloads[2][2], wall)
+        self.stats.published += len(payloads)
+        self._seq[i] += 1
 
     def wait_for_subscribers(self, timeout: float, stop: threading.Event) -> bool:
         """Wait until every state publisher has a matching subscriber (or ``timeout`` s); True if all do."""
@@ -384,7 +473,7 @@ class Service:
         for pubs in self.publishers:
             for p in pubs.values():
                 p.undeclare()
-        for s in self.torque_subs.values():
+        for s in (*self.torque_subs.values(), *self.motor_subs.values()):
             s.undeclare()
         for q in self.queryables:
             q.undeclare()
@@ -431,12 +520,19 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
     stop = stop if stop is not None else threading.Event()
     recorder = None
     if options.record:
-        params = {b: model.parameters(i) for i, b in enumerate(model.body_names)}
-        first = model.parameters(0) if model.body_names else {}
+        frames = None
+        if getattr(model.scene, "is_tree", False):  # one system: its parameters by full name, and its frames
+            params = model.parameters()
+            first = params
+            frames = [{"body": b.name, "parent": model.body_names[b.parent] if b.parent >= 0 else msg.WORLD_FRAME,
+                       "joint": b.joint} for b in model.scene.tree]
+        else:
+            params = {b: model.parameters(i) for i, b in enumerate(model.body_names)}
+            first = model.parameters(0) if model.body_names else {}
         recorder = Recorder(options.record, metadata=metadata_record(
             scene=model.scene.name, parameters=params, integrator=first.get("integrator"),
             rate=options.rate, realtime_factor=options.realtime_factor, prefix=options.prefix,
-            bodies=list(model.body_names), source="gyrosim serve"))
+            bodies=list(model.body_names), frames=frames, source="gyrosim serve"))
     service = None
     stats = ServeStats()
     live = None
@@ -445,7 +541,8 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
         if options.foxglove is not None:
             from .live import LiveView
 
-            live = LiveView(*options.foxglove, name=f"gyrosim serve {model.scene.name}")
+            live = LiveView(*options.foxglove, name=f"gyrosim serve {model.scene.name}",
+                            bodies=[K.BodyKeys(model.scene.name, b, options.prefix) for b in model.body_names])
         with open_session(conf, log=log) as session:
             service = Service(session, model, options, recorder, live)
             service.stats = stats

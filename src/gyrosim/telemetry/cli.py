@@ -157,7 +157,8 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "plot", help="PNG plots of attitude, rates, energy and |L| from a recording",
         description="Write <stem>_attitude.png, <stem>_rates.png, <stem>_energy.png and <stem>_momentum.png "
-                    "from every gyrosim.BodyState channel of FILE.mcap (one line per body). A truncated file "
+                    "from every gyrosim.BodyState channel of FILE.mcap (one line per body), and for a tree "
+                    "scene with hinges <stem>_joints.png (each hinge's angle and rate). A truncated file "
                     "is plotted as far as it reads, with a warning.")
     p.add_argument("file", metavar="FILE.mcap")
     p.add_argument("--output-dir", "-o", metavar="DIR",

@@ -7,6 +7,7 @@ state    ``application/json;gyrosim.BodyState``        json, gyrosim.BodyState (
 tf       ``application/cdr;tf2_msgs/msg/TFMessage``    cdr, tf2_msgs/msg/TFMessage (ros2msg)
 imu      ``application/cdr;sensor_msgs/msg/Imu``       cdr, sensor_msgs/msg/Imu (ros2msg)
 torque   ``application/json`` ``{"x", "y", "z"}``      json, gyrosim.Torque (jsonschema)
+motor    ``application/json`` ``{"torque"}``           json, gyrosim.MotorTorque (jsonschema)
 params   ``application/json`` (query reply)            -
 =======  ============================================  ==================================================
 
@@ -26,6 +27,8 @@ Examples
 1500000000
 >>> msg.parse_torque(b'{"x": 0.1, "y": 0, "z": -2}', limit=5.0)
 Torque(x=0.1, y=0.0, z=-2.0)
+>>> msg.parse_motor(b'{"torque": 0.05}', limit=5.0)
+MotorTorque(torque=0.05)
 """
 
 from __future__ import annotations
@@ -44,24 +47,30 @@ __all__ = [
     "TF_ENCODING",
     "IMU_ENCODING",
     "TORQUE_ENCODING",
+    "MOTOR_ENCODING",
     "PARAMS_ENCODING",
     "STATE_SCHEMA_NAME",
     "TORQUE_SCHEMA_NAME",
+    "MOTOR_SCHEMA_NAME",
     "TF_TYPE",
     "IMU_TYPE",
     "TF_MSGDEF",
     "IMU_MSGDEF",
     "BODY_STATE_JSON_SCHEMA",
     "TORQUE_JSON_SCHEMA",
+    "MOTOR_JSON_SCHEMA",
     "FRAME_TRANSFORM_SCHEMA_NAME",
     "FRAME_TRANSFORM_JSON_SCHEMA",
     "STATE_INPUTS",
+    "JOINT_VARIABLES",
     "WORLD_FRAME",
     "DEFAULT_TORQUE_LIMIT",
     "BodyState",
     "ChannelSchema",
     "Torque",
     "TorqueRejected",
+    "MotorTorque",
+    "MotorRejected",
     "seconds_to_ns",
     "ns_to_stamp",
     "encode_state",
@@ -72,6 +81,8 @@ __all__ = [
     "decode_cdr",
     "encode_torque",
     "parse_torque",
+    "encode_motor",
+    "parse_motor",
     "encode_params",
     "sim_time_ns",
     "stamp_and_seq",
@@ -82,6 +93,7 @@ __all__ = [
 # --------------------------------------------------------------------------------------------- encodings
 STATE_SCHEMA_NAME = "gyrosim.BodyState"
 TORQUE_SCHEMA_NAME = "gyrosim.Torque"
+MOTOR_SCHEMA_NAME = "gyrosim.MotorTorque"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 IMU_TYPE = "sensor_msgs/msg/Imu"
 
@@ -89,6 +101,7 @@ STATE_ENCODING = f"application/json;{STATE_SCHEMA_NAME}"
 TF_ENCODING = f"application/cdr;{TF_TYPE}"
 IMU_ENCODING = f"application/cdr;{IMU_TYPE}"
 TORQUE_ENCODING = "application/json"
+MOTOR_ENCODING = "application/json"
 PARAMS_ENCODING = "application/json"
 
 #: Parent frame of every transform.
@@ -189,8 +202,23 @@ def _num(what: str) -> dict:
     return {"type": "number", "description": what + " (null when not available or not finite)"}
 
 
-#: Input names a BodyState's ``inputs`` object may carry (body-frame torque, N*m).
-STATE_INPUTS = ("tau_x", "tau_y", "tau_z")
+#: Input names a BodyState's ``inputs`` object may carry: body-frame torque and a hinge's motor torque, N*m.
+STATE_INPUTS = ("tau_x", "tau_y", "tau_z", "motor_torque")
+
+_INPUT_DESCRIPTIONS = {"tau_x": "body-frame torque x, N*m", "tau_y": "body-frame torque y, N*m",
+                       "tau_z": "body-frame torque z, N*m",
+                       "motor_torque": "hinge motor torque about the joint axis, N*m (tree scenes)"}
+
+#: The joint variables a tree body's BodyState carries in ``joint`` (DESIGN.md 4b), with unit and meaning; a body
+#: has those of its joint only (hinge: angle, rate; ball and free_rotation: q, omega; free: also r, v; fixed: none).
+JOINT_VARIABLES = {
+    "angle": ("rad", "hinge angle (unwrapped)"),
+    "rate": ("rad/s", "hinge rate"),
+    **{f"q_{c}": ("1", f"attitude relative to the parent, {c} part of (w, x, y, z)") for c in "wxyz"},
+    **{f"omega_{c}": ("rad/s", f"angular velocity relative to the parent, body {c}") for c in "xyz"},
+    **{f"r_{c}": ("m", f"position of the body's origin, world {c} (free joint)") for c in "xyz"},
+    **{f"v_{c}": ("m/s", f"velocity of the body's origin, world {c} (free joint)") for c in "xyz"},
+}
 
 #: JSON Schema (draft 2020-12) of a BodyState message.
 BODY_STATE_JSON_SCHEMA: dict = {
@@ -203,22 +231,33 @@ BODY_STATE_JSON_SCHEMA: dict = {
         "seq": {"type": "integer", "minimum": 0, "description": "per-body message counter from 0"},
         "scene": {"type": "string"},
         "body": {"type": "string"},
-        "q": _vec(4, "attitude quaternion (w, x, y, z), body -> world"),
-        "omega": _vec(3, "body-frame angular velocity, rad/s"),
+        "q": _vec(4, "attitude quaternion (w, x, y, z), body -> world (a tree body: its world attitude q_world)"),
+        "omega": _vec(3, "body-frame angular velocity relative to the world (what a gyro on the body measures), "
+                         "rad/s"),
         "phi": _num("ZYZ precession angle (unwrapped), rad"),
         "theta": _num("ZYZ nutation angle in [0, pi], rad"),
         "psi": _num("ZYZ spin angle (unwrapped), rad"),
         "L": {**_vec(3, "world-frame angular momentum about the reference point, kg*m^2/s "
-                        "(null when the scene has no L output)")},
-        "energy": _num("total energy, J"),
+                        "(null when the scene has no L output; a tree scene: the whole tree's)")},
+        "energy": _num("total energy, J (a tree scene: the whole tree's)"),
         "energy_error": _num("work-energy balance E(t) - E(0) - W_torque(t) + W_damping(t), J: 0 for the exact "
-                             "flow, the integrator's error otherwise"),
+                             "flow, the integrator's error otherwise (a tree scene: the whole tree's)"),
         "inputs": {
             "type": "object",
-            "properties": {name: {"type": "number", "description": f"body-frame torque {name[-1]}, N*m"}
+            "properties": {name: {"type": "number", "description": _INPUT_DESCRIPTIONS[name]}
                            for name in STATE_INPUTS},
             "additionalProperties": _NUM,
-            "description": "inputs held over the last step (absent: the body has no torque input)",
+            "description": "inputs held over the last step (empty: the body has no input)",
+        },
+        "parent": {"type": "string", "description": "tree scenes: the parent frame, the parent body's name or "
+                   "'world' for a root (the frame_id of the body's tf)"},
+        "joint_type": {"type": "string", "description": "tree scenes: the joint to the parent: hinge, ball, "
+                       "free_rotation, free or fixed"},
+        "joint": {
+            "type": "object",
+            "properties": {name: {"type": "number", "description": f"{what}, {unit}"}
+                           for name, (unit, what) in JOINT_VARIABLES.items()},
+            "description": "tree scenes: the joint's variables (<body>.<name> in the model), those of its joint only",
         },
         "wall_ns": {"type": "integer", "description": "publisher wall clock at publication, ns since epoch "
                     "(beyond 2^53: JavaScript readers round it to about 0.2 us)"},
@@ -308,11 +347,18 @@ class BodyState:
     energy_error : float or None
         Work-energy balance ``E(t) - E(0) - W_torque(t) + W_damping(t)``, J (0 for the exact flow).
     inputs : dict
-        Inputs held over the last step (``tau_x``, ``tau_y``, ``tau_z``, N*m).
+        Inputs held over the last step (``tau_x``, ``tau_y``, ``tau_z``, ``motor_torque``, N*m).
     scene, body : str
         Names.
     wall_ns : int or None
         Publisher wall clock at publication (ns since the Unix epoch), for latency measurements.
+    parent : str or None
+        Tree scenes: the parent frame (the parent body's name, ``world`` for a root); None for a scene of
+        independent bodies (then ``parent``, ``joint_type`` and ``joint`` are left out of the message).
+    joint_type : str or None
+        Tree scenes: ``hinge``, ``ball``, ``free_rotation``, ``free`` or ``fixed``.
+    joint : dict
+        Tree scenes: the joint variables by name (:data:`JOINT_VARIABLES`), those of the body's joint only.
     """
 
     t: float
@@ -329,6 +375,9 @@ class BodyState:
     scene: str = ""
     body: str = ""
     wall_ns: int | None = None
+    parent: str | None = None
+    joint_type: str | None = None
+    joint: dict = field(default_factory=dict)
 
     @classmethod
     def from_outputs(cls, t: float, seq: int, outputs: dict, inputs: dict | None = None, *,
@@ -348,6 +397,38 @@ class BodyState:
             scene=scene, body=body, wall_ns=wall_ns,
         )
 
+    @classmethod
+    def from_tree_outputs(cls, t: float, seq: int, *, q_world, omega, parent: str, joint_type: str, joint: dict,
+                          scene_outputs: dict, inputs: dict | None = None, scene: str = "", body: str = "",
+                          wall_ns: int | None = None) -> BodyState:
+        """Build the state of one body of a tree scene.
+
+        Parameters
+        ----------
+        q_world : (4,) sequence of float
+            The body's attitude in the world ``(w, x, y, z)`` (the model's ``<body>.q_world_*``).
+        omega : (3,) sequence of float
+            The body's angular velocity relative to the world in its own frame, rad/s.
+        parent, joint_type : str
+            The parent frame (``world`` for a root) and the joint's kind.
+        joint : dict
+            The joint variables by their short names (``angle``, ``rate``; ``q_w``.., ``omega_x``..).
+        scene_outputs : dict
+            The scene-wide outputs ``energy``, ``energy_error``, ``L_x``, ``L_y``, ``L_z`` (those present are used).
+        inputs : dict, optional
+            The body's inputs by their short names (``motor_torque``, ``tau_x``..).
+        """
+        o = scene_outputs
+        L = None
+        if all(k in o for k in ("L_x", "L_y", "L_z")):
+            L = (float(o["L_x"]), float(o["L_y"]), float(o["L_z"]))
+        return cls(
+            t=float(t), seq=int(seq), q=tuple(float(v) for v in q_world), omega=tuple(float(v) for v in omega),
+            L=L, energy=o.get("energy"), energy_error=o.get("energy_error"),
+            inputs={k: float(v) for k, v in (inputs or {}).items()}, scene=scene, body=body, wall_ns=wall_ns,
+            parent=str(parent), joint_type=str(joint_type), joint={k: float(v) for k, v in joint.items()},
+        )
+
     def to_dict(self) -> dict:
         """JSON-ready dictionary (non-finite numbers become null)."""
         d = {
@@ -362,6 +443,13 @@ class BodyState:
         }
         if self.wall_ns is not None:
             d["wall_ns"] = int(self.wall_ns)
+        if self.parent is not None:  # a tree body: no ZYZ angles of its own; its joint instead
+            for k in ("phi", "theta", "psi"):
+                if d[k] is None:
+                    del d[k]
+            d["parent"] = self.parent
+            d["joint_type"] = self.joint_type or ""
+            d["joint"] = {k: _finite_or_none(v) for k, v in self.joint.items()}
         return d
 
 
@@ -409,13 +497,15 @@ def encode_tf(t: float, q, *, child_frame_id: str, frame_id: str = WORLD_FRAME,
     t : float
         Simulation time, s (header stamp).
     q : (4,) array_like
-        Attitude ``(w, x, y, z)`` of the body in the world frame.
+        Rotation ``(w, x, y, z)`` of the child frame relative to the parent frame (rotating child-frame vectors
+        into the parent frame): the body's attitude for a body whose parent is the world.
     child_frame_id : str
         The body's frame (the body name).
     frame_id : str
-        Parent frame, default ``world``.
+        Parent frame, default ``world`` (a tree body: its parent body's name, ``world`` for a root).
     translation : (3,) array_like
-        Position of the body frame's origin (the pivot, or the centre of mass of a free body), m.
+        Position of the body frame's origin in the parent frame, m (the pivot, or the centre of mass of a free
+        body; a tree body: its joint point, plus the position ``r`` of a free joint).
     """
     tx, ty, tz = (float(v) for v in translation)
     msg = {"transforms": [{
@@ -465,7 +555,7 @@ def encode_frame_transform(t: float, q, *, child_frame_id: str, parent_frame_id:
     """JSON ``foxglove.FrameTransform`` (the Foxglove live view's transform; :data:`FRAME_TRANSFORM_JSON_SCHEMA`).
 
     The same transform as :func:`encode_tf`: ``parent_frame_id`` -> ``child_frame_id`` at simulation time ``t``
-    (s), rotation ``q = (w, x, y, z)`` body -> world, translation in m.
+    (s), rotation ``q = (w, x, y, z)`` child -> parent, translation in m (in the parent frame).
 
     Examples
     --------
@@ -524,6 +614,55 @@ class TorqueRejected(ConfigError):
 MAX_TORQUE_PAYLOAD = 1024
 
 
+def _parse_object(payload, members: tuple[str, ...], reject, expected: str) -> dict:
+    """Decode a command payload to a JSON object with exactly ``members`` (checks as :func:`parse_torque`)."""
+    if isinstance(payload, str):
+        text = payload
+        if len(text) > MAX_TORQUE_PAYLOAD:
+            raise reject(f"payload of {len(text)} characters, at most {MAX_TORQUE_PAYLOAD} allowed")
+    else:
+        raw = bytes(payload)
+        if len(raw) > MAX_TORQUE_PAYLOAD:
+            raise reject(f"payload of {len(raw)} bytes, at most {MAX_TORQUE_PAYLOAD} allowed")
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise reject(f"payload is not UTF-8 ({e.reason} at byte {e.start})", raw[:40]) from None
+
+    def _reject_constant(name):  # json accepts NaN/Infinity literals by default: reject them by name
+        raise ValueError(f"{name} is not a finite number")
+
+    try:
+        obj = json.loads(text, parse_constant=_reject_constant)
+    except ValueError as e:
+        raise reject(f"not valid JSON ({e})", text[:80]) from None
+    if not isinstance(obj, dict):
+        raise reject(f"expected a JSON object {expected}, got {type(obj).__name__}", obj)
+    missing = [k for k in members if k not in obj]
+    if missing:
+        raise reject(f"missing member(s) {', '.join(missing)}; expected {', '.join(members)} in N*m", obj)
+    extra = sorted(set(obj) - set(members))
+    if extra:
+        raise reject(f"unknown member(s) {', '.join(extra)}; expected only {', '.join(members)}", obj)
+    return obj
+
+
+def _torque_value(obj: dict, k: str, limit: float, reject) -> float:
+    v = obj[k]
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise reject(f"{k} = {v!r} is a {type(v).__name__}, expected a number (N*m)", obj)
+    try:
+        v = float(v)
+    except OverflowError:  # a JSON integer beyond the float range
+        raise reject(f"{k} is an integer of {len(str(obj[k]))} digits, not a finite float",
+                     "<huge integer>") from None
+    if not math.isfinite(v):
+        raise reject(f"{k} = {obj[k]!r} is not finite", obj)
+    if abs(v) > limit:
+        raise reject(f"|{k}| = {abs(v):g} N*m exceeds the limit {limit:g} N*m", obj)
+    return v
+
+
 def parse_torque(payload: bytes | bytearray | memoryview | str,
                  limit: float = DEFAULT_TORQUE_LIMIT) -> Torque:
     """Parse and validate a torque command ``{"x": .., "y": .., "z": ..}`` (N*m, body frame).
@@ -545,50 +684,64 @@ def parse_torque(payload: bytes | bytearray | memoryview | str,
         With ``reason`` naming what is wrong: too long, not UTF-8, not JSON, not an object, missing or unknown
         members, a member that is not a number (booleans included), NaN or infinite, or beyond ``limit``.
     """
-    if isinstance(payload, str):
-        text = payload
-        if len(text) > MAX_TORQUE_PAYLOAD:
-            raise TorqueRejected(f"payload of {len(text)} characters, at most {MAX_TORQUE_PAYLOAD} allowed")
-    else:
-        raw = bytes(payload)
-        if len(raw) > MAX_TORQUE_PAYLOAD:
-            raise TorqueRejected(f"payload of {len(raw)} bytes, at most {MAX_TORQUE_PAYLOAD} allowed")
-        try:
-            text = raw.decode("utf-8")
-        except UnicodeDecodeError as e:
-            raise TorqueRejected(f"payload is not UTF-8 ({e.reason} at byte {e.start})", raw[:40]) from None
+    obj = _parse_object(payload, ("x", "y", "z"), TorqueRejected, '{"x", "y", "z"}')
+    return Torque(*(_torque_value(obj, k, limit, TorqueRejected) for k in ("x", "y", "z")))
 
-    def _reject_constant(name):  # json accepts NaN/Infinity literals by default: reject them by name
-        raise ValueError(f"{name} is not a finite number")
 
-    try:
-        obj = json.loads(text, parse_constant=_reject_constant)
-    except ValueError as e:
-        raise TorqueRejected(f"not valid JSON ({e})", text[:80]) from None
-    if not isinstance(obj, dict):
-        raise TorqueRejected(f'expected a JSON object {{"x", "y", "z"}}, got {type(obj).__name__}', obj)
-    missing = [k for k in ("x", "y", "z") if k not in obj]
-    if missing:
-        raise TorqueRejected(f"missing member(s) {', '.join(missing)}; expected x, y, z in N*m", obj)
-    extra = sorted(set(obj) - {"x", "y", "z"})
-    if extra:
-        raise TorqueRejected(f"unknown member(s) {', '.join(extra)}; expected only x, y, z", obj)
-    values = []
-    for k in ("x", "y", "z"):
-        v = obj[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise TorqueRejected(f"{k} = {v!r} is a {type(v).__name__}, expected a number (N*m)", obj)
-        try:
-            v = float(v)
-        except OverflowError:  # a JSON integer beyond the float range
-            raise TorqueRejected(f"{k} is an integer of {len(str(obj[k]))} digits, not a finite float",
-                                 "<huge integer>") from None
-        if not math.isfinite(v):
-            raise TorqueRejected(f"{k} = {obj[k]!r} is not finite", obj)
-        if abs(v) > limit:
-            raise TorqueRejected(f"|{k}| = {abs(v):g} N*m exceeds the limit {limit:g} N*m", obj)
-        values.append(v)
-    return Torque(*values)
+@dataclass(frozen=True)
+class MotorTorque:
+    """Hinge motor torque command, N*m about the joint axis (on the body; its reaction on the parent)."""
+
+    torque: float
+
+    def as_inputs(self) -> dict[str, float]:
+        """As the model input ``motor_torque``."""
+        return {"motor_torque": self.torque}
+
+
+class MotorRejected(TorqueRejected):
+    """A motor command that is not accepted; ``reason`` says why in one line."""
+
+    def __str__(self) -> str:
+        return f"motor command rejected: {self.reason}"
+
+
+#: JSON Schema of a motor command.
+MOTOR_JSON_SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": MOTOR_SCHEMA_NAME,
+    "description": "Hinge motor torque command about the joint axis, N*m (on the body; its reaction on the "
+                   "parent), held until the next command.",
+    "type": "object",
+    "properties": {"torque": {**_NUM, "description": "motor torque about the hinge axis, N*m"}},
+    "required": ["torque"],
+    "additionalProperties": False,
+}
+
+
+def parse_motor(payload: bytes | bytearray | memoryview | str,
+                limit: float = DEFAULT_TORQUE_LIMIT) -> MotorTorque:
+    """Parse and validate a motor command ``{"torque": ..}`` (N*m about the hinge axis).
+
+    Parameters
+    ----------
+    payload : bytes or str
+        UTF-8 JSON object with exactly the numeric member ``torque``.
+    limit : float
+        Largest accepted absolute value, N*m.
+
+    Raises
+    ------
+    MotorRejected
+        As :func:`parse_torque` rejects a torque command.
+    """
+    obj = _parse_object(payload, ("torque",), MotorRejected, '{"torque"}')
+    return MotorTorque(_torque_value(obj, "torque", limit, MotorRejected))
+
+
+def encode_motor(torque: float) -> bytes:
+    """Motor command payload ``{"torque"}`` (N*m about the hinge axis)."""
+    return json.dumps({"torque": float(torque)}, allow_nan=True).encode()
 
 
 def encode_torque(x: float, y: float, z: float) -> bytes:
@@ -694,7 +847,8 @@ def _json_schema_bytes(schema: dict) -> bytes:
 def schema_for_encoding(zenoh_encoding: str, key: str | None = None) -> ChannelSchema:
     """MCAP channel description for a Zenoh encoding string (and, optionally, the key it came on).
 
-    Known gyrosim encodings get their full schema (a JSON key ending in ``/torque`` gets the torque schema);
+    Known gyrosim encodings get their full schema (a JSON key ending in ``/torque`` gets the torque schema, one
+    ending in ``/motor`` the motor schema);
     other ``application/json`` keys get a schema-less ``json`` channel; other encodings keep the Zenoh
     encoding string as message encoding (the bytes are kept verbatim).
 
@@ -714,6 +868,8 @@ def schema_for_encoding(zenoh_encoding: str, key: str | None = None) -> ChannelS
         return ChannelSchema("cdr", schema, "ros2msg", _MSGDEFS[schema].encode())
     if enc == TORQUE_ENCODING and key is not None and str(key).endswith("/torque"):
         return ChannelSchema("json", TORQUE_SCHEMA_NAME, "jsonschema", _json_schema_bytes(TORQUE_JSON_SCHEMA))
+    if enc == MOTOR_ENCODING and key is not None and str(key).endswith("/motor"):
+        return ChannelSchema("json", MOTOR_SCHEMA_NAME, "jsonschema", _json_schema_bytes(MOTOR_JSON_SCHEMA))
     if base in _MESSAGE_ENCODINGS:
         return ChannelSchema(_MESSAGE_ENCODINGS[base])
     return ChannelSchema(enc)

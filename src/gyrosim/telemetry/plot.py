@@ -2,7 +2,10 @@
 
 Reads every ``gyrosim.BodyState`` channel (one line per body), tolerating a truncated file (with a warning that
 gives the counts), and writes ``<stem>_attitude.png``, ``<stem>_rates.png``, ``<stem>_energy.png`` and
-``<stem>_momentum.png`` (matplotlib's Agg backend, no display needed).
+``<stem>_momentum.png`` (matplotlib's Agg backend, no display needed); a recording of a tree scene with hinges
+also ``<stem>_joints.png`` (every hinge's angle and rate). A tree body's attitude panel shows the ZYZ angles of
+its world attitude ``q``; the scene-wide energy and angular momentum a tree's bodies all carry are drawn once per
+scene.
 
 Made to be read: a quantity that barely moves (the gyroscope's nutation angle, its spin rate, energy, |L|) is
 plotted as its deviation from the initial value, in its unit, with the initial value in the panel title, never
@@ -42,6 +45,16 @@ class StateSeries:
     energy: np.ndarray = field(default_factory=lambda: np.empty(0))
     energy_error: np.ndarray = field(default_factory=lambda: np.empty(0))
     log_time: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    #: tree scenes: the parent frame and joint kind (None: a body of a scene of independent bodies)
+    parent: str | None = None
+    joint_type: str | None = None
+    #: tree scenes: the joint variables by name, arrays of shape (n,)
+    joint: dict = field(default_factory=dict)
+
+    @property
+    def scene_wide(self) -> bool:
+        """True when energy and L are the whole scene's (a tree body), not the body's own."""
+        return self.parent is not None
 
 
 def _num(v) -> float:
@@ -55,6 +68,8 @@ def read_states(path, scan: Scan | None = None) -> dict[str, StateSeries]:
     complete, and how much of it was read.
     """
     rows: dict[str, list] = {}
+    joints: dict[str, list] = {}
+    tree: dict[str, tuple] = {}
     for schema, channel, m in iter_messages(path, scan=scan):
         if schema is None or schema.name != msg.STATE_SCHEMA_NAME:
             continue
@@ -67,13 +82,35 @@ def read_states(path, scan: Scan | None = None) -> dict[str, StateSeries]:
             (d["t"], d.get("seq", -1), *d["q"], *d["omega"], _num(d.get("phi")), _num(d.get("theta")),
              _num(d.get("psi")), *(_num(v) for v in L), _num(d.get("energy")), _num(d.get("energy_error")),
              m.log_time))
+        joints.setdefault(channel.topic, []).append(d.get("joint") or {})
+        if d.get("parent") is not None:
+            tree.setdefault(channel.topic, (d["parent"], d.get("joint_type")))
     out = {}
     for topic, r in rows.items():
         a = np.array([x[:-1] for x in r], dtype=float)
+        parent, joint_type = tree.get(topic, (None, None))
+        names = list(dict.fromkeys(k for j in joints[topic] for k in j))
+        joint = {k: np.array([_num(j.get(k)) for j in joints[topic]]) for k in names}
+        euler = a[:, 9:12]
+        if parent is not None and not np.isfinite(euler).any():  # a tree body: the ZYZ angles of its world q
+            euler = _euler_of(a[:, 2:6])
         out[topic] = StateSeries(topic, t=a[:, 0], seq=a[:, 1].astype(np.int64), q=a[:, 2:6], omega=a[:, 6:9],
-                                 euler=a[:, 9:12], L=a[:, 12:15], energy=a[:, 15], energy_error=a[:, 16],
-                                 log_time=np.array([x[-1] for x in r], dtype=np.int64))
+                                 euler=euler, L=a[:, 12:15], energy=a[:, 15], energy_error=a[:, 16],
+                                 log_time=np.array([x[-1] for x in r], dtype=np.int64), parent=parent,
+                                 joint_type=joint_type, joint=joint)
     return out
+
+
+def _euler_of(q: np.ndarray) -> np.ndarray:
+    """(n, 3) ZYZ angles of (n, 4) attitudes, phi and psi unwrapped (continuous in time) as the models give them."""
+    from ..core.rotations import quat_to_euler_zyz
+
+    ok = np.isfinite(q).all(axis=-1) & (np.linalg.norm(np.nan_to_num(q), axis=-1) > 0)
+    e = np.full((len(q), 3), np.nan)
+    if ok.any():
+        phi, theta, psi = quat_to_euler_zyz(q[ok])
+        e[ok] = np.stack([np.unwrap(phi), theta, np.unwrap(psi)], axis=-1)
+    return e
 
 
 def _style(n: int) -> dict:
@@ -170,7 +207,7 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
         p = parts[topic]
         return p[-2] if one_scene and len(p) >= 2 else "/".join(p[-3:-1])
 
-    def figure(rows: int, title: str, panels):
+    def figure(rows: int, title: str, panels, label=label):
         """``panels``: (name, unit, {topic: values}) per row; one legend above the panels."""
         fig, axes = plt.subplots(rows, 1, sharex=True, figsize=(8.5, 2.3 * rows + 1.0), layout="constrained")
         for ax, (name, unit, values) in zip(np.atleast_1d(axes), panels):
@@ -189,14 +226,43 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
         (f"{n}", "rad", {k: s.euler[:, i] for k, s in series.items()}) for i, (n, _) in enumerate(names)])))
     figures.append(("rates", figure(3, "body-frame angular velocity", [
         (f"omega_{c}", "rad/s", {k: s.omega[:, i] for k, s in series.items()}) for i, c in enumerate("xyz")])))
-    has_error = any(np.isfinite(s.energy_error).any() for s in series.values())
-    energy_panels = [("E", "J", {k: s.energy for k, s in series.items()})]
+    # energy and L of a tree scene are the whole tree's: every body carries them, draw them once per scene
+    whole: dict[str, str] = {}  # the topic of a tree's first body -> its scene
+    for topic, s in series.items():
+        scene = "/".join(parts[topic][:-2])
+        if s.scene_wide and scene not in whole.values():
+            whole[topic] = scene
+    overall = {k: s for k, s in series.items() if not s.scene_wide or k in whole}
+
+    def label_overall(topic):
+        if topic not in whole:
+            return label(topic)
+        return "whole tree" if one_scene else f"{whole[topic].rsplit('/', 1)[-1]} (whole tree)"
+
+    def figure_overall(rows, title, panels):
+        return figure(rows, title, panels, label=label_overall)
+
+    has_error = any(np.isfinite(s.energy_error).any() for s in overall.values())
+    energy_panels = [("E", "J", {k: s.energy for k, s in overall.items()})]
     if has_error:
-        energy_panels.append(("energy_error", "J", {k: s.energy_error for k, s in series.items()}))
-    figures.append(("energy", figure(len(energy_panels), "energy (energy_error: the work-energy balance)",
-                                     energy_panels)))
-    figures.append(("momentum", figure(1, "|L|, angular momentum about the reference point", [
-        ("|L|", "kg m²/s", {k: np.linalg.norm(s.L, axis=-1) for k, s in series.items()})])))
+        energy_panels.append(("energy_error", "J", {k: s.energy_error for k, s in overall.items()}))
+    figures.append(("energy", figure_overall(len(energy_panels), "energy (energy_error: the work-energy balance)",
+                                             energy_panels)))
+    figures.append(("momentum", figure_overall(1, "|L|, angular momentum about the reference point", [
+        ("|L|", "kg m²/s", {k: np.linalg.norm(s.L, axis=-1) for k, s in overall.items()})])))
+    hinges = {k: s for k, s in series.items() if "angle" in s.joint and "rate" in s.joint}
+    if hinges:  # one row per hinge, angle and rate side by side: each on its own scale
+        n = len(hinges)
+        fig, axes = plt.subplots(n, 2, sharex=True, squeeze=False, figsize=(10.0, 1.9 * n + 1.0),
+                                 layout="constrained")
+        for row, (k, s) in zip(axes, hinges.items()):
+            body = label(k)
+            _panel(row[0], series, {k: s.joint["angle"]}, f"{body}.angle", "rad", label)
+            _panel(row[1], series, {k: s.joint["rate"]}, f"{body}.rate", "rad/s", label)
+        for ax in axes[-1]:
+            ax.set_xlabel("simulation time t / s")
+        fig.suptitle("hinge joints: angle and rate relative to the parent body")
+        figures.append(("joints", fig))
 
     paths = []
     for name, fig in figures:
