@@ -862,11 +862,9 @@ static int root_of(const gs_tree *t, int i) {
     return i;
 }
 
-static void totals(const gs_tree *t, const double *y, const double *p, Totals *s) {
+static void totals_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, Totals *s) {
     Kin kin;
-    static _Thread_local Pre pre;
-    precompute(t, p, &pre);
-    kinematics(t, y, p, &pre, &kin, 1);
+    kinematics(t, y, p, pre, &kin, 1);
     const double g = p[GS_TP_G];
     s->T = s->V = s->pot_scale = s->inertia = 0.0;
     s->L[0] = s->L[1] = s->L[2] = 0.0;
@@ -901,6 +899,12 @@ static void totals(const gs_tree *t, const double *y, const double *p, Totals *s
         s->V += 0.5 * kc[c] * e * e;
         s->pot_scale += 0.5 * kc[c] * e * e;
     }
+}
+
+static void totals(const gs_tree *t, const double *y, const double *p, Totals *s) {
+    static _Thread_local Pre pre;
+    precompute(t, p, &pre);
+    totals_pre(t, y, p, &pre, s);
 }
 
 int gs_tree_torque_free(const gs_tree *t, const double *p) {
@@ -952,9 +956,8 @@ void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const dou
     m[5] = fmax(m[5], fmax(norm3(b.L), sqrt(2.0 * m[1] * b.inertia)));
 }
 
-double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]) {
-    Totals s;
-    totals(t, y, p, &s);
+static double drift_of(const gs_tree *t, const double *y, const double *p, const Totals *sp, double d[2]) {
+    const Totals s = *sp;
     const double *m = y + t->nx;
     const double E = s.T + s.V;
     const double de = fabs(E - m[0]);
@@ -971,6 +974,12 @@ double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double 
     return fmax(d[0], d[1]);
 }
 
+double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]) {
+    Totals s;
+    totals(t, y, p, &s);
+    return drift_of(t, y, p, &s, d);
+}
+
 double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) {
     Kin kin;
     static _Thread_local Pre pre;
@@ -984,7 +993,7 @@ double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) 
     return w;
 }
 
-void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out) {
+static void outputs_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *out) {
     memcpy(out, y, (size_t)t->nx * sizeof(double));
     double qw[GS_TREE_MAX][4];
     for (int i = 0; i < t->n; i++) {
@@ -1004,11 +1013,17 @@ void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double 
         memcpy(out + t->nx + 4 * i, qw[i], sizeof(qr));
     }
     Totals s;
-    totals(t, y, p, &s);
+    totals_pre(t, y, p, pre, &s);
     double *o = out + t->nx + 4 * t->n;
     o[0] = s.T + s.V;
     o[1] = o[0] - y[t->nx];
     memcpy(o + 2, s.L, sizeof(s.L));
+}
+
+void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out) {
+    static _Thread_local Pre pre;
+    precompute(t, p, &pre);
+    outputs_pre(t, y, p, &pre, out);
 }
 
 /* ---------------------------------------------------------------------------------------------- stepping */
@@ -1039,23 +1054,22 @@ static void ode_project(const void *ctx, double *y) {
 static int ode_check(const void *ctx, double *y) {
     const Ctx *c = (const Ctx *)ctx;
     double d[2];
-    const double worst = gs_tree_drift(c->t, y, c->p, d);
+    Totals s;
+    totals_pre(c->t, y, c->p, c->pre, &s);
+    const double worst = drift_of(c->t, y, c->p, &s, d);
     const double bound = c->p[GS_TP_DRIFT];
     if (isnan(worst)) return 1;
     if (bound > 0.0 && isfinite(bound) && worst > bound) return 1;
     if (!gs_tree_torque_free(c->t, c->p)) {   /* restart the momentum where a torque acts */
-        Totals s;
-        totals(c->t, y, c->p, &s);
         memcpy(y + c->t->nx + 2, s.L, sizeof(s.L));
     }
     return 0;
 }
 
-static int32_t advance_system(const gs_tree *t, int method, double *y, const double *p, double H, int64_t n_sub,
-                              double rtol, double atol, double max_step, double *hint, int64_t *stats) {
-    static _Thread_local Pre pre;
-    precompute(t, p, &pre);
-    Ctx ctx = {t, p, &pre};
+static int32_t advance_system(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
+                              int64_t n_sub, double rtol, double atol, double max_step, double *hint,
+                              int64_t *stats) {
+    Ctx ctx = {t, p, pre};
     gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
     const int64_t k = gs_ode_advance(method, &o, y, H, n_sub, rtol, atol, max_step, hint, stats);
     return (int32_t)(k > 2147483647 ? 2147483647 : k);
@@ -1082,8 +1096,10 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
     (void)threads;
 #endif
     for (long long b = 0; b < nn; b++) {
-        status[b] = advance_system(t, method, y + (size_t)b * t->ny, p + (size_t)b * t->np, H, n_sub, rtol, atol,
-                                   max_step, hint + b, stats + (size_t)b * GS_NSTATS);
+        static _Thread_local Pre pre;
+        precompute(t, p + (size_t)b * t->np, &pre);
+        status[b] = advance_system(t, method, y + (size_t)b * t->ny, p + (size_t)b * t->np, &pre, H, n_sub, rtol,
+                                   atol, max_step, hint + b, stats + (size_t)b * GS_NSTATS);
         failed += status[b] != 0;
     }
     return failed;
@@ -1113,8 +1129,10 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         double *yb = y + b * t->ny;
         const double *pb = p + b * t->np;
         status[b] = 0;
+        static _Thread_local Pre pre;
+        precompute(t, pb, &pre);
         for (int64_t k = 1; k <= n_out; k++) {
-            const int32_t s = advance_system(t, method, yb, pb, dt, n_sub, rtol, atol, max_step, hint + b,
+            const int32_t s = advance_system(t, method, yb, pb, &pre, dt, n_sub, rtol, atol, max_step, hint + b,
                                              stats + b * GS_NSTATS);
             if (s) {
                 status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
@@ -1124,7 +1142,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                 failed += 1;
                 break;
             }
-            gs_tree_outputs(t, yb, pb, out + ((size_t)k * n + b) * no);
+            outputs_pre(t, yb, pb, &pre, out + ((size_t)k * n + b) * no);
         }
     }
     return failed;
