@@ -284,7 +284,7 @@ def _gimbal_params(scene: str = "gimbal_gyroscope") -> dict:
         bodies.append({"name": b.name, "mass": float(b.mass), "cm": [float(x) for x in b.cm],
                        "inertia": [float(x) for x in np.diag(b.inertia)], "axis": [float(x) for x in b.axis],
                        "angle": float(b.angle0), "rate": float(b.rate0)})
-    return {"scene": scene, "g": float(m._g), "bodies": bodies}
+    return {"scene": scene, "g": float(m.get("g")), "bodies": bodies}
 
 
 def _rotor_q(rows, k) -> np.ndarray:

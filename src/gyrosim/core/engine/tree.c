@@ -160,7 +160,6 @@ typedef struct {
     double ow[GS_TREE_MAX][3]; /* the child origin in the world */
     double v[GS_TREE_MAX][6];  /* spatial velocity, child coordinates */
     double vj[GS_TREE_MAX][6]; /* the joint's velocity */
-    double qd[GS_TREE_MAX][6]; /* the joint's generalized velocity (free: omega, v in child coordinates) */
     int ident[GS_TREE_MAX];    /* E is the identity: a fixed joint, or a rotor computed in its parent's orientation */
     int plane[GS_TREE_MAX];    /* 0, 1, 2: E turns about that coordinate axis by the angle of cs (a hinge along a
                                 * body axis: 4 products instead of 9); -1: the general E */
@@ -414,7 +413,6 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
             }
         }
         memcpy(k->vj[i], vj, sizeof(vj));
-        memcpy(k->qd[i], vj, sizeof(vj));
         const int par = t->parent[i];
         if (par < 0) {
             memcpy(k->Rw[i], R, sizeof(M3));
@@ -600,7 +598,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i);
         double h[6], f[6];
-        memcpy(IA[i], pre->IAbase[i], sizeof(M6));
+        if (!pre->rotor[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));   /* a rotor's is folded (precompute) */
         {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product) */
             const double m = b[GS_TB_MASS], *cm = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin->v[i], *vl = kin->v[i] + 3;
             double wc[3], vc[3], cvc[3];
@@ -807,7 +805,7 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
                 quat_rate(s, s + 7, d);
                 memcpy(d + 4, s + 10, 3 * sizeof(double));
                 memcpy(d + 7, qdd[i], 3 * sizeof(double));
-                cross3(s + 7, kin.qd[i] + 3, wv);
+                cross3(s + 7, kin.vj[i] + 3, wv);   /* the free joint's v in child coordinates */
                 for (int c = 0; c < 3; c++) a[c] = qdd[i][3 + c] + wv[c];
                 mv3(kin.Rw[i], a, d + 10);   /* the origin's acceleration, world */
                 break;
