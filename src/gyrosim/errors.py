@@ -7,7 +7,7 @@ written or read.
 
 from __future__ import annotations
 
-__all__ = ["GyrosimError", "ConfigError", "IntegrationError", "RecordingError", "StepError"]
+__all__ = ["GyrosimError", "ConfigError", "IntegrationError", "RecordingError", "StepError", "exit_code", "one_line"]
 
 
 class GyrosimError(Exception):
@@ -42,3 +42,34 @@ class IntegrationError(GyrosimError, ArithmeticError):
 
 class RecordingError(GyrosimError, OSError):
     """A recording could not be written or read."""
+
+
+def exit_code(exc: BaseException) -> int:
+    """The exit code every ``gyrosim`` command gives an exception (DESIGN.md section 5): 2 a user error (bad
+    arguments, a scene, a value, a file that is not there or not what was asked for), 1 a run-time failure (a
+    blow-up, a damaged recording, a lost connection, a disk that refuses a write), 130 interrupted, 141 a closed
+    pipe."""
+    if isinstance(exc, BrokenPipeError):
+        return 141
+    if isinstance(exc, KeyboardInterrupt):
+        return 130
+    if isinstance(exc, (IntegrationError, RecordingError)):
+        return 1
+    if isinstance(exc, (ConfigError, StepError, ValueError, FileNotFoundError, IsADirectoryError,
+                        NotADirectoryError)):
+        return 2
+    if isinstance(exc, GyrosimError):
+        return 2
+    if isinstance(exc, OSError):
+        return 1
+    return 1
+
+
+def one_line(exc: BaseException) -> str:
+    """The message of ``exc`` as the command line shows it: one line, no traceback (an OSError with the file it
+    names and its reason)."""
+    if isinstance(exc, OSError) and not isinstance(exc, GyrosimError) and getattr(exc, "strerror", None):
+        where = f"{exc.filename!r}: " if getattr(exc, "filename", None) else ""
+        return f"{where}{exc.strerror}"
+    text = str(exc) or type(exc).__name__
+    return text
