@@ -794,14 +794,18 @@ class Model:
     def set_state(self, state: ModelState) -> None:
         """Restore a snapshot taken with :meth:`get_state` (of a model of the same scene)."""
         if not isinstance(state, ModelState) or set(state.data) != set(self._STATE_FIELDS):
-            raise ConfigError("state", type(state).__name__, "a ModelState from Model.get_state()")
+            raise ConfigError("state", type(state).__name__, f"a ModelState from {type(self).__name__}.get_state()")
         if state.data["_y"].shape != self._y.shape:
-            raise ConfigError("state", f"{state.data['_y'].shape[0]} bodies",
-                              f"a state of this scene ({self.n_bodies} bodies)")
+            raise ConfigError("state", f"a state of shape {state.data['_y'].shape}",
+                              f"a state of this scene (shape {self._y.shape}: {self.n_bodies} bodies)")
         for k, v in state.data.items():
             setattr(self, k, copy.deepcopy(v))
-        self._p_start = None
         self._out = None
+        self._restored()
+
+    def _restored(self) -> None:
+        """After set_state: the engine's parameter rows from the restored parameters."""
+        self._p_start = None
         if self._initialized:
             self._p = self._params()
 

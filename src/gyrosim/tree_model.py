@@ -8,16 +8,14 @@ step is one call of the C engine (``gs_tree_advance``), which the FMUs compile t
 
 from __future__ import annotations
 
-import copy
 import math
-import pickle
 
 import numpy as np
 
 from .core import _engine
 from .core.tree import BODY_OUTPUTS, SCENE_OUTPUTS, TreeLayout
 from .errors import ConfigError, IntegrationError, StepError
-from .model import Model, ModelState, Variable, _positive_step
+from .model import Model, Variable, _positive_step
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean, load_scene
 from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS
 
@@ -540,20 +538,5 @@ class TreeModel(Model):
                      "integrator", "max_step", "max_drift", "tolerance", "start_time", "stop_time", "_t_base", "_n",
                      "_h", "_initialized", "_state_dirty")
 
-    def get_state(self) -> ModelState:
-        """Snapshot of the whole state, exact to the bit."""
-        return ModelState({k: copy.deepcopy(getattr(self, k)) for k in self._STATE_FIELDS})
-
-    def set_state(self, state: ModelState) -> None:
-        """Restore a snapshot taken with :meth:`get_state` of a model of the same scene."""
-        if not isinstance(state, ModelState) or set(state.data) != set(self._STATE_FIELDS):
-            raise ConfigError("state", type(state).__name__, "a ModelState from TreeModel.get_state()")
-        if state.data["_y"].shape != self._y.shape:
-            raise ConfigError("state", f"a state of {state.data['_y'].shape[1]} values",
-                              f"a state of this scene ({self._y.shape[1]} values)")
-        for k, v in state.data.items():
-            setattr(self, k, copy.deepcopy(v))
-        self._out = None
-
-    def state_bytes(self) -> bytes:
-        return pickle.dumps(self.get_state().data, protocol=pickle.HIGHEST_PROTOCOL)
+    def _restored(self) -> None:
+        """After set_state: the restored fields are the whole state (the parameter rows included)."""

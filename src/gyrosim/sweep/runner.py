@@ -141,6 +141,46 @@ def _model_for(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> Model:
     return model
 
 
+def _drive(spec: SweepSpec, model: Model, names: list, drifts, s_energy: np.ndarray, s_L: np.ndarray, **kw) -> dict:
+    """Run ``model``'s k samples over the sweep's grid in blocks of compiled calls: the final outputs (NaN for a
+    sample that blew up), the largest drifts (``drifts(traj) -> (energy, L)`` per sample, over the output points
+    before a blow-up) relative to the scales, and where each sample blew up."""
+    k = len(s_energy)
+    dt, n = spec.output_interval, spec.n_intervals
+    block = max(1, BLOCK_VALUES // (len(names) * k))
+    status = np.zeros(k, dtype=np.int32)
+    failed_at = np.zeros(k, dtype=np.int64)
+    alive = np.ones(k, dtype=bool)
+    max_e = np.zeros(k)
+    max_l = np.zeros(k)
+    done = 0
+    while done < n:
+        m = min(block, n - done)
+        traj = model.trajectory(dt, m, status=status, **kw)
+        e, dl = drifts(traj)
+        if alive.all():
+            np.fmax(max_e, e, out=max_e)
+            np.fmax(max_l, dl, out=max_l)
+        else:  # a sample that failed before is not looked at again
+            max_e[alive] = np.fmax(max_e[alive], e[alive])
+            max_l[alive] = np.fmax(max_l[alive], dl[alive])
+        new = alive & (status > 0)
+        if new.any():
+            failed_at[new] = done + status[new]
+            alive &= ~new
+        done += m
+    final = model.outputs_array()
+    final[~alive] = np.nan
+    out = {o: final[:, j] for j, o in enumerate(names)}
+    s_energy[~(s_energy > 0)] = 1.0
+    s_L[~(s_L > 0)] = 1.0
+    out["max_energy_drift"] = max_e / s_energy
+    out["max_L_drift"] = max_l / s_L
+    out["blew_up"] = ~alive
+    out["blew_up_time"] = np.where(alive, np.nan, failed_at * dt)
+    return out
+
+
 def _run_tree_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
     """``k`` samples of a tree: k copies in one model. The drifts are relative to the health monitor's own scales
     (the energy scale S0 and the momentum scale of the tree); the angular momentum's is the change of the vector
@@ -150,39 +190,14 @@ def _run_tree_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict
     col = {n: j for j, n in enumerate(names)}
     out0 = model.outputs_array()  # validates and starts the state (t = 0)
     nx = model.layout.nx
-    s_energy = model._y[:, nx + 1].copy()
-    s_L = model._y[:, nx + 5].copy()
-    s_energy[~(s_energy > 0)] = 1.0
-    s_L[~(s_L > 0)] = 1.0
     Lc = [col["L_x"], col["L_y"], col["L_z"]]
     L0 = out0[:, Lc]
-    dt, n = spec.output_interval, spec.n_intervals
-    block = max(1, BLOCK_VALUES // (len(names) * k))
-    status = np.zeros(k, dtype=np.int32)
-    failed_at = np.zeros(k, dtype=np.int64)
-    alive = np.ones(k, dtype=bool)
-    max_e, max_l = np.zeros(k), np.zeros(k)
-    done = 0
-    while done < n:
-        m = min(block, n - done)
-        traj = model.trajectory(dt, m, status=status)
+
+    def drifts(traj):
         e = np.fmax.reduce(np.abs(traj[1:, :, col["energy_error"]]), axis=0)
-        dl = np.fmax.reduce(np.sqrt(np.sum((traj[1:, :, :][:, :, Lc] - L0) ** 2, axis=2)), axis=0)
-        max_e[alive] = np.fmax(max_e[alive], e[alive])
-        max_l[alive] = np.fmax(max_l[alive], dl[alive])
-        new = alive & (status > 0)
-        if new.any():
-            failed_at[new] = done + status[new]
-            alive &= ~new
-        done += m
-    final = model.outputs_array()
-    final[~alive] = np.nan
-    out = {o: final[:, j] for j, o in enumerate(names)}
-    out["max_energy_drift"] = max_e / s_energy
-    out["max_L_drift"] = max_l / s_L
-    out["blew_up"] = ~alive
-    out["blew_up_time"] = np.where(alive, np.nan, failed_at * dt)
-    return out
+        return e, np.fmax.reduce(np.sqrt(np.sum((traj[1:, :, Lc] - L0) ** 2, axis=2)), axis=0)
+
+    return _drive(spec, model, names, drifts, model._y[:, nx + 1].copy(), model._y[:, nx + 5].copy())
 
 
 def _run_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
@@ -203,39 +218,10 @@ def _run_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
     s_energy = 0.5 * np.einsum("bi,bi->b", I * w0, w0) + mgl
     L0 = np.sqrt(np.einsum("bi,bi->b", out0[:, 10:13], out0[:, 10:13]))
     s_L = np.maximum(L0, np.sqrt(2.0 * I.max(axis=1) * mgl))
-    s_energy[~(s_energy > 0)] = 1.0
-    s_L[~(s_L > 0)] = 1.0
 
-    dt, n = spec.output_interval, spec.n_intervals
-    block = max(1, BLOCK_VALUES // (len(OUTPUT_NAMES) * k))
-    status = np.zeros(k, dtype=np.int32)
-    failed_at = np.zeros(k, dtype=np.int64)
-    alive = np.ones(k, dtype=bool)
-    max_e = np.zeros(k)
-    max_l = np.zeros(k)
-    done = 0
-    while done < n:
-        m = min(block, n - done)
-        traj = model.trajectory(dt, m, angles=False, status=status)
-        e = np.fmax.reduce(np.abs(traj[1:, :, 14]), axis=0)
+    def drifts(traj):
         L = traj[1:, :, 10:13]
-        dl = np.fmax.reduce(np.abs(np.sqrt(np.einsum("tbi,tbi->tb", L, L)) - L0), axis=0)
-        if alive.all():
-            np.fmax(max_e, e, out=max_e)
-            np.fmax(max_l, dl, out=max_l)
-        else:  # a body that failed before is not looked at again
-            max_e[alive] = np.fmax(max_e[alive], e[alive])
-            max_l[alive] = np.fmax(max_l[alive], dl[alive])
-        new = alive & (status > 0)
-        if new.any():
-            failed_at[new] = done + status[new]
-            alive &= ~new
-        done += m
-    final = model.outputs_array()
-    final[~alive] = np.nan
-    out = {o: final[:, j] for j, o in enumerate(OUTPUT_NAMES)}
-    out["max_energy_drift"] = max_e / s_energy
-    out["max_L_drift"] = max_l / s_L
-    out["blew_up"] = ~alive
-    out["blew_up_time"] = np.where(alive, np.nan, failed_at * dt)
-    return out
+        return (np.fmax.reduce(np.abs(traj[1:, :, 14]), axis=0),
+                np.fmax.reduce(np.abs(np.sqrt(np.einsum("tbi,tbi->tb", L, L)) - L0), axis=0))
+
+    return _drive(spec, model, list(OUTPUT_NAMES), drifts, s_energy, s_L, angles=False)
