@@ -18,6 +18,10 @@ from .scene import did_you_mean, load_scene
 
 __all__ = ["simulate", "Run", "field_names", "output_intervals"]
 
+#: One-body integrators whose trajectory call gives the bits of a loop of ``Model.step`` (adaptive and dop853 span
+#: the output points of a whole call with their own steps: with inputs they step per interval, as an FMU does).
+_SAME_BITS_AS_STEPS = ("euler", "rk4", "splitting", "splitting4", "exact")
+
 
 def field_names(model: Model) -> list[str]:
     """The output names of ``model``: ``<body>.<name>`` in multi-body scenes, the bare names otherwise."""
@@ -67,7 +71,7 @@ def _apply_start_values(model: Model, start_values: dict) -> None:
 
 
 def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
-             integrator=None, max_step=None, relative_tolerance=None, output=None) -> np.ndarray:
+             integrator=None, max_step=None, relative_tolerance=None, output=None, input=None) -> np.ndarray:
     """Simulate a scene and return its outputs on a regular grid, as ``fmpy.simulate_fmu`` does.
 
     Parameters
@@ -85,6 +89,14 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
         Override the scene's (and ``start_values``); the tolerance drives ``adaptive`` and ``dop853``.
     output : list of str, optional
         The output fields to return (default: every output).
+    input : numpy structured array or InputSignal, optional
+        Time-varying inputs, as ``fmpy.simulate_fmu(input=...)`` takes them: field ``time`` (s, non-decreasing)
+        then one field per input (``tau_x``; ``<body>.tau_x`` with several bodies; ``<body>.motor_torque`` in a
+        tree); :func:`gyrosim.inputs.read_input_csv` reads one from FMPy's CSV format. At the start of every output
+        interval the inputs take their values at that interval's start time ``start_time + k*output_interval``
+        (linear between rows, held before the first and after the last, the later row at a step:
+        :mod:`gyrosim.inputs`) and are held over the interval, as FMPy does for a co-simulation FMU (set the
+        inputs, ``doStep``). Inputs not in the array keep their start values.
 
     Returns
     -------
@@ -95,7 +107,8 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     Raises
     ------
     ConfigError
-        An unknown name or a value that is not allowed.
+        An unknown name or a value that is not allowed (an input that is not one of the scene's, a time going
+        backwards, ...).
     IntegrationError
         The run blew up (``error.rows`` holds the structured rows before the failing interval).
 
@@ -107,9 +120,12 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     """
     run = Run(scene, start_values=start_values, start_time=start_time, stop_time=stop_time,
               output_interval=output_interval, integrator=integrator, max_step=max_step,
-              relative_tolerance=relative_tolerance, output=output)
+              relative_tolerance=relative_tolerance, output=output, input=input)
     try:
-        out = run.model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
+        if run.input is None:
+            out = run.model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
+        else:
+            out = run._advance_with_input(0, run.n)
     except IntegrationError as e:
         e.rows = run.pack(e.rows)
         raise
@@ -132,10 +148,12 @@ class Run:
         Output intervals: the result has ``n + 1`` rows.
     names : list of str
         The output fields, in order (the result's fields are ``time`` and these).
+    input : InputSignal or None
+        The time-varying inputs (checked against the scene's inputs), applied at the start of every output interval.
     """
 
     def __init__(self, scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
-                 integrator=None, max_step=None, relative_tolerance=None, output=None):
+                 integrator=None, max_step=None, relative_tolerance=None, output=None, input=None):
         sc = load_scene(scene)
         t0 = float(start_time)
         if not math.isfinite(t0):
@@ -158,6 +176,72 @@ class Run:
         self.n = output_intervals(stop - t0, dt, stop)
         (self.names, self._columns, self.dtype, self.angles,
          self.momentum) = _selection(sc, None if output is None else tuple(output))
+        self.input = None
+        if input is not None:
+            from .inputs import InputSignal
+
+            self.input = input if isinstance(input, InputSignal) else InputSignal(input)
+            self._setters = self.input.check_against(model)
+
+    def _advance_with_input(self, k0: int, m: int) -> np.ndarray:
+        """Advance ``m`` output intervals from output point ``k0`` (the model's current time), the inputs set at the
+        start of each interval to their values at ``t0 + k*dt`` and held over it: the engine's rows
+        ``(m + 1, n_bodies, n_out)``, row 0 the current outputs (as :meth:`Model.trajectory` returns them).
+
+        Intervals with the same input values go to the engine in one trajectory call where that gives the bits of a
+        step per interval (every tree integrator, the one-body fixed-step methods and ``exact``); ``adaptive`` and
+        ``dop853`` of one body take one step per interval (what an FMU's doStep does)."""
+        model, dt = self.model, self.dt
+        times = self.t0 + np.arange(k0, k0 + m, dtype=np.float64) * dt  # FMPy: start_time + n_steps*interval
+        table = self.input.table(times)
+        setters = self._setters
+        model_set = model.set
+
+        def apply(row):
+            for (_, var, body), x in zip(setters, row.tolist()):
+                model_set(var, x, body)
+
+        if m == 0:
+            return model.outputs_array()[None]
+        apply(table[0])
+        rows = None
+        grouped = self.scene.is_tree or model.integrator in _SAME_BITS_AS_STEPS
+        k = 0
+        try:
+            if grouped:
+                bits = table.view(np.uint64)
+                changes = np.flatnonzero(np.any(bits[1:] != bits[:-1], axis=1)) + 1  # intervals whose inputs change
+                ends = np.append(changes, m)
+                for e in ends.tolist():
+                    r = e - k
+                    if k:
+                        apply(table[k])
+                    block = model.trajectory(dt, r, angles=self.angles, momentum=self.momentum)
+                    if rows is None:
+                        rows = np.empty((m + 1,) + block.shape[1:])
+                        rows[0] = block[0]
+                    rows[k + 1:k + r + 1] = block[1:]
+                    k = e
+            else:
+                first = model.outputs_array()
+                rows = np.empty((m + 1,) + first.shape)
+                rows[0] = first
+                while k < m:
+                    if k:
+                        apply(table[k])
+                    model.step(dt)
+                    rows[k + 1] = model._outputs_array()
+                    k += 1
+        except IntegrationError as e:
+            done = np.asarray(e.rows) if getattr(e, "rows", None) is not None else None
+            if rows is None:
+                e.rows = done if done is not None else np.empty((0,) + model.outputs_array().shape)
+            elif grouped and done is not None:
+                e.rows = np.concatenate([rows[:k], done])
+            else:
+                e.rows = rows[:k + 1].copy()
+            raise
+        return rows
 
     def pack(self, block: np.ndarray, k0: int = 0) -> np.ndarray:
         """Engine rows ``(rows, n_bodies, 15)`` of output points ``k0, k0 + 1, ...`` -> structured result rows."""
@@ -182,7 +266,10 @@ class Run:
         while done < self.n:
             m = min(size, self.n - done)
             try:
-                block = self.model.trajectory(self.dt, m, angles=self.angles, momentum=self.momentum)
+                if self.input is None:
+                    block = self.model.trajectory(self.dt, m, angles=self.angles, momentum=self.momentum)
+                else:
+                    block = self._advance_with_input(done, m)
             except IntegrationError as e:
                 rows = np.asarray(e.rows)
                 e.rows = self.pack(rows, done) if done == 0 else self.pack(rows[1:], done + 1)

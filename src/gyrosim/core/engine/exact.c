@@ -31,16 +31,14 @@ enum {
     C_N = 18, C_PIC = 19, C_PI0 = 20,
     C_LN = 21, C_MO = 22, C_MB = 23, C_MP = 24,
     C_COEF = 25, C_S1 = 26, C_S2 = 27, C_K1 = 28, C_K2 = 29,
-    C_QL = 30, C_QF = 34,
-    C_NCHEB = 38,          /* terms of the Chebyshev expansion of G on [-K, K] (0: evaluate G with Carlson's RJ) */
-    C_CHEB = 40,           /* its coefficients, up to GS_TF_NCHEB */
+    C_QL = 30, C_QF = 34,  /* 38, 39: not used (the 40 constants of analytic.py's _tf_setup end here) */
     /* the fast evaluation (C_NF > 0): sn_r, cn_r, dn and the angle P on [-K, K] as Chebyshev series */
-    C_NF = 40 + GS_TF_NCHEB, /* terms per series (0: not set up) */
+    C_NF = 40,             /* terms per series (0: not set up: G from Carlson's RJ, gs_elliprj) */
     C_LO, C_LB, C_LP,      /* L = |L| (C_LO cn, C_LB sn, C_LP dn) in body axes o, b, p */
     C_JSTEP, C_OFF,        /* phi + psi = |L| t / Io + j C_JSTEP + P(u_r) + C_OFF */
     C_KAPPA, C_SIG,        /* kappa = k1 / k2 of psi_ref, sigma = sign of C_S1 */
     C_RK,                  /* 1 / K */
-    C_FS = 40 + GS_TF_NCHEB + 12,  /* odd series of sn_r: coefficients of T_1, T_3, ... */
+    C_FS = 40 + 12,        /* odd series of sn_r: coefficients of T_1, T_3, ... */
     C_FC = C_FS + GS_TF_NFAST,     /* even series of cn_r: T_0 (halved), T_2, ... */
     C_FD = C_FC + GS_TF_NFAST,     /* even series of dn */
     C_FP = C_FD + GS_TF_NFAST      /* odd series of P = coef G + s2 sigma H */
@@ -370,77 +368,6 @@ static double g_reduced(double s, double c, double d, double n)
 {
     if (n == 0.0 || s == 0.0) return 0.0;
     return n / 3.0 * s * s * s * gs_elliprj(c * c, d * d, 1.0, 1.0 - n * s * s);
-}
-
-/* An odd Chebyshev series sum_k c[2k+1] T_{2k+1}(x) at x in [-1, 1], n terms in all (the even ones zero): with
- * T_{2k+1}(x) = x (V_k(y) + V_{k-1}(y))-type folding avoided, Clenshaw's recurrence on the odd terms only, in
- * y = 2x^2 - 1: T_{2k+1} satisfies T_{2k+3} = 2y T_{2k+1} - T_{2k-1}. */
-static double cheb_eval(const double *c, int n, double x)
-{
-    const double y2 = 2.0 * (2.0 * x * x - 1.0);
-    double b1 = 0.0, b2 = 0.0;
-    int k = n - 1;
-    if (k % 2 == 0) k--;   /* the last odd index */
-    for (; k >= 3; k -= 2) {
-        const double b0 = y2 * b1 - b2 + c[k];
-        b2 = b1;
-        b1 = b0;
-    }
-    /* sum = c1 T1 + b1 (T3) - b2 (T1) folded: with T_{-1} = T_1 for the odd sequence, sum = (c1 + b1 (2y - 1)
-     * - b2) x, since T3 = (2y - 1) T1 */
-    return x * (c[1] + b1 * (y2 - 1.0) - b2);
-}
-
-/* G(u_r) on [-K, K] as a Chebyshev series in u_r / K, when it converges to round-off within GS_TF_NCHEB terms
- * (G is analytic in a strip around the real axis: geometric convergence, slower near the separatrix, m -> 1).
- * Writes the coefficients to c[C_CHEB...] and their number to c[C_NCHEB] (0: not used). */
-static void cheb_setup(double *c, double mc, double K, double n)
-{
-    enum { N = GS_TF_NCHEB };
-    double f[N], x[N];
-    double fmax = 0.0;
-    c[C_NCHEB] = 0.0;
-    if (!(mc > 1e-6) || n == 0.0 || !isfinite(K)) return;
-    for (int k = 0; k < N; k++) {
-        x[k] = cos(GS_PI * ((double)k + 0.5) / (double)N);
-        double sn, cn, dn, j;
-        gs_ellipj_reduced(K * x[k], mc, K, &sn, &cn, &dn, &j);
-        f[k] = g_reduced(sn, cn, dn, n);
-        if (fabs(f[k]) > fmax) fmax = fabs(f[k]);
-    }
-    double coef[N];
-    for (int jn = 0; jn < N; jn++) coef[jn] = 0.0;
-    for (int k = 0; k < N; k++) {   /* T_j(x_k) by the three-term recurrence */
-        double t0 = 1.0, t1 = x[k];
-        coef[0] += f[k];
-        coef[1] += f[k] * t1;
-        for (int jn = 2; jn < N; jn++) {
-            const double t2 = 2.0 * x[k] * t1 - t0;
-            coef[jn] += f[k] * t2;
-            t0 = t1;
-            t1 = t2;
-        }
-    }
-    for (int jn = 0; jn < N; jn++) coef[jn] *= 2.0 / (double)N;
-    for (int jn = 0; jn < N; jn += 2) coef[jn] = 0.0;   /* G is odd (sn odd, cn and dn even): no even terms */
-    /* converged: the last quarter of the terms is at the round-off of the 64-term sums (a few 1e-16 of the
-     * largest value; measured 3e-15 relative at most) */
-    const double eps = 8e-15 * (fmax > 0.0 ? fmax : 1.0);
-    for (int jn = 3 * N / 4; jn < N; jn++) {
-        if (fabs(coef[jn]) > eps) return;
-    }
-    int used = N;
-    while (used > 1 && fabs(coef[used - 1]) <= eps) used--;
-    for (int jn = 0; jn < used; jn++) c[C_CHEB + jn] = coef[jn];
-    c[C_NCHEB] = (double)used;
-}
-
-/* G(u_r) for |u_r| <= K: from the Chebyshev series when set up, else from Carlson's RJ. */
-static double g_eval(const double *c, double u_r, double s, double cn, double d)
-{
-    const int nc = (int)c[C_NCHEB];
-    if (nc > 0) return cheb_eval(c + C_CHEB, nc, u_r / c[C_K]);
-    return g_reduced(s, cn, d, c[C_N]);
 }
 
 /* numpy's sort order for floats (nan last): a < b */
@@ -887,7 +814,6 @@ void gs_tf_setup(const double I[3], const double w[3], const double q[4], double
     double n = Ip * (Io - Ib) / (Io * (Ip - Ib));
     if (n > 0.0) n = 0.0;
     double pic, pi0;
-    c[C_NCHEB] = 0.0;
     if (mc > 0.0) {
         pic = n != 0.0 ? n / 3.0 * gs_elliprj(0.0, mc, 1.0, 1.0 - n) : 0.0; /* Pi(n|m) - K */
         pi0 = 0.0;   /* set at the end, when the fast series do not converge */
@@ -955,10 +881,7 @@ void gs_tf_setup(const double I[3], const double w[3], const double q[4], double
     c[C_QL + 3] = l[3];
     if (mc > 0.0) {
         fast_setup(c, u0, ps0);
-        if (c[C_NF] == 0.0) {
-            cheb_setup(c, mc, K, n);
-            c[C_PI0] = g_eval(c, u0, sn0, cn0, sqrt(dn02));
-        }
+        if (c[C_NF] == 0.0) c[C_PI0] = g_reduced(sn0, cn0, sqrt(dn02), c[C_N]);
     }
 }
 
@@ -1011,7 +934,7 @@ void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_
     /* angle about L (precession phi of the Euler angles relative to L) */
     double dg;
     if (mc > 0.0) {
-        dg = g_eval(c, u - j * (2.0 * K), sn_r, cn_r, dn) - c[C_PI0];
+        dg = g_reduced(sn_r, cn_r, dn, c[C_N]) - c[C_PI0];
         if (j != 0.0) dg += 2.0 * j * c[C_PIC];
     } else {
         double nu = -n;
@@ -1033,8 +956,6 @@ int gs_tf_valid(const double c[GS_TF_SIZE])
 {
     if (c[C_MODE] == 0.0) return 1;
     if (c[C_MODE] != 1.0) return 0;
-    const double nc = c[C_NCHEB];
-    if (!(nc >= 0.0 && nc <= (double)GS_TF_NCHEB && nc == floor(nc))) return 0;
     const double nf = c[C_NF];
     if (!(nf >= 0.0 && nf <= (double)GS_TF_NFAST && nf == floor(nf))) return 0;
     if (nf > 0.0 && !(c[C_K] > 0.0 && isfinite(c[C_K]) && c[C_KAPPA] > 0.0)) return 0;

@@ -73,12 +73,10 @@ extern "C" {
 #define GS_NSTATS 3
 #define GS_NOUT 15
 
-/* the torque-free flow's constants (gs_tf_setup: 40, then a Chebyshev series of the angle about L of up to
- * GS_TF_NCHEB terms, then 12 constants and the four Chebyshev series of the fast evaluation, GS_TF_NFAST terms
- * each) and, after them, the exact integrator's anchor */
-#define GS_TF_NCHEB 64
+/* the torque-free flow's constants (gs_tf_setup: 40, then 12 constants and the four Chebyshev series of the fast
+ * evaluation, GS_TF_NFAST terms each) and, after them, the exact integrator's anchor */
 #define GS_TF_NFAST 32
-#define GS_TF_SIZE (40 + GS_TF_NCHEB + 12 + 4 * GS_TF_NFAST)
+#define GS_TF_SIZE (40 + 12 + 4 * GS_TF_NFAST)
 #define GS_EX_T0 GS_TF_SIZE
 #define GS_EX_VALID (GS_TF_SIZE + 1)
 #define GS_EX_SIZE (GS_TF_SIZE + 2)
