@@ -160,3 +160,43 @@ def read_channels(path) -> dict[str, list]:
 
 def state_seqs(messages) -> list[int]:
     return [json.loads(m.data)["seq"] for m in messages]
+
+
+async def foxglove_session(url: str, per_topic: int = 5, topics=()):
+    """Connect to a Foxglove WebSocket server (a real client: the `websockets` package, Foxglove's protocol), read
+    serverInfo and the advertisements until ``topics`` are all advertised, subscribe to every channel and collect
+    ``per_topic`` messages of each of ``topics``: (serverInfo, channels by id, {topic: [(log_time, payload)]})."""
+    import asyncio
+    import struct
+
+    from websockets.asyncio.client import connect
+
+    topics = set(topics)
+    # close_timeout: the server may not answer the closing handshake while it streams (websockets then waits
+    # close_timeout, 10 s by default, before it drops the connection itself)
+    async with connect(url, subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=30,
+                       max_size=None, close_timeout=1) as ws:
+        assert ws.subprotocol in ("foxglove.sdk.v1", "foxglove.websocket.v1")
+        info, channels = None, {}
+        while info is None or not topics <= {c["topic"] for c in channels.values()}:
+            frame = await asyncio.wait_for(ws.recv(), 60)
+            assert isinstance(frame, str)
+            m = json.loads(frame)
+            if m["op"] == "serverInfo":
+                info = m
+            elif m["op"] == "advertise":
+                channels.update({c["id"]: c for c in m["channels"]})
+        subs = {i + 1: cid for i, cid in enumerate(channels)}
+        await ws.send(json.dumps({"op": "subscribe",
+                                  "subscriptions": [{"id": sid, "channelId": cid} for sid, cid in subs.items()]}))
+        got: dict[str, list] = {}
+        while any(len(got.get(t, [])) < per_topic for t in topics):
+            frame = await asyncio.wait_for(ws.recv(), 60)
+            if isinstance(frame, str):  # e.g. more advertisements or a status; a refused subscription fails
+                m = json.loads(frame)
+                assert not (m["op"] == "status" and m.get("level", 0) >= 2), m
+                continue
+            assert frame[0] == 0x01  # messageData
+            sid, log_time = struct.unpack_from("<IQ", frame, 1)
+            got.setdefault(channels[subs[sid]]["topic"], []).append((log_time, bytes(frame[13:])))
+        return info, channels, got

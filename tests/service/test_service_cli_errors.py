@@ -133,3 +133,46 @@ def test_record_duration_is_simulated_seconds(tmp_path):
 def test_serve_wall_duration_stops_on_the_wall_clock():
     p = run("serve", "gyroscope", "-l", endpoint(free_port()), "--wall-duration", "0.5", timeout=120)
     assert p.returncode == 0 and "stopped by wall duration" in p.stdout, p.stderr
+
+
+@pytest.mark.parametrize("key", ["", "a//b", "/gyrosim/**", "gyrosim/"])
+def test_record_with_a_bad_key_is_a_user_error_naming_key_and_leaves_the_output_alone(tmp_path, key):
+    out = tmp_path / "keep.mcap"
+    out.write_bytes(b"an earlier recording")
+    p = run("record", "--key", key, "-o", out, "-e", endpoint(free_port()))
+    assert p.returncode == 2 and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert f"--key = {key!r} is not allowed: a Zenoh key expression" in p.stderr, p.stderr
+    assert "Zenoh session failed" not in p.stderr
+    assert out.read_bytes() == b"an earlier recording"
+
+
+def test_service_errors_map_to_the_codes_of_the_one_mapping(tmp_path):
+    """run_handler gives every error the code of gyrosim.errors.exit_code and its one_line message."""
+    from gyrosim.errors import ConfigError, IntegrationError, RecordingError, exit_code, one_line
+    from gyrosim.service.config import ZenohSessionError
+    from gyrosim.telemetry.cli import run_handler
+    from gyrosim.telemetry.reading import NotMcapError, RecordingNotFoundError
+
+    cases = [(ConfigError("--speed", -1.0, "a factor >= 0"), 2), (RecordingError("damaged"), 1),
+             (IntegrationError("blew up"), 1), (ZenohSessionError("cannot listen on tcp/127.0.0.1:1"), 1),
+             (RecordingNotFoundError("recording 'x' not found"), 2), (NotMcapError("not an MCAP file"), 2),
+             (FileNotFoundError(2, "No such file or directory", "x.toml"), 2), (ValueError("bad"), 2),
+             (PermissionError(13, "Permission denied", "/root/x"), 1)]
+    for exc, code in cases:
+        def boom(e=exc):
+            raise e
+
+        assert exit_code(exc) == code, exc
+        assert run_handler("gyrosim test", boom) == code, exc
+    assert "x.toml" in one_line(cases[6][0])
+
+
+def test_a_failing_session_leaves_an_existing_recording_as_it_was(tmp_path):
+    ep = endpoint(free_port())
+    srv = start("serve", "gyroscope", "-l", ep, "--wall-duration", 600)
+    wait_for_line(srv, "stepping")
+    out = tmp_path / "keep.mcap"
+    out.write_bytes(b"an earlier recording")
+    p = run("serve", "gyroscope", "-l", ep, "--duration", "1", "--record", out)
+    assert p.returncode == 1 and "already in use" in p.stderr
+    assert out.read_bytes() == b"an earlier recording"

@@ -4,10 +4,9 @@ advertisements with schemas Foxglove reads, subscribe, binary message data decod
 
 import asyncio
 import json
-import struct
 
 import pytest
-from svc_helpers import endpoint, free_port, reap, start, stop, wait_for_line  # noqa: F401 - reap: autouse
+from svc_helpers import endpoint, foxglove_session, free_port, reap, start, stop, wait_for_line  # noqa: F401
 
 from gyrosim.telemetry import messages as msg
 from gyrosim.telemetry.foxglove_schema import check_foxglove_schema_data
@@ -18,47 +17,13 @@ pytest.importorskip("foxglove")
 TOPICS = {f"/gyrosim/gyroscope/gyro/{k}" for k in ("state", "tf", "imu")}
 
 
-async def _session(url: str, per_topic: int = 5, topics=TOPICS):
-    """Connect, read serverInfo and advertisements, subscribe to every channel, collect decoded messages."""
-    from websockets.asyncio.client import connect
-
-    # close_timeout: the server may not answer the closing handshake while it streams (websockets then waits
-    # close_timeout, 10 s by default, before it drops the connection itself)
-    async with connect(url, subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=30,
-                       max_size=None, close_timeout=1) as ws:
-        assert ws.subprotocol in ("foxglove.sdk.v1", "foxglove.websocket.v1")
-        info, channels = None, {}
-        while info is None or set(c["topic"] for c in channels.values()) < topics:
-            frame = await asyncio.wait_for(ws.recv(), 60)
-            assert isinstance(frame, str)
-            m = json.loads(frame)
-            if m["op"] == "serverInfo":
-                info = m
-            elif m["op"] == "advertise":
-                channels.update({c["id"]: c for c in m["channels"]})
-        subs = {i + 1: cid for i, cid in enumerate(channels)}
-        await ws.send(json.dumps({"op": "subscribe",
-                                  "subscriptions": [{"id": sid, "channelId": cid} for sid, cid in subs.items()]}))
-        got: dict[str, list] = {}
-        while any(len(got.get(t, [])) < per_topic for t in topics):
-            frame = await asyncio.wait_for(ws.recv(), 60)
-            if isinstance(frame, str):  # e.g. more advertisements or a status; a refused subscription fails
-                m = json.loads(frame)
-                assert not (m["op"] == "status" and m.get("level", 0) >= 2), m
-                continue
-            assert frame[0] == 0x01  # messageData
-            sid, log_time = struct.unpack_from("<IQ", frame, 1)
-            got.setdefault(channels[subs[sid]]["topic"], []).append((log_time, bytes(frame[13:])))
-        return info, channels, got
-
-
 def test_serve_streams_the_same_channels_to_a_foxglove_websocket_client(tmp_path):
     port = free_port()
     srv = start("serve", "gyroscope", "-l", endpoint(free_port()), "--foxglove", f"127.0.0.1:{port}",
                 "--wall-duration", 600)
     wait_for_line(srv, f"ws://127.0.0.1:{port}", timeout=60)
     try:
-        info, channels, got = asyncio.run(_session(f"ws://127.0.0.1:{port}"))
+        info, channels, got = asyncio.run(foxglove_session(f"ws://127.0.0.1:{port}", topics=TOPICS))
     finally:
         code, out, err = stop(srv)
     assert code == 0, err
@@ -98,7 +63,7 @@ def test_the_live_view_of_a_tree_scene_draws_every_body_from_its_parent_frame():
     bodies = {"outer": "world", "inner": "outer", "rotor": "inner"}
     topics = {f"/gyrosim/gimbal_gyroscope/{b}/{k}" for b in bodies for k in ("state", "tf", "imu")}
     try:
-        info, channels, got = asyncio.run(_session(f"ws://127.0.0.1:{port}", per_topic=3, topics=topics))
+        info, channels, got = asyncio.run(foxglove_session(f"ws://127.0.0.1:{port}", per_topic=3, topics=topics))
     finally:
         code, out, err = stop(srv)
     assert code == 0, err

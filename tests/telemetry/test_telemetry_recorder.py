@@ -13,10 +13,11 @@ from mcap.reader import NonSeekingReader, make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 import gyrosim
-from gyrosim.errors import RecordingError
+from gyrosim.errors import RecordingError, exit_code
 from gyrosim.telemetry import messages as msg
 from gyrosim.telemetry.info import mcap_info
 from gyrosim.telemetry.plot import plot_recording, read_states
+from gyrosim.telemetry.reading import NotMcapError, RecordingNotFoundError
 from gyrosim.telemetry.recorder import Recorder, metadata_record
 from gyrosim.telemetry.recover import recover
 
@@ -199,10 +200,16 @@ def test_recover_salvages_every_complete_chunk_of_a_cut_file(tmp_path, fraction)
 
 def test_recover_refuses_a_file_that_is_not_mcap(tmp_path):
     (tmp_path / "x.mcap").write_bytes(b"hello world, not mcap")
-    with pytest.raises(RecordingError, match="not an MCAP file"):
+    with pytest.raises(NotMcapError, match="not an MCAP file") as e:
         recover(tmp_path / "x.mcap", tmp_path / "y.mcap")
-    with pytest.raises(RecordingError, match="not found"):
+    assert exit_code(e.value) == 2  # a user error: a file that is not what was asked for
+    with pytest.raises(RecordingNotFoundError, match="not found") as e:
         recover(tmp_path / "missing.mcap", tmp_path / "y.mcap")
+    assert exit_code(e.value) == 2
+    (tmp_path / "empty.mcap").write_bytes(b"")
+    with pytest.raises(RecordingError, match="empty"):
+        recover(tmp_path / "empty.mcap", tmp_path / "y.mcap")
+    assert not (tmp_path / "y.mcap").exists()
 
 
 def test_info_lists_channels_counts_times_schemas_and_metadata(tmp_path):
@@ -242,8 +249,8 @@ def test_cli_info_recover_and_plot(tmp_path):
     assert [Path(x).name for x in pngs] == [f"run_{k}.png" for k in ("attitude", "rates", "energy", "momentum")]
     for x in pngs:
         assert Path(x).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    p = cli("plot", tmp_path / "missing.mcap")
-    assert p.returncode == 1 and "Traceback" not in p.stderr and "not found" in p.stderr
+    p = cli("plot", tmp_path / "missing.mcap")  # a file not found: a user error (DESIGN.md section 5)
+    assert p.returncode == 2 and "Traceback" not in p.stderr and "not found" in p.stderr
 
 
 def test_plot_reads_state_series(tmp_path):

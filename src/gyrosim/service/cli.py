@@ -1,8 +1,10 @@
 """Command line of the Zenoh side: ``gyrosim serve``, ``gyrosim record`` and ``gyrosim replay``.
 
-``register(subparsers)`` adds the subcommands to the ``gyrosim`` parser; each handler returns an exit code
-(0 fine, 1 runtime failure, 2 bad configuration or input, 130 interrupted twice, 141 stdout closed). Errors are
-one line on stderr, never a traceback: Zenoh's errors name the endpoint and the flag to change.
+``register(subparsers)`` adds the subcommands to the ``gyrosim`` parser; each handler returns an exit code from
+the one mapping every ``gyrosim`` command uses (:func:`gyrosim.errors.exit_code`, through
+:func:`gyrosim.telemetry.cli.run_handler`): 0 fine, 1 a run-time failure (a session that cannot start, a damaged
+recording, nothing to replay), 2 bad configuration or input, 130 interrupted twice, 141 stdout closed. Errors
+are one line on stderr, never a traceback: Zenoh's errors name the endpoint and the flag to change.
 ``python -m gyrosim.service.cli`` runs these subcommands and the file tools (``plot``, ``mcap``) stand-alone.
 
 Durations mean the same on every command: ``--duration S`` is simulated seconds (``serve``: simulate S
@@ -75,7 +77,7 @@ def _serve(args: argparse.Namespace) -> int:
         options = ServeOptions(rate=args.rate, realtime_factor=args.realtime_factor, duration=args.duration,
                                wall_duration=args.wall_duration, record=args.record, prefix=args.prefix,
                                torque_limit=args.torque_limit, wait_subscribers=args.wait_subscribers,
-                               foxglove=foxglove)
+                               foxglove=foxglove, input_file=args.input_file)
         conf = config_from_args(args, role="producer")
         stats = main(conf, args.scene, options=options, parameters=params)
         _summary(args, stats.format())
@@ -88,6 +90,7 @@ def _record(args: argparse.Namespace) -> int:
     def run():
         from .record import RecordOptions, main
 
+        K.check_key_expr(args.key, "--key")
         if args.max_messages is not None and args.max_messages <= 0:
             raise ConfigError("--max-messages", args.max_messages, "a count > 0")
         for flag, v in (("--duration", args.duration), ("--wall-duration", args.wall_duration)):
@@ -108,11 +111,20 @@ def _replay(args: argparse.Namespace) -> int:
     def run():
         from .replay import ReplayOptions, main
 
-        if args.speed < 0:
-            raise ConfigError("--speed", args.speed, "a factor >= 0 (0: as fast as possible)")
+        if not (args.speed >= 0 and args.speed != float("inf")):
+            raise ConfigError("--speed", args.speed, "a finite factor >= 0 (0: as fast as possible)")
+        for flag, v in (("--duration", args.duration), ("--wall-duration", args.wall_duration)):
+            if v is not None and not (v > 0 and v != float("inf")):
+                raise ConfigError(flag, v, "a finite number of seconds > 0")
+        foxglove = None
+        if args.foxglove is not None:
+            from .live import parse_host_port
+
+            foxglove = parse_host_port(args.foxglove)
         options = ReplayOptions(speed=args.speed, loop=args.loop, include_torque=args.include_torque,
                                 wait_subscribers=args.wait_subscribers, duration=args.duration,
-                                wall_duration=args.wall_duration, fallback_port=uses_default_endpoints(args))
+                                wall_duration=args.wall_duration, fallback_port=uses_default_endpoints(args),
+                                foxglove=foxglove)
         stats = main(config_from_args(args, role="producer"), args.file, options=options)
         _summary(args, stats.format())
         return 0
@@ -138,6 +150,12 @@ def register(subparsers) -> None:
                    help="Also run a Foxglove WebSocket server streaming the same channels (host default "
                         "127.0.0.1, loopback only; without a value 127.0.0.1:8765). In Foxglove: Open "
                         "connection > Foxglove WebSocket > ws://HOST:PORT.")
+    p.add_argument("--input-file", metavar="FILE.csv",
+                   help="Time-varying inputs in FMPy's CSV format: a 'time' column (simulation time, s) and one "
+                        "column per input (tau_x.. for a one-body scene, <body>.tau_x.. for several bodies, "
+                        "<body>.motor_torque and <body>.tau_x.. for a tree scene), linear between rows, applied "
+                        "at every step. A Zenoh torque or motor command replaces a file value until the file's "
+                        "next row.")
     p.add_argument("--rate", type=float, default=100.0, metavar="HZ",
                    help="Publication rate = communication steps per simulated second (default 100).")
     p.add_argument("--realtime-factor", type=float, default=1.0, metavar="X",
@@ -178,7 +196,8 @@ def register(subparsers) -> None:
         description="Republish every channel of a recording on its key with its recorded encoding and "
                     "timing. Default: a Zenoh peer listening on tcp/127.0.0.1:7447 with scouting off; if a "
                     "running `gyrosim serve` has that port, a free port instead (the warning names it). A "
-                    "truncated file is replayed as far as it reads, with a warning.")
+                    "truncated or damaged file is replayed from what is intact (every chunk's CRC checked), with "
+                    "one warning giving the counts; a file with no readable message exits 1.")
     p.add_argument("file", metavar="FILE.mcap")
     p.add_argument("--speed", type=float, default=1.0, metavar="X",
                    help="Replay speed factor (default 1; 0: as fast as possible).")
@@ -186,6 +205,10 @@ def register(subparsers) -> None:
     _durations(p, "of the recording to replay, from its first message")
     p.add_argument("--include-torque", action="store_true",
                    help="Also republish recorded commands (torque, and motor of tree scenes).")
+    p.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", metavar="[HOST:]PORT",
+                   help="Also stream the replayed channels on a Foxglove WebSocket server, as serve does (host "
+                        "default 127.0.0.1, loopback only; without a value 127.0.0.1:8765). In Foxglove: Open "
+                        "connection > Foxglove WebSocket > ws://HOST:PORT.")
     p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
                    help="Wait up to S seconds for a subscriber on every key before starting.")
     add_verbosity(p)

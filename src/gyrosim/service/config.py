@@ -29,11 +29,12 @@ import os
 import re
 import socket
 
-from ..errors import ConfigError, GyrosimError
+from ..errors import ConfigError
 
 __all__ = [
     "DEFAULT_ENDPOINT",
     "ZenohSessionError",
+    "ServiceConnectionError",
     "open_session",
     "zenoh_error",
     "uses_default_endpoints",
@@ -165,7 +166,13 @@ def uses_default_endpoints(args: argparse.Namespace) -> bool:
     return not any(getattr(args, a, None) for a in ("config", "connect", "listen", "mode"))
 
 
-class ZenohSessionError(GyrosimError):
+class ServiceConnectionError(ConnectionError):
+    """A session or server of the service could not start or was lost (a port in use, a refused connection): a
+    run-time failure, exit code 1 under :func:`gyrosim.errors.exit_code` (an ``OSError``, as a lost connection
+    is; not a ``GyrosimError``, which ``exit_code`` maps to 2, the code of user errors)."""
+
+
+class ZenohSessionError(ServiceConnectionError):
     """A Zenoh session could not start: one line naming the endpoint and the flag to change."""
 
 

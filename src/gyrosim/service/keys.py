@@ -46,6 +46,7 @@ __all__ = [
     "topic_for_key",
     "key_for_topic",
     "check_chunk",
+    "check_key_expr",
 ]
 
 #: Default first chunk of every key.
@@ -58,6 +59,33 @@ COMMAND_KINDS = ("torque", "motor")
 PUBLISHED_KINDS = ("state", "tf", "imu")
 
 _FORBIDDEN = set("*$?#/") | {" "}
+
+
+def check_key_expr(value: str, field: str = "--key") -> str:
+    """Return ``value`` if it is a valid Zenoh key expression (wildcards allowed), as Zenoh itself judges it.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``field`` and what is allowed (an empty expression, an empty chunk, a leading or trailing ``/``,
+        a misplaced wildcard), before any session or file is opened.
+
+    Examples
+    --------
+    >>> check_key_expr("gyrosim/**")
+    'gyrosim/**'
+    """
+    import zenoh
+
+    try:
+        if not isinstance(value, str) or not value:
+            raise ValueError("empty")
+        zenoh.KeyExpr(value)
+    except (ValueError, zenoh.ZError):
+        raise ConfigError(field, value, "a Zenoh key expression: non-empty chunks separated by '/', no leading "
+                                        "or trailing '/', wildcards '*' (one chunk) and '**' (any chunks) as "
+                                        "whole chunks, e.g. gyrosim/** or gyrosim/gyroscope/*/state") from None
+    return value
 
 
 def check_chunk(value: str, field: str) -> str:

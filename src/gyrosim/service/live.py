@@ -1,5 +1,6 @@
-"""The Foxglove live view of ``gyrosim serve --foxglove [HOST:]PORT``: a Foxglove WebSocket server (the
-``foxglove-sdk`` package) streaming what the service publishes on Zenoh.
+"""The Foxglove live view of ``gyrosim serve --foxglove [HOST:]PORT`` and ``gyrosim replay --foxglove [HOST:]PORT``:
+a Foxglove WebSocket server (the ``foxglove-sdk`` package) streaming what the service (or the replay) publishes
+on Zenoh.
 
 Per body, on the topics of the MCAP recordings (``"/" + key``):
 
@@ -23,6 +24,7 @@ import logging
 from ..errors import ConfigError, GyrosimError
 from ..telemetry import messages as msg
 from ..telemetry.topics import topic_for_key
+from .config import ServiceConnectionError
 
 __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "parse_host_port", "LiveView"]
 
@@ -71,15 +73,22 @@ class LiveView:
         any time sees them all in its first advertisement. (A channel created while a client is connected is
         advertised to it, but a subscription that arrives at once can be refused with "Unknown channel ID";
         that client then never gets the channel's messages.)
+    recorded : iterable of (topic, message_encoding, schema or None), optional
+        Channels of a recording (``gyrosim replay --foxglove``), also created before the server listens: each
+        with its recorded message encoding and schema (an ``mcap.records.Schema``), except the CDR
+        ``tf2_msgs/msg/TFMessage`` channels, which become ``foxglove.FrameTransform`` JSON as in the live view
+        of ``gyrosim serve`` (:meth:`log_topic` converts their messages).
 
     Raises
     ------
     GyrosimError
-        If ``foxglove-sdk`` is not installed or the server cannot listen (one line with the address and the
-        flag to change).
+        If ``foxglove-sdk`` is not installed (exit 2: install it).
+    ServiceConnectionError
+        If the server cannot listen (one line with the address and the flag to change; exit 1).
     """
 
-    def __init__(self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, name: str = "gyrosim", bodies=()):
+    def __init__(self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, name: str = "gyrosim", bodies=(),
+                 recorded=()):
         try:
             import foxglove
         except ImportError:
@@ -87,16 +96,19 @@ class LiveView:
         self._foxglove = foxglove
         self.context = foxglove.Context()
         self._channels: dict[str, object] = {}
+        self._convert: dict[str, object] = {}  # topic -> payload converter (recorded tf -> FrameTransform)
         for keys in bodies:
             self.add_body(keys)
+        for topic, message_encoding, schema in recorded:
+            self.add_recorded(topic, message_encoding, schema)
         try:
             self.server = foxglove.start_server(name=name, host=host, port=int(port), context=self.context)
         except Exception as e:  # noqa: BLE001 - the SDK raises RuntimeError / its own errors
             why = " ".join(str(e).split())
             hint = ("the address is already in use" if "in use" in why.lower() or "os error 98" in why
                     else why)
-            raise GyrosimError(f"cannot start the Foxglove WebSocket server on {host}:{port}: {hint}; choose "
-                               "another with --foxglove HOST:PORT") from None
+            raise ServiceConnectionError(f"cannot start the Foxglove WebSocket server on {host}:{port}: {hint}; "
+                                         "choose another with --foxglove HOST:PORT") from None
         self.host = host
         self.port = int(self.server.port)
         log.info("Foxglove live view on ws://%s:%d (Foxglove: Open connection > Foxglove WebSocket)",
@@ -126,6 +138,43 @@ class LiveView:
         imu = msg.schema_for_encoding(msg.IMU_ENCODING)
         self._channel(topic_for_key(keys.imu), "cdr", imu.name, imu.encoding, imu.data)
 
+    def add_recorded(self, topic: str, message_encoding: str, schema=None) -> bool:
+        """Advertise a channel of a recording (see ``recorded``); False for a channel Foxglove cannot take (no
+        message encoding)."""
+        if not message_encoding:
+            return False
+        if message_encoding == "cdr" and schema is not None and schema.name == msg.TF_TYPE:
+            self._channel(topic, "json", msg.FRAME_TRANSFORM_SCHEMA_NAME, "jsonschema",
+                          json.dumps(msg.FRAME_TRANSFORM_JSON_SCHEMA).encode())
+            self._convert[topic] = _frame_transforms_of_tf(schema)
+            return True
+        if schema is None or not schema.encoding:
+            ch = self._channels.get(topic)
+            if ch is None:
+                ch = self._foxglove.Channel(topic, message_encoding=message_encoding, context=self.context)
+                self._channels[topic] = ch
+            return True
+        self._channel(topic, message_encoding, schema.name, schema.encoding, bytes(schema.data))
+        return True
+
+    def log_topic(self, topic: str, data: bytes, log_time_ns: int) -> None:
+        """Send one recorded message on its topic's channel (converted where :meth:`add_recorded` said so; a no-op
+        for a topic without a channel, and for a payload that does not convert)."""
+        ch = self._channels.get(topic)
+        if ch is None:
+            return
+        convert = self._convert.get(topic)
+        if convert is None:
+            ch.log(data, log_time=int(log_time_ns))
+            return
+        try:
+            out = convert(data)
+        except Exception as e:  # noqa: BLE001 - a payload the decoder refuses: not streamed, never fatal
+            log.debug("%s: a message that does not decode as %s: %s", topic, msg.TF_TYPE, e)
+            return
+        for payload in out:
+            ch.log(payload, log_time=int(log_time_ns))
+
     def log(self, key: str, data: bytes, log_time_ns: int) -> None:
         """Send one message on the channel of ``key`` (a no-op for a key without a channel)."""
         ch = self._channels.get(topic_for_key(key))
@@ -138,3 +187,22 @@ class LiveView:
             self.server.stop()
         except Exception as e:  # noqa: BLE001 - closing is best effort
             log.debug("stopping the Foxglove server: %s", e)
+
+
+def _frame_transforms_of_tf(schema):
+    """A converter: CDR ``tf2_msgs/msg/TFMessage`` payload -> one ``foxglove.FrameTransform`` JSON per transform."""
+    msgdef = schema.data.decode("utf-8", "replace") if schema is not None and schema.data else None
+
+    def convert(data: bytes) -> list[bytes]:
+        m = msg.decode_cdr(msg.TF_TYPE, data, msgdef)
+        out = []
+        for tr in m.transforms:
+            stamp = tr.header.stamp
+            r, t = tr.transform.rotation, tr.transform.translation
+            out.append(msg.encode_frame_transform(stamp.sec + stamp.nanosec * 1e-9, (r.w, r.x, r.y, r.z),
+                                                  child_frame_id=tr.child_frame_id,
+                                                  parent_frame_id=tr.header.frame_id,
+                                                  translation=(t.x, t.y, t.z)))
+        return out
+
+    return convert

@@ -154,21 +154,28 @@ def main(conf, key_expr: str, output, *, options: RecordOptions = RecordOptions(
 
     Raises
     ------
+    ConfigError
+        ``key_expr`` is no valid key expression (nothing is created).
     RecordingError
         The file cannot be created or written.
+    ZenohSessionError
+        The Zenoh session cannot start.
     """
     import zenoh
 
+    K.check_key_expr(key_expr, "--key")  # before the file is created or a session opened
+    Recorder.check_writable(output)
     stop = stop if stop is not None else threading.Event()
     restore = install_stop_signals(stop)
     try:
-        with Recorder(output, flush_interval=options.flush_interval, metadata=metadata_record(
-                key=key_expr, source="gyrosim record")) as rec:
-            try:
-                with open_session(conf, log=log) as session:
+        try:
+            # the session first: a session that fails leaves an existing file of that name as it was
+            with open_session(conf, log=log) as session:
+                with Recorder(output, flush_interval=options.flush_interval, metadata=metadata_record(
+                        key=key_expr, source="gyrosim record")) as rec:
                     _record(session, rec, key_expr, options, stop, ready, _peers(conf))
-            except zenoh.ZError as e:
-                raise zenoh_error(e, conf) from None
+        except zenoh.ZError as e:
+            raise zenoh_error(e, conf) from None
         return rec.summary
     finally:
         restore()

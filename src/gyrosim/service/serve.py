@@ -21,6 +21,15 @@ the joint's), its ``state`` carries its world attitude ``q``, its angular veloci
 With ``foxglove`` set, a Foxglove WebSocket server (:mod:`gyrosim.service.live`) streams the same channels
 for a live view in Foxglove.
 
+Time-varying inputs from a file (``input_file``, ``gyrosim serve SCENE --input-file FILE.csv``): FMPy's CSV format
+(a ``time`` column, one column per input: ``tau_x``.. for a one-body scene, ``<body>.tau_x``.. for several
+bodies, ``<body>.motor_torque`` and ``<body>.tau_x``.. for a tree scene; :mod:`gyrosim.inputs`), checked against
+the scene before anything starts. Before every communication step the file's values at the step's start time
+(simulation time; linear between rows, held after the last row, as FMPy applies them) are set and held over the
+step. A Zenoh command (``.../torque``, ``.../motor``) replaces the file's value of the inputs it sets until the
+simulation time reaches the file's next row; from then on the file applies again (after the last row a
+command holds until the next command).
+
 Pacing: simulated time runs ``realtime_factor`` times as fast as the wall clock (1: real time; 0: as fast as
 possible). A step that falls behind is not skipped (every step is published); the lag is reported.
 """
@@ -72,6 +81,8 @@ class ServeOptions:
         Wall seconds to keep the session open after the last message, so queued messages leave.
     foxglove : tuple (host, port) or None
         Also run a Foxglove WebSocket server there (port 0: a free port).
+    input_file : str or None
+        CSV file of time-varying inputs in FMPy's format (see the module's notes).
     """
 
     rate: float = 100.0
@@ -84,6 +95,7 @@ class ServeOptions:
     linger: float = 0.2
     wall_duration: float | None = None
     foxglove: tuple | None = None
+    input_file: str | None = None
 
     def __post_init__(self):
         if not (isinstance(self.rate, (int, float)) and math.isfinite(self.rate) and self.rate > 0):
@@ -134,6 +146,52 @@ class ServeStats:
         return s
 
 
+class _FileInputs:
+    """An input file applied at the service's step times; Zenoh commands override it until the file's next row."""
+
+    def __init__(self, signal, model, bodies: list[str]):
+        self.signal = signal
+        self.model = model
+        tree = getattr(model.scene, "is_tree", False)
+        self.setters = []  # (variable, body argument of model.set, (body index, short name), column)
+        for j, (name, var, body) in enumerate(signal.check_against(model)):
+            if tree:
+                b, _, short = name.rpartition(".")
+                where = (bodies.index(b) if b in bodies else -1, short)
+            elif body is None:
+                where = (0, var) if len(bodies) == 1 else (-1, var)
+            else:
+                where = (bodies.index(body), var)
+            self.setters.append((var, body, where, j))
+        self.times = [float(x) for x in signal.time]
+        self.overrides: dict[tuple[int, str], int] = {}  # (body, input) -> the file row when the command came
+
+    def row(self, t: float) -> int:
+        """Index of the file's last row at or before ``t`` (-1 before the first; rows at ``t`` within FMPy's
+        tolerance count as reached)."""
+        import bisect
+
+        tt = self.times
+        i = bisect.bisect_right(tt, t)
+        while i < len(tt) and math.isclose(t, tt[i]):
+            i += 1
+        return i - 1
+
+    def overridden(self, body: int, inputs: dict, t: float) -> None:
+        row = self.row(t)
+        for name in inputs:
+            self.overrides[(body, name)] = row
+
+    def apply(self, t: float) -> None:
+        row = self.row(t)
+        if self.overrides:  # a command holds until the file's next row is reached
+            self.overrides = {k: r for k, r in self.overrides.items() if r >= row}
+        values = self.signal.row_at(t)
+        for var, body, where, j in self.setters:
+            if where not in self.overrides:
+                self.model.set(var, values[j], body=body)
+
+
 def build_model(scene=None, parameters: dict | None = None):
     """Build the :class:`gyrosim.model.Model` the service steps (no stop time: it runs until stopped)."""
     from ..model import Model
@@ -179,9 +237,12 @@ class Service:
         Records every published message and every accepted torque command.
     live : gyrosim.service.live.LiveView, optional
         Foxglove WebSocket server that gets every published message too.
+    inputs : gyrosim.inputs.InputSignal, optional
+        Time-varying inputs applied before every step (see the module's notes); checked against the model.
     """
 
-    def __init__(self, session, model, options: ServeOptions = ServeOptions(), recorder=None, live=None):
+    def __init__(self, session, model, options: ServeOptions = ServeOptions(), recorder=None, live=None,
+                 inputs=None):
         import zenoh
 
         self.session = session
@@ -203,6 +264,7 @@ class Service:
             self._input_names = [[(n[len(b) + 1:], n) for n in names if n.startswith(b + ".")] for b in self.bodies]
         else:
             self._input_names = None
+        self._file = _FileInputs(inputs, model, self.bodies) if inputs is not None else None
         self._torque_bodies = [i for i in range(len(self.bodies)) if "tau_x" in self.body_inputs(i)]
         self._motor_bodies = [i for i in range(len(self.bodies)) if "motor_torque" in self.body_inputs(i)]
         self._rejections_logged = 0
@@ -269,6 +331,8 @@ class Service:
             self._reject(key, str(e), kind)
             return
         setattr(self.stats, f"{kind}_accepted", getattr(self.stats, f"{kind}_accepted") + 1)
+        if self._file is not None:
+            self._file.overridden(i, cmd.as_inputs(), self.model.time)
         if self.recorder is not None:
             encoding = msg.TORQUE_ENCODING if kind == "torque" else msg.MOTOR_ENCODING
             self.recorder.write_sample(key, encoding, payload, publish_time_ns=msg.seconds_to_ns(self.model.time))
@@ -276,6 +340,11 @@ class Service:
             log.info("torque on %s: %s N*m", self.bodies[i], (cmd.x, cmd.y, cmd.z))
         else:
             log.info("motor torque on %s: %s N*m", self.bodies[i], cmd.torque)
+
+    def apply_file_inputs(self) -> None:
+        """Set the input file's values at the model's current time (those a Zenoh command overrides kept)."""
+        if self._file is not None:
+            self._file.apply(self.model.time)
 
     def poll_inputs(self) -> None:
         """Apply queued torque and motor commands and answer queued params queries (stepping thread only)."""
@@ -423,6 +492,7 @@ class Service:
         t0 = m.time
         n_steps = None if o.duration is None else int(round(o.duration * o.rate))
         self.poll_inputs()
+        self.apply_file_inputs()
         self.publish()
         wall0 = time.monotonic()
         log.info("stepping: h = %g s, %s", self.h,
@@ -450,6 +520,7 @@ class Service:
                 if stop.is_set():
                     break
             self.poll_inputs()
+            self.apply_file_inputs()
             try:
                 m.step(self.h)
             except (IntegrationError, StepError) as e:
@@ -517,9 +588,19 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
 
     if model is None:
         model = build_model(scene, parameters)
+    inputs = None
+    if options.input_file is not None:  # read and checked against the scene before anything starts
+        from ..inputs import InputSignal, read_input_csv
+
+        inputs = InputSignal(read_input_csv(options.input_file))
+        inputs.check_against(model)
+        log.info("inputs from %s: %s (%d rows, t = %g .. %g s)", options.input_file, ", ".join(inputs.names),
+                 len(inputs.time), inputs.time[0], inputs.time[-1])
     stop = stop if stop is not None else threading.Event()
     recorder = None
+    record_metadata = None
     if options.record:
+        Recorder.check_writable(options.record)  # created once the session is up: a failed start keeps a file
         frames = None
         if getattr(model.scene, "is_tree", False):  # one system: its parameters by full name, and its frames
             params = model.parameters()
@@ -529,10 +610,10 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
         else:
             params = {b: model.parameters(i) for i, b in enumerate(model.body_names)}
             first = model.parameters(0) if model.body_names else {}
-        recorder = Recorder(options.record, metadata=metadata_record(
+        record_metadata = metadata_record(
             scene=model.scene.name, parameters=params, integrator=first.get("integrator"),
             rate=options.rate, realtime_factor=options.realtime_factor, prefix=options.prefix,
-            bodies=list(model.body_names), frames=frames, source="gyrosim serve"))
+            bodies=list(model.body_names), frames=frames, source="gyrosim serve", input_file=options.input_file)
     service = None
     stats = ServeStats()
     live = None
@@ -544,7 +625,9 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
             live = LiveView(*options.foxglove, name=f"gyrosim serve {model.scene.name}",
                             bodies=[K.BodyKeys(model.scene.name, b, options.prefix) for b in model.body_names])
         with open_session(conf, log=log) as session:
-            service = Service(session, model, options, recorder, live)
+            if options.record:
+                recorder = Recorder(options.record, metadata=record_metadata)
+            service = Service(session, model, options, recorder, live, inputs)
             service.stats = stats
             log.info("serving scene %r (bodies: %s) on %s/%s/... at %g Hz, realtime factor %g",
                      service.scene, ", ".join(service.bodies), options.prefix, service.scene, options.rate,

@@ -1,10 +1,12 @@
 """Command line of the file tools: ``gyrosim plot``, ``gyrosim mcap {info,recover}``; the helpers every
 service and telemetry command shares (:func:`run_handler`, :func:`setup_logging`, :func:`add_verbosity`).
 
-``register(subparsers)`` adds the subcommands to the ``gyrosim`` parser. Handlers return exit codes: 0 fine,
-1 runtime failure (also ``mcap info`` on an unfinished file), 2 bad arguments or input, 130 interrupted,
-141 stdout closed early (``gyrosim mcap info rec.mcap | head -2``), as a tool killed by SIGPIPE. Errors are
-one line on stderr, never a traceback.
+``register(subparsers)`` adds the subcommands to the ``gyrosim`` parser. Handlers return exit codes from the
+one mapping every ``gyrosim`` command uses (:func:`gyrosim.errors.exit_code`, messages from
+:func:`gyrosim.errors.one_line`): 0 fine, 1 a run-time failure (also ``mcap info`` on an unfinished or damaged
+file), 2 bad arguments or input (a file that is not there or is no MCAP file), 130 interrupted, 141 stdout
+closed early (``gyrosim mcap info rec.mcap | head -2``), as a tool killed by SIGPIPE. Errors are one line on
+stderr, never a traceback (``-vv`` adds it for an internal error).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import logging
 import os
 import sys
 
-from ..errors import ConfigError, GyrosimError, RecordingError
+from ..errors import GyrosimError, exit_code, one_line
 
 __all__ = ["register", "run_handler", "setup_logging", "add_verbosity"]
 
@@ -81,14 +83,18 @@ def _silence_stdout() -> None:
 
 
 def run_handler(prog: str, fn, args: argparse.Namespace | None = None) -> int:
-    """Run ``fn()``, turning every user error into one stderr line and an exit code.
+    """Run ``fn()``, turning every error into one stderr line and the exit code of :func:`gyrosim.errors.exit_code`
+    (the same code ``gyrosim.cli.main`` gives the same error).
 
-    With ``args`` carrying ``verbose`` and ``quiet``, logging is set up first (:func:`setup_logging`).
-    ``ConfigError`` and ``FileNotFoundError``: exit 2; other gyrosim errors and OS errors: 1; Ctrl-C: 130;
-    a closed stdout (``| head``): 141, silently.
+    With ``args`` carrying ``verbose`` and ``quiet``, logging is set up first (:func:`setup_logging`). User
+    errors (a bad value, a scene, a file not there): 2; run-time failures (a damaged recording, a session that
+    cannot start, a disk that refuses a write): 1; Ctrl-C: 130; a closed stdout (``| head``): 141, silently.
+    An error that is none of gyrosim's, an ``OSError``, a ``ValueError`` or a ``RuntimeError`` is an internal
+    error: one line saying so (its traceback at ``-vv``), exit 1 (the same lines as ``gyrosim.cli.main``).
     """
+    verbose = getattr(args, "verbose", 0) if args is not None else 0
     if args is not None:
-        setup_logging(getattr(args, "verbose", 0) - getattr(args, "quiet", 0), prog)
+        setup_logging(verbose - getattr(args, "quiet", 0), prog)
     try:
         code = int(fn() or 0)
         sys.stdout.flush()
@@ -96,22 +102,20 @@ def run_handler(prog: str, fn, args: argparse.Namespace | None = None) -> int:
     except BrokenPipeError:
         _silence_stdout()
         return EXIT_BROKEN_PIPE
-    except (ConfigError, ValueError) as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
-    except FileNotFoundError as e:
-        print(f"{prog}: error: {e.filename or e} not found", file=sys.stderr)
-        return 2
-    except (RecordingError, GyrosimError) as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 1
-    except OSError as e:
-        where = f" ({e.filename})" if getattr(e, "filename", None) else ""
-        print(f"{prog}: error: {e.strerror or e}{where}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         print(f"{prog}: interrupted", file=sys.stderr)
-        return 130
+        return exit_code(e)
+    except (GyrosimError, OSError, ValueError, RuntimeError) as e:  # as gyrosim.cli.main has them
+        print(f"{prog}: error: {one_line(e).replace(chr(10), ' ')}", file=sys.stderr)
+        return exit_code(e)
+    except Exception as e:  # noqa: BLE001 - a bug: still one line (the traceback at -vv)
+        if verbose >= 2:
+            import traceback
+
+            traceback.print_exc(file=sys.stderr)
+        print(f"{prog}: error: internal error ({type(e).__name__}: {e}); please report it (-vv shows where)",
+              file=sys.stderr)
+        return exit_code(e)
 
 
 def _out(args, text: str) -> None:
@@ -137,7 +141,7 @@ def _info(args: argparse.Namespace) -> int:
 
         info = mcap_info(args.file)
         print(info.format())
-        return 0 if info.complete else 1
+        return 0 if info.complete else 1  # 1: truncated or damaged (a run-time failure, DESIGN.md section 5)
 
     return run_handler("gyrosim mcap info", run, args)
 
@@ -146,7 +150,15 @@ def _recover(args: argparse.Namespace) -> int:
     def run():
         from .recover import recover
 
-        _out(args, recover(args.input, args.output).format())
+        report = recover(args.input, args.output)
+        _out(args, report.format())
+        if report.lossy:  # the report is on stdout (and gone with -q): say on stderr that something was dropped
+            n = report.lost
+            lost = f"{n} message{'s' * (n != 1)} lost" if n is not None else "how many messages were lost is unknown"
+            n = len(report.dropped)
+            logging.getLogger("gyrosim.recover").warning(
+                "%s was not intact: %s, %d chunk%s or stretch%s dropped (named in the report); %s holds every "
+                "record that checked out", args.input, lost, n, "s" * (n != 1), "es" * (n != 1), args.output)
         return 0
 
     return run_handler("gyrosim mcap recover", run, args)
@@ -158,8 +170,8 @@ def register(subparsers) -> None:
         "plot", help="PNG plots of attitude, rates, energy and |L| from a recording",
         description="Write <stem>_attitude.png, <stem>_rates.png, <stem>_energy.png and <stem>_momentum.png "
                     "from every gyrosim.BodyState channel of FILE.mcap (one line per body), and for a tree "
-                    "scene with hinges <stem>_joints.png (each hinge's angle and rate). A truncated file "
-                    "is plotted as far as it reads, with a warning.")
+                    "scene with hinges <stem>_joints.png (each hinge's angle and rate). A truncated or "
+                    "damaged file is plotted from what is intact, with one warning giving the counts.")
     p.add_argument("file", metavar="FILE.mcap")
     p.add_argument("--output-dir", "-o", metavar="DIR",
                    help="Folder for the PNGs (default: next to the file).")
@@ -169,12 +181,20 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("mcap", help="MCAP tools: info, recover (the mcap CLI is not on PyPI)")
     msub = p.add_subparsers(dest="mcap_command", required=True)
     q = msub.add_parser("info", help="Channels, counts, time range, schemas and metadata of a recording",
-                        description="Exit code 1 when the file is not finished (run recover). JSON schemas "
-                                    "that Foxglove's reader would refuse are named with the reason.")
+                        description="Every chunk's CRC, the data section's and the summary's CRCs and the "
+                                    "Statistics record's counts are checked. Exit code 1 when the file is not "
+                                    "finished or is damaged (each dropped chunk or unreadable stretch is named "
+                                    "with the messages lost; run recover). JSON schemas that Foxglove's reader "
+                                    "would refuse are named with the reason.")
     q.add_argument("file", metavar="FILE.mcap")
     add_verbosity(q)
     q.set_defaults(func=_info)
-    q = msub.add_parser("recover", help="Salvage a recording whose writer died into a new valid file")
+    q = msub.add_parser("recover", help="Salvage a truncated or damaged recording into a new valid file",
+                        description="Copy every record that checks out (every message of every chunk whose CRC "
+                                    "matches) into a new, finished file and report what was dropped (each "
+                                    "damaged chunk or unreadable stretch, the messages lost against the "
+                                    "Statistics record). Exit code 0 when the copy is written, with a warning "
+                                    "on stderr if anything was dropped.")
     q.add_argument("input", metavar="BROKEN.mcap")
     q.add_argument("output", metavar="FIXED.mcap")
     add_verbosity(q)

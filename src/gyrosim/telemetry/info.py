@@ -1,6 +1,11 @@
-"""``gyrosim mcap info FILE.mcap``: channels, message counts, time ranges, schemas and metadata of a file.
+"""``gyrosim mcap info FILE.mcap``: channels, message counts, time ranges, schemas and metadata of a file, and
+whether it is intact.
 
-Reads the file sequentially, so it also describes a truncated file (and says so).
+Reads the file with :mod:`gyrosim.telemetry.reading`, which checks every chunk's CRC, the data section's and the
+summary's, and compares what it read with the Statistics record: a truncated or damaged file is described as
+far as it reads, and named as such (``state: NOT FINISHED`` or ``state: DAMAGED`` with one line per dropped
+chunk or unreadable stretch and the messages lost against the Statistics record's count). The command exits 1
+for such a file.
 
 Examples
 --------
@@ -63,7 +68,19 @@ class McapInfo:
     complete: bool
     error: str | None
     messages: int = 0
+    #: the Statistics record's message count (None: the file has no intact one)
+    expected_messages: int | None = None
+    #: messages lost against that count (None: unknown)
+    lost: int | None = None
+    #: finished (summary and footer present) though maybe damaged
+    finished: bool = False
+    #: one line per problem found (dropped chunks, unreadable bytes, CRCs, counts); empty for an intact file
+    damage: list[str] = field(default_factory=list)
+    #: the one-line verdict readers print (None for an intact file)
+    warning: str | None = None
     chunks: int = 0
+    #: chunks dropped as damaged (CRC, decompression, cut off, unreadable)
+    dropped_chunks: int = 0
     compression: set = field(default_factory=set)
     channels: list[ChannelInfo] = field(default_factory=list)
     metadata: list[tuple[str, dict]] = field(default_factory=list)
@@ -90,11 +107,24 @@ class McapInfo:
         lines = [f"file:        {self.path} ({self.size / 1024:.1f} KiB)",
                  f"library:     {self.library}", f"profile:     {self.profile or '(none)'}"]
         if self.complete:
-            lines.append("state:       complete (summary and footer present)")
-        else:
+            lines.append("state:       complete (summary and footer present; every CRC and the Statistics "
+                         "record's counts check)")
+        elif not self.finished:
             lines.append(f"state:       NOT FINISHED ({self.error or 'no footer'}); "
                          "run `gyrosim mcap recover` to make a valid copy")
-        lines.append(f"messages:    {self.messages}")
+        else:
+            lines.append("state:       DAMAGED; run `gyrosim mcap recover` to copy what is intact into a new file")
+        for d in self.damage:
+            if not d.startswith("not finished:"):
+                lines.append(f"  damage:    {d}")
+        if self.expected_messages is not None:
+            lost = f"; {self.lost} lost" if self.lost else ""
+            lines.append(f"messages:    {self.messages} read of the {self.expected_messages} the Statistics record "
+                         f"counts{lost}")
+        elif not self.complete:
+            lines.append(f"messages:    {self.messages} read (no intact Statistics record to count against)")
+        else:
+            lines.append(f"messages:    {self.messages}")
         lr = self.log_time_range
         if lr:
             lines.append(f"log time:    {stamp(lr[0])} .. {stamp(lr[1])} ({(lr[1] - lr[0]) / 1e9:.3f} s)")
@@ -102,7 +132,9 @@ class McapInfo:
         if pr:
             lines.append(f"publish:     {pr[0] / 1e9:.6f} s .. {pr[1] / 1e9:.6f} s "
                          f"({(pr[1] - pr[0]) / 1e9:.3f} s of simulation time for gyrosim channels)")
-        lines.append(f"chunks:      {self.chunks} ({', '.join(sorted(self.compression)) or 'uncompressed'})")
+        dropped = f", {self.dropped_chunks} dropped" if self.dropped_chunks else ""
+        lines.append(f"chunks:      {self.chunks}{' intact' if dropped else ''}{dropped} "
+                     f"({', '.join(sorted(self.compression)) or 'uncompressed'})")
         lines.append(f"channels:    {len(self.channels)}")
         w = max((len(c.topic) for c in self.channels), default=0)
         for c in self.channels:
@@ -123,19 +155,24 @@ class McapInfo:
 
 
 def mcap_info(path) -> McapInfo:
-    """Describe an MCAP file (complete or truncated).
+    """Describe an MCAP file (complete, truncated or damaged).
+
+    ``complete`` is True only for a finished file whose every CRC and count checks; ``damage`` names what does
+    not.
 
     Raises
     ------
+    RecordingNotFoundError, NotMcapError
+        It is not there, or holds no MCAP data (user errors).
     RecordingError
-        If it cannot be opened or is not MCAP.
+        If it cannot be read or is empty.
     """
     from mcap.records import Attachment, Channel, Message, Metadata
 
     path = os.fspath(path)
     scan = Scan(path)
     by_id: dict[int, ChannelInfo] = {}
-    info = McapInfo(path, os.path.getsize(path) if os.path.exists(path) else 0, "", "", False, None)
+    info = McapInfo(path, 0, "", "", False, None)
     meta: list[tuple[str, dict]] = []
     n_msg = n_att = 0
     for record in scan_records(path, scan):
@@ -148,7 +185,7 @@ def mcap_info(path) -> McapInfo:
                 by_id[record.id].foxglove_problems = check_foxglove_schema_data(schema.data)
         elif isinstance(record, Message):
             c = by_id.get(record.channel_id)
-            if c is None:
+            if c is None:  # a channel of the summary (yielded before) always exists
                 continue
             n_msg += 1
             c.messages += 1
@@ -166,25 +203,15 @@ def mcap_info(path) -> McapInfo:
     info.metadata = meta
     info.attachments = n_att
     info.complete = scan.complete
+    info.finished = scan.finished
     info.error = scan.error
+    info.expected_messages = scan.expected_messages
+    info.lost = scan.lost
+    info.damage = scan.damage_lines()
+    info.warning = scan.warning()
+    info.size = scan.size
     if scan.header is not None:
         info.profile, info.library = scan.header.profile, scan.header.library
-    info.compression, info.chunks = _chunks(path)
+    info.compression, info.chunks = set(scan.compression), scan.chunks
+    info.dropped_chunks = len(scan.damaged_chunks)
     return info
-
-
-def _chunks(path: str) -> tuple[set, int]:
-    """Compression names and number of the chunks (read without decompressing them)."""
-    from mcap.records import Chunk
-    from mcap.stream_reader import StreamReader
-
-    out, n = set(), 0
-    try:
-        with open(path, "rb") as f:
-            for record in StreamReader(f, emit_chunks=True, record_size_limit=1 << 31).records:
-                if isinstance(record, Chunk):
-                    out.add(record.compression or "none")
-                    n += 1
-    except Exception:  # a truncated tail: what was read is enough
-        pass
-    return out, n

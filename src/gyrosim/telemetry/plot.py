@@ -1,8 +1,9 @@
 """``gyrosim plot FILE.mcap``: PNG plots of attitude, body rates, energy and |L| from the state channels.
 
-Reads every ``gyrosim.BodyState`` channel (one line per body), tolerating a truncated file (with a warning that
-gives the counts), and writes ``<stem>_attitude.png``, ``<stem>_rates.png``, ``<stem>_energy.png`` and
-``<stem>_momentum.png`` (matplotlib's Agg backend, no display needed); a recording of a tree scene with hinges
+Reads every ``gyrosim.BodyState`` channel (one line per body), tolerating a truncated or damaged file (one
+warning line with the counts: what was dropped, how many messages were lost against the Statistics record), and
+writes ``<stem>_attitude.png``, ``<stem>_rates.png``, ``<stem>_energy.png`` and ``<stem>_momentum.png``
+(matplotlib's Agg backend, no display needed); a recording of a tree scene with hinges
 also ``<stem>_joints.png`` (every hinge's angle and rate). A tree body's attitude panel shows the ZYZ angles of
 its world attitude ``q``; the scene-wide energy and angular momentum a tree's bodies all carry are drawn once per
 scene.
@@ -170,7 +171,7 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     Parameters
     ----------
     path : str or os.PathLike
-        The MCAP file. A truncated file is plotted as far as it can be read, with a warning (logger
+        The MCAP file. A truncated or damaged file is plotted from what is intact, with one warning (logger
         ``gyrosim.plot``) giving the counts.
     output_dir : str, optional
         Folder for the PNGs (created if missing); default: next to the file.
@@ -188,7 +189,7 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     path = os.fspath(path)
     scan = Scan(path)
     series = read_states(path, scan)
-    if (warning := scan.truncation_warning()) is not None:
+    if (warning := scan.warning()) is not None:
         log.warning("%s; plotting what was read", warning)
     if not series:
         raise RecordingError(f"{path!r} holds no {msg.STATE_SCHEMA_NAME} channel to plot")
@@ -267,9 +268,15 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     paths = []
     for name, fig in figures:
         out = os.path.join(output_dir, f"{stem}_{name}.png")
-        try:
-            fig.savefig(out, dpi=dpi)
+        tmp = os.path.join(output_dir, f".{stem}_{name}.{os.getpid()}.part")
+        try:  # a plot replaces an existing one only once it is written whole
+            fig.savefig(tmp, dpi=dpi, format="png")
+            os.replace(tmp, out)
         except OSError as e:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
             raise RecordingError(f"cannot write plot {out!r}: {e.strerror or e}") from None
         finally:
             plt.close(fig)

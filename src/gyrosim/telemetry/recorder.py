@@ -166,7 +166,9 @@ class Recorder:
             self._file: IO[bytes] = open(self.path, "wb")
         except OSError as e:
             raise _io_error(self.path, e, "create") from None
-        self._writer = Writer(self._file, chunk_size=int(chunk_size), compression=comp[compression])
+        # CRCs of every chunk, of the summary and of the whole data section: readers check them all
+        self._writer = Writer(self._file, chunk_size=int(chunk_size), compression=comp[compression],
+                              enable_crcs=True, enable_data_crcs=True)
         self._schemas: dict[tuple, int] = {}
         self._channels: dict[tuple[str, str], int] = {}
         self._channel_topic: dict[int, str] = {}
@@ -179,6 +181,20 @@ class Recorder:
                     "write")
         if metadata:
             self.add_metadata(METADATA_NAME, metadata)
+
+    @staticmethod
+    def check_writable(path) -> None:
+        """Raise the :class:`RecordingError` that creating ``path`` would raise (its folder missing, it being a
+        folder, no permission), without creating or touching anything: a command checks its output this way
+        before it opens sessions, so an existing recording is replaced only by a run that got going."""
+        path = os.fspath(path)
+        folder = os.path.dirname(os.path.abspath(path))
+        if os.path.isdir(path):
+            raise _io_error(path, OSError(errno.EISDIR, "Is a directory"), "create")
+        if not os.path.isdir(folder):
+            raise _io_error(path, OSError(errno.ENOENT, "No such file or directory"), "create")
+        if not os.access(folder, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
+            raise _io_error(path, OSError(errno.EACCES, "Permission denied"), "create")
 
     # ----------------------------------------------------------------------------------------- plumbing
     def _guard(self, fn, doing: str = "write"):
