@@ -142,6 +142,8 @@ def test_a_blow_up_writes_the_rows_before_and_exits_1(tmp_path, capsys):
 
 
 def test_show_plot_without_a_display_saves_a_png(tmp_path, monkeypatch, capsys):
+    """One panel per quantity (the bare name where a panel holds one), offset-free labels, energy_error apart from
+    energy, and the gyroscope's quaternion (it turns with the 200 rad/s spin) left out where its angles are drawn."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -151,15 +153,76 @@ def test_show_plot_without_a_display_saves_a_png(tmp_path, monkeypatch, capsys):
     real = cli.show_plot
     monkeypatch.setattr(cli, "show_plot", lambda *a, **k: figs.append(real(*a, **k)))
     out = tmp_path / "g.csv"
-    assert main(["simulate", "gyroscope", "--stop-time", "1", "--output-variables", "theta", "omega_z", "energy",
-                 "-o", str(out), "--show-plot"]) == 0
+    assert main(["simulate", "gyroscope", "--stop-time", "2", "-o", str(out), "--show-plot"]) == 0
     assert (tmp_path / "g.png").stat().st_size > 10_000
     assert f"plot saved to {tmp_path / 'g.png'}" in capsys.readouterr().err
     (fig,) = figs
     axes = fig.get_axes()
-    assert [a.get_ylabel() for a in axes] == ["theta [rad]", "omega_z [rad/s]", "energy [J]"]
+    labels = [a.get_ylabel() for a in axes]
+    assert len(axes) <= 9 and "energy [J]" in labels and "energy_error [J]" in labels, labels
+    assert any(lab.startswith("rates [rad/s]") or lab.startswith("omega") for lab in labels)
+    assert any("momentum" in lab or lab.startswith("L_") for lab in labels)
+    assert not any(lab.startswith("attitude") for lab in labels)
+    assert "not drawn: q_w, q_x, q_y, q_z" in fig._suptitle.get_text()
     assert all(a.yaxis.get_major_formatter().get_useOffset() is False for a in axes)  # no offset-only axes
-    assert len(axes[0].lines[0].get_xdata()) == 101
+    drawn = {line.get_label().split(" ")[0] for a in axes for line in a.lines}
+    assert drawn == {"phi", "theta", "psi", "omega_x", "omega_y", "omega_z", "L_x", "L_y", "L_z", "energy",
+                     "energy_error"}
+
+
+def test_show_plot_of_a_tree_and_a_selection(tmp_path, monkeypatch):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from gyrosim import cli
+
+    figs = []
+    real = cli.show_plot
+    monkeypatch.setattr(cli, "show_plot", lambda *a, **k: figs.append(real(*a, quiet=True)))
+    assert main(["simulate", "spacecraft", "--stop-time", "1", "-o", str(tmp_path / "s.csv"), "--show-plot",
+                 "-q"]) == 0
+    assert main(["simulate", "free_body", "--stop-time", "1", "-o", str(tmp_path / "f.csv"), "--show-plot", "-q",
+                 "--output-variables", "q_w", "q_x", "energy"]) == 0
+    tree, few = figs
+    labels = [a.get_ylabel() for a in tree.get_axes()]
+    assert labels[0] == "attitude [1]" and "angle [rad]" in labels and "rates [rad/s]" in labels
+    drawn = {line.get_label().split(" ")[0] for a in tree.get_axes() for line in a.lines}
+    assert "hub.q_w" in drawn and not any("q_world" in d for d in drawn)  # hub's q says it; wheels have angles
+    assert [a.get_ylabel() for a in few.get_axes()] == ["attitude [1]", "energy [J]"]
+    assert (tmp_path / "s.png").is_file() and (tmp_path / "f.png").is_file()
+
+
+def test_a_fast_spin_is_an_envelope_without_a_false_beat():
+    """A 200 rad/s spin sampled at 100 Hz (3.14 samples a turn) for 10 s: its samples' per-window maxima beat
+    between 0.96 and 1 (the drawing the issue showed); the envelope follows the true peaks +-1 within 0.5 % in every
+    window and its middle is 0 within 0.5 %."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from gyrosim import cli
+
+    t = np.arange(1001) * 0.01
+    x = np.cos(200.0 * t)
+    w = 8  # windows of about two turns of raw samples: the beat is there
+    raw_max = np.maximum.reduceat(x, np.arange(0, len(x), w))
+    assert raw_max.min() < 0.97
+    assert cli._is_fast(x, 720) and not cli._is_fast(np.sin(0.7 * t), 720)
+    tm, lo, hi, mid = cli._envelope(t, x, 720, cli._period_samples(x))
+    assert len(tm) > 50 and tm[0] == 0.0 and tm[-1] == t[-1]
+    assert np.all(np.abs(hi - 1.0) < 5e-3) and np.all(np.abs(lo + 1.0) < 5e-3), (hi.min(), lo.max())
+    assert np.all(np.abs(mid) < 5e-3)
+    fig, ax = plt.subplots()
+    assert cli._draw_series(ax, t, x, "omega_x", 720, "C0") is True
+    assert ax.lines[0].get_label() == "omega_x (band)" and len(ax.collections) == 1
+    # a slow signal of many samples: a line through each pixel column's first, last, lowest and highest sample
+    t2 = np.linspace(0.0, 10.0, 200_001)
+    y = np.sin(0.7 * t2) + 1e-3 * np.sin(1000.0 * t2) * (t2 > 20)
+    assert cli._draw_series(ax, t2, y, "slow", 720, "C1") is False
+    line = ax.lines[-1]
+    assert len(line.get_xdata()) <= 4 * 721 and line.get_ydata().max() == y.max() and line.get_ydata().min() == y.min()
+    plt.close(fig)
 
 
 # ----------------------------------------------------------------------------------------------- gyrosim info
@@ -215,7 +278,7 @@ def test_missing_files_say_not_found(tmp_path, capsys):
 
 
 def test_fmu_build_to_an_unwritable_folder_is_one_clear_line(capsys):
-    assert main(["fmu", "build", "free_body", "-o", "/proc/nope"]) == 1
+    assert main(["fmu", "build", "free_body", "-o", "/proc/nope"]) == 2  # a bad --output, found before compiling
     err = capsys.readouterr().err.strip()
     assert err.startswith("gyrosim fmu build: error: cannot write the FMU to --output '/proc/nope'")
     assert len(err.splitlines()) == 1 and "Errno" not in err
@@ -254,3 +317,116 @@ def test_quiet_and_verbose_change_what_simulate_says(tmp_path, capsys):
     assert "integrator splitting" in err and "11 rows of 16 columns" in err and "wrote" in err
     assert main(["fmu", "build", "--fmi-version", "2", "-o", str(tmp_path), "-q"]) == 0
     assert capsys.readouterr().out == "" and (tmp_path / "RigidBody.fmu").is_file()
+
+
+# ------------------------------------------------------------------------------------------ issue 24: help, codes
+OWN = (["simulate"], ["info"], ["bench"], ["fmu", "build"], ["sweep"], ["sweep-plot"], ["cosim"])
+
+
+@pytest.mark.parametrize("cmd", OWN, ids=" ".join)
+def test_help_shows_each_default_once_and_never_none(cmd):
+    import argparse
+
+    from gyrosim.cli import build_parser
+
+    parser = build_parser()
+    sub = parser
+    for word in cmd:
+        action = next(a for a in sub._actions if isinstance(a, argparse._SubParsersAction))
+        sub = action.choices[word]
+    text = sub.format_help()
+    for bad in ("default: None", "(default: False)"):
+        assert bad not in text, (cmd, bad)
+    for action in sub._actions:
+        assert (action.help or "").count("default") <= 1, action.help
+
+
+def test_the_scene_lists_name_every_embedded_scene():
+    from gyrosim.cli import SCENE_NAMES
+    from gyrosim.scene import EMBEDDED_SCENES
+
+    assert SCENE_NAMES == (*EMBEDDED_SCENES, "full")
+    for cmd in (["simulate"], ["info"], ["fmu", "build"], ["sweep"]):
+        text = " ".join(_help(cmd).split())
+        assert all(name in text for name in SCENE_NAMES), cmd
+
+
+def _help(cmd):
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), pytest.raises(SystemExit):
+        main([*cmd, "--help"])
+    return out.getvalue()
+
+
+def test_errors_take_their_code_and_line_from_the_one_mapping(monkeypatch, capsys):
+    from gyrosim import cli
+
+    def fail(exc):
+        def handler(args):
+            raise exc
+        return handler
+
+    cases = [(RuntimeError("the compiler failed"), 1, "error: the compiler failed"),
+             (PermissionError(13, "Permission denied", "/x/y.csv"), 1, "error: '/x/y.csv': Permission denied"),
+             (FileNotFoundError(2, "No such file or directory", "a.csv"), 2, "'a.csv': No such file or directory"),
+             (KeyError("bug"), 1, "error: internal error (KeyError: 'bug'); please report it"),
+             (KeyboardInterrupt(), 130, "gyrosim info: interrupted")]
+    for exc, rc, msg in cases:
+        monkeypatch.setattr(cli, "cmd_info", fail(exc))
+        assert main(["info", "free_body"]) == rc
+        err = capsys.readouterr().err
+        assert msg in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("argv,msg", [
+    (["--output-interval", "2", "--stop-time", "1"], "--output-interval = 2.0 is not allowed: at most the run's"),
+    (["--stop-time", "1e9"], "--stop-time = 1000000000.0 is not allowed: a run of fewer than 1e+09 rows"),
+    (["--stop-time", "1e300", "--output-interval", "1e-10"], "--output-interval = 1e-10 is not allowed"),
+    (["--relative-tolerance", "1"], "a number from 1e-15 to 1 (exclusive)"),
+    (["--set", "=2"], "--set = '=2' is not allowed: NAME=VALUE with a variable name before '='"),
+])
+def test_runs_that_cannot_be_meant_are_refused(argv, msg, capsys, tmp_path):
+    assert main(["simulate", "free_body", *argv, "-o", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "x.csv").exists()
+
+
+# ---------------------------------------------------------------------------------------------- --input-file
+def test_input_file_drives_the_inputs_as_gyrosim_simulate_does(tmp_path):
+    """FMPy's CSV format read before the run: the CSV holds the bits of gyrosim.simulate(input=...)."""
+    import gyrosim
+    from gyrosim.inputs import read_input_csv
+
+    u = tmp_path / "u.csv"
+    u.write_text("time,tau_z,tau_x\n0,0,0\n0.5,0.2,0\n0.5,0.4,0.1\n1,0,0\n")
+    out = tmp_path / "o.csv"
+    assert main(["simulate", "full", "--input-file", str(u), "--stop-time", "1", "--output-interval", "0.05",
+                 "-o", str(out), "-q"]) == 0
+    header, data = read(out)
+    ref = gyrosim.simulate("full", stop_time=1.0, output_interval=0.05, input=read_input_csv(u))
+    for k, name in enumerate(header):
+        np.testing.assert_array_equal(data[:, k], ref[name])
+    still = gyrosim.simulate("full", stop_time=1.0, output_interval=0.05)
+    assert not np.array_equal(ref["omega_z"], still["omega_z"])  # the torque acted
+
+
+@pytest.mark.parametrize("text,msg", [
+    ("time,tau_z\n0,1\n0.5,x\n", "line 3"),
+    ("tau_z,time\n0,1\n", "time"),
+    ("time,tau_q\n0,1\n", "input = 'tau_q' is not allowed: an input of scene 'full' (did you mean 'tau_"),
+    ("time,tau_z\n1,0\n0,0\n", "time must not decrease"),
+    ("", "u.csv"),
+])
+def test_a_bad_input_file_is_one_line_and_nothing_is_written(tmp_path, capsys, text, msg):
+    u = tmp_path / "u.csv"
+    u.write_text(text)
+    out = tmp_path / "o.csv"
+    out.write_text("finished\n")
+    assert main(["simulate", "full", "--input-file", str(u), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert out.read_text() == "finished\n"

@@ -94,3 +94,27 @@ def test_shape_inertia_is_shifted_to_the_pivot(tmp_path):
     assert m.get("I1") == pytest.approx(c.I_xx + 2.0 * 0.04)
     assert m.get("I3") == pytest.approx(c.I_zz)
     assert m.get("mass") == 2.0
+
+
+def test_messages_show_plain_numbers(tmp_path):
+    """Issue 24: "principal (I1) = -1.0", not "np.float64(-1.0)"."""
+    for body in ("inertia = {principal = [-1, 2, 3]}", "inertia = {principal = [1, 2, 4]}",
+                 "inertia = {principal = [1, 2, 3]}\nspread = {I = 0.5, seed = 1}\ncount = 50"):
+        p = write(tmp_path, f'[scene]\nname = "x"\n[[body]]\n{body}\n')
+        try:
+            load_scene(p)
+        except ConfigError as e:
+            assert "np." not in str(e) and "array(" not in str(e), str(e)
+    with pytest.raises(ConfigError, match=r"principal \(I1\) = -1.0 is not allowed"):
+        load_scene(write(tmp_path, '[scene]\nname = "x"\n[[body]]\ninertia = {principal = [-1, 2, 3]}\n'))
+
+
+@pytest.mark.parametrize("tol,ok", [(1e-15, True), (0.5, True), (1e-16, False), (1e-20, False), (1.0, False),
+                                    (0.0, False)])
+def test_a_tolerance_double_precision_cannot_meet_is_refused(tmp_path, tol, ok):
+    p = write(tmp_path, f'[scene]\nname = "x"\ntolerance = {tol!r}\n[[body]]\ninertia = {{principal = [1, 2, 3]}}\n')
+    if ok:
+        assert load_scene(p).tolerance == tol
+    else:
+        with pytest.raises(ConfigError, match=r"tolerance = .* is not allowed: a number from 1e-15 to 1"):
+            load_scene(p)

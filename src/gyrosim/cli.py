@@ -9,12 +9,13 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import os
 import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import GyrosimError
+from .errors import ConfigError, GyrosimError, exit_code, one_line
 
 __all__ = ["main", "build_parser", "add_verbosity", "verbosity", "scene_info", "fmu_info", "show_plot"]
 
@@ -46,8 +47,10 @@ def _parse_set(items):
     out = {}
     for item in items or ():
         if "=" not in item:
-            raise GyrosimError(f"--set {item!r} is not allowed: use NAME=VALUE, e.g. --set I1=2.0")
+            raise ConfigError("--set", item, "NAME=VALUE, e.g. --set I1=2.0")
         k, v = item.split("=", 1)
+        if not k.strip():
+            raise ConfigError("--set", item, "NAME=VALUE with a variable name before '=', e.g. --set I1=2.0")
         out[k.strip()] = v.strip()
     return out
 
@@ -66,18 +69,27 @@ def _start_values(args) -> dict:
     return values
 
 
+#: The smallest relative tolerance (gyrosim.scene.MIN_TOLERANCE, written here so that the parser does not import the
+#: engine): double precision (eps = 2.2e-16) cannot meet less.
+MIN_TOLERANCE = 1e-15
+
+
+#: The most rows ``gyrosim simulate`` writes (at about 25 us and 300 bytes a row: 7 hours, 300 GB).
+MAX_ROWS = 10 ** 9
+
+
 def _check_times(args) -> None:
     """Name the flag (not the Python argument) when a time, step or tolerance is not allowed."""
-    import math
-
-    from .errors import ConfigError
-
     if not math.isfinite(args.start_time):
         raise ConfigError("--start-time", args.start_time, "a finite number in s")
     for flag, value in (("--stop-time", args.stop_time), ("--output-interval", args.output_interval),
-                        ("--max-step", args.max_step), ("--relative-tolerance", args.relative_tolerance)):
+                        ("--max-step", args.max_step)):
         if value is not None and not (math.isfinite(value) and value > 0):
-            raise ConfigError(flag, value, "a finite number > 0" + ("" if flag == "--relative-tolerance" else " in s"))
+            raise ConfigError(flag, value, "a finite number > 0 in s")
+    tol = args.relative_tolerance
+    if tol is not None and not (MIN_TOLERANCE <= tol < 1.0):
+        raise ConfigError("--relative-tolerance", tol, f"a number from {MIN_TOLERANCE:g} to 1 (exclusive): "
+                          "double precision cannot meet a smaller relative tolerance")
     if args.stop_time is not None and args.stop_time <= args.start_time:
         raise ConfigError("--stop-time", args.stop_time, f"a time after --start-time = {args.start_time!r} s")
 
@@ -90,54 +102,105 @@ def _write_rows(fh, block) -> None:
     fh.write("".join(",".join(map(repr, row)) + "\n" for row in flat))
 
 
-def cmd_simulate(args) -> int:
-    """Run a scene and write one CSV row per output interval (FMPy's ``fmpy simulate`` habits)."""
-    import time
+def _read_input_file(path):
+    """``--input-file FILE.csv``: FMPy's input format, read before anything runs or is written."""
+    try:
+        from .inputs import read_input_csv
+    except ModuleNotFoundError as e:  # pragma: no cover - gyrosim.inputs is part of the package
+        raise GyrosimError(f"--input-file needs gyrosim.inputs ({e})") from None
+    p = Path(path)
+    if not p.is_file():
+        raise GyrosimError(f"--input-file {str(p)!r} {'is a folder' if p.is_dir() else 'not found'}")
+    try:
+        return read_input_csv(p)
+    except OSError as e:
+        raise GyrosimError(f"--input-file {str(p)!r} cannot be read: {e.strerror or e}") from None
 
-    from .errors import IntegrationError
+
+def prepare_simulate(args):
+    """Every check of ``gyrosim simulate``'s arguments, the scene, the input file and the output path, before
+    anything runs or is written: ``(run, output path)``. Raises what :func:`main` maps to exit code 2."""
+    from ._atomic import check_writable
     from .trajectory import Run
 
-    v = verbosity(args)
     _check_times(args)
-    run = Run(args.scene, start_values=_start_values(args), start_time=args.start_time, stop_time=args.stop_time,
-              output_interval=args.output_interval, integrator=args.integrator, max_step=args.max_step,
-              relative_tolerance=args.relative_tolerance, output=args.output_variables)
-    model = run.model
+    kw = {}
+    if getattr(args, "input_file", None):
+        kw["input"] = _read_input_file(args.input_file)
+    try:
+        run = Run(args.scene, start_values=_start_values(args), start_time=args.start_time,
+                  stop_time=args.stop_time, output_interval=args.output_interval, integrator=args.integrator,
+                  max_step=args.max_step, relative_tolerance=args.relative_tolerance, output=args.output_variables,
+                  **kw)
+    except OverflowError:  # (stop - start) / interval beyond any integer a float holds
+        run = None
+    if run is not None and run.n == 0:
+        raise ConfigError("--output-interval", run.dt, f"at most the run's length, {run.stop_time - run.t0!r} s "
+                          "from --start-time to --stop-time")
+    if run is None or run.n >= MAX_ROWS:
+        raise ConfigError("--output-interval" if args.output_interval is not None else "--stop-time",
+                          args.output_interval if args.output_interval is not None else args.stop_time,
+                          f"a run of fewer than {MAX_ROWS:.0e} rows (hundreds of GB of CSV, hours of writing): "
+                          "a longer --output-interval or a shorter --stop-time")
+    # the checks the model makes at its first step (moments, quaternion, 'exact' on a body under a torque, work
+    # per engine call), made now: a run that would be refused has not opened its output
+    run.model.initialize()
+    run.model._check_call(run.dt, "output interval")
     out = Path(args.output_file) if args.output_file else Path(f"{run.scene.name}_out.csv")
+    check_writable(out, "--output-file")
+    if args.show_plot:
+        check_writable(out.with_suffix(".png"), "--show-plot")
+    return run, out
+
+
+def cmd_simulate(args) -> int:
+    """Run a scene and write one CSV row per output interval (FMPy's ``fmpy simulate`` habits). The CSV is written
+    to a temporary file beside the target and renamed into place: an existing result is replaced only by a
+    finished run (or by the rows before a blow-up, which the message says)."""
+    import time
+
+    from ._atomic import atomic_path
+    from .errors import IntegrationError
+
+    v = verbosity(args)
+    run, out = prepare_simulate(args)
+    model = run.model
     if v > 0:
         bodies = f"{model.n_bodies} bod{'y' if model.n_bodies == 1 else 'ies'}"
         print(f"scene {run.scene.name} ({run.scene.source}), {bodies}, integrator {model.integrator}, "
               f"max_step {model.max_step:g} s, tolerance {model.tolerance:g}, "
               f"t = {run.t0:g} .. {run.stop_time:g} s every {run.dt:g} s: {run.n + 1} rows of "
               f"{1 + len(run.names)} columns -> {out}", file=sys.stderr)
-    try:
-        fh = out.open("w", newline="")
-    except OSError as e:
-        raise GyrosimError(f"--output-file {str(out)!r} cannot be written: {e.strerror}") from None
     # the engine produces the grid in chunks (one call each, no Python per step); rows are formatted in bulk
     chunk = max(1, min(run.n, 200_000 // max(1, model.n_bodies)))
     kept = [] if args.show_plot else None
     bar, t_wall, done = None, time.perf_counter(), 0
-    with fh:
-        fh.write(",".join(["time", *run.names]) + "\n")
+    with atomic_path(out, keep_on=(IntegrationError,)) as tmp:
         try:
-            for block in run.chunks(chunk):
-                _write_rows(fh, block)
-                if kept is not None:
-                    kept.append(block)
-                done += len(block)
-                if bar is not None:
-                    bar.update(len(block))
-                elif v >= 0 and done <= run.n and time.perf_counter() - t_wall > 0.5:
-                    from tqdm import tqdm
+            fh = tmp.open("w", newline="")
+        except OSError as e:
+            raise GyrosimError(f"--output-file {str(out)!r} cannot be written: {e.strerror or e}") from None
+        with fh:
+            fh.write(",".join(["time", *run.names]) + "\n")
+            try:
+                for block in run.chunks(chunk):
+                    _write_rows(fh, block)
+                    if kept is not None:
+                        kept.append(block)
+                    done += len(block)
+                    if bar is not None:
+                        bar.update(len(block))
+                    elif v >= 0 and done <= run.n and time.perf_counter() - t_wall > 0.5:
+                        from tqdm import tqdm
 
-                    bar = tqdm(total=run.n + 1, initial=done, unit="row", desc=f"simulate {run.scene.name}",
-                               file=sys.stderr)
-        except IntegrationError as e:
-            _write_rows(fh, e.rows)  # the rows before the blow-up, then the message and exit code 1
-            if bar is not None:
-                bar.close()
-            raise IntegrationError(f"{e}\n(wrote the {done + len(e.rows)} rows before it to {out})") from None
+                        bar = tqdm(total=run.n + 1, initial=done, unit="row", desc=f"simulate {run.scene.name}",
+                                   file=sys.stderr)
+            except IntegrationError as e:
+                _write_rows(fh, e.rows)  # the rows before the blow-up, then the message and exit code 1
+                if bar is not None:
+                    bar.close()
+                fh.close()
+                raise IntegrationError(f"{e}; wrote the {done + len(e.rows)} rows before it to {out}") from None
     if bar is not None:
         bar.close()
     if v >= 0:
@@ -150,33 +213,253 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+#: ``--show-plot``'s panels, in order: (title, test on a bare output name). An output no test takes gets a panel of
+#: its own name.
+_QUANTITIES = (
+    ("attitude", lambda b: b.startswith("q_")),
+    ("angles", lambda b: b in ("phi", "theta", "psi", "angle")),
+    ("rates", lambda b: b.startswith("omega_") or b == "rate"),
+    ("position", lambda b: b in ("r_x", "r_y", "r_z")),
+    ("velocity", lambda b: b in ("v_x", "v_y", "v_z")),
+    ("momentum", lambda b: b.startswith("L_")),
+    ("energy", lambda b: b in ("energy", "energy_error")),
+)
+#: Series in one panel span at most this ratio of magnitudes; a smaller one gets a panel of its own (energy_error
+#: beside energy, a nutation angle beside the spin angle), at most :data:`_MAX_SPLIT` panels per quantity.
+_SCALE_RATIO = 30.0
+_MAX_SPLIT = 3
+#: Lines drawn per panel at most (a scene of many bodies: the first ones, and the title says so).
+_MAX_LINES = 12
+
+
+def _quantity(bare: str) -> str:
+    return next((title for title, test in _QUANTITIES if test(bare)), bare)
+
+
+def _period_samples(x) -> float:
+    """Samples per oscillation of the fastest visible part of ``x``: 2 * samples / local extrema (inf if none)."""
+    import numpy as np
+
+    d = np.sign(np.diff(x[np.isfinite(x)]))
+    d = d[d != 0]
+    turns = int(np.count_nonzero(d[1:] != d[:-1])) if d.size > 1 else 0
+    return 2.0 * len(x) / turns if turns else math.inf
+
+
+def _is_fast(x, columns: int) -> bool:
+    """A fast signal: finite, not a constant, and an oscillation of fewer than 8 samples or 4 pixel columns (or
+    noise)."""
+    import numpy as np
+
+    n = len(x)
+    if n <= 16 or not np.isfinite(x).all() or np.ptp(x) <= 1e-9 * np.max(np.abs(x)):  # round-off on a constant
+        return False
+    return _period_samples(x) < max(8.0, 4.0 * n / columns)
+
+
+def _envelope(t, x, columns: int, period: float):
+    """The min/max envelope of a fast signal and its slow part: ``(times, low, high, slow)``.
+
+    The samples are first interpolated to at least 64 points an oscillation (``scipy.signal.resample_poly`` of the
+    signal less its straight-line trend: the band-limited signal between the samples, whose peaks fall between
+    them), then the envelope is the lowest and highest value in windows of at least two oscillations and one pixel
+    column: it follows the true peaks, with no jagged edges and no beat between the oscillation and the sampling.
+    Over the first and last 16 samples (the interpolation's reach) a window holds its samples and the band of its
+    nearest full window.
+    The slow part is the middle of the envelope in each window."""
+    import numpy as np
+    from scipy.signal import firwin, resample_poly
+
+    n = len(x)
+    up = min(max(1, math.ceil(64.0 / period)), max(1, 2_000_000 // n))
+    edge = 0
+    if up > 1:
+        tu = t[0] + (t[-1] - t[0]) * np.arange((n - 1) * up + 1) / ((n - 1) * up)
+        trend = x[0] + (x[-1] - x[0]) * (tu - t[0]) / (t[-1] - t[0])
+        line = x[0] + (x[-1] - x[0]) * (t - t[0]) / (t[-1] - t[0])
+        # a low-pass over 32 samples of x (Kaiser beta 6): within 1e-3 of a sinusoid of 3 samples a turn, but over
+        # the first and last 16 samples, where it lacks the samples it needs
+        h = firwin(32 * up + 1, 1.0 / up, window=("kaiser", 6.0))
+        xu = resample_poly(x - line, up, 1, window=h, padtype="line")[: len(tu)] + trend
+        edge = min(16 * up, len(xu) // 2)
+        xu[:edge] = np.interp(tu[:edge], t, x)
+        xu[len(xu) - edge:] = np.interp(tu[len(xu) - edge:], t, x)
+    else:
+        xu, tu = x, t
+    w = max(2, math.ceil(max(len(xu) / columns, 2.0 * period * up)))
+    starts = np.arange(0, len(xu), w)
+    if len(starts) > 1 and len(xu) - starts[-1] < w // 2:  # a short last window joins the one before
+        starts = starts[:-1]
+    ends = np.append(starts[1:], len(xu)) - 1
+    lo, hi = np.minimum.reduceat(xu, starts), np.maximum.reduceat(xu, starts)
+    if edge:  # a window reaching into the first or last 16 samples: its samples and its nearest full neighbour's band
+        trusted = np.flatnonzero((starts >= edge) & (ends < len(xu) - edge))
+        if trusted.size:
+            near = trusted[np.clip(np.searchsorted(trusted, np.arange(len(starts))), 0, trusted.size - 1)]
+            near = np.where(np.arange(len(starts)) < trusted[0], trusted[0], near)
+            lo, hi = np.minimum(lo, lo[near]), np.maximum(hi, hi[near])
+    tm = 0.5 * (tu[starts] + tu[ends])
+    tm[0], tm[-1] = tu[0], tu[-1]  # the band spans the whole run
+    return tm, lo, hi, 0.5 * (lo + hi)
+
+
+def _draw_series(ax, t, x, label: str, columns: int, color) -> bool:
+    """Draw one series so that no sampling artefact shows: a fast signal (an oscillation of fewer than 8 samples or
+    4 pixel columns, or noise) as its min/max envelope (shaded) and its slow part (a line), :func:`_envelope`; a slow
+    one as a line through the first, last, lowest and highest sample of each pixel column (what the column shows,
+    however many samples). Returns whether it drew an envelope."""
+    import numpy as np
+
+    n = len(x)
+    per_col = n / columns
+    finite = np.isfinite(x)
+    if _is_fast(x, columns):
+        tm, lo, hi, slow = _envelope(t, np.asarray(x, dtype=float), columns, _period_samples(x))
+        ax.fill_between(tm, lo, hi, color=color, alpha=0.3, lw=0)
+        ax.plot(tm, slow, color=color, lw=0.9, label=f"{label} (band)")
+        return True
+    if n > 2 * columns:
+        w = math.ceil(per_col)
+        starts = np.arange(0, n, w)
+        ends = np.minimum(starts + w, n) - 1
+        safe = np.where(finite, x, 0.0)
+        rows = np.concatenate([safe, np.full(len(starts) * w - n, np.nan)]).reshape(len(starts), w)
+        lowest, highest = np.nanargmin(rows, axis=1) + starts, np.nanargmax(rows, axis=1) + starts
+        keep = np.unique(np.concatenate([starts, ends, lowest, highest]))
+        ax.plot(t[keep], x[keep], color=color, lw=0.9, label=label)
+        return False
+    ax.plot(t, x, color=color, lw=0.9, label=label)
+    return False
+
+
+def _readable(result, names, columns: int):
+    """``(names to draw, names left out)``: a body's quaternion is left out where it is fast (it turns with the spin:
+    four overlapping bands) and the same body's ZYZ angles are drawn, which show its attitude readably."""
+    hidden = []
+    for body in {n.rpartition(".")[0] for n in names}:
+        pre = f"{body}." if body else ""
+        quat = [f"{pre}q_{c}" for c in "wxyz" if f"{pre}q_{c}" in names]
+        if quat and any(f"{pre}{a}" in names for a in ("phi", "theta", "psi")) and any(
+                _is_fast(result[q], columns) for q in quat):
+            hidden += quat
+    return [n for n in names if n not in hidden], hidden
+
+
+def _panels(result, names):
+    """``[(quantity, [names])]``: the outputs grouped by quantity, each group split where its series' magnitudes
+    differ by more than :data:`_SCALE_RATIO` (at most :data:`_MAX_SPLIT` panels a quantity)."""
+    import numpy as np
+
+    bodies_with_joint_attitude = {n.rsplit(".", 1)[0] for n in names
+                                  if "." in n and (n.rsplit(".", 1)[1] in ("angle",) or n.rsplit(".", 1)[1]
+                                                   in ("q_w", "q_x", "q_y", "q_z"))}
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        body, _, bare = name.rpartition(".")
+        if bare.startswith("q_world_") and body in bodies_with_joint_attitude:
+            continue  # a tree body's world attitude where its joint's angle or quaternion says it
+        groups.setdefault(_quantity(bare), []).append(name)
+    order = [q for q, _ in _QUANTITIES]
+    panels = []
+    for quantity in sorted(groups, key=lambda q: order.index(q) if q in order else len(order)):
+        members = groups[quantity]
+        scale = {}
+        for name in members:
+            x = np.asarray(result[name], dtype=float)
+            x = x[np.isfinite(x)]
+            scale[name] = float(np.max(np.abs(x))) if x.size else 0.0
+        top = max(scale.values())
+        ranked = sorted(members, key=lambda m: -scale[m])
+        split: list[list[str]] = []
+        for name in ranked:
+            s = scale[name]
+            tiny = s == 0.0 or (s <= 1e-12 * top and not name.endswith("energy_error"))
+            if not split or (len(split) < _MAX_SPLIT and not tiny and s * _SCALE_RATIO < scale[split[-1][0]]):
+                split.append([name])
+            elif tiny:  # zeros and round-off: with the largest (energy_error's round-off is worth its panel)
+                split[0].append(name)
+            else:
+                split[-1].append(name)
+        for part in split:
+            panels.append((quantity, sorted(part, key=members.index)))
+    return panels
+
+
+def _set_limits(ax, values) -> None:
+    """Offset-free y limits: at least 1e-3 of the largest magnitude wide (a constant, or one that varies by
+    round-off only, is a flat line with plain tick labels, not 0.003065625000002), and symmetric about 0 at 0."""
+    import numpy as np
+
+    v = np.concatenate([np.asarray(a, dtype=float).ravel() for a in values]) if values else np.zeros(1)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return
+    lo, hi = float(v.min()), float(v.max())
+    big = max(abs(lo), abs(hi))
+    least = 1e-3 * big if big > 0 else 1.0
+    if hi - lo < least:
+        mid = 0.5 * (lo + hi)
+        ax.set_ylim(mid - 0.5 * least, mid + 0.5 * least)
+    ax.ticklabel_format(axis="y", useOffset=False, style="sci", scilimits=(-3, 4))
+
+
 def show_plot(result, run, csv_path: Path, *, quiet: bool = False):
-    """Plot a result (FMPy's ``--show-plot``): one panel per output name (every body's line in it), plain tick
-    labels (no offset notation), thin lines. Opens a window; with a non-interactive matplotlib backend (no display)
-    the figure is saved next to the CSV as a PNG instead. Returns the figure."""
+    """Plot a result (FMPy's ``--show-plot``), one panel per quantity: attitude (the quaternion ``q``, or a tree
+    body's ``q_world`` where its joint has no angle or quaternion), angles (phi, theta, psi, hinge angles), rates
+    (omega, hinge rates), position and velocity (free joints), momentum (L), energy (energy, energy_error). A quantity
+    whose series differ in size by more than 30 times is split (energy_error gets its own panel); tick labels carry
+    no offset, and a constant is a flat line. A fast signal (fewer than 8 samples or 4 pixel columns an oscillation:
+    a 200 rad/s spin sampled at 100 Hz) is drawn as its min/max envelope with its mean, never as aliased samples.
+
+    Opens a window; with a non-interactive matplotlib backend (no display) the figure is saved next to the CSV as a
+    PNG instead (written beside it and renamed into place). Returns the figure."""
     import matplotlib
     import matplotlib.pyplot as plt
 
-    groups: dict[str, list[str]] = {}
-    for name in run.names:
-        groups.setdefault(name.rsplit(".", 1)[-1], []).append(name)
-    n = len(groups)
-    fig, axes = plt.subplots(n, 1, sharex=True, figsize=(9, 1.1 + 1.6 * n), squeeze=False, layout="constrained")
+    from ._atomic import atomic_path
+
+    width, dpi = 10.0, 100
+    columns = int(width * dpi * 0.72)  # the axes' width in pixels, about
+    names, hidden = _readable(result, run.names, columns)
+    panels = _panels(result, names)
+    n = len(panels)
+    fig, axes = plt.subplots(n, 1, sharex=True, figsize=(width, 1.2 + 1.9 * n), squeeze=False, dpi=dpi,
+                             layout="constrained")
     t = result["time"]
-    for ax, (bare, names) in zip(axes[:, 0], groups.items()):
-        for name in names[:50]:
-            ax.plot(t, result[name], lw=0.8, label=name.split(".")[0] if len(names) > 1 else None)
-        unit = getattr(run.model.variables.get(bare), "unit", "")
-        ax.set_ylabel(f"{bare} [{unit}]" if unit else bare)
-        ax.ticklabel_format(axis="y", useOffset=False)
+    enveloped = cut = False
+    for ax, (quantity, names) in zip(axes[:, 0], panels):
+        cut = cut or len(names) > _MAX_LINES
+        names = names[:_MAX_LINES]
+        units = []
+        for k, name in enumerate(names):
+            var = run.model.variables.get(name) or run.model.variables.get(name.rsplit(".", 1)[-1])
+            unit = getattr(var, "unit", "") or "1"
+            if unit not in units:
+                units.append(unit)
+            enveloped |= _draw_series(ax, t, result[name], name, columns, f"C{k % 10}")
+        _set_limits(ax, [result[name] for name in names])
+        what = names[0].rpartition(".")[2] if len({m.rpartition(".")[2] for m in names}) == 1 else quantity
+        ax.set_ylabel(f"{what} [{', '.join(units)}]")
         ax.grid(True, lw=0.3)
-        if 1 < len(names) <= 10:
-            ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False)
     axes[-1, 0].set_xlabel("time [s]")
-    fig.suptitle(f"gyrosim simulate {run.scene.name} ({run.model.integrator})")
+    notes = []
+    if hidden:
+        notes.append(f"not drawn: {', '.join(hidden)} (they turn with the spin: the angles show the attitude)")
+    if enveloped:
+        notes.append("(band): a fast signal, shaded from its min to its max, the line its middle")
+    if cut:
+        notes.append(f"the first {_MAX_LINES} series of a quantity")
+    import textwrap
+
+    lines = [f"gyrosim simulate {run.scene.name} ({run.model.integrator})"]
+    for note in notes:
+        lines += textwrap.wrap(note, 110)
+    fig.suptitle("\n".join(lines), fontsize="medium")
     if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
         png = csv_path.with_suffix(".png")
-        fig.savefig(png, dpi=100)
+        with atomic_path(png) as tmp:
+            fig.savefig(tmp, dpi=100, format="png")
         if not quiet:
             print(f"no interactive display (matplotlib backend {matplotlib.get_backend()}): plot saved to {png}",
                   file=sys.stderr)
@@ -200,10 +483,21 @@ def _start_text(start) -> str:
 
 def scene_info(scene) -> str:
     """``gyrosim info SCENE``: the scene and its variables (every body's) as ``fmpy info`` prints an FMU's."""
-    from .model import variables_for
+    from .model import Model, variables_for
     from .scene import load_scene
 
-    sc = load_scene(scene)
+    sweep_line = None
+    if isinstance(scene, (str, Path)) and str(scene).endswith(".toml") and Path(scene).is_file():
+        from .sweep.spec import build_spec, load_sweep_scene
+
+        sc, table = load_sweep_scene(scene)
+        if table:  # the [sweep] table is checked whole too (1 sample where it gives no number)
+            spec = build_spec(scene, samples=None if "samples" in table else 1)
+            sweep_line = (f"{spec.samples:,} samples" if "samples" in table else "no samples given") + (
+                f" varying {', '.join(n for n, _ in spec.vary)}" if spec.vary else "")
+    else:
+        sc = load_scene(scene)
+    Model(sc).initialize()  # the checks of the first step too (a file is validated whole, nothing runs)
     multi = len(sc.body_names) > 1
     rows = []
     if sc.is_tree:
@@ -232,6 +526,7 @@ def scene_info(scene) -> str:
              f"  Terms              {', '.join(terms) or 'none (torque-free)'}",
              f"  Integrator         {sc.integrator}",
              f"  Variables          {len(rows)}",
+             *([f"  Sweep              {sweep_line} (gyrosim sweep FILE --output DIR)"] if sweep_line else []),
              "", "Default Experiment", "",
              "  Start Time         0.0",
              f"  Stop Time          {sc.stop_time!r}",
@@ -307,37 +602,50 @@ def cmd_bench(args) -> int:
     return study_main(args)
 
 
+#: The scenes a command takes by name (gyrosim.scene.EMBEDDED_SCENES and "full"; a test keeps them equal), written
+#: out here so that ``gyrosim --help`` does not import the engine.
+SCENE_NAMES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
+               "double_pendulum", "coupled_pendula", "full")
+SCENE_HELP = f"an embedded scene ({', '.join(SCENE_NAMES)}) or a scene file (.toml, docs/scenes.md)"
+
+
 def _simulate_parser(sub) -> None:
     s = sub.add_parser(
         "simulate", help="run a scene and write a CSV of its outputs (FMPy's 'fmpy simulate' habits)",
         description="Run a scene (embedded name or TOML path; none = the full model) and write a CSV with the "
                     "header 'time' then every output (or those of --output-variables), one row per output "
-                    "interval, to --output-file (default: <scene>_out.csv). Variable names as 'gyrosim info SCENE' "
-                    "lists them (<body>.<name> in multi-body scenes).")
-    s.add_argument("scene", nargs="?", default=None, help="free_body, heavy_top, gyroscope or a .toml path")
+                    "interval, to --output-file. Variable names as 'gyrosim info SCENE' lists them "
+                    "(<body>.<name> in multi-body scenes). The file is replaced only when the run ends (a blow-up "
+                    "writes the rows before it and says so); a scene file's [sweep] table is ignored.")
+    s.add_argument("scene", nargs="?", default=None, help=SCENE_HELP + "; none: the full model")
     s.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="set a parameter, input or start value (repeatable)")
     s.add_argument("--start-values", nargs="+", action="extend", metavar="NAME VALUE",
                    help="name-value pairs of start values, as FMPy takes them (e.g. --start-values I1 2 omega_z 10)")
-    s.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact")
-    s.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s")
-    s.add_argument("--start-time", type=float, default=0.0, metavar="T0", help="start time in s (default 0)")
+    s.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact "
+                   "(default: the scene's)")
+    s.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s (default: the scene's)")
+    s.add_argument("--start-time", type=float, default=0.0, metavar="T0", help="start time in s (default: 0)")
     s.add_argument("--stop-time", type=float, metavar="T", help="end time in s (default: the scene's)")
     s.add_argument("--output-interval", type=float, metavar="H",
                    help="time between rows in s (default: the scene's)")
     tol = s.add_mutually_exclusive_group()
     tol.add_argument("--relative-tolerance", dest="relative_tolerance", type=float, metavar="TOL",
-                     help="tolerance of 'adaptive' and 'dop853' (as the FMI tolerance)")
+                     help=f"tolerance of 'adaptive' and 'dop853' (as the FMI tolerance), {MIN_TOLERANCE:g} to 1 "
+                          "(default: the scene's)")
     tol.add_argument("--tolerance", dest="relative_tolerance", type=float, metavar="TOL",
                      help="the same as --relative-tolerance")
     s.add_argument("--output-variables", nargs="+", action="extend", metavar="NAME",
                    help="the outputs to write (default: every output)")
+    s.add_argument("--input-file", metavar="FILE.csv",
+                   help="time-varying inputs, FMPy's format: a 'time' column and one column per input (e.g. "
+                        "tau_x), held or interpolated between rows as FMPy does")
     out = s.add_mutually_exclusive_group()
     out.add_argument("--output-file", dest="output_file", metavar="FILE.csv",
                      help="CSV file to write (default: <scene>_out.csv)")
     out.add_argument("--output", "-o", dest="output_file", metavar="FILE.csv", help="the same as --output-file")
     s.add_argument("--show-plot", action="store_true",
-                   help="plot the outputs (a window; without a display, a PNG next to the CSV)")
+                   help="plot the outputs by quantity (a window; without a display, a PNG next to the CSV)")
     add_verbosity(s)
     s.set_defaults(func=cmd_simulate)
 
@@ -353,13 +661,13 @@ def build_parser() -> argparse.ArgumentParser:
     i = sub.add_parser("info", help="list a scene's or an FMU's variables (as 'fmpy info')",
                        description="Print a scene's or an FMU's model info and its variables with causality, "
                                    "start value, unit and description (every body's in a multi-body scene). "
-                                   "-q: the variables table only.")
-    i.add_argument("target", metavar="SCENE|FILE.fmu",
-                   help="free_body, heavy_top, gyroscope, full, a .toml path or an .fmu file")
+                                   "A scene file is checked whole without running it: a bad key or value is "
+                                   "one line naming it, exit code 2. -q: the variables table only.")
+    i.add_argument("target", metavar="SCENE|FILE.fmu", help=SCENE_HELP + ", or an .fmu file")
     add_verbosity(i)
     i.set_defaults(func=cmd_info)
     b = sub.add_parser("bench", help="the speed/accuracy study: tables to stdout, plots to a folder")
-    b.add_argument("--output", "-o", default="docs/study", help="folder for plots and tables")
+    b.add_argument("--output", "-o", default="docs/study", help="folder for plots and tables (default: docs/study)")
     b.add_argument("--quick", action="store_true", help="a short ladder (seconds, for a smoke test)")
     b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, "
                    "startup, peers, fmu, service, sweep, tree), merged into the folder's earlier results")
@@ -386,9 +694,9 @@ def _closed_pipe() -> int:
 
 def main(argv=None) -> int:
     """Run ``gyrosim`` with ``argv``; return the exit code (0 ok, 1 runtime failure, 2 bad usage or input,
-    130 interrupted, 141 closed pipe). Errors are one line on stderr, never a traceback."""
-    from .errors import ConfigError, IntegrationError
-
+    130 interrupted, 141 closed pipe: :func:`gyrosim.errors.exit_code`). Errors are one line on stderr
+    (:func:`gyrosim.errors.one_line`), never a traceback; an error gyrosim did not expect (a bug) adds its type,
+    and ``-vv`` its traceback."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
@@ -402,22 +710,20 @@ def main(argv=None) -> int:
         return rc
     except BrokenPipeError:
         return _closed_pipe()
-    except IntegrationError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 1
-    except (ConfigError, ValueError) as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
-    except GyrosimError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2 if not isinstance(e, OSError) else 1
-    except OSError as e:  # a file that cannot be read or written, a full disk
-        where = f" {e.filename!r}" if getattr(e, "filename", None) else ""
-        print(f"{prog}: error:{where} {e.strerror or e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         print(f"{prog}: interrupted", file=sys.stderr)
-        return 130
+        return exit_code(e)
+    except (GyrosimError, ValueError, OSError, RuntimeError) as e:  # RuntimeError: a compiler, a co-simulation
+        print(f"{prog}: error: {one_line(e).replace(chr(10), ' ')}", file=sys.stderr)
+        return exit_code(e)
+    except Exception as e:  # a bug: still one line (and the traceback with -vv)
+        if getattr(args, "verbose", 0) >= 2:
+            import traceback
+
+            traceback.print_exc()
+        print(f"{prog}: error: internal error ({type(e).__name__}: {e}); please report it (-vv shows where)",
+              file=sys.stderr)
+        return exit_code(e)
 
 
 if __name__ == "__main__":  # pragma: no cover

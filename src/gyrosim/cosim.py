@@ -34,8 +34,6 @@ first two steps): :func:`linear_prediction` gives the linearised closed loop bot
 from __future__ import annotations
 
 import math
-import shutil
-import sys
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
@@ -43,6 +41,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from ._atomic import atomic_path, check_writable
+from .errors import ConfigError, GyrosimError
 
 __all__ = ["control_scene", "build_system", "read_experiment", "with_parameters", "axis_angle", "run_libcosim",
            "run_fmpy", "run_fmpy_ssp", "linear_prediction", "settling_time", "error_angles", "plot_results",
@@ -144,12 +145,10 @@ def build_system(out_dir, *, moments=DEFAULTS["moments"], q0=DEFAULTS["q0"], ome
         body = build_fmu(control_scene(moments, q0, omega0), 2, res)
         ctrl = build_controller(res)
         text = _ssd(f"resources/{body.name}", f"resources/{ctrl.name}", params, step, stop_time)
-        tmp_ssp = Path(tmp) / ssp.name
-        with zipfile.ZipFile(tmp_ssp, "w", zipfile.ZIP_DEFLATED) as zf:
+        with atomic_path(ssp) as tmp_ssp, zipfile.ZipFile(tmp_ssp, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.writestr("SystemStructure.ssd", text)
             zf.write(body, f"resources/{body.name}")
             zf.write(ctrl, f"resources/{ctrl.name}")
-        shutil.copyfile(tmp_ssp, ssp)
     return ssp
 
 
@@ -167,7 +166,7 @@ def with_parameters(ssp, out, **params) -> Path:
     items["SystemStructure.ssd"] = ('<?xml version="1.0" encoding="UTF-8"?>\n'
                                     + ET.tostring(root, encoding="unicode") + "\n").encode()
     out = Path(out)
-    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+    with atomic_path(out) as tmp, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
         for n, data in items.items():
             zf.writestr(n, data)
     return out
@@ -183,18 +182,33 @@ class Experiment:
 
 
 def read_experiment(ssp) -> Experiment:
-    """The DefaultExperiment (stop time, OSP base step) and the controller's bound parameters of an ``.ssp``."""
-    with zipfile.ZipFile(ssp) as zf:
-        root = ET.fromstring(zf.read("SystemStructure.ssd"))
-    de = root.find("ssd:DefaultExperiment", NS)
-    stop = float(de.get("stopTime", DEFAULTS["stop_time"])) if de is not None else DEFAULTS["stop_time"]
-    fs = root.find(".//osp:FixedStepAlgorithm", NS)
-    step = float(fs.get("baseStepSize")) if fs is not None else DEFAULTS["step"]
-    params = {}
-    for c in root.findall("ssd:System/ssd:Elements/ssd:Component", NS):
-        if c.get("name") == "controller":
-            for p in c.findall(".//ssv:Parameter", NS):
-                params[p.get("name")] = float(p.find("ssv:Real", NS).get("value"))
+    """The DefaultExperiment (stop time, OSP base step) and the controller's bound parameters of an ``.ssp``.
+
+    Raises
+    ------
+    ConfigError
+        The file is not an SSP (a zip holding ``SystemStructure.ssd``: an MCAP recording, a CSV, ...), or its SSD
+        does not read (the message names the file and what is wrong).
+    """
+    what = "an SSP file: a zip holding SystemStructure.ssd (gyrosim cosim SYSTEM.ssp --build writes one)"
+    try:
+        with zipfile.ZipFile(ssp) as zf:
+            root = ET.fromstring(zf.read("SystemStructure.ssd"))
+        de = root.find("ssd:DefaultExperiment", NS)
+        stop = float(de.get("stopTime", DEFAULTS["stop_time"])) if de is not None else DEFAULTS["stop_time"]
+        fs = root.find(".//osp:FixedStepAlgorithm", NS)
+        step = float(fs.get("baseStepSize")) if fs is not None else DEFAULTS["step"]
+        params = {}
+        for c in root.findall("ssd:System/ssd:Elements/ssd:Component", NS):
+            if c.get("name") == "controller":
+                for p in c.findall(".//ssv:Parameter", NS):
+                    params[p.get("name")] = float(p.find("ssv:Real", NS).get("value"))
+    except zipfile.BadZipFile as e:
+        raise ConfigError("SYSTEM", str(ssp), f"{what}; this is not a zip ({e})") from None
+    except KeyError:
+        raise ConfigError("SYSTEM", str(ssp), f"{what}; this zip has no SystemStructure.ssd") from None
+    except (ET.ParseError, ValueError, TypeError, AttributeError) as e:
+        raise ConfigError("SYSTEM", str(ssp), f"{what}; its SystemStructure.ssd does not read ({e})") from None
     return Experiment(stop, step, params)
 
 
@@ -225,9 +239,14 @@ def error_angles(q, q_target) -> np.ndarray:
 
 
 def _steps(stop_time: float, step: float) -> int:
+    """The number of communication steps of ``step`` s in ``stop_time`` s; ConfigError unless both are finite and
+    > 0 and the stop time is a whole number of steps."""
+    for name, value in (("stop_time", stop_time), ("step", step)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ConfigError(name, value, "a finite number > 0 in s")
     n = round(stop_time / step)
     if n < 1 or abs(n * step - stop_time) > 1e-9 * max(1.0, stop_time):
-        raise ValueError(f"stop time {stop_time} is not a whole number of communication steps {step}")
+        raise ConfigError("stop_time", stop_time, f"a whole number of communication steps of {step!r} s")
     return n
 
 
@@ -463,9 +482,14 @@ def plot_results(results, path, q_target, prediction=None, title="attitude contr
     ax2.set_xlabel("time (s)")
     ax2.set_ylabel("control torque (N m)")
     ax2.legend(loc="upper right", fontsize=8)
-    fig.savefig(path, dpi=110)
+    path = Path(path)
+    fmt = path.suffix[1:].lower()
+    if fmt not in fig.canvas.get_supported_filetypes():
+        fmt = "png"
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format=fmt)
     plt.close(fig)
-    return Path(path)
+    return path
 
 
 # --- gyrosim cosim ---------------------------------------------------------------------------------------------
@@ -477,36 +501,79 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "cosim", help="run an SSP system (the body FMU under the attitude-controller FMU)",
         description="Run SYSTEM.ssp with libcosim and/or FMPy (docs/cosim.md). --build first writes the demo "
-                    "system (the gyrosim body FMU and the PD attitude-controller FMU) to SYSTEM.ssp.")
-    p.add_argument("ssp", type=Path, help="the .ssp file (SystemStructure.ssd and resources/*.fmu)")
-    p.add_argument("--build", action="store_true", help="build the demo system into SSP first")
+                    "system (the gyrosim body FMU and the PD attitude-controller FMU) to SYSTEM.ssp. Every "
+                    "argument is checked before any work; files are replaced only when they are complete.")
+    p.add_argument("ssp", type=Path, metavar="SYSTEM.ssp",
+                   help="the .ssp file (SystemStructure.ssd and resources/*.fmu)")
+    p.add_argument("--build", action="store_true", help="build the demo system into SYSTEM.ssp first")
     p.add_argument("--master", choices=("libcosim", "fmpy", "fmpy-ssp", "all"), default="all",
-                   help="who runs it (all: libcosim, our FMPy master and FMPy's simulate_ssp)")
-    p.add_argument("--stop-time", type=float, default=None, help="simulated seconds (default: the SSD's)")
-    p.add_argument("--step", type=float, default=None, help="communication step, s (default: the SSD's)")
-    p.add_argument("--plot", type=Path, default=None, help="write a PNG of the error angle and torques")
+                   help="who runs it (default: all: libcosim, our FMPy master and FMPy's simulate_ssp)")
+    p.add_argument("--stop-time", type=float, default=None, metavar="T",
+                   help="simulated seconds (default: the SSD's)")
+    p.add_argument("--step", type=float, default=None, metavar="H",
+                   help="communication step in s (default: the SSD's)")
+    p.add_argument("--plot", type=Path, default=None, metavar="FILE.png",
+                   help="write a PNG of the error angle and torques")
     add_verbosity(p)
     p.set_defaults(func=cmd_cosim)
 
 
+_MASTERS = {"libcosim": ("libcosimpy", "cosim"), "fmpy": ("fmpy", "fmu"), "fmpy-ssp": ("fmpy", "fmu")}
+
+
+def check_cosim_args(args) -> tuple[list[str], Experiment]:
+    """Every check of ``gyrosim cosim``'s arguments, before any work: the numbers, the masters' packages, the
+    system file (or, with ``--build``, where it goes), the step against the stop time, the plot path. Returns the
+    masters to run and the experiment (the SSD's, or the demo's with ``--build``, with the flags applied)."""
+    import importlib.util
+
+    for flag, value in (("--stop-time", args.stop_time), ("--step", args.step)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ConfigError(flag, value, "a finite number > 0 in s")
+    names = list(_MASTERS) if args.master == "all" else [args.master]
+    for m in names:
+        module, extra = _MASTERS[m]
+        if importlib.util.find_spec(module) is None:
+            raise GyrosimError(f"--master {m} needs {module}, which is not installed: pip install 'gyrosim[{extra}]'"
+                               + (" (or choose --master fmpy)" if m == "libcosim" else ""))
+    if args.build:
+        if args.ssp.suffix != ".ssp":
+            raise ConfigError("SYSTEM.ssp", str(args.ssp), "a path ending in .ssp (--build writes the system there)")
+        if args.ssp.is_dir():
+            raise GyrosimError(f"SYSTEM.ssp {str(args.ssp)!r} cannot be written: it is a folder")
+        if args.ssp.parent.exists():
+            check_writable(args.ssp, "SYSTEM.ssp")
+        exp = Experiment(DEFAULTS["stop_time"], DEFAULTS["step"], {})
+    else:
+        if not args.ssp.exists():
+            raise GyrosimError(f"SYSTEM.ssp {str(args.ssp)!r} not found (add --build to write the demo system)")
+        if args.ssp.is_dir():
+            raise ConfigError("SYSTEM", str(args.ssp), "an SSP file (this is a folder)")
+        exp = read_experiment(args.ssp)
+    step = exp.step if args.step is None else args.step
+    stop = exp.stop_time if args.stop_time is None else args.stop_time
+    n = round(stop / step)
+    if n < 1 or abs(n * step - stop) > 1e-9 * max(1.0, stop):
+        raise ConfigError("--stop-time" if args.stop_time is not None else "--step",
+                          args.stop_time if args.stop_time is not None else args.step,
+                          f"a whole number of communication steps: stop time {stop!r} s, step {step!r} s")
+    if args.plot is not None:
+        check_writable(args.plot, "--plot")
+    return names, Experiment(stop, step, exp.params)
+
+
 def cmd_cosim(args) -> int:
+    """Handler of ``gyrosim cosim``: every argument checked first (:func:`check_cosim_args`; exit code 2, one
+    line), then the build, the runs and the plot. A master that fails is a run-time failure (exit code 1)."""
     from .cli import verbosity
 
     v = verbosity(args)
-    try:
-        if args.build:
-            build_system(args.ssp.parent, name=args.ssp.stem)
-        if not args.ssp.exists():
-            print(f"gyrosim cosim: error: {args.ssp} not found (add --build to write the demo system)",
-                  file=sys.stderr)
-            return 2
-        exp = read_experiment(args.ssp)
-        runners = {"libcosim": run_libcosim, "fmpy": run_fmpy, "fmpy-ssp": run_fmpy_ssp}
-        names = list(runners) if args.master == "all" else [args.master]
-        results = [runners[m](args.ssp, step=args.step, stop_time=args.stop_time) for m in names]
-    except (ValueError, RuntimeError, OSError, ImportError) as e:
-        print(f"gyrosim cosim: error: {e}", file=sys.stderr)
-        return 1
+    names, exp = check_cosim_args(args)
+    if args.build:
+        build_system(args.ssp.parent, name=args.ssp.stem)
+        exp = Experiment(exp.stop_time, exp.step, read_experiment(args.ssp).params)
+    runners = {"libcosim": run_libcosim, "fmpy": run_fmpy, "fmpy-ssp": run_fmpy_ssp}
+    results = [runners[m](args.ssp, step=exp.step, stop_time=exp.stop_time) for m in names]
     qt = [exp.params.get(f"qt_{c}", 1.0 if c == "w" else 0.0) for c in "wxyz"]
     for r in results:
         ang = r.error_angle(qt)

@@ -524,7 +524,9 @@ class Model:
                                   f"and {torque} now; set it to 0 or choose another integrator ('adaptive', "
                                   "'dop853', 'rk4', 'splitting')")
         elif _engine.substeps(h, self.max_step) == 0:
-            raise StepError(f"a {what} of {h!r} s with max_step = {self.max_step!r} s needs {h / self.max_step:.3g} "
+            article = "an" if what[:1] in "aeiou" else "a"
+            raise StepError(f"{article} {what} of {h!r} s with max_step = {self.max_step!r} s needs "
+                            f"{h / self.max_step:.3g} "
                             f"internal steps, more than the {_engine.MAX_WORK:,} one call may take; raise max_step "
                             "or take shorter steps")
 

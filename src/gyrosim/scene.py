@@ -182,6 +182,15 @@ def _suggest(key: str, allowed) -> str:
     return f"one of {', '.join(allowed)}{did_you_mean(key, allowed, cutoff=0.5)}"
 
 
+def _plain(v):
+    """A value as a message shows it: numpy scalars and arrays as Python numbers and lists."""
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
 def _check_keys(table: dict, allowed, where: str):
     for k in table:
         if k not in allowed:
@@ -201,6 +210,19 @@ def _num(table, key, where, default=None, *, lo=None, lo_open=False, required=Fa
         raise ConfigError(key, v, "a finite number", where=where)
     if lo is not None and (v < lo or (lo_open and v == lo)):
         raise ConfigError(key, v, f"a number {'>' if lo_open else '>='} {lo}", where=where)
+    return v
+
+
+#: The smallest relative tolerance a scene or a command may give the adaptive integrators: double precision (eps =
+#: 2.2e-16) cannot meet less (a step's round-off alone is a few eps).
+MIN_TOLERANCE = 1e-15
+
+
+def _tolerance(table, where) -> float:
+    v = _num(table, "tolerance", where, 1e-8)
+    if not MIN_TOLERANCE <= v < 1.0:
+        raise ConfigError("tolerance", v, f"a number from {MIN_TOLERANCE:g} to 1 (exclusive): double precision "
+                          "cannot meet a smaller relative tolerance", where=where)
     return v
 
 
@@ -231,7 +253,7 @@ def _inertia(spec, where, mass, cm_distance):
     w = f"{where}.inertia"
     if "shape" in spec:
         shape = spec["shape"]
-        if shape not in _SHAPES:
+        if not isinstance(shape, str) or shape not in _SHAPES:
             raise ConfigError("shape", shape, _suggest(str(shape), list(_SHAPES)), where=w)
         _check_keys(spec, ("shape",) + _SHAPES[shape], w)
         args = [_num(spec, k, w, required=True, lo=0.0, lo_open=(k in ("mass", "radius"))) for k in _SHAPES[shape]]
@@ -246,9 +268,9 @@ def _inertia(spec, where, mass, cm_distance):
     if key == "principal":
         m = _vec(spec, "principal", 3, w)
         try:
-            check_principal_moments(*m, where=w)
+            check_principal_moments(*m.tolist(), where=w)  # plain floats in the message, not np.float64(...)
         except ConfigError as e:
-            raise ConfigError(f"principal ({e.field})", e.value, e.allowed, where=w) from None
+            raise ConfigError(f"principal ({e.field})", _plain(e.value), e.allowed, where=w) from None
         return m, np.eye(3), None
     T = spec["tensor"]
     if (not isinstance(T, list) or len(T) != 3 or any(not isinstance(r, list) or len(r) != 3 for r in T)):
@@ -386,7 +408,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
         torque="torque" in terms, integrator=integ,
         max_step=_num(sc, "max_step", where, 1e-3, lo=0.0, lo_open=True),
         max_drift=_num(sc, "max_drift", where, _engine.MAX_DRIFT, lo=0.0, lo_open=False),
-        tolerance=_num(sc, "tolerance", where, 1e-8, lo=0.0, lo_open=True),
+        tolerance=_tolerance(sc, where),
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source)
@@ -420,7 +442,7 @@ def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
         torque=any(b.torque_input or b.motor_input for b in bodies), integrator=integ,
         max_step=_num(sc, "max_step", where, 1e-3, lo=0.0, lo_open=True),
         max_drift=_num(sc, "max_drift", where, _engine.MAX_DRIFT, lo=0.0, lo_open=False),
-        tolerance=_num(sc, "tolerance", where, 1e-8, lo=0.0, lo_open=True),
+        tolerance=_tolerance(sc, where),
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source, tree=bodies, couplings=couplings,

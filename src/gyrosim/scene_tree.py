@@ -103,7 +103,7 @@ def _inertia_about_cm(spec, where, mass, cm_distance, cm_given):
     w = f"{where}.inertia"
     if "shape" in spec:
         shape = spec["shape"]
-        if shape not in s._SHAPES:
+        if not isinstance(shape, str) or shape not in s._SHAPES:
             raise ConfigError("shape", shape, s._suggest(str(shape), list(s._SHAPES)), where=w)
         s._check_keys(spec, ("shape",) + s._SHAPES[shape], w)
         args = [s._num(spec, k, w, required=True, lo=0.0, lo_open=(k in ("mass", "radius")))
@@ -170,7 +170,7 @@ def _tree_body(tbl, index, names, where):
         raise ConfigError("parent", parent, f"'world' or a body defined above this one ({', '.join(names) or 'none'})"
                           f"{s.did_you_mean(parent, names + ['world'])}", where=where)
     joint = tbl.get("joint", "ball" if "cm_distance" in tbl else "free_rotation")
-    if joint not in JOINTS:
+    if not isinstance(joint, str) or joint not in JOINTS:
         raise ConfigError("joint", joint, s._suggest(str(joint), list(JOINTS)), where=where)
     if joint == "free" and pi != -1:
         raise ConfigError("joint", joint, "'free' on a root only (parent = 'world')", where=where)

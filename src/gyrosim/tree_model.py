@@ -370,7 +370,9 @@ class TreeModel(Model):
 
     def _check_call(self, h: float, what: str) -> None:
         if self.integrator in ("euler", "rk4") and _engine.substeps(h, self.max_step) == 0:
-            raise StepError(f"a {what} of {h!r} s with max_step = {self.max_step!r} s needs {h / self.max_step:.3g} "
+            article = "an" if what[:1] in "aeiou" else "a"
+            raise StepError(f"{article} {what} of {h!r} s with max_step = {self.max_step!r} s needs "
+                            f"{h / self.max_step:.3g} "
                             f"internal steps, more than the {_engine.MAX_WORK:,} one call may take; raise max_step "
                             "or take shorter steps")
 

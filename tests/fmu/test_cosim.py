@@ -159,5 +159,77 @@ def test_plot_and_cli(system, runs, tmp_path, capsys):
     assert args.func(args) == 0
     out = capsys.readouterr().out
     assert out.startswith("libcosim: 400 steps of 0.01 s; angle to target 0.25 ->")
-    args = parser.parse_args(["cosim", str(tmp_path / "missing.ssp")])
-    assert args.func(args) == 2
+    from gyrosim.cli import main
+
+    assert main(["cosim", str(tmp_path / "missing.ssp")]) == 2
+    assert "not found (add --build to write the demo system)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv,msg", [
+    (["--step", "0"], "--step = 0.0 is not allowed: a finite number > 0 in s"),
+    (["--step", "-0.01"], "--step = -0.01 is not allowed: a finite number > 0 in s"),
+    (["--step", "nan"], "--step = nan is not allowed: a finite number > 0 in s"),
+    (["--stop-time", "-1"], "--stop-time = -1.0 is not allowed: a finite number > 0 in s"),
+    (["--step", "0.03"], "a whole number of communication steps: stop time 8.0 s, step 0.03 s"),
+    (["--plot", "/nonexistent/dir/a.png"], "--plot '/nonexistent/dir/a.png' cannot be written: folder"),
+    (["--plot", "."], "cannot be written: it is a folder"),
+])
+def test_cli_checks_every_argument_before_any_work(system, tmp_path, capsys, argv, msg):
+    """Issue 24: one line, exit code 2, no traceback; the system file and an earlier plot are untouched."""
+    from gyrosim.cli import main
+
+    png = tmp_path / "old.png"
+    png.write_bytes(b"\x89PNG finished plot")
+    before = system.read_bytes()
+    assert main(["cosim", str(system), "--master", "fmpy", *argv]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert system.read_bytes() == before and png.read_bytes() == b"\x89PNG finished plot"
+
+
+def test_cli_refuses_a_file_that_is_not_an_ssp(tmp_path, capsys):
+    """An MCAP recording (or anything not a zip with SystemStructure.ssd) given as the system: one line, exit 2."""
+    import zipfile
+
+    from gyrosim.cli import main
+
+    mcap = tmp_path / "run.mcap"
+    mcap.write_bytes(b"\x89MCAP0\r\n" + bytes(200))
+    empty = tmp_path / "empty.ssp"
+    with zipfile.ZipFile(empty, "w") as zf:
+        zf.writestr("other.txt", "x")
+    for path, msg in ((mcap, "this is not a zip"), (empty, "this zip has no SystemStructure.ssd")):
+        assert main(["cosim", str(path), "--master", "fmpy"]) == 2
+        err = capsys.readouterr().err
+        assert f"SYSTEM = '{path}' is not allowed: an SSP file" in err and msg in err and "Traceback" not in err
+        assert len(err.strip().splitlines()) == 1
+
+
+def test_outputs_replace_old_ones_only_when_complete(system, runs, tmp_path, monkeypatch):
+    """The SSP and the plot are written beside their targets and renamed: a failure while writing leaves the old
+    file byte-identical and no temporary file."""
+    import zipfile
+
+    exp, lib, _, _ = runs
+    png = tmp_path / "p.png"
+    png.write_bytes(b"old plot")
+    ssp = tmp_path / "half.ssp"
+    ssp.write_bytes(b"old system")
+
+    def broken(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(zipfile.ZipFile, "writestr", broken)
+    with pytest.raises(OSError, match="No space left"):
+        C.with_parameters(system, ssp, qt_w=1.0)
+    monkeypatch.undo()
+    import matplotlib.figure
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", broken)
+    with pytest.raises(OSError, match="No space left"):
+        C.plot_results([lib], png, _qt(exp))
+    monkeypatch.undo()
+    assert png.read_bytes() == b"old plot" and ssp.read_bytes() == b"old system"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["half.ssp", "p.png"]
+    C.plot_results([lib], png, _qt(exp))
+    assert png.read_bytes()[:4] == b"\x89PNG"

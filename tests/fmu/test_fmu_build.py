@@ -90,10 +90,12 @@ def test_cli_build(tmp_path, capsys):
 
 
 def test_cli_bad_scene_exits_2(tmp_path, capsys):
-    args = _parser().parse_args(["fmu", "build", "heavytop", "--output", str(tmp_path)])
-    assert args.func(args) == 2
+    from gyrosim.cli import main
+
+    assert main(["fmu", "build", "heavytop", "--output", str(tmp_path / "out")]) == 2  # the one error mapping
     err = capsys.readouterr().err
-    assert "heavytop" in err and "heavy_top" in err
+    assert "heavytop" in err and "heavy_top" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()  # a bad scene costs nothing, not even the output folder
     with pytest.raises(SystemExit) as e:
         _parser().parse_args(["fmu", "build", "--fmi-version", "4"])
     assert e.value.code == 2

@@ -33,6 +33,7 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
+from .._atomic import atomic_path
 from ..errors import ConfigError
 from ..model import variables_for
 from ..scene import INTEGRATORS, TREE_INTEGRATORS, Scene, load_scene
@@ -528,6 +529,9 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         The C compiler failed or warned (its output in the message).
     OSError
         The output folder cannot be written.
+
+    Every check runs before the compiler; the FMU is written beside its target and renamed into place, so an
+    existing ``<ModelIdentifier>.fmu`` is replaced by a complete FMU or left as it was.
     """
     if fmi_version not in (2, 3):
         raise ConfigError("fmi_version", fmi_version, "2 or 3")
@@ -609,5 +613,6 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
                 zf.write(root / binary_path(fmi_version, ident, platform), binary_path(fmi_version, ident, platform))
             for f in sorted(src_dir.iterdir()):
                 zf.write(f, f"sources/{f.name}")
-        shutil.copyfile(tmp_fmu, fmu_path)
+        with atomic_path(fmu_path) as part:  # a finished FMU replaces the old one, or nothing does
+            shutil.copyfile(tmp_fmu, part)
     return fmu_path

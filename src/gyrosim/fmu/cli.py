@@ -6,7 +6,6 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
@@ -15,7 +14,7 @@ __all__ = ["register", "cmd_build"]
 
 def register(subparsers) -> None:
     """Add ``fmu build`` to ``subparsers`` (the ``add_subparsers()`` object of the ``gyrosim`` parser)."""
-    from ..cli import add_verbosity
+    from ..cli import SCENE_HELP, add_verbosity
 
     p = subparsers.add_parser("fmu", help="build FMI 2.0 / 3.0 FMUs (co-simulation and model exchange)",
                               description="Build native FMI FMUs of the model, co-simulation and/or model exchange "
@@ -23,15 +22,15 @@ def register(subparsers) -> None:
     sub = p.add_subparsers(dest="fmu_command", metavar="COMMAND")
     b = sub.add_parser("build", help="write DIR/<ModelIdentifier>.fmu",
                        description="Write DIR/<ModelIdentifier>.fmu: RigidBody.fmu (every variable) with no scene, "
-                                   "else the scene's name in CamelCase (e.g. HeavyTop.fmu).",
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    b.add_argument("scene", nargs="?", default=None,
-                   help="embedded scene (free_body, heavy_top, gyroscope) or a scene TOML file; none = full model")
-    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version")
+                                   "else the scene's name in CamelCase (e.g. HeavyTop.fmu). The scene is checked "
+                                   "before the compiler runs; an existing FMU is replaced only by a complete one.")
+    b.add_argument("scene", nargs="?", default=None, help=f"{SCENE_HELP}; none: the full model")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version (default: 2)")
     b.add_argument("--fmi-type", choices=("cs", "me", "both"), default="both",
                    help="interfaces: co-simulation (the engine's integrators), model exchange (the host's solver "
-                        "integrates q and omega, 7 continuous states per body) or both in one FMU")
-    b.add_argument("--output", "-o", type=Path, default=Path("fmu") / "dist", help="output folder")
+                        "integrates q and omega, 7 continuous states per body) or both in one FMU (default: both)")
+    b.add_argument("--output", "-o", type=Path, default=Path("fmu") / "dist", metavar="DIR",
+                   help="output folder, created if missing (default: fmu/dist)")
     b.add_argument("--standalone", action="store_true",
                    help="accepted for compatibility: every FMU is native (the C engine, no Python on the host)")
     add_verbosity(b)
@@ -39,29 +38,40 @@ def register(subparsers) -> None:
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
+def _cannot_write(output, e: OSError) -> str:
+    where = str(e.filename) if getattr(e, "filename", None) else str(output)
+    at = "" if Path(where) == Path(output) else f" ({where})"
+    return f"cannot write the FMU to --output {str(output)!r}: {e.strerror or e}{at}; choose a writable folder"
+
+
 def cmd_build(args) -> int:
-    """Handler of ``gyrosim fmu build``: print the path written (not with -q; -v adds what is in it on stderr);
-    exit code 2 for a bad scene or version, 1 when the compiler or the output folder fails."""
+    """Handler of ``gyrosim fmu build``: print the path written (not with -q; -v adds what is in it on stderr).
+    Errors go to :func:`gyrosim.cli.main`'s one mapping (a bad scene or version: 2, the compiler: 1); a folder that
+    cannot be written is named here with the flag."""
     from ..cli import verbosity
-    from ..errors import ConfigError
+    from ..errors import GyrosimError, exit_code
 
     v = verbosity(args)
-    try:
-        from .build import build_fmu
+    import os
 
-        path = build_fmu(args.scene, args.fmi_version, args.output, fmi_type=getattr(args, "fmi_type", "both"))
-    except (ConfigError, ValueError) as e:
-        print(f"gyrosim fmu build: error: {e}", file=sys.stderr)
-        return 2
-    except RuntimeError as e:
-        print(f"gyrosim fmu build: error: {e}", file=sys.stderr)
-        return 1
+    from ..scene import load_scene
+    from .build import build_fmu
+
+    load_scene(args.scene)  # a bad scene costs nothing, not even the output folder
+    out = Path(args.output)
+    try:  # a folder that cannot be made or written is a bad --output (exit code 2), found before the compiler runs
+        out.mkdir(parents=True, exist_ok=True)
+        if not os.access(out, os.W_OK | os.X_OK):
+            raise PermissionError(13, "Permission denied", str(out))
     except OSError as e:
-        where = str(e.filename) if getattr(e, "filename", None) else str(args.output)
-        at = "" if Path(where) == Path(args.output) else f" ({where})"
-        print(f"gyrosim fmu build: error: cannot write the FMU to --output {str(args.output)!r}: "
-              f"{e.strerror or e}{at}; choose a writable folder", file=sys.stderr)
-        return 1
+        raise GyrosimError(_cannot_write(args.output, e)) from None
+    try:
+        path = build_fmu(args.scene, args.fmi_version, args.output, fmi_type=getattr(args, "fmi_type", "both"))
+    except OSError as e:  # a write that fails while the FMU is made (a full disk): a run-time failure
+        if isinstance(e, GyrosimError):
+            raise
+        print(f"gyrosim fmu build: error: {_cannot_write(args.output, e)}", file=sys.stderr)
+        return exit_code(e)
     if v >= 0:
         print(path)
     if v > 0:

@@ -5,7 +5,6 @@ Nothing here imports dask or pyarrow at start-up: ``gyrosim --help`` stays fast.
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 __all__ = ["register", "cmd_sweep", "cmd_plot"]
@@ -13,7 +12,7 @@ __all__ = ["register", "cmd_sweep", "cmd_plot"]
 
 def register(subparsers) -> None:
     """Add ``sweep`` and ``sweep-plot`` to ``subparsers`` (the ``add_subparsers()`` object of ``gyrosim``)."""
-    from ..cli import add_verbosity
+    from ..cli import SCENE_HELP, add_verbosity
 
     p = subparsers.add_parser(
         "sweep", help="Monte Carlo and parameter sweeps to a Parquet dataset (in process, or on a Dask cluster)",
@@ -22,17 +21,17 @@ def register(subparsers) -> None:
                     "DIR, a chunk file at a time. DIST: uniform(lo,hi), normal(mean,std), lognormal(mean,sigma), "
                     "choice(a,b,...), linspace(lo,hi). A scene file's [sweep] table gives defaults; the command "
                     "line wins. See docs/sweeps.md.")
-    p.add_argument("scene", nargs="?", default=None,
-                   help="one-body scene: free_body, heavy_top, gyroscope or a .toml path (default: the full model)")
+    p.add_argument("scene", nargs="?", default=None, help=f"{SCENE_HELP}; none: the full model")
     p.add_argument("--samples", "-n", type=int, metavar="N", help="number of samples")
     p.add_argument("--vary", action="append", metavar="NAME=DIST", help="draw NAME from DIST (repeatable)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="set NAME for every sample (repeatable)")
-    p.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact")
-    p.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s")
+    p.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact "
+                   "(default: the scene's)")
+    p.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s (default: the scene's)")
     p.add_argument("--stop-time", type=float, metavar="T", help="end time in s (default: the scene's)")
     p.add_argument("--output-interval", type=float, metavar="H",
                    help="grid of the drift checks in s (default: the scene's)")
-    p.add_argument("--seed", type=int, metavar="S", help="seed of the draws (default 0)")
+    p.add_argument("--seed", type=int, metavar="S", help="seed of the draws (default: 0)")
     p.add_argument("--output", "-o", required=True, metavar="DIR", help="folder of the Parquet dataset")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the chunks on the dask.distributed cluster at ADDRESS, e.g. tcp://127.0.0.1:8786")
@@ -45,12 +44,13 @@ def register(subparsers) -> None:
     q = subparsers.add_parser(
         "sweep-plot", help="PNG histograms and a scatter plot of a sweep's Parquet dataset",
         description="Write <DIR>_histograms.png (the varied values, max_energy_drift, max_L_drift) and "
-                    "<DIR>_scatter.png (one column against a varied parameter, blown-up samples marked).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                    "<DIR>_scatter.png (one column against a varied parameter, blown-up samples marked); every "
+                    "axis with its unit. Each PNG replaces an older one only when it is complete.")
     q.add_argument("dir", metavar="DIR", help="the folder written by gyrosim sweep --output")
-    q.add_argument("--output-dir", "-o", metavar="OUT", help="folder for the PNGs (default: next to DIR)")
+    q.add_argument("--output-dir", "-o", metavar="OUT", help="folder for the PNGs (default: the folder holding DIR)")
     q.add_argument("--x", help="column on the x axis of the scatter (default: the first varied number)")
-    q.add_argument("--y", default="max_energy_drift", help="column on the y axis of the scatter")
+    q.add_argument("--y", default="max_energy_drift", help="column on the y axis of the scatter "
+                   "(default: max_energy_drift)")
     q.add_argument("--columns", nargs="+", metavar="NAME", help="columns to histogram (default: the varied values, "
                    "max_energy_drift, max_L_drift)")
     add_verbosity(q)
@@ -58,8 +58,9 @@ def register(subparsers) -> None:
 
 
 def cmd_sweep(args) -> int:
-    """Handler of ``gyrosim sweep``: 0 done, 2 a bad spec or folder (nothing run), 130 interrupted. -q: no progress
-    bar or summary; -v: the log of the run (and of dask's client) on stderr."""
+    """Handler of ``gyrosim sweep``: 0 done, 1 every sample computed blew up (a warning says so; the rows are
+    written), 2 a bad spec or folder (nothing run), 130 interrupted. -q: no progress bar or summary; -v: the log of
+    the run (and of dask's client) on stderr."""
     from ..cli import verbosity
     from .execute import run_sweep
 
@@ -76,6 +77,11 @@ def cmd_sweep(args) -> int:
         return 130
     if v >= 0:
         print(res.format())
+    if res.computed_samples and res.blew_up == res.computed_samples:
+        print(f"gyrosim sweep: warning: every one of the {res.computed_samples:,} samples computed blew up (their rows "
+              "are written: NaN final outputs, and when each blew up in blew_up_time); try a smaller --max-step or "
+              "another --integrator", file=sys.stderr)
+        return 1
     return 0
 
 
