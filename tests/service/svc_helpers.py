@@ -74,8 +74,10 @@ def run(*args: str, timeout: float = 60, prefix: tuple[str, ...] = ()) -> subpro
                           timeout=timeout)
 
 
-def wait_for_line(proc: subprocess.Popen, needle: str, timeout: float = 20.0) -> list[str]:
-    """Read ``proc``'s stderr until a line contains ``needle``; return the lines read."""
+def wait_for_line(proc: subprocess.Popen, needle: str, timeout: float = 90.0) -> list[str]:
+    """Read ``proc``'s stderr until a line contains ``needle``; return the lines read. The bound is generous: a
+    process started on a loaded 2-core machine (the whole suite running, the first imports of a fresh venv) has
+    been seen to take over 20 s to reach its first line; a process that ends stops the wait at once."""
     import selectors
 
     lines: list[str] = []

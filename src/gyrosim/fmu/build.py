@@ -60,7 +60,7 @@ WINDOWS_C_FLAGS = (*(f for f in C_FLAGS if f not in ("-fPIC", "-fvisibility=hidd
 PLATFORMS = {"linux": ("linux64", "x86_64-linux", ".so"), "windows": ("win64", "x86_64-windows", ".dll")}
 
 _ENGINE = ("gyrosim_engine.h", "rk_tables.h", "engine.c", "exact.c", "cflags.txt")
-_GLUE = ("gyrosim_model.h", "gyrosim_model.c")
+_GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_model.c")
 #: Scene-wide variables (not per body) of a multi-body FMU.
 SCENE_VARIABLES = ("integrator", "max_step", "max_drift")
 _KINDS = {"I1": "GS_V_I1", "I2": "GS_V_I2", "I3": "GS_V_I3", "mass": "GS_V_MASS", "cm_distance": "GS_V_CM",

@@ -37,7 +37,8 @@ __all__ = ["TreeRow", "tree_rows", "tree_me_rows", "tree_config_header", "tree_m
 #: The engine's files a tree FMU is compiled from (core/engine/) and its glue (fmu/c/).
 TREE_ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "engine.c", "exact.c", "rk.c",
                "tree.c", "cflags.txt")
-TREE_GLUE = ("gyrosim_model.h", "gyrosim_tree_model.h", "gyrosim_tree_model.c")
+TREE_GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_tree_model.h",
+             "gyrosim_tree_model.c")
 #: Model exchange: the continuous state of the work integral (the engine's y[nx]).
 WORK_STATE = "energy_expected"
 #: The unit of a state's derivative by the state's unit.

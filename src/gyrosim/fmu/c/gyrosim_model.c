@@ -42,24 +42,7 @@ static const char *const KIND_UNIT[GS_V_COUNT] = {
 
 /* ------------------------------------------------------------------------------------------ helpers */
 
-static char *dup_string(const char *s) {
-    const size_t n = strlen(s) + 1;
-    char *r = (char *)malloc(n);
-    if (r) memcpy(r, s, n);
-    return r;
-}
-
-/* The shortest %g form that reads back to the same double (like Python's repr). */
-typedef struct { char s[40]; } Num;
-
-static Num num(double x) {
-    Num r;
-    for (int prec = 1; prec <= 17; prec++) {
-        snprintf(r.s, sizeof(r.s), "%.*g", prec, x);
-        if (!isfinite(x) || strtod(r.s, NULL) == x) break;
-    }
-    return r;
-}
+#include "gyrosim_glue_common.h"
 
 /* The variable's name as in modelDescription.xml: "<body>.<name>" in multi-body scenes. */
 typedef struct { char s[160]; } Name;
@@ -80,98 +63,6 @@ static const char *where(int body) {
     return GS_N_BODIES > 1 ? BODY_NAME[body] : "";
 }
 
-static uint64_t fnv1a(const char *s) {
-    uint64_t h = 1469598103934665603ULL;
-    for (; *s; s++) {
-        h ^= (unsigned char)*s;
-        h *= 1099511628211ULL;
-    }
-    return h;
-}
-
-static void vlog(GsInstance *m, int status, const char *category, const char *fmt, va_list args) {
-    char buf[1024];
-    size_t n = 0;
-    if (!m || !m->log) return;
-    if (m->fn) n = (size_t)snprintf(buf, sizeof(buf), "%s: ", m->fn);
-    if (n < sizeof(buf)) vsnprintf(buf + n, sizeof(buf) - n, fmt, args);
-    m->log(m->env, status, category, buf);
-}
-
-void gs_log_error(GsInstance *m, const char *fmt, ...) {
-    if (!m || !m->log_errors) return;
-    va_list args;
-    va_start(args, fmt);
-    vlog(m, GS_ERROR, "logStatusError", fmt, args);
-    va_end(args);
-}
-
-void gs_log_event(GsInstance *m, const char *fmt, ...) {
-    if (!m || !m->log_events) return;
-    va_list args;
-    va_start(args, fmt);
-    vlog(m, GS_OK, "logEvents", fmt, args);
-    va_end(args);
-}
-
-int gs_set_debug_logging(GsInstance *m, int logging_on, size_t n, const char *const categories[]) {
-    if (n == 0) {
-        m->log_events = logging_on;
-        m->log_errors = logging_on;
-        return GS_OK;
-    }
-    if (!categories) {
-        gs_log_error(m, "categories = NULL is not allowed with nCategories = %zu", n);
-        return GS_ERROR;
-    }
-    for (size_t i = 0; i < n; i++) {
-        const char *c = categories[i];
-        if (c && strcmp(c, "logEvents") == 0) {
-            m->log_events = logging_on;
-        } else if (c && strcmp(c, "logStatusError") == 0) {
-            m->log_errors = logging_on;
-        } else if (c && (strcmp(c, "logStatusWarning") == 0 || strcmp(c, "logStatusFatal") == 0)) {
-            /* declared by convention; this FMU never returns Warning or Fatal */
-        } else {
-            gs_log_error(m, "categories[%zu] = \"%s\" is not allowed: one of \"logEvents\", \"logStatusWarning\", "
-                         "\"logStatusError\", \"logStatusFatal\"", i, c ? c : "(null)");
-            return GS_ERROR;
-        }
-    }
-    return GS_OK;
-}
-
-static const char *state_name(int state) {
-    switch (state) {
-        case GS_INSTANTIATED: return "Instantiated";
-        case GS_INIT: return "InitializationMode";
-#if FMI_VERSION == 2
-        case GS_STEP: return "StepComplete";
-#else
-        case GS_STEP: return "StepMode";
-#endif
-        case GS_TERMINATED: return "Terminated";
-        case GS_EVENT: return "EventMode";
-        case GS_CONT: return "ContinuousTimeMode";
-        default: return "?";
-    }
-}
-
-int gs_check_state(GsInstance *m, int mask, const char *function) {
-    if (!m) return 0;
-    if (m->d.fmi_state & mask) return 1;
-    char allowed[128] = "";
-    for (int s = GS_INSTANTIATED; s <= GS_CONT; s <<= 1) {
-        if (mask & s) {
-            if (allowed[0]) strncat(allowed, ", ", sizeof(allowed) - strlen(allowed) - 1);
-            strncat(allowed, state_name(s), sizeof(allowed) - strlen(allowed) - 1);
-        }
-    }
-    m->fn = function;
-    gs_log_error(m, "Illegal call sequence: the instance is in state %s; allowed in %s.",
-                 state_name(m->d.fmi_state), allowed);
-    return 0;
-}
 
 /* ------------------------------------------------------------------------------------------ life cycle */
 

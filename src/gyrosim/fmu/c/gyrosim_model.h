@@ -91,59 +91,7 @@ typedef struct {
     GsData *scratch;          /* the state before a multi-body step (restored when a body fails) */
 } GsInstance;
 
-GsInstance *gs_new(const char *instance_name, void *env, GsLogger log, int logging_on);
-void gs_free(GsInstance *m);
-void gs_set_start_values(GsInstance *m);
-
-/* the printf checked against: MinGW's C99 stdio on Windows (__USE_MINGW_ANSI_STDIO, %zu included) */
-#if defined(__MINGW32__)
-#define GS_PRINTF_FORMAT gnu_printf
-#else
-#define GS_PRINTF_FORMAT printf
-#endif
-void gs_log_error(GsInstance *m, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(GS_PRINTF_FORMAT, 2, 3)))
-#endif
-    ;
-void gs_log_event(GsInstance *m, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(GS_PRINTF_FORMAT, 2, 3)))
-#endif
-    ;
-int gs_set_debug_logging(GsInstance *m, int logging_on, size_t n, const char *const categories[]);
-
-/* Allowed states and the variable of a value reference. */
-int gs_check_state(GsInstance *m, int mask, const char *function);
-
-int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double start_time, int stop_defined,
-             double stop_time);
-int gs_initialize(GsInstance *m);
-int gs_get_real(GsInstance *m, uint32_t vr, double *value);
-int gs_set_real(GsInstance *m, uint32_t vr, double value);
-int gs_get_string(GsInstance *m, uint32_t vr, const char **value);
-int gs_set_string(GsInstance *m, uint32_t vr, const char *value);
-int gs_do_step(GsInstance *m, double current_time, double h);
-double gs_time(const GsInstance *m);
-
-/* Model Exchange (the host's solver integrates q and omega; see gyrosim_model.c). */
-void gs_me_start(GsInstance *m);
-int gs_me_set_time(GsInstance *m, double t);
-int gs_me_get_states(GsInstance *m, double x[], size_t nx);
-int gs_me_set_states(GsInstance *m, const double x[], size_t nx);
-int gs_me_derivatives(GsInstance *m, double dx[], size_t nx);
-int gs_me_nominals(GsInstance *m, double x[], size_t nx);
-int gs_me_completed_step(GsInstance *m, int *enter_event_mode, int *terminate);
-void gs_me_enter_event_mode(GsInstance *m);
-int gs_me_update(GsInstance *m, int *values_changed);
-
-/* FMU states: heap copies of GsData. Serialised: a small header (magic, size) followed by GsData. */
-GsData *gs_state_alloc(GsInstance *m);
-size_t gs_serialized_size(void);
-void gs_serialize(const GsData *d, unsigned char *out);
-int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *out);
-int gs_check_state_data(GsInstance *m, const GsData *d);
-void gs_restore(GsInstance *m, const GsData *d);
+#include "gyrosim_glue_api.h"
 
 /* the integrators this FMU offers, for messages */
 #define GS_INTEGRATOR_LIST "euler, rk4, splitting, splitting4, adaptive, dop853" GS_EXACT_LIST
