@@ -125,4 +125,72 @@ int gs_check_state(GsInstance *m, int mask, const char *function) {
     return 0;
 }
 
+/* ------------------------------------------------------------------------------------------ FMU states */
+/* heap copies of GsData; serialised as a header (GS_MAGIC, defined by the glue before it includes this file, and
+ * the size) followed by GsData */
+typedef struct {
+    uint32_t magic;
+    uint32_t size;
+} GsHeader;
+
+GsData *gs_state_alloc(GsInstance *m) {
+    GsData *s = (GsData *)malloc(sizeof(GsData));
+    if (!s) gs_log_error(m, "out of memory (an FMU state of %zu bytes)", sizeof(GsData));
+    return s;
+}
+
+size_t gs_serialized_size(void) {
+    return sizeof(GsHeader) + sizeof(GsData);
+}
+
+void gs_serialize(const GsData *d, unsigned char *out) {
+    GsHeader h;
+    h.magic = GS_MAGIC;
+    h.size = (uint32_t)sizeof(GsData);
+    memcpy(out, &h, sizeof(h));
+    memcpy(out + sizeof(h), d, sizeof(GsData));
+}
+
+int gs_check_state_data(GsInstance *m, const GsData *d) {
+    if (d->token_hash != m->d.token_hash) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
+        return GS_ERROR;
+    }
+    if (d->me != m->d.me) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to a %s instance, and this one is %s",
+                     d->me ? "model exchange" : "co-simulation", m->d.me ? "model exchange" : "co-simulation");
+        return GS_ERROR;
+    }
+    return GS_OK;
+}
+
+void gs_restore(GsInstance *m, const GsData *d) {
+    memcpy(&m->d, d, sizeof(GsData));
+    m->outputs_valid = 0;
+}
+
+/* The header, the size and the instantiation token of serialised bytes checked, the state copied into out: GS_OK
+ * or GS_ERROR (logged); the glue then checks the fields its state indexes with. */
+static int read_state(GsInstance *m, const unsigned char *in, size_t size, GsData *out) {
+    GsHeader h;
+    if (!in || size != gs_serialized_size()) {
+        gs_log_error(m, "size = %zu is not allowed: a state serialised by this FMU has %zu bytes", size,
+                     gs_serialized_size());
+        return GS_ERROR;
+    }
+    memcpy(&h, in, sizeof(h));
+    if (h.magic != GS_MAGIC || h.size != sizeof(GsData)) {
+        gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU (wrong header)");
+        return GS_ERROR;
+    }
+    uint64_t token;
+    memcpy(&token, in + sizeof(h) + offsetof(GsData, token_hash), sizeof(token));
+    if (token != m->d.token_hash) {
+        gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
+        return GS_ERROR;
+    }
+    memcpy(out, in + sizeof(h), sizeof(GsData));
+    return GS_OK;
+}
+
 #endif

@@ -42,6 +42,7 @@ static const char *const KIND_UNIT[GS_V_COUNT] = {
 
 /* ------------------------------------------------------------------------------------------ helpers */
 
+#define GS_MAGIC 0x32535947u  /* "GYS2" */
 #include "gyrosim_glue_common.h"
 
 /* The variable's name as in modelDescription.xml: "<body>.<name>" in multi-body scenes. */
@@ -733,68 +734,9 @@ int gs_me_update(GsInstance *m, int *values_changed) {
 
 /* ------------------------------------------------------------------------------------------ state */
 
-#define GS_MAGIC 0x32535947u  /* "GYS2" */
-
-typedef struct {
-    uint32_t magic;
-    uint32_t size;
-} GsHeader;
-
-GsData *gs_state_alloc(GsInstance *m) {
-    GsData *s = (GsData *)malloc(sizeof(GsData));
-    if (!s) gs_log_error(m, "out of memory (an FMU state of %zu bytes)", sizeof(GsData));
-    return s;
-}
-
-size_t gs_serialized_size(void) {
-    return sizeof(GsHeader) + sizeof(GsData);
-}
-
-void gs_serialize(const GsData *d, unsigned char *out) {
-    GsHeader h;
-    h.magic = GS_MAGIC;
-    h.size = (uint32_t)sizeof(GsData);
-    memcpy(out, &h, sizeof(h));
-    memcpy(out + sizeof(h), d, sizeof(GsData));
-}
-
-int gs_check_state_data(GsInstance *m, const GsData *d) {
-    if (d->token_hash != m->d.token_hash) {
-        gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
-        return GS_ERROR;
-    }
-    if (d->me != m->d.me) {
-        gs_log_error(m, "the FMU state is not allowed: it belongs to a %s instance, and this one is %s",
-                     d->me ? "model exchange" : "co-simulation", m->d.me ? "model exchange" : "co-simulation");
-        return GS_ERROR;
-    }
-    return GS_OK;
-}
-
-void gs_restore(GsInstance *m, const GsData *d) {
-    memcpy(&m->d, d, sizeof(GsData));
-    m->outputs_valid = 0;
-}
 
 int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *out) {
-    GsHeader h;
-    if (!in || size != gs_serialized_size()) {
-        gs_log_error(m, "size = %zu is not allowed: a state serialised by this FMU has %zu bytes", size,
-                     gs_serialized_size());
-        return GS_ERROR;
-    }
-    memcpy(&h, in, sizeof(h));
-    if (h.magic != GS_MAGIC || h.size != sizeof(GsData)) {
-        gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU (wrong header)");
-        return GS_ERROR;
-    }
-    uint64_t token;
-    memcpy(&token, in + sizeof(h) + offsetof(GsData, token_hash), sizeof(token));
-    if (token != m->d.token_hash) {
-        gs_log_error(m, "the FMU state is not allowed: it belongs to another FMU (instantiation token)");
-        return GS_ERROR;
-    }
-    memcpy(out, in + sizeof(h), sizeof(GsData));
+    if (read_state(m, in, size, out) != GS_OK) return GS_ERROR;
     /* the bytes may have been altered: check every field that indexes or divides before the state is used */
     int ok = (out->fmi_state == GS_INSTANTIATED || out->fmi_state == GS_INIT || out->fmi_state == GS_STEP ||
               out->fmi_state == GS_TERMINATED || out->fmi_state == GS_EVENT || out->fmi_state == GS_CONT) &&
