@@ -524,11 +524,45 @@ class Model:
                                   f"and {torque} now; set it to 0 or choose another integrator ('adaptive', "
                                   "'dop853', 'rk4', 'splitting')")
         elif _engine.substeps(h, self.max_step) == 0:
-            article = "an" if what[:1] in "aeiou" else "a"
-            raise StepError(f"{article} {what} of {h!r} s with max_step = {self.max_step!r} s needs "
-                            f"{h / self.max_step:.3g} "
-                            f"internal steps, more than the {_engine.MAX_WORK:,} one call may take; raise max_step "
-                            "or take shorter steps")
+            self._refuse_work(h, what)
+
+    def _refuse_work(self, h: float, what: str) -> None:
+        """The StepError of a call that needs more internal steps than one call may take."""
+        article = "an" if what[:1] in "aeiou" else "a"
+        raise StepError(f"{article} {what} of {h!r} s with max_step = {self.max_step!r} s needs "
+                        f"{h / self.max_step:.3g} "
+                        f"internal steps, more than the {_engine.MAX_WORK:,} one call may take; raise max_step "
+                        "or take shorter steps")
+
+    def _tick(self, t: float, h: float, k: int) -> None:
+        """The clock after ``k`` steps of ``h`` s from ``t``: a run of equal steps stays ``t_base + n*h``."""
+        if k:
+            if h == self._h:
+                self._n += k
+            else:
+                self._t_base = t
+                self._n = k
+                self._h = h
+        self._out = None
+
+    def _start_run(self, dt, n, status, copies: int) -> tuple[float, int, float]:
+        """A trajectory's checks (status array, dt, n, the stop time) and the model initialised: (dt, n, t)."""
+        if status is not None and not (isinstance(status, np.ndarray) and status.dtype == np.int32
+                                       and status.shape == (copies,)):
+            raise ConfigError("status", type(status).__name__, f"an int32 array of shape ({copies},)")
+        dt = _positive_step(dt, "output interval dt")
+        if not (isinstance(n, (int, np.integer)) and n >= 0):
+            raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
+        n = int(n)
+        t = self.time
+        t_end = t + n * dt
+        if self.stop_time is not None and t_end > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
+            raise StepError(f"a run of {n} intervals of {dt!r} s from t = {t!r} s ends at {t_end!r} s, after the "
+                            f"stop time {self.stop_time!r} s")
+        if not self._initialized or self._state_dirty:
+            self.initialize()
+        self._check_call(dt, "output interval dt")
+        return dt, n, t
 
     def step(self, h: float) -> None:
         """Advance one communication step of ``h`` s, holding the inputs.
@@ -551,13 +585,7 @@ class Model:
         if self.integrator == "exact" or h > self.max_step * 1e6:
             self._check_call(h, "communication step h")
         self._step_engine(h, t)
-        if h == self._h:
-            self._n += 1
-        else:
-            self._t_base = t
-            self._n = 1
-            self._h = h
-        self._out = None
+        self._tick(t, h, 1)
 
     def _step_engine(self, h: float, t: float) -> None:
         method = _METHOD_CODES[self.integrator]
@@ -712,22 +740,8 @@ class Model:
             carries the rows computed before the failing interval (``error.rows``).
         """
         keep_going = status is not None
-        if keep_going and not (isinstance(status, np.ndarray) and status.dtype == np.int32
-                               and status.shape == (self.n_bodies,)):
-            raise ConfigError("status", type(status).__name__, f"an int32 array of shape ({self.n_bodies},)")
-        dt = _positive_step(dt, "output interval dt")
-        if not (isinstance(n, (int, np.integer)) and n >= 0):
-            raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
-        n = int(n)
-        t = self.time
-        t_end = t + n * dt
-        if self.stop_time is not None and t_end > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
-            raise StepError(f"a run of {n} intervals of {dt!r} s from t = {t!r} s ends at {t_end!r} s, after the "
-                            f"stop time {self.stop_time!r} s")
-        if not self._initialized or self._state_dirty:
-            self.initialize()
+        dt, n, t = self._start_run(dt, n, status, self.n_bodies)
         method = _METHOD_CODES[self.integrator]
-        self._check_call(dt, "output interval dt")
         out = np.empty((n + 1, self.n_bodies, len(OUTPUT_NAMES)))
         saved = None if keep_going else (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
         if keep_going:
@@ -757,14 +771,7 @@ class Model:
         if failed and erk:  # NaN from the failing interval on, as for the other methods
             for b in np.flatnonzero(status):
                 out[status[b]:, b] = np.nan
-        if n:
-            if dt == self._h:
-                self._n += n
-            else:
-                self._t_base = t
-                self._n = n
-                self._h = dt
-        self._out = None
+        self._tick(t, dt, n)
         return out
 
     def _outputs_array(self) -> np.ndarray:

@@ -14,8 +14,8 @@ import numpy as np
 
 from .core import _engine
 from .core.tree import BODY_OUTPUTS, SCENE_OUTPUTS, TreeLayout
-from .errors import ConfigError, IntegrationError, StepError
-from .model import Model, Variable, _positive_step
+from .errors import ConfigError, IntegrationError
+from .model import Model, Variable
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean, load_scene
 from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS
 
@@ -369,12 +369,10 @@ class TreeModel(Model):
             self._out = None
 
     def _check_call(self, h: float, what: str) -> None:
+        """Refuse at once a fixed-step call of more internal steps than one call may take (adaptive and dop853
+        fail in the engine when their error control needs more)."""
         if self.integrator in ("euler", "rk4") and _engine.substeps(h, self.max_step) == 0:
-            article = "an" if what[:1] in "aeiou" else "a"
-            raise StepError(f"{article} {what} of {h!r} s with max_step = {self.max_step!r} s needs "
-                            f"{h / self.max_step:.3g} "
-                            f"internal steps, more than the {_engine.MAX_WORK:,} one call may take; raise max_step "
-                            "or take shorter steps")
+            self._refuse_work(h, what)
 
     def _step_engine(self, h: float, t: float) -> None:
         method = _METHOD_CODES[self.integrator]
@@ -388,25 +386,6 @@ class TreeModel(Model):
             self._y, self._hint = saved
             raise IntegrationError(self._blowup(b, self._y[b], t, h, k,
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
-
-    def step(self, h: float) -> None:
-        """Advance one communication step of ``h`` s, holding the inputs (see :meth:`Model.step`)."""
-        h = _positive_step(h, "communication step h")
-        t = self.time
-        if self.stop_time is not None and t + h > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
-            raise StepError(f"a step of h = {h!r} s from t = {t!r} s ends at {t + h!r} s, after the stop time "
-                            f"{self.stop_time!r} s")
-        if not self._initialized or self._state_dirty:
-            self.initialize()
-        self._check_call(h, "communication step h")
-        self._step_engine(h, t)
-        if h == self._h:
-            self._n += 1
-        else:
-            self._t_base = t
-            self._n = 1
-            self._h = h
-        self._out = None
 
     def gimbal_lock(self, y=None, system: int = 0) -> str | None:
         """A message naming gimbal lock when two hinge axes of a chain are within 0.1 rad of lining up at the state
@@ -485,20 +464,7 @@ class TreeModel(Model):
         """
         del angles, momentum  # every output of a tree is computed
         keep_going = status is not None
-        if keep_going and not (isinstance(status, np.ndarray) and status.dtype == np.int32
-                               and status.shape == (self.n_systems,)):
-            raise ConfigError("status", type(status).__name__, f"an int32 array of shape ({self.n_systems},)")
-        dt = _positive_step(dt, "output interval dt")
-        if not (isinstance(n, (int, np.integer)) and n >= 0):
-            raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
-        n = int(n)
-        t = self.time
-        if self.stop_time is not None and t + n * dt > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
-            raise StepError(f"a run of {n} intervals of {dt!r} s from t = {t!r} s ends at {t + n * dt!r} s, after "
-                            f"the stop time {self.stop_time!r} s")
-        if not self._initialized or self._state_dirty:
-            self.initialize()
-        self._check_call(dt, "output interval dt")
+        dt, n, t = self._start_run(dt, n, status, self.n_systems)
         out = np.empty((n + 1, self.n_systems, self.layout.nout))
         st = status if keep_going else np.zeros(self.n_systems, dtype=np.int32)
         saved = (self._y.copy(), self._hint.copy())
@@ -515,15 +481,7 @@ class TreeModel(Model):
             err = IntegrationError(msg)
             err.rows = out[:k]
             raise err
-        done = n
-        if done:
-            if dt == self._h:
-                self._n += done
-            else:
-                self._t_base = t
-                self._n = done
-                self._h = dt
-        self._out = None
+        self._tick(t, dt, n)
         return out
 
     def _outputs_array(self) -> np.ndarray:
