@@ -125,6 +125,62 @@ int gs_check_state(GsInstance *m, int mask, const char *function) {
     return 0;
 }
 
+/* ------------------------------------------------------------------------------------------ time, set-up */
+
+static inline double gs_time_data(const GsData *d) {
+    return d->t_base + (double)d->n * d->h;
+}
+
+double gs_time(const GsInstance *m) {
+    return gs_time_data(&m->d);
+}
+
+int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double start_time, int stop_defined,
+             double stop_time) {
+    if (tolerance_defined && !(isfinite(tolerance) && tolerance > 0.0)) {
+        gs_log_error(m, "tolerance = %s is not allowed: a finite number > 0", num(tolerance).s);
+        return GS_ERROR;
+    }
+    if (!isfinite(start_time)) {
+        gs_log_error(m, "startTime = %s is not allowed: a finite number in s", num(start_time).s);
+        return GS_ERROR;
+    }
+    if (stop_defined && !(isfinite(stop_time) && stop_time >= start_time)) {
+        gs_log_error(m, "stopTime = %s is not allowed: a finite number >= startTime = %s s", num(stop_time).s,
+                     num(start_time).s);
+        return GS_ERROR;
+    }
+    if (tolerance_defined) {
+        m->d.tolerance = tolerance;
+        m->d.tolerance_defined = 1;
+    }
+    m->d.start_time = start_time;
+    m->d.t_base = start_time;
+    m->d.n = 0;
+    m->d.h = 0.0;
+    m->d.stop_defined = stop_defined ? 1 : 0;
+    m->d.stop_time = stop_defined ? stop_time : 0.0;
+    return GS_OK;
+}
+
+static int unknown_vr(GsInstance *m, uint32_t vr, const char *type) {
+    gs_log_error(m, "value reference %u is not allowed: the value reference of a %s variable of this FMU "
+                 "(see modelDescription.xml)", (unsigned)vr, type);
+    return GS_ERROR;
+}
+
+int gs_me_set_time(GsInstance *m, double t) {
+    if (!isfinite(t)) {
+        gs_log_error(m, "time = %s is not allowed: a finite number in s", num(t).s);
+        return GS_ERROR;
+    }
+    m->d.t_base = t;
+    m->d.n = 0;
+    m->d.h = 0.0;
+    m->outputs_valid = 0;
+    return GS_OK;
+}
+
 /* ------------------------------------------------------------------------------------------ FMU states */
 /* heap copies of GsData; serialised as a header (GS_MAGIC, defined by the glue before it includes this file, and
  * the size) followed by GsData */

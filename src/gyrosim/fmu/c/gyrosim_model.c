@@ -114,42 +114,6 @@ void gs_free(GsInstance *m) {
     free(m);
 }
 
-static double gs_time_data(const GsData *d) {
-    return d->t_base + (double)d->n * d->h;
-}
-
-double gs_time(const GsInstance *m) {
-    return gs_time_data(&m->d);
-}
-
-int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double start_time, int stop_defined,
-             double stop_time) {
-    if (tolerance_defined && !(isfinite(tolerance) && tolerance > 0.0)) {
-        gs_log_error(m, "tolerance = %s is not allowed: a finite number > 0", num(tolerance).s);
-        return GS_ERROR;
-    }
-    if (!isfinite(start_time)) {
-        gs_log_error(m, "startTime = %s is not allowed: a finite number in s", num(start_time).s);
-        return GS_ERROR;
-    }
-    if (stop_defined && !(isfinite(stop_time) && stop_time >= start_time)) {
-        gs_log_error(m, "stopTime = %s is not allowed: a finite number >= startTime = %s s", num(stop_time).s,
-                     num(start_time).s);
-        return GS_ERROR;
-    }
-    if (tolerance_defined) {
-        m->d.tolerance = tolerance;
-        m->d.tolerance_defined = 1;
-    }
-    m->d.start_time = start_time;
-    m->d.t_base = start_time;
-    m->d.n = 0;
-    m->d.h = 0.0;
-    m->d.stop_defined = stop_defined ? 1 : 0;
-    m->d.stop_time = stop_defined ? stop_time : 0.0;
-    return GS_OK;
-}
-
 /* inertia.check_principal_moments (positivity is enforced on set) */
 static int check_moments(GsInstance *m, int b) {
     const double *I = m->d.moments[b];
@@ -268,12 +232,6 @@ static void me_rhs(const GsData *d, int b, double dy[8]) {
         for (int i = 4; i < 8; i++) dy[i] = dn[i];
     }
 #endif
-}
-
-static int unknown_vr(GsInstance *m, uint32_t vr, const char *type) {
-    gs_log_error(m, "value reference %u is not allowed: the value reference of a %s variable of this FMU "
-                 "(see modelDescription.xml)", (unsigned)vr, type);
-    return GS_ERROR;
 }
 
 static int vr_kind(uint32_t vr, int *body) {
@@ -621,18 +579,6 @@ static void me_commit(GsData *d) {
 void gs_me_start(GsInstance *m) {
     m->d.t_work = gs_time(m);
     me_power(&m->d);
-}
-
-int gs_me_set_time(GsInstance *m, double t) {
-    if (!isfinite(t)) {
-        gs_log_error(m, "time = %s is not allowed: a finite number in s", num(t).s);
-        return GS_ERROR;
-    }
-    m->d.t_base = t;
-    m->d.n = 0;
-    m->d.h = 0.0;
-    m->outputs_valid = 0;
-    return GS_OK;
 }
 
 int gs_me_get_states(GsInstance *m, double x[], size_t nx) {

@@ -96,42 +96,6 @@ void gs_free(GsInstance *m) {
     free(m);
 }
 
-static double gs_time_data(const GsData *d) {
-    return d->t_base + (double)d->n * d->h;
-}
-
-double gs_time(const GsInstance *m) {
-    return gs_time_data(&m->d);
-}
-
-int gs_setup(GsInstance *m, int tolerance_defined, double tolerance, double start_time, int stop_defined,
-             double stop_time) {
-    if (tolerance_defined && !(isfinite(tolerance) && tolerance > 0.0)) {
-        gs_log_error(m, "tolerance = %s is not allowed: a finite number > 0", num(tolerance).s);
-        return GS_ERROR;
-    }
-    if (!isfinite(start_time)) {
-        gs_log_error(m, "startTime = %s is not allowed: a finite number in s", num(start_time).s);
-        return GS_ERROR;
-    }
-    if (stop_defined && !(isfinite(stop_time) && stop_time >= start_time)) {
-        gs_log_error(m, "stopTime = %s is not allowed: a finite number >= startTime = %s s", num(stop_time).s,
-                     num(start_time).s);
-        return GS_ERROR;
-    }
-    if (tolerance_defined) {
-        m->d.tolerance = tolerance;
-        m->d.tolerance_defined = 1;
-    }
-    m->d.start_time = start_time;
-    m->d.t_base = start_time;
-    m->d.n = 0;
-    m->d.h = 0.0;
-    m->d.stop_defined = stop_defined ? 1 : 0;
-    m->d.stop_time = stop_defined ? stop_time : 0.0;
-    return GS_OK;
-}
-
 /* TreeModel.initialize */
 int gs_initialize(GsInstance *m) {
     GsData *d = &m->d;
@@ -225,12 +189,6 @@ static void me_rhs(GsInstance *m, double *dx) {
         }
     }
     memcpy(dx, dy, GS_NX * sizeof(double));
-}
-
-static int unknown_vr(GsInstance *m, uint32_t vr, const char *type) {
-    gs_log_error(m, "value reference %u is not allowed: the value reference of a %s variable of this FMU "
-                 "(see modelDescription.xml)", (unsigned)vr, type);
-    return GS_ERROR;
 }
 
 static const GsTreeVar *var_of(uint32_t vr) {
@@ -498,18 +456,6 @@ static int check_nx(GsInstance *m, const void *x, size_t nx, const char *what) {
 
 void gs_me_start(GsInstance *m) {
     m->outputs_valid = 0;
-}
-
-int gs_me_set_time(GsInstance *m, double t) {
-    if (!isfinite(t)) {
-        gs_log_error(m, "time = %s is not allowed: a finite number in s", num(t).s);
-        return GS_ERROR;
-    }
-    m->d.t_base = t;
-    m->d.n = 0;
-    m->d.h = 0.0;
-    m->outputs_valid = 0;
-    return GS_OK;
 }
 
 int gs_me_get_states(GsInstance *m, double x[], size_t nx) {
