@@ -432,6 +432,25 @@ def _parse_fields(op: int, c: _Cur):
     return None
 
 
+def _take(rec, scan, schemas_seen: set, channels_seen: set) -> bool:
+    """Count a message, schema or channel record read from the data section (in a chunk or outside one); True when
+    it is to be yielded: a message of a known channel (else an orphan), a schema or channel seen the first time."""
+    r = _records()
+    if isinstance(rec, r.Message):
+        if rec.channel_id not in scan.channels:
+            scan.orphans += 1
+            return False
+        scan.messages += 1
+        scan.channel_messages[rec.channel_id] = scan.channel_messages.get(rec.channel_id, 0) + 1
+        return True
+    seen, table = (schemas_seen, scan.schemas) if isinstance(rec, r.Schema) else (channels_seen, scan.channels)
+    if rec.id in seen:
+        return False
+    seen.add(rec.id)
+    table[rec.id] = rec
+    return True
+
+
 def _message_index_count(c: _Cur) -> tuple[int, int]:
     """(channel id, entries) of a MessageIndex record."""
     ch, n = c.u16(), c.u32()
@@ -864,26 +883,9 @@ class _Reader:
                 continue
             try:
                 if op == _CHUNK:
-                    records = self.chunk(p, n)
-                    for rec in records:
-                        if isinstance(rec, r.Message):
-                            if rec.channel_id in scan.channels:
-                                scan.messages += 1
-                                scan.channel_messages[rec.channel_id] = \
-                                    scan.channel_messages.get(rec.channel_id, 0) + 1
-                                yield rec
-                            else:
-                                scan.orphans += 1
-                        elif isinstance(rec, r.Schema):
-                            if rec.id not in schemas_seen:
-                                schemas_seen.add(rec.id)
-                                scan.schemas[rec.id] = rec
-                                yield rec
-                        elif isinstance(rec, r.Channel):
-                            if rec.id not in channels_seen:
-                                channels_seen.add(rec.id)
-                                scan.channels[rec.id] = rec
-                                yield rec
+                    for rec in self.chunk(p, n):
+                        if _take(rec, scan, schemas_seen, channels_seen):
+                            yield rec
                 elif op == _MESSAGE_INDEX:
                     _, k = _message_index_count(_Cur(mm, p + 9, end))
                     scan.indexed_messages += k
@@ -911,24 +913,10 @@ class _Reader:
                     if isinstance(rec, r.Header):
                         scan.header = rec
                         yield rec
-                    elif isinstance(rec, r.Message):  # a file without chunks
-                        if self.chunk_index or scan.chunks or scan.damaged_chunks:
+                    elif isinstance(rec, (r.Message, r.Schema, r.Channel)):
+                        if isinstance(rec, r.Message) and (self.chunk_index or scan.chunks or scan.damaged_chunks):
                             raise _Bad("a message record outside the chunks of a file that has chunks")
-                        if rec.channel_id in scan.channels:
-                            scan.messages += 1
-                            scan.channel_messages[rec.channel_id] = scan.channel_messages.get(rec.channel_id, 0) + 1
-                            yield rec
-                        else:
-                            scan.orphans += 1
-                    elif isinstance(rec, r.Schema):
-                        if rec.id not in schemas_seen:
-                            schemas_seen.add(rec.id)
-                            scan.schemas[rec.id] = rec
-                            yield rec
-                    elif isinstance(rec, r.Channel):
-                        if rec.id not in channels_seen:
-                            channels_seen.add(rec.id)
-                            scan.channels[rec.id] = rec
+                        if _take(rec, scan, schemas_seen, channels_seen):  # a message: a file without chunks
                             yield rec
                     elif isinstance(rec, r.Metadata):
                         scan.metadata += 1
