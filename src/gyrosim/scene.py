@@ -283,6 +283,38 @@ def _inertia(spec, where, mass, cm_distance):
     return moments, axes, None
 
 
+def _attitude_rates(tbl: dict, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """A [[body]] table's start attitude (w, x, y, z; ``attitude = {q = ..}`` or ``{zyz = ..}``, identity by
+    default) and body rates (rad/s; ``rates = {omega = ..}`` or ``{zyz_rates = ..}``, zero by default)."""
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    if "attitude" in tbl:
+        a = tbl["attitude"]
+        if not isinstance(a, dict):
+            raise ConfigError("attitude", a, "a table {q = [w, x, y, z]} or {zyz = [phi, theta, psi]}", where=where)
+        k = _one_of(a, ("q", "zyz"), f"{where}.attitude")
+        v = _vec(a, k, 4 if k == "q" else 3, f"{where}.attitude")
+        if k == "q":
+            try:
+                q = as_quaternion(v, "attitude.q")
+            except ConfigError as e:
+                raise ConfigError(e.field, e.value, e.allowed, where=where) from None
+        else:
+            q = euler_zyz_to_quat(*v)
+    omega = np.zeros(3)
+    if "rates" in tbl:
+        r = tbl["rates"]
+        if not isinstance(r, dict):
+            raise ConfigError("rates", r, "a table {omega = [..]} or {zyz_rates = [..]}", where=where)
+        k = _one_of(r, ("omega", "zyz_rates"), f"{where}.rates")
+        v = _vec(r, k, 3, f"{where}.rates")
+        if k == "omega":
+            omega = v
+        else:
+            phi, theta, psi = quat_to_euler_zyz(q)
+            omega = euler_zyz_rates_to_omega_body(phi, theta, psi, *v)
+    return np.asarray(q, dtype=float), np.asarray(omega, dtype=float)
+
+
 def _body(tbl: dict, index: int, scene_g: float, where: str) -> tuple[list[BodySpec], set[str]]:
     where = f"{where} body[{index}]"
     if not isinstance(tbl, dict):
@@ -317,32 +349,7 @@ def _body(tbl: dict, index: int, scene_g: float, where: str) -> tuple[list[BodyS
     if ti:
         terms.add("torque")
     # attitude in the frame the user described; converted to the principal frame
-    q_geom = np.array([1.0, 0.0, 0.0, 0.0])
-    if "attitude" in tbl:
-        a = tbl["attitude"]
-        if not isinstance(a, dict):
-            raise ConfigError("attitude", a, "a table {q = [w, x, y, z]} or {zyz = [phi, theta, psi]}", where=where)
-        k = _one_of(a, ("q", "zyz"), f"{where}.attitude")
-        v = _vec(a, k, 4 if k == "q" else 3, f"{where}.attitude")
-        if k == "q":
-            try:
-                q_geom = as_quaternion(v, "attitude.q")
-            except ConfigError as e:
-                raise ConfigError(e.field, e.value, e.allowed, where=where) from None
-        else:
-            q_geom = euler_zyz_to_quat(*v)
-    omega_geom = np.zeros(3)
-    if "rates" in tbl:
-        r = tbl["rates"]
-        if not isinstance(r, dict):
-            raise ConfigError("rates", r, "a table {omega = [..]} or {zyz_rates = [..]}", where=where)
-        k = _one_of(r, ("omega", "zyz_rates"), f"{where}.rates")
-        v = _vec(r, k, 3, f"{where}.rates")
-        if k == "omega":
-            omega_geom = v
-        else:
-            phi, theta, psi = quat_to_euler_zyz(q_geom)
-            omega_geom = euler_zyz_rates_to_omega_body(phi, theta, psi, *v)
+    q_geom, omega_geom = _attitude_rates(tbl, where)
     q0 = quat_multiply(q_geom, matrix_to_quat(R_gp)) if not np.allclose(R_gp, np.eye(3)) else q_geom
     omega0 = R_gp.T @ omega_geom
     spread = tbl.get("spread", {})

@@ -43,7 +43,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .core.inertia import InertiaTensor
-from .core.rotations import as_quaternion, euler_zyz_rates_to_omega_body, euler_zyz_to_quat, quat_to_euler_zyz
 from .core.tree import JOINTS, TreeBody
 from .errors import ConfigError
 
@@ -216,32 +215,7 @@ def _tree_body(tbl, index, names, where):
         kw["r0"] = s._vec(tbl, "r", 3, where)
     if "v" in tbl:
         kw["v0"] = s._vec(tbl, "v", 3, where)
-    q = np.array([1.0, 0.0, 0.0, 0.0])
-    if "attitude" in tbl:
-        a = tbl["attitude"]
-        if not isinstance(a, dict):
-            raise ConfigError("attitude", a, "a table {q = [w, x, y, z]} or {zyz = [phi, theta, psi]}", where=where)
-        k = s._one_of(a, ("q", "zyz"), f"{where}.attitude")
-        v = s._vec(a, k, 4 if k == "q" else 3, f"{where}.attitude")
-        if k == "q":
-            try:
-                q = as_quaternion(v, "attitude.q")
-            except ConfigError as e:
-                raise ConfigError(e.field, e.value, e.allowed, where=where) from None
-        else:
-            q = euler_zyz_to_quat(*v)
-    kw["q0"] = np.asarray(q, dtype=float)
-    if "rates" in tbl:
-        r = tbl["rates"]
-        if not isinstance(r, dict):
-            raise ConfigError("rates", r, "a table {omega = [..]} or {zyz_rates = [..]}", where=where)
-        k = s._one_of(r, ("omega", "zyz_rates"), f"{where}.rates")
-        v = s._vec(r, k, 3, f"{where}.rates")
-        if k == "omega":
-            kw["omega0"] = v
-        else:
-            phi, theta, psi = quat_to_euler_zyz(q)
-            kw["omega0"] = np.asarray(euler_zyz_rates_to_omega_body(phi, theta, psi, *v), dtype=float)
+    kw["q0"], kw["omega0"] = s._attitude_rates(tbl, where)
     return TreeBody(**kw)
 
 
