@@ -181,6 +181,30 @@ int gs_me_set_time(GsInstance *m, double t) {
     return GS_OK;
 }
 
+/* doStep's checks (the current communication point is the FMU's time, h > 0, not past the stop time) and the
+ * instance initialised where it is not: GS_OK, or GS_ERROR logged */
+static int start_step(GsInstance *m, double current_time, double h) {
+    GsData *d = &m->d;
+    const double t = gs_time(m);
+    const double at = fabs(t);
+    if (!(isfinite(current_time) && fabs(current_time - t) <= 1e-9 * (at > 1.0 ? at : 1.0))) {
+        gs_log_error(m, "currentCommunicationPoint = %s s is not allowed: the FMU's time is %s s (a step must "
+                     "start where the previous one ended)", num(current_time).s, num(t).s);
+        return GS_ERROR;
+    }
+    if (!(isfinite(h) && h > 0.0)) {
+        gs_log_error(m, "communication step h = %s is not allowed: a finite number > 0 in s", num(h).s);
+        return GS_ERROR;
+    }
+    if (d->stop_defined && t + h > d->stop_time + 1e-9 * (fabs(d->stop_time) > 1.0 ? fabs(d->stop_time) : 1.0)) {
+        gs_log_error(m, "a step of h = %s s from t = %s s ends at %s s, after the stop time %s s", num(h).s,
+                     num(t).s, num(t + h).s, num(d->stop_time).s);
+        return GS_ERROR;
+    }
+    if ((!d->initialized || d->state_dirty) && gs_initialize(m) != GS_OK) return GS_ERROR;
+    return GS_OK;
+}
+
 /* ------------------------------------------------------------------------------------------ FMU states */
 /* heap copies of GsData; serialised as a header (GS_MAGIC, defined by the glue before it includes this file, and
  * the size) followed by GsData */
