@@ -253,6 +253,11 @@ class Model:
         self.n_bodies = n
         for k, a in arrays.items():  # _moments, _mass, _cm, _g, _damping, _tau, _y, _hint, _stats, _ex, ...
             setattr(self, k, a.copy())
+        self._start(start_time, stop_time, tolerance, parameters)
+
+    def _start(self, start_time, stop_time, tolerance, parameters) -> None:
+        """The scene's integrator settings, the clock at ``start_time``, nothing initialised yet; then
+        ``parameters`` set by name."""
         self.integrator = self.scene.integrator
         self.max_step = float(self.scene.max_step)
         self.max_drift = float(self.scene.max_drift)

@@ -176,22 +176,8 @@ class TreeModel(Model):
         self._hint = np.zeros(k)
         self._stats = np.zeros((k, 3), dtype=np.int64)
         self._status = np.zeros(k, dtype=np.int32)
-        self.integrator = sc.integrator
-        self.max_step = float(sc.max_step)
-        self.tolerance = float(sc.tolerance if tolerance is None else tolerance)
-        if tolerance is not None:
-            self._check_positive("tolerance", self.tolerance)
-        self.start_time = float(start_time)
-        self.stop_time = None if stop_time is None else float(stop_time)
-        self._t_base = self.start_time
-        self._n = 0
-        self._h = 0.0
-        self._initialized = False
-        self._state_dirty = True
-        self._out = None
         self._p = None  # the parameters the running state was started or moved with
-        for key, v in (parameters or {}).items():
-            self.set(key, v)
+        self._start(start_time, stop_time, tolerance, parameters)
 
     # ----------------------------------------------------------------------------------------------- variables
     def _full(self, name, body) -> str:
