@@ -48,9 +48,11 @@ setup(
         Extension(
             "gyrosim.core._engine",
             sources=["src/gyrosim/core/_enginemodule.c", str(ENGINE / "engine.c"), str(ENGINE / "exact.c"),
-                     str(ENGINE / "rk.c"), str(ENGINE / "tree.c")],
+                     str(ENGINE / "rk.c"), str(ENGINE / "tree.c"),
+                     str(ENGINE / "tree_cs.c")],
             depends=[str(ENGINE / "gyrosim_engine.h"), str(ENGINE / "gyrosim_ode.h"), str(ENGINE / "gyrosim_tree.h"),
-                     str(ENGINE / "rk_tables.h"), str(ENGINE / "cflags.txt")],
+                     str(ENGINE / "rk_tables.h"), str(ENGINE / "cflags.txt"),
+                     str(ENGINE / "tree.c")],
             extra_compile_args=list(CFLAGS),
             libraries=["m"],
         )

@@ -582,6 +582,39 @@ TREE_EACH(tree_reparam, 3)
 TREE_EACH(tree_derivatives, 4)
 TREE_EACH(tree_accelerations, 5)
 
+/* tree_directional(desc, y, p, vy, vp, ddy, dout): the complex-step directional derivative of the first system's
+ * derivatives (ddy: nx + 1) and outputs (dout: nout) along vy (nx) and vp (np) (gs_tree_directional) */
+static PyObject *py_tree_directional(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "tree_directional() takes 7 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    Buf b[6] = {{0}};
+    PyObject *res = NULL;
+    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, 0);
+    if (n < 1) {
+        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
+        goto done;
+    }
+    if (get_buf(args[3], &b[2], "vy", 'd', t.nx, 0) < 0 || get_buf(args[4], &b[3], "vp", 'd', t.np, 0) < 0 ||
+        get_buf(args[5], &b[4], "ddy", 'd', t.nx + 1, 1) < 0 || get_buf(args[6], &b[5], "dout", 'd', GS_TREE_NOUT(&t), 1) < 0)
+        goto done;
+    if (!gs_tree_directional(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf,
+                             (const double *)b[2].view.buf, (const double *)b[3].view.buf, (double *)b[4].view.buf,
+                             (double *)b[5].view.buf)) {
+        PyErr_SetString(PyExc_ValueError, "tree_directional: the tree is beyond the engine's limits");
+        goto done;
+    }
+    res = Py_None;
+    Py_INCREF(res);
+done:
+    release(b, 6);
+    return res;
+}
+
 /* tree_scalar(desc, y, p, which) -> torque_free (0) or fastest_rate (1) of the first system */
 static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
@@ -624,6 +657,8 @@ static PyMethodDef methods[] = {
      "tree_derivatives(desc, y, p, dy(nx + 1))"},
     {"tree_accelerations", (PyCFunction)(void (*)(void))py_tree_accelerations, METH_FASTCALL,
      "tree_accelerations(desc, y, p, qdd(dof))"},
+    {"tree_directional", (PyCFunction)(void (*)(void))py_tree_directional, METH_FASTCALL,
+     "tree_directional(desc, y, p, vy, vp, ddy, dout): complex-step directional derivatives"},
     {"tree_scalar", (PyCFunction)(void (*)(void))py_tree_scalar, METH_FASTCALL,
      "tree_scalar(desc, y, p, which) -> torque-free (0) or the fastest rate (1)"},
     {"pack", (PyCFunction)(void (*)(void))py_pack, METH_FASTCALL,

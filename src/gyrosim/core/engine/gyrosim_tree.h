@@ -125,6 +125,15 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out);
 
+/* Directional derivatives by the complex step (tree_cs.c): along vy (nx values: the joint coordinates; NULL: 0) and
+ * vp (np values: the parameters and inputs; NULL: 0), ddy[0:nx+1] = the derivative of gs_tree_derivatives and
+ * dout[0:GS_TREE_NOUT] = the derivative of gs_tree_outputs (either NULL: not computed). Exact to round-off: no
+ * difference quotient. Returns 1 (0 when the sizes exceed the limits below). */
+#define GS_TREE_NPMAX (GS_TP_HEAD + GS_TB_NP * GS_TREE_MAX + GS_TREE_MAX)
+#define GS_TREE_NOUTMAX (GS_ODE_MAX + 4 * GS_TREE_MAX + 5)
+int gs_tree_directional(const gs_tree *t, const double *y, const double *p, const double *vy, const double *vp,
+                        double *ddy, double *dout);
+
 #ifdef __cplusplus
 }
 #endif

@@ -18,6 +18,10 @@
 #define TREE_INLINE inline
 #endif
 
+#ifndef GS_TREE_CS
+typedef double treal;   /* a value only compared, never differentiated (tree_cs.c keeps it real) */
+#endif
+
 typedef double M3[3][3];
 typedef double M6[6][6];
 
@@ -180,7 +184,7 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
     for (int r = 0; r < 3; r++) Ja[r] = M[r][0] * a[0] + M[r][1] * a[1] + M[r][2] * a[2];
     const double la = a[0] * Ja[0] + a[1] * Ja[1] + a[2] * Ja[2];
     const double lt = 0.5 * (J[0] + J[1] + J[2] - la);
-    const double tol = 1e-15 * (fabs(J[0]) + fabs(J[1]) + fabs(J[2]));
+    const treal tol = 1e-15 * (fabs(J[0]) + fabs(J[1]) + fabs(J[2]));
     for (int r = 0; r < 3; r++) {
         for (int q = 0; q < 3; q++) {
             const double want = (r == q ? lt : 0.0) + (la - lt) * a[r] * a[q];
@@ -188,7 +192,7 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
         }
     }
     const double cxa[3] = {c[1] * a[2] - c[2] * a[1], c[2] * a[0] - c[0] * a[2], c[0] * a[1] - c[1] * a[0]};
-    const double ctol = 1e-15 * (fabs(c[0]) + fabs(c[1]) + fabs(c[2]));
+    const treal ctol = 1e-15 * (fabs(c[0]) + fabs(c[1]) + fabs(c[2]));
     return fabs(cxa[0]) <= ctol && fabs(cxa[1]) <= ctol && fabs(cxa[2]) <= ctol;
 }
 
@@ -899,6 +903,8 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
     }
 }
 
+#ifndef GS_TREE_CS   /* the monitor: real arithmetic only (tree_cs.c includes the rest) */
+
 static void totals(const gs_tree *t, const double *y, const double *p, Totals *s) {
     static _Thread_local Pre pre;
     precompute(t, p, &pre);
@@ -991,6 +997,8 @@ double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) 
     return w;
 }
 
+#endif
+
 static void outputs_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *out) {
     memcpy(out, y, (size_t)t->nx * sizeof(double));
     double qw[GS_TREE_MAX][4];
@@ -1023,6 +1031,8 @@ void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double 
     precompute(t, p, &pre);
     outputs_pre(t, y, p, &pre, out);
 }
+
+#ifndef GS_TREE_CS
 
 /* ---------------------------------------------------------------------------------------------- stepping */
 
@@ -1145,3 +1155,5 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
     }
     return failed;
 }
+
+#endif   /* GS_TREE_CS */
