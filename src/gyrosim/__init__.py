@@ -16,13 +16,14 @@ __version__ = "0.1.0"
 __all__ = [
     "RigidBodyDynamics", "InertiaTensor", "SymmetricTop", "Gyroscope", "TorqueFreeSolution",
     "GyrosimError", "ConfigError", "IntegrationError", "RecordingError", "StepError", "Model", "load_scene",
-    "simulate", "__version__",
+    "simulate", "normal_modes", "linearize", "__version__",
 ]
 
 _LAZY = {
     "RigidBodyDynamics": ".core.seeds", "InertiaTensor": ".core.inertia", "SymmetricTop": ".core.analytic",
     "Gyroscope": ".core.analytic", "TorqueFreeSolution": ".core.analytic", "Model": ".model",
-    "load_scene": ".scene", "simulate": ".trajectory",
+    "load_scene": ".scene", "simulate": ".trajectory", "normal_modes": ".analysis.linear",
+    "linearize": ".analysis.linear",
 }
 
 

@@ -801,6 +801,29 @@ class Model:
                      "max_step", "max_drift", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h",
                      "_initialized", "_state_dirty", "_ex")
 
+    # ----------------------------------------------------------------------------------------------- analyses
+    def jacobian(self, *, system: int = 0):
+        """The engine's derivatives at the present state (A, B, C, D and names; quaternions as four numbers), by
+        the complex step: :func:`gyrosim.analysis.linear.jacobian`."""
+        from .analysis.linear import jacobian
+
+        return jacobian(self, system=system)
+
+    def linearize(self, *, about=None, system: int = 0):
+        """State-space matrices and normal modes about the present state, an equilibrium or a steady motion:
+        ``A, B, C, D, names = model.linearize()``; the result also has ``.modes``, ``.stability`` and ``.table()``
+        (:func:`gyrosim.analysis.linear.linearize`, which lists the values of ``about``)."""
+        from .analysis.linear import linearize
+
+        return linearize(self, about=about, system=system)
+
+    def lyapunov(self, *args, **kwargs):
+        """The largest Lyapunov exponent of a run from the present state (:func:`gyrosim.analysis.chaos.lyapunov`,
+        which lists the arguments)."""
+        from .analysis.chaos import lyapunov
+
+        return lyapunov(self, *args, **kwargs)
+
     def get_state(self) -> ModelState:
         """Snapshot of the whole state, integrator history included, exact to the bit."""
         return ModelState({k: copy.deepcopy(getattr(self, k)) for k in self._STATE_FIELDS})

@@ -1,0 +1,1 @@
+"""Analyses of classical mechanics on any scene: small oscillations (linear) and chaos."""

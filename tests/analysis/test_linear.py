@@ -1,0 +1,258 @@
+"""Small oscillations: gyrosim.normal_modes and Model.linearize against closed forms.
+
+The linearization's derivatives are the engine's by the complex step (exact to round-off), and the eigenvalues
+come from LAPACK: a frequency is right to about 1e-12 relative where the closed form is exact (pendula, springs);
+1e-9 where the reference itself is a derivative evaluated in floating point (the top's nutation)."""
+import cmath
+import math
+
+import numpy as np
+import pytest
+
+from gyrosim import ConfigError, Gyroscope, Model, normal_modes
+from gyrosim.analysis.linear import steady_precession
+
+G = 9.81
+
+
+# ------------------------------------------------------------------------------------------ normal_modes(M, K)
+def test_three_masses_between_walls():
+    """The reference's three masses and four springs: w = sqrt(2 - sqrt 2), sqrt 2, sqrt(2 + sqrt 2) in units of
+    sqrt(k/m) (the reference's printed 'theoretical' values for this case are wrong; these are the eigenvalues of
+    k [[2, -1, 0], [-1, 2, -1], [0, -1, 2]] / m)."""
+    k, m = 3.0, 0.5
+    K = k * np.array([[2.0, -1, 0], [-1, 2, -1], [0, -1, 2]])
+    nm = normal_modes(m * np.eye(3), K)
+    want = np.sqrt(k / m) * np.sqrt([2 - math.sqrt(2), 2, 2 + math.sqrt(2)])
+    assert np.allclose(nm.frequencies, want, rtol=1e-13)
+    assert np.allclose(nm.shapes.T @ (m * np.eye(3)) @ nm.shapes, np.eye(3), atol=1e-13)
+    # the middle mode: the middle mass at rest, the outer ones opposed
+    mid = nm.shapes[:, 1] / nm.shapes[0, 1]
+    assert np.allclose(mid, [1, 0, -1], atol=1e-12)
+
+
+def test_coupled_pendula_matrices():
+    m, L, k = 1.2, 0.8, 0.3
+    M = m * L**2 * np.eye(2)
+    K = np.array([[m * G * L + k, -k], [-k, m * G * L + k]])
+    nm = normal_modes(M, K)
+    assert np.allclose(nm.frequencies, [math.sqrt(G / L), math.sqrt(G / L + 2 * k / (m * L**2))], rtol=1e-13)
+
+
+def test_linear_triatomic_molecule():
+    """O-C-O along a line, springs k: 0 (translation), sqrt(k/m), sqrt(k/m (1 + 2m/M))."""
+    m, Mc, k = 16.0, 12.0, 1.0
+    M = np.diag([m, Mc, m])
+    K = k * np.array([[1.0, -1, 0], [-1, 2, -1], [0, -1, 1]])
+    w = normal_modes(M, K).frequencies
+    assert w[0] == pytest.approx(0.0, abs=1e-7)
+    assert w[1:] == pytest.approx([math.sqrt(k / m), math.sqrt(k / m * (1 + 2 * m / Mc))], rel=1e-12)
+
+
+def test_damped_oscillator():
+    m, c, k = 2.0, 0.4, 8.0
+    nm = normal_modes([[m]], [[k]], [[c]])
+    wn = math.sqrt(k / m)
+    zeta = c / (2 * math.sqrt(k * m))
+    assert nm.damping_ratios[0] == pytest.approx(zeta, rel=1e-12)
+    assert nm.frequencies[0] == pytest.approx(wn * math.sqrt(1 - zeta**2), rel=1e-12)
+
+
+@pytest.mark.parametrize("M, K, what", [([[1.0, 2], [0, 1]], np.eye(2), "symmetric"),
+                                        (-np.eye(2), np.eye(2), "positive definite"),
+                                        (np.eye(2), np.eye(3), "(2, 2)")])
+def test_normal_modes_refuses_bad_matrices(M, K, what):
+    with pytest.raises(ConfigError, match=r"is not allowed: .*" + what.replace("(", r"\(").replace(")", r"\)")):
+        normal_modes(M, K)
+
+
+# ------------------------------------------------------------------------------------------ pendula
+def test_pendulum_and_torsion_coupled_pendula():
+    m = Model("coupled_pendula")
+    lin = m.linearize(about="equilibrium")
+    assert lin.about == "equilibrium" and lin.stability == "marginally stable"
+    w = [x.frequency for x in lin.oscillations()]
+    assert w == pytest.approx([math.sqrt(G), math.sqrt(G + 2 * 0.5)], rel=1e-12)
+    # the slow mode in phase, the fast one in opposition
+    s0, s1 = lin.oscillations()[0].shape, lin.oscillations()[1].shape
+    assert s0["left.angle"] / s0["right.angle"] == pytest.approx(1.0, rel=1e-10)
+    assert s1["left.angle"] / s1["right.angle"] == pytest.approx(-1.0, rel=1e-10)
+    m0 = Model("coupled_pendula", parameters={"coupling": 0.0})
+    assert [x.frequency for x in m0.linearize(about="equilibrium").oscillations()] == pytest.approx(
+        [math.sqrt(G)] * 2, rel=1e-12)
+
+
+def test_double_pendulum_modes_closed_form():
+    """Linearized: M = [[(m1+m2) L1^2, m2 L1 L2], [m2 L1 L2, m2 L2^2]], K = diag((m1+m2) g L1, m2 g L2) in
+    (theta1, theta2); w^2 are the roots of det(K - w^2 M) = 0, here written out."""
+    m1, m2, L1, L2 = 1.0, 2.0, 1.5, 0.7
+    m = Model("double_pendulum", parameters={"m1": m1, "m2": m2, "L1": L1, "L2": L2})
+    lin = m.linearize(about="equilibrium")
+    a = m1 * L1**2 * L2**2
+    b = -(m1 + m2) * G * (L1 * L2**2 + L2 * L1**2)
+    c = (m1 + m2) * G * G * L1 * L2
+    # det = (m1+m2) m2 L1^2 L2^2 - m2^2 L1^2 L2^2 = m1 m2 L1^2 L2^2 (a m2); divide through by m2
+    r = np.sqrt(b * b - 4 * a * c)
+    want = sorted(np.sqrt([(-b - r) / (2 * a), (-b + r) / (2 * a)]))
+    assert [x.frequency for x in lin.oscillations()] == pytest.approx(want, rel=1e-12)
+    assert lin.stability == "marginally stable"
+
+
+def test_equilibrium_found_from_an_offset_start():
+    m = Model("double_pendulum", parameters={"upper.angle": 0.4, "lower.angle": -0.3})
+    lin = m.linearize(about="equilibrium")
+    assert abs(m.get("upper.angle")) < 1e-12 and abs(m.get("lower.angle")) < 1e-12
+    assert lin.about == "equilibrium"
+
+
+def test_inverted_pendulum_is_unstable():
+    m = Model("coupled_pendula", parameters={"coupling": 0.0, "left.angle": math.pi, "right.angle": math.pi})
+    lin = m.linearize()
+    assert lin.about == "equilibrium"
+    assert lin.stability == "unstable"
+    grow = [x for x in lin.modes if x.kind == "growing"]
+    assert grow and grow[0].eigenvalue.real == pytest.approx(math.sqrt(G), rel=1e-12)
+
+
+# ------------------------------------------------------------------------------------------ tops
+def _nutation_exact(I1, I3, mgl, theta0, w3):
+    """The Lagrange top's small-oscillation frequency about steady precession at theta0 (Routh's reduction,
+    p_phi and p_psi held): I1 theta'' = F(theta), F = I1 phid^2 sin cos - I3 w3 phid sin + mgl sin with
+    phid(theta) = (p_phi - p_psi cos theta) / (I1 sin^2 theta); w^2 = -F'(theta0) / I1, F' by the complex step
+    in plain Python (independent of the engine)."""
+    c0, s0 = math.cos(theta0), math.sin(theta0)
+    r = math.sqrt((I3 * w3) ** 2 - 4 * I1 * c0 * mgl)
+    pd0 = 2 * mgl / (I3 * w3 + r)  # the slow root
+    p_psi = I3 * w3
+    p_phi = I1 * pd0 * s0 * s0 + p_psi * c0
+
+    def F(th):
+        s, c = cmath.sin(th), cmath.cos(th)
+        pd = (p_phi - p_psi * c) / (I1 * s * s)
+        return I1 * pd * pd * s * c - p_psi * pd * s + mgl * s
+
+    assert abs(F(theta0)) < 1e-12 * mgl
+    h = 1e-100
+    dF = F(complex(theta0, h)).imag / h
+    return math.sqrt(-dF / I1)
+
+
+@pytest.mark.parametrize("theta0, spin", [(0.3, 60.0), (1.0, 60.0), (2.0, 80.0), (0.8, 40.0)])
+def test_heavy_top_nutation_about_steady_precession(theta0, spin):
+    m = Model("heavy_top")
+    steady_precession(m, theta=theta0, spin=spin)
+    lin = m.linearize(about="steady")
+    assert lin.about == "steady motion"
+    I1, _, I3 = m._moments[0]
+    mgl = float(m._mass[0] * m._g[0] * m._cm[0])
+    (nut,) = lin.oscillations()
+    assert nut.frequency == pytest.approx(_nutation_exact(I1, I3, mgl, theta0, spin), rel=1e-9)
+    assert lin.stability == "marginally stable"
+
+
+def test_fast_top_limit_is_the_gyroscope_nutation_frequency():
+    """At a fast spin the nutation frequency tends to I3 w3 / I1 (Gyroscope.nutation_frequency); the
+    correction is of relative order (I1 m g l) / (I3 w3)^2, 2e-6 here."""
+    m = Model("gyroscope")
+    I1, _, I3 = (float(v) for v in m._moments[0])
+    mgl = float(m._mass[0] * m._g[0] * m._cm[0])
+    w3 = 2000.0
+    m.set("omega_z", w3)
+    lin = m.linearize(about="steady_precession")
+    gyro = Gyroscope(I_spin=I3, I_transverse=I1, mass=float(m._mass[0]), cm_distance=float(m._cm[0]),
+                     g=float(m._g[0]))
+    (nut,) = lin.oscillations()
+    eps = I1 * mgl / (I3 * w3) ** 2
+    assert eps < 1e-4
+    assert nut.frequency == pytest.approx(float(gyro.nutation_frequency(w3)), rel=10 * eps)
+
+
+@pytest.mark.parametrize("factor", [0.95, 1.05])
+def test_sleeping_top_stable_exactly_above_the_critical_spin(factor):
+    """(I3 w3)^2 > 4 I1 m g l: stable; below: unstable. The axis's two precession rates w+-, (I3 w3 +- sqrt((I3
+    w3)^2 - 4 I1 m g l)) / (2 I1), seen in the frame turning with the spin (rate w3 about the vertical)."""
+    m = Model("heavy_top")
+    I1, _, I3 = (float(v) for v in m._moments[0])
+    mgl = float(m._mass[0] * m._g[0] * m._cm[0])
+    w_crit = 2 * math.sqrt(I1 * mgl) / I3
+    w3 = factor * w_crit
+    for n, v in (("q_w", 1.0), ("q_x", 0.0), ("q_y", 0.0), ("q_z", 0.0), ("omega_x", 0.0), ("omega_y", 0.0),
+                 ("omega_z", w3)):
+        m.set(n, v)
+    lin = m.linearize(about="steady")
+    assert lin.about == "steady motion"
+    assert lin.rates == {"world": pytest.approx(w3, rel=1e-14)}
+    if factor > 1:
+        assert lin.stability == "marginally stable"
+        r = math.sqrt((I3 * w3) ** 2 - 4 * I1 * mgl)
+        rates = [(I3 * w3 + r) / (2 * I1) - w3, (I3 * w3 - r) / (2 * I1) - w3]
+        im = np.abs(np.linalg.eigvals(lin.A).imag)
+        for want in rates:
+            assert np.min(np.abs(im - abs(want))) < 1e-9 * w3
+    else:
+        assert lin.stability == "unstable"
+
+
+@pytest.mark.parametrize("axis, stable", [(0, True), (1, False), (2, True)])
+def test_torque_free_spin_about_principal_axes(axis, stable):
+    """Spin about the axes of least and greatest inertia is stable, about the middle one unstable (the tennis
+    racket); the stable body-frame wobble at w sqrt((Ik - Ii)(Ik - Ij) / (Ii Ij))."""
+    m = Model("free_body", parameters={"I1": 1.0, "I2": 2.0, "I3": 3.0})
+    w = 2.0
+    for k, n in enumerate(("omega_x", "omega_y", "omega_z")):
+        m.set(n, w if k == axis else 0.0)
+    lin = m.linearize(about="steady")
+    assert lin.about == "steady motion"
+    assert (lin.stability == "marginally stable") is stable
+    Ik = [1.0, 2.0, 3.0][axis]
+    Ii, Ij = [v for k, v in enumerate([1.0, 2.0, 3.0]) if k != axis]
+    lam2 = w * w * (Ik - Ii) * (Ik - Ij) / (Ii * Ij)
+    ev = np.linalg.eigvals(lin.A)
+    if stable:
+        assert np.min(np.abs(np.abs(ev.imag) - math.sqrt(lam2))) < 1e-12 * w
+    else:
+        assert np.max(ev.real) == pytest.approx(math.sqrt(-lam2), rel=1e-10)
+
+
+# ------------------------------------------------------------------------------------------ trees, matrices, errors
+def test_unpacks_as_the_design_says_and_inputs_drive_b():
+    m = Model("spacecraft")
+    A, B, C, D, names = m.linearize()
+    assert A.shape == (len(names.states),) * 2
+    assert names.inputs == ["hub.tau_x", "hub.tau_y", "hub.tau_z", "wheel_x.motor_torque", "wheel_y.motor_torque",
+                            "wheel_z.motor_torque"]
+    assert B.shape == (len(names.states), 6)
+    assert C.shape == (len(names.outputs), len(names.states)) and D.shape == (len(names.outputs), 6)
+    # a motor torque u on wheel x accelerates it: d(rate)/du = 1/J + ... > 0, and the hub the other way
+    j = names.inputs.index("wheel_x.motor_torque")
+    assert B[names.states.index("wheel_x.rate"), j] > 0
+    assert B[names.states.index("hub.omega_x"), j] < 0
+
+
+def test_gyroscope_in_gimbals_steady_and_its_rates():
+    m = Model("gimbal_gyroscope", parameters={"g": 0.0, "outer.rate": 0.0, "inner.rate": 0.0})
+    lin = m.linearize()
+    assert lin.about == "steady motion"
+    assert set(lin.rates) <= {"outer.angle", "rotor.angle"}
+
+
+def test_errors_name_the_field():
+    m = Model("heavy_top")
+    with pytest.raises(ConfigError, match="about = 'sideways' is not allowed"):
+        m.linearize(about="sideways")
+    m.set("omega_x", 3.0)
+    with pytest.raises(ConfigError, match="a steady motion"):
+        m.linearize(about="steady")
+    with pytest.raises(ConfigError, match="a one-body symmetric top"):
+        Model("double_pendulum").linearize(about="steady_precession")
+    assert m.linearize().about == "state"
+
+
+def test_every_embedded_scene_linearizes():
+    from gyrosim.scene import EMBEDDED_SCENES
+
+    for name in EMBEDDED_SCENES:
+        lin = Model(name).linearize()
+        assert np.all(np.isfinite(lin.A)), name
+        assert lin.stability in ("unstable", "asymptotically stable", "marginally stable")
+        assert lin.table().count("\n") == len(lin.modes)
