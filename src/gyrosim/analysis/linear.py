@@ -135,9 +135,11 @@ class Linearization:
         rows = [f"{'mode':>4}  {'eigenvalue':>26}  {'frequency rad/s':>15}  {'period s':>11}  {'damping':>8}  "
                 "shape (largest components)"]
         for k, m in enumerate(self.modes, 1):
-            ev = f"{m.eigenvalue.real:+.6g} {m.eigenvalue.imag:+.6g}j"
+            re = m.eigenvalue.real if abs(m.eigenvalue.real) > 1e-12 * abs(m.eigenvalue) else 0.0
+            ev = f"{re:+.6g} {m.eigenvalue.imag:+.6g}j"
             per = f"{m.period:.6g}" if math.isfinite(m.period) else "-"
-            dr = f"{m.damping_ratio:.3g}" if math.isfinite(m.damping_ratio) else "-"
+            z = m.damping_ratio if abs(m.damping_ratio) > 1e-12 else 0.0  # round-off shown as 0
+            dr = f"{z:.3g}" if math.isfinite(m.damping_ratio) else "-"
             rows.append(f"{k:>4}  {ev:>26}  {m.frequency:>15.8g}  {per:>11}  {dr:>8}  {m.kind}: "
                         + ", ".join(m.dominant()))
         return "\n".join(rows)

@@ -1,0 +1,178 @@
+"""``gyrosim linearize SCENE``: the normal modes and the stability verdict of a scene about its start state, an
+equilibrium or a steady motion; the matrices to a file, a plot of the modes."""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+ABOUT = ("auto", "state", "equilibrium", "steady", "steady_precession")
+
+
+def register(subparsers) -> None:
+    from ..cli import SCENE_HELP, add_verbosity
+
+    p = subparsers.add_parser(
+        "linearize", help="normal modes and stability about an equilibrium or a steady motion",
+        description="Linearize a scene about its start state (after --set/--start-values), an equilibrium or a "
+                    "steady motion (a top in steady precession, a spinning body, a satellite turning with its "
+                    "orbit), from the engine's own derivatives (complex step, exact to round-off), and print the "
+                    "modes (frequency, period, damping ratio, the largest components of the shape) and the "
+                    "stability verdict. --output writes A, B, C, D and the names (.npz, or .json); --plot the "
+                    "eigenvalues and the mode shapes.",
+        epilog="Examples: 'gyrosim linearize coupled_pendula --about equilibrium', 'gyrosim linearize heavy_top "
+               "--about steady_precession --set theta=0.5 --set spin=60', 'gyrosim linearize double_pendulum "
+               "--about equilibrium --plot modes.png'.")
+    p.add_argument("scene", help=SCENE_HELP)
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="set a parameter or start value (repeatable); with --about steady_precession also theta "
+                        "(rad) and spin (rad/s)")
+    p.add_argument("--start-values", nargs="+", action="extend", metavar="NAME VALUE",
+                   help="name-value pairs of start values, as FMPy takes them")
+    p.add_argument("--about", choices=ABOUT, default="auto",
+                   help="auto (default: an equilibrium or a steady motion where the state is one, else the "
+                        "instantaneous Jacobian), state, equilibrium (Newton from the start state, velocities 0), "
+                        "steady (must be a steady motion), steady_precession (a symmetric top on a pivot)")
+    p.add_argument("--output", "-o", metavar="FILE.npz|FILE.json", help="write A, B, C, D and the names")
+    p.add_argument("--plot", metavar="FILE.png", help="plot the eigenvalues and the mode shapes")
+    add_verbosity(p)
+    p.set_defaults(func=cmd_linearize)
+
+
+def _model(args):
+    from ..cli import _start_values
+    from ..errors import ConfigError
+    from ..model import Model
+
+    values = _start_values(args)
+    extra = {}
+    if args.about == "steady_precession":
+        for k in ("theta", "spin"):
+            if k in values:
+                extra[k] = values.pop(k)
+    m = Model(args.scene)
+    for k, v in values.items():
+        try:
+            x = float(v)
+        except ValueError:
+            m.set(k, v)  # the integrator's name; the model names what is allowed
+            continue
+        m.set(k, x)
+    for k, v in extra.items():
+        try:
+            extra[k] = float(v)
+        except ValueError:
+            raise ConfigError(k, v, "a real number (theta in rad, spin in rad/s)") from None
+    return m, extra
+
+
+def cmd_linearize(args) -> int:
+    from .._atomic import check_writable
+    from ..cli import verbosity
+    from .linear import linearize, steady_precession
+
+    v = verbosity(args)
+    for flag, path, suffixes in (("--output", args.output, (".npz", ".json")), ("--plot", args.plot, (".png",))):
+        if path is not None:
+            if Path(path).suffix.lower() not in suffixes:
+                from ..errors import ConfigError
+
+                raise ConfigError(flag, path, "a file name ending in " + " or ".join(suffixes))
+            check_writable(Path(path), flag)
+    m, extra = _model(args)
+    about = None if args.about == "auto" else args.about
+    if about == "steady_precession":
+        steady_precession(m, **extra)
+        about = "steady"
+    lin = linearize(m, about=about)
+    scene = m.scene.name
+    if v >= 0:
+        what = {"equilibrium": "an equilibrium", "steady motion": "a steady motion",
+                "state": "the state as it is (not an equilibrium nor a steady motion: the instantaneous Jacobian)"}
+        print(f"scene {scene}: linearized about {what[lin.about]}"
+              + ("; rates " + ", ".join(f"{k} {x:.10g}" for k, x in lin.rates.items()) if lin.rates else "")
+              + f"; {len(lin.names.states)} states, {len(lin.names.inputs)} inputs")
+    print(lin.table())
+    print(f"stability: {lin.stability}")
+    if args.output:
+        _write(lin, Path(args.output))
+    if args.plot:
+        plot_modes(lin, Path(args.plot), title=f"{scene}: modes about {lin.about}")
+    if v > 0:
+        for path in (args.output, args.plot):
+            if path:
+                print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
+def _write(lin, path: Path) -> None:
+    import json
+
+    import numpy as np
+
+    from .._atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        if path.suffix.lower() == ".json":
+            tmp.write_text(json.dumps({"A": lin.A.tolist(), "B": lin.B.tolist(), "C": lin.C.tolist(),
+                                       "D": lin.D.tolist(), "states": lin.names.states,
+                                       "inputs": lin.names.inputs, "outputs": lin.names.outputs,
+                                       "about": lin.about, "rates": lin.rates, "stability": lin.stability}))
+        else:
+            with tmp.open("wb") as fh:
+                np.savez(fh, A=lin.A, B=lin.B, C=lin.C, D=lin.D, states=np.array(lin.names.states),
+                         inputs=np.array(lin.names.inputs, dtype=str), outputs=np.array(lin.names.outputs),
+                         about=lin.about, stability=lin.stability)
+
+
+def displacements(shape: dict) -> list:
+    """The names of a shape's coordinates (angles, small rotations, positions), not its rates."""
+    rates = ("rate", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z")
+    return [n for n in shape if not n.rpartition(".")[2].startswith(rates)]
+
+
+def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4) -> None:
+    """Eigenvalues in the complex plane and the oscillating modes' shapes (real parts, largest component 1)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from .._atomic import atomic_path
+
+    osc = lin.oscillations()[:max_modes]
+    n = max(1, len(osc))
+    fig, axes = plt.subplots(1, 1 + n, figsize=(4.2 * (1 + n), 4.0), squeeze=False)
+    ax = axes[0, 0]
+    ev = np.linalg.eigvals(lin.A)
+    ax.axvline(0, color="0.6", lw=0.8)
+    ax.axhline(0, color="0.6", lw=0.8)
+    ax.plot(ev.real, ev.imag, "o", color="C3")
+    ax.set_xlabel("Re lambda (1/s)")
+    ax.set_ylabel("Im lambda (rad/s)")
+    ax.set_title(f"eigenvalues: {lin.stability}")
+    span = max(1e-12, float(np.max(np.abs(ev))) if ev.size else 1.0)
+    if np.max(np.abs(ev.real)) < 1e-6 * span:
+        ax.set_xlim(-0.2 * span, 0.2 * span)
+    for k, mode in enumerate(osc):
+        a = axes[0, 1 + k]
+        names = displacements(mode.shape) or list(mode.shape)
+        vals = np.array([mode.shape[s] for s in names])
+        vals = (vals / vals[np.argmax(np.abs(vals))]).real  # the largest displacement 1, the others in phase
+        keep = np.abs(vals) > 1e-9
+        a.barh(np.array(names)[keep], vals[keep], color="C0")
+        a.axvline(0, color="0.6", lw=0.8)
+        per = f", period {mode.period:.4g} s" if math.isfinite(mode.period) else ""
+        a.set_title(f"mode {k + 1}: {mode.frequency:.5g} rad/s{per}", fontsize=9)
+        a.set_xlabel("shape (displacements, largest 1)", fontsize=8)
+        a.tick_params(axis="y", labelsize=8)
+        a.invert_yaxis()
+    if not osc:
+        axes[0, 1].set_axis_off()
+        axes[0, 1].text(0.5, 0.5, "no oscillating mode", ha="center", va="center")
+    fig.suptitle(title)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
