@@ -17,6 +17,11 @@ File format (every key optional unless said)::
     stop_time = 10.0             # s
     g = 9.81                     # m/s^2, used by pivoted bodies
 
+    [scene.orbit]                # a tree on an orbit about a central body (scene_tree.orbit_from_dict)
+    mu = 3.986004418e14          # m^3/s^2 (default: the Earth's)
+    radius = 7.0e6               # m: a circular orbit of the tree's reference point; without it, the free roots'
+                                 # Kepler orbits from their r, v (the world origin at the central body's centre)
+
     [[body]]
     name = "top"                 # default body, body_1, ...
     count = 1                    # replicate the body (fields of gyroscopes, Monte Carlo)
@@ -61,7 +66,7 @@ from .errors import ConfigError
 __all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
 
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
-                   "double_pendulum", "coupled_pendula")
+                   "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact")
 G_DEFAULT = 9.81
 
@@ -131,6 +136,8 @@ class Scene:
     aliases: tuple = ()
     #: copies of the tree a model of this scene holds (sweeps: one copy per sample, stepped in one engine call)
     systems: int = 1
+    #: a tree's orbit about a central body (core.tree.Orbit, ``[scene.orbit]``), or None
+    orbit: object | None = None
 
     @property
     def is_tree(self) -> bool:
@@ -388,7 +395,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     if not isinstance(sc, dict):
         raise ConfigError("scene", sc, "a table [scene]", where=source)
     where = f"{source} [scene]"
-    _check_keys(sc, _SCENE_KEYS, where)
+    _check_keys(sc, _SCENE_KEYS + ("orbit",), where)   # [scene.orbit]: a tree's orbit (scene_tree.orbit_from_dict)
     name = sc.get("name")
     if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
         raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-'", where=where)
@@ -429,7 +436,8 @@ def _is_tree(data: dict) -> bool:
     from .scene_tree import TREE_KEYS
 
     bodies = data.get("body")
-    return ("coupling" in data or "parameters" in data or
+    sc = data.get("scene")
+    return ("coupling" in data or "parameters" in data or (isinstance(sc, dict) and "orbit" in sc) or
             (isinstance(bodies, list) and any(isinstance(b, dict) and any(k in b for k in TREE_KEYS) for b in bodies)))
 
 
@@ -438,12 +446,13 @@ TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853")
 
 
 def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
-    from .scene_tree import tree_from_dict
+    from .scene_tree import orbit_from_dict, tree_from_dict
 
     if integ not in TREE_INTEGRATORS:
         raise ConfigError("integrator", integ, f"one of {', '.join(TREE_INTEGRATORS)}: a tree of bodies is "
                           f"integrated by the tree engine ('{integ}' solves one body)", where=where)
     bodies, couplings, cnames, aliases = tree_from_dict(data, source)
+    orbit = orbit_from_dict(sc["orbit"], bodies, f"{where}.orbit") if "orbit" in sc else None
     return Scene(
         name=name, bodies=(), gravity=g > 0, damping=any(b.damping > 0 for b in bodies),
         torque=any(b.torque_input or b.motor_input for b in bodies), integrator=integ,
@@ -453,7 +462,7 @@ def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source, tree=bodies, couplings=couplings,
-        coupling_names=cnames, aliases=aliases)
+        coupling_names=cnames, aliases=aliases, orbit=orbit)
 
 
 def full_scene() -> Scene:

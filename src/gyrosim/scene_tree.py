@@ -28,6 +28,12 @@ A scene is a tree when a ``[[body]]`` has ``parent`` or ``joint``, or the scene 
     bodies = ["left", "right"]
     stiffness = 1.0
 
+    [scene.orbit]                    # the tree on an orbit about a central body (orbit_from_dict)
+    mu = 3.986004418e14              # m^3/s^2, the central body's gravitational parameter (default: the Earth's)
+    radius = 7.0e6                   # m: a circular orbit of the tree's reference point (x-y plane, normal +z);
+    anomaly = 0.0                    # rad, its start anomaly. Without radius: every root is free, the world origin
+                                     # is the central body's centre, and the roots move under the central force
+
     [parameters.L1]                  # a scene parameter that sets body parameters (each = factor * value)
     value = 1.0
     unit = "m"
@@ -43,10 +49,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .core.inertia import InertiaTensor
-from .core.tree import JOINTS, TreeBody
+from .core.tree import JOINTS, MU_EARTH, Orbit, TreeBody
 from .errors import ConfigError
 
-__all__ = ["Alias", "tree_from_dict", "BODY_PARAMS", "TREE_KEYS"]
+__all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "TREE_KEYS"]
 
 _TREE_BODY_KEYS = ("name", "parent", "joint", "position", "axis", "mass", "cm", "cm_distance", "inertia",
                    "stiffness", "rest_angle", "joint_damping", "damping", "motor_input", "torque_input", "attitude",
@@ -312,3 +318,29 @@ def tree_from_dict(data: dict, source: str):
         for bi, pn, f in targets:
             bodies[bi] = body_with(bodies[bi], pn, f * value)
     return tuple(bodies), tuple(couplings), tuple(cnames), tuple(aliases)
+
+
+def orbit_from_dict(tbl, bodies, where: str) -> Orbit:
+    """The ``[scene.orbit]`` table of a tree scene: ``mu`` (m^3/s^2 > 0, default the Earth's), ``radius`` (m > 0: a
+    circular orbit) and ``anomaly`` (rad, its start), or no radius: every root ``free`` with ``r`` away from the
+    central body (the world origin)."""
+    s = _h()
+    if not isinstance(tbl, dict):
+        raise ConfigError("orbit", tbl, "a table [scene.orbit] with mu, radius, anomaly", where=where)
+    s._check_keys(tbl, ("mu", "radius", "anomaly"), where)
+    mu = s._num(tbl, "mu", where, MU_EARTH, lo=0.0, lo_open=True)
+    radius = s._num(tbl, "radius", where, None, lo=0.0, lo_open=True)
+    if radius is None:
+        if "anomaly" in tbl:
+            raise ConfigError("anomaly", tbl["anomaly"], "left out without radius (the anomaly of a circular orbit; "
+                              "a Kepler orbit starts from the free roots' r and v)", where=where)
+        for b in bodies:
+            if b.parent < 0 and b.joint != "free":
+                raise ConfigError("radius", None, f"a number > 0 in m (a circular orbit), or every root joint "
+                                  f"'free' (a Kepler orbit from its r, v); root {b.name!r} has joint {b.joint!r}",
+                                  where=where)
+            if b.parent < 0 and not float(np.linalg.norm(b.r0)) > 0:
+                raise ConfigError("r", b.r0.tolist(), "a position away from the central body (the world origin) on "
+                                  f"a Kepler orbit (root {b.name!r}, m)", where=where)
+        return Orbit(mu=mu)
+    return Orbit(mu=mu, radius=radius, anomaly=s._num(tbl, "anomaly", where, 0.0))

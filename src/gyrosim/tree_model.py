@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from .core import _engine
-from .core.tree import BODY_OUTPUTS, SCENE_OUTPUTS, TreeLayout
+from .core.tree import BODY_OUTPUTS, ORBIT_BODY_OUTPUTS, ORBIT_COORD, ORBIT_OUTPUTS, SCENE_OUTPUTS, TreeLayout
 from .errors import ConfigError, IntegrationError
 from .model import Model, Variable
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean, load_scene
@@ -48,16 +48,36 @@ _SCENE_OUT_META = {
 }
 
 
+_ORBIT_OUT_META = {
+    "orbit_r_x": ("m", "position of the orbit point from the central body, world x (circular: the tree's reference "
+                  "point; Kepler: the tree's centre of mass)"),
+    "orbit_r_y": ("m", "position of the orbit point from the central body, world y"),
+    "orbit_r_z": ("m", "position of the orbit point from the central body, world z"),
+    "orbit_v_x": ("m/s", "velocity of the orbit point, world x"),
+    "orbit_v_y": ("m/s", "velocity of the orbit point, world y"),
+    "orbit_v_z": ("m/s", "velocity of the orbit point, world z"),
+}
+
+
 def tree_output_names(scene: Scene) -> list[str]:
-    """The output columns of a tree scene's engine rows: ``<body>.<coordinate>``, ``<body>.q_world_*``, then the
-    scene-wide ``energy``, ``energy_error``, ``L_x``, ``L_y``, ``L_z``."""
+    """The output columns of a tree scene's engine rows: ``<body>.<coordinate>`` (and a circular orbit's
+    ``orbit_anomaly``), ``<body>.q_world_*``, the scene-wide ``energy``, ``energy_error``, ``L_x``, ``L_y``,
+    ``L_z``; on an orbit then ``<body>.q_orbit_*`` and ``orbit_r_*``, ``orbit_v_*``."""
     names = scene.body_names
     out = []
     for b, body in enumerate(scene.tree):
         out += [f"{names[b]}.{c}" for c in body.coords]
+    orbit = getattr(scene, "orbit", None)
+    if orbit is not None and orbit.circular:
+        out.append(ORBIT_COORD)
     for b in range(len(scene.tree)):
         out += [f"{names[b]}.{c}" for c in BODY_OUTPUTS]
-    return out + list(SCENE_OUTPUTS)
+    out += list(SCENE_OUTPUTS)
+    if orbit is not None:
+        for b in range(len(scene.tree)):
+            out += [f"{names[b]}.{c}" for c in ORBIT_BODY_OUTPUTS]
+        out += list(ORBIT_OUTPUTS)
+    return out
 
 
 def _body_param_value(b, name: str) -> float:
@@ -79,6 +99,14 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     from .scene import INTEGRATORS
 
     V = [Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z", float(scene.g))]
+    orbit = scene.orbit
+    if orbit is not None:
+        V.append(Variable("orbit_mu", "parameter", "fixed", "Real", "m3/s2",
+                          "gravitational parameter of the central body (gravity gradient" +
+                          (", tidal forces)" if orbit.circular else ", central force)"), float(orbit.mu)))
+        if orbit.circular:
+            V.append(Variable("orbit_radius", "parameter", "fixed", "Real", "m",
+                              "radius of the circular orbit of the tree's reference point", float(orbit.radius)))
     for a in scene.aliases:
         V.append(Variable(a.name, "parameter", "fixed", "Real", a.unit, a.description, float(a.value)))
     for name, (_, _, k) in zip(scene.coupling_names, scene.couplings):
@@ -121,8 +149,20 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
         for c in BODY_OUTPUTS:
             V.append(Variable(pre + c, "output", "continuous", "Real", "1",
                               f"attitude in the world, {c[-1]} part (body to world)", None))
+        if orbit is not None:
+            for c in ORBIT_BODY_OUTPUTS:
+                V.append(Variable(pre + c, "output", "continuous", "Real", "1",
+                                  f"attitude in the orbit frame (local vertical, local horizontal), {c[-1]} part "
+                                  "(body to orbit frame, w >= 0)", None))
+    if orbit is not None and orbit.circular:
+        V.append(Variable(ORBIT_COORD, "output", "continuous", "Real", "rad",
+                          "anomaly of the circular orbit (the orbit point at radius (cos, sin, 0)), unwrapped",
+                          float(orbit.anomaly)))
     for n, (unit, desc) in _SCENE_OUT_META.items():
         V.append(Variable(n, "output", "continuous", "Real", unit, desc, None))
+    if orbit is not None:
+        for n, (unit, desc) in _ORBIT_OUT_META.items():
+            V.append(Variable(n, "output", "continuous", "Real", unit, desc, None))
     return {v.name: v for v in V}
 
 
@@ -159,7 +199,7 @@ class TreeModel(Model):
         self.scene = sc = load_scene(scene)
         if not sc.is_tree:
             raise ConfigError("scene", sc.name, "a tree scene (bodies with parent/joint)")
-        self.layout = TreeLayout(sc.tree, sc.couplings)
+        self.layout = TreeLayout(sc.tree, sc.couplings, sc.orbit)
         self.variables = tree_variables(sc)
         self.body_names = sc.body_names
         self.n_bodies = len(self.body_names)
@@ -201,7 +241,11 @@ class TreeModel(Model):
     def _columns(self, name: str) -> list:
         """Where a parameter or input lives in a parameter row: [(column, factor), ...]."""
         if name == "g":
-            return [(0, 1.0)]
+            return [(_engine.TP_G, 1.0)]
+        if name == "orbit_mu":
+            return [(_engine.TP_MU, 1.0)]
+        if name == "orbit_radius":
+            return [(_engine.TP_ORBIT_R, 1.0)]
         if name in self._alias_names:
             a = self.scene.aliases[self._alias_names.index(name)]
             return [(self.layout.body_offset(bi) + _BODY_COLS[pn], f) for bi, pn, f in a.sets]
@@ -215,9 +259,12 @@ class TreeModel(Model):
         bad = ~np.isfinite(x)
         if short in _NON_NEGATIVE or name == "g" or name in self.scene.coupling_names:
             bad |= ~(x >= 0)
+        positive = name in ("orbit_mu", "orbit_radius")
+        if positive:
+            bad |= ~(x > 0)
         if bad.any():
             v = float(x[np.flatnonzero(bad)[0]])
-            rule = "a finite number" if not np.isfinite(v) else "a number >= 0"
+            rule = "a finite number" if not np.isfinite(v) else "a number > 0" if positive else "a number >= 0"
             raise ConfigError(name, v, f"{rule} in {unit or '1'}")
 
     def _assign(self, name: str, v: Variable, x: np.ndarray) -> None:
@@ -228,7 +275,7 @@ class TreeModel(Model):
                 raise ConfigError(name, float(x[0]), "a parameter, an input or a joint's start state; "
                                   f"{name} is a derived output")
             bname, _, short = name.rpartition(".")
-            self._y[:, self.layout.coord_slots[(self._index[bname], short)]] = x
+            self._y[:, self.layout.coord_slots[(self._index[bname] if bname else None, short)]] = x
             self._state_dirty = True
             self._out = None
             return

@@ -10,7 +10,8 @@ import pytest
 from gyrosim import Model
 from gyrosim.core import _engine
 
-TREES = ["gimbal_gyroscope", "spacecraft", "cmg_spacecraft", "double_pendulum", "coupled_pendula"]
+TREES = ["gimbal_gyroscope", "spacecraft", "cmg_spacecraft", "double_pendulum", "coupled_pendula", "satellite",
+         "satellite_wheels"]
 
 
 def _directional(m, vy, vp):

@@ -642,7 +642,8 @@ static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_
 
 static PyMethodDef methods[] = {
     {"tree_info", (PyCFunction)(void (*)(void))py_tree_info, METH_FASTCALL,
-     "tree_info(desc) -> (nx, ny, np, nout) of a tree description (int32: n, n_cpl, (parent, joint)*, (a, b)*)"},
+     "tree_info(desc) -> (nx, ny, np, nout) of a tree description (int32: n, n_cpl, (parent, joint)*, (a, b)*, "
+     "[orbit])"},
     {"tree_advance", (PyCFunction)(void (*)(void))py_tree_advance, METH_FASTCALL,
      "tree_advance(desc, method, y, p, H, rtol, atol, max_step, hint, stats, status, threads) -> failed systems"},
     {"tree_trajectory", (PyCFunction)(void (*)(void))py_tree_trajectory, METH_FASTCALL,
@@ -702,7 +703,9 @@ PyMODINIT_FUNC PyInit__engine(void) {
             {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
             {"TB_POS", GS_TB_POS}, {"TB_AXIS", GS_TB_AXIS}, {"TB_MASS", GS_TB_MASS}, {"TB_CM", GS_TB_CM},
             {"TB_I", GS_TB_I}, {"TB_STIFF", GS_TB_STIFF}, {"TB_REST", GS_TB_REST}, {"TB_DAMP", GS_TB_DAMP},
-            {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}, {"TP_G", GS_TP_G}, {"TP_DRIFT", GS_TP_DRIFT}};
+            {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}, {"TP_G", GS_TP_G}, {"TP_DRIFT", GS_TP_DRIFT},
+            {"TP_MU", GS_TP_MU}, {"TP_ORBIT_R", GS_TP_ORBIT_R}, {"ORBIT_NONE", GS_ORBIT_NONE},
+            {"ORBIT_CIRCULAR", GS_ORBIT_CIRCULAR}, {"ORBIT_KEPLER", GS_ORBIT_KEPLER}};
         for (size_t i = 0; i < sizeof(tc) / sizeof(tc[0]); i++) PyModule_AddIntConstant(m, tc[i].name, tc[i].value);
     }
     PyModule_AddIntConstant(m, "NY", GS_NY);

@@ -17,7 +17,7 @@ import numpy as np
 
 from . import _engine
 
-__all__ = ["TreeBody", "TreeLayout", "JOINTS", "JOINT_COORDS"]
+__all__ = ["TreeBody", "TreeLayout", "Orbit", "JOINTS", "JOINT_COORDS", "MU_EARTH"]
 
 #: The joints and their engine codes (free_rotation is a ball whose joint point is the centre of mass).
 JOINTS = {"free_rotation": _engine.J_BALL, "ball": _engine.J_BALL, "hinge": _engine.J_HINGE,
@@ -35,6 +35,48 @@ JOINT_COORDS = {
 #: The outputs every body has besides its joint's state, and the scene-wide outputs.
 BODY_OUTPUTS = ("q_world_w", "q_world_x", "q_world_y", "q_world_z")
 SCENE_OUTPUTS = ("energy", "energy_error", "L_x", "L_y", "L_z")
+#: On an orbit: the circular orbit's anomaly (a coordinate of the state, after the joints'), every body's attitude
+#: in the orbit frame, the orbit point's position and velocity (scene-wide, from the central body).
+ORBIT_COORD = "orbit_anomaly"
+ORBIT_BODY_OUTPUTS = ("q_orbit_w", "q_orbit_x", "q_orbit_y", "q_orbit_z")
+ORBIT_OUTPUTS = ("orbit_r_x", "orbit_r_y", "orbit_r_z", "orbit_v_x", "orbit_v_y", "orbit_v_z")
+#: The gravitational parameter of the Earth (m^3/s^2), the default central body.
+MU_EARTH = 3.986004418e14
+
+
+@dataclass(frozen=True)
+class Orbit:
+    """A tree's orbit about a central body (``[scene.orbit]``; see ``gyrosim_tree.h``).
+
+    Attributes
+    ----------
+    mu : float
+        The central body's gravitational parameter, m^3/s^2.
+    radius : float or None
+        m: a circular orbit of the tree's reference point (the world origin) in the world x-y plane, starting at
+        ``radius * (cos anomaly, sin anomaly, 0)``, moving towards +y at anomaly 0 (orbit normal +z). None: every
+        root is ``free`` and moves under the central force from its own ``r``, ``v`` (the world origin is the
+        central body's centre).
+    anomaly : float
+        rad, the circular orbit's start anomaly.
+    """
+
+    mu: float = MU_EARTH
+    radius: float | None = None
+    anomaly: float = 0.0
+
+    @property
+    def circular(self) -> bool:
+        return self.radius is not None
+
+    @property
+    def code(self) -> int:
+        return _engine.ORBIT_CIRCULAR if self.circular else _engine.ORBIT_KEPLER
+
+    @property
+    def rate(self) -> float:
+        """The circular orbit's mean motion n = sqrt(mu / radius^3), rad/s."""
+        return float(np.sqrt(self.mu / self.radius ** 3))
 
 
 def _vec(x, n=3):
@@ -109,6 +151,9 @@ class TreeLayout:
     couplings : sequence of (int, int, float)
         Torsion springs between two hinge bodies (a, b, stiffness N*m/rad): torque -k (angle_a - angle_b) on a and
         the opposite on b.
+    orbit : Orbit or None
+        The orbit the tree is on (the description's last element; a circular orbit's anomaly is the state's last
+        coordinate, ``coord_slots[(None, "orbit_anomaly")]``).
 
     Attributes
     ----------
@@ -121,14 +166,17 @@ class TreeLayout:
         ``(body index, name)`` of every output column (``None`` for the scene-wide outputs).
     """
 
-    def __init__(self, bodies, couplings=()):
+    def __init__(self, bodies, couplings=(), orbit: Orbit | None = None):
         self.bodies = tuple(bodies)
         self.couplings = tuple((int(a), int(b), float(k)) for a, b, k in couplings)
+        self.orbit = orbit
         d = [len(self.bodies), len(self.couplings)]
         for b in self.bodies:
             d += [b.parent, JOINTS[b.joint]]
         for a, b, _ in self.couplings:
             d += [a, b]
+        if orbit is not None:
+            d.append(orbit.code)
         self.desc = np.array(d, dtype=np.int32)
         self.nx, self.ny, self.np, self.nout = _engine.tree_info(self.desc)
         self.coord_slots = {}
@@ -139,11 +187,21 @@ class TreeLayout:
                 self.coord_slots[(i, c)] = at
                 self.output_names.append((i, c))
                 at += 1
+        if orbit is not None and orbit.circular:
+            self.coord_slots[(None, ORBIT_COORD)] = at
+            self.output_names.append((None, ORBIT_COORD))
         for i, _ in enumerate(self.bodies):
             for c in BODY_OUTPUTS:
                 self.output_names.append((i, c))
         for c in SCENE_OUTPUTS:
             self.output_names.append((None, c))
+        if orbit is not None:
+            for i, _ in enumerate(self.bodies):
+                for c in ORBIT_BODY_OUTPUTS:
+                    self.output_names.append((i, c))
+            for c in ORBIT_OUTPUTS:
+                self.output_names.append((None, c))
+        assert len(self.output_names) == self.nout
         self.dof = sum({"hinge": 1, "free": 6, "fixed": 0}.get(b.joint, 3) for b in self.bodies)
 
     def body_offset(self, i: int) -> int:
@@ -155,6 +213,9 @@ class TreeLayout:
         p = np.zeros(self.np)
         p[_engine.TP_G] = g
         p[_engine.TP_DRIFT] = max_drift
+        if self.orbit is not None:
+            p[_engine.TP_MU] = self.orbit.mu
+            p[_engine.TP_ORBIT_R] = self.orbit.radius if self.orbit.circular else 0.0
         for i, b in enumerate(self.bodies):
             o = self.body_offset(i)
             p[o + _engine.TB_POS:o + _engine.TB_POS + 3] = _vec(b.pos)
@@ -185,4 +246,6 @@ class TreeLayout:
                 else:
                     head, tail = c.rsplit("_", 1)
                     y[k] = vals[head]["wxyz".index(tail) if head == "q" else "xyz".index(tail)]
+        if (None, ORBIT_COORD) in self.coord_slots:
+            y[self.coord_slots[(None, ORBIT_COORD)]] = self.orbit.anomaly
         return y

@@ -49,6 +49,8 @@ _KIND_C = {"none": "GS_K_NONE", "time": "GS_K_TIME", "param": "GS_K_PARAM", "max
            "integrator": "GS_K_INTEGRATOR", "max_step": "GS_K_MAX_STEP", "work": "GS_K_WORK", "der": "GS_K_DER"}
 #: g and max_drift in the parameter row (gyrosim_tree.h GS_TP_G, GS_TP_DRIFT; TreeLayout.params)
 _TP_G, _TP_DRIFT = _engine.TP_G, _engine.TP_DRIFT
+#: an orbit's parameters in the parameter row (GS_TP_MU, GS_TP_ORBIT_R)
+_ORBIT_SLOTS = {"orbit_mu": _engine.TP_MU, "orbit_radius": _engine.TP_ORBIT_R}
 #: Parameters that must be >= 0 (TreeModel: g, couplings, and these body parameters).
 _NONNEG = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
 #: A body parameter's slot in the body's block of the parameter row (core/engine/gyrosim_tree.h GS_TB_*).
@@ -107,6 +109,8 @@ def tree_rows(sc: Scene) -> list[TreeRow]:
             row = TreeRow(name, v, "max_drift", _TP_DRIFT)
         elif name == "g":
             row = TreeRow(name, v, "param", _TP_G, True)
+        elif name in _ORBIT_SLOTS:
+            row = TreeRow(name, v, "param", _ORBIT_SLOTS[name], True)
         elif name in aliases:
             row = TreeRow(name, v, "alias", aliases[name])
         elif name in couplings:

@@ -15,15 +15,31 @@
  *   GS_J_FIXED  0: the child frame is the parent's, moved by `pos`.
  *
  * The state of one system, y[ny]: every body's joint coordinates in body order (ball: q[4], omega[3]; hinge:
- * angle, rate; free: q[4], r[3], omega[3], v[3]; fixed: none), nx in all; then the health monitor:
+ * angle, rate; free: q[4], r[3], omega[3], v[3]; fixed: none), then a circular orbit's anomaly u (rad), nx in all;
+ * then the health monitor:
  *   y[nx]     E0 + W (J): the energy the work-energy balance expects; W, the work of the motors and the external
  *             torques minus the joints' dissipation, is integrated with the state (component nx)
- *   y[nx+1]   the energy scale S0 (J): T0 + sum m g |c - o_root| + the springs' energy at the start
+ *   y[nx+1]   the energy scale S0 (J): T0 + sum m g |c - o_root| + the springs' energy at the start (+ the orbit's
+ *             potential scale)
  *   y[nx+2..4] L0 (kg*m^2/s, world, about the world origin): the angular momentum the tree keeps while it is
  *             torque-free (restarted after every step where it is not)
  *   y[nx+5]   the momentum scale (kg*m^2/s)
- * The parameters of one system, p[np]: g (m/s^2), max_drift, then GS_TB_NP per body (below), then the stiffness
- * (N*m/rad) of every coupling spring between two hinges.
+ * The parameters of one system, p[np]: g (m/s^2), max_drift, the orbit's mu (m^3/s^2) and radius (m), then GS_TB_NP
+ * per body (below), then the stiffness (N*m/rad) of every coupling spring between two hinges.
+ *
+ * Orbits (the description's optional last element, GS_ORBIT_*): the tree about a central body of gravitational
+ * parameter mu at the centre of an inertial frame.
+ *   GS_ORBIT_CIRCULAR  the world frame's origin (the tree's reference point) moves on a circular orbit of `radius` in
+ *                      the world x-y plane, R = radius (cos u, sin u, 0), u' = n = sqrt(mu / radius^3) (orbit normal
+ *                      +z); the anomaly u is a coordinate of the state (after every body's, y[nx - 1]), so that
+ *                      the system stays autonomous. Every body feels the tidal force -mu m / R^3 (c - 3 (Rh.c) Rh)
+ *                      at its centre of mass c (world, from the origin) and the gravity-gradient torque.
+ *   GS_ORBIT_KEPLER    the world origin is the central body's centre; every root is free and every body feels the
+ *                      central force -mu m c / |c|^3 at its centre of mass c (its potential -mu m / |c| is in the
+ *                      energy) and the gravity-gradient torque.
+ * The gravity-gradient torque on every body about its centre of mass: 3 mu / r^3 rh x (I rh) (body frame; I about
+ * the centre of mass; rh the unit vector from the central body to the body (circular: to the orbit point)). The work
+ * of the torque and of the tidal forces is integrated in the balance's W. Uniform gravity g acts as well.
  */
 #ifndef GYROSIM_TREE_H
 #define GYROSIM_TREE_H
@@ -57,7 +73,13 @@ extern "C" {
 
 #define GS_TP_G 0
 #define GS_TP_DRIFT 1
-#define GS_TP_HEAD 2
+#define GS_TP_MU 2        /* the central body's gravitational parameter (m^3/s^2; 0: no orbit force) */
+#define GS_TP_ORBIT_R 3   /* the circular orbit's radius (m) */
+#define GS_TP_HEAD 4
+
+#define GS_ORBIT_NONE 0
+#define GS_ORBIT_CIRCULAR 1
+#define GS_ORBIT_KEPLER 2
 
 #define GS_TREE_NMON 6
 
@@ -69,12 +91,15 @@ typedef struct {
     int yi[GS_TREE_MAX];         /* offset of the body's joint coordinates in y */
     int cpl_a[GS_TREE_MAX], cpl_b[GS_TREE_MAX];   /* coupled hinge bodies */
     int leaf[GS_TREE_MAX];       /* 1 when no body hangs from this one */
+    int orbit;                   /* GS_ORBIT_* */
+    int ya;                      /* the circular orbit's anomaly in y (nx - 1), -1 without */
     int nx, ny, np;
 } gs_tree;
 
-/* The description as a flat int32 array: n, n_cpl, then (parent, joint) per body, then (a, b) per coupling.
- * Returns 0, or a nonzero code when it is not a valid tree (a parent not before its child, a free joint that is
- * not a root, an unknown joint, a coupling between bodies that are not hinges, sizes beyond GS_TREE_MAX). */
+/* The description as a flat int32 array: n, n_cpl, then (parent, joint) per body, then (a, b) per coupling, then
+ * optionally the orbit (GS_ORBIT_*; none when left out). Returns 0, or a nonzero code when it is not a valid tree (a
+ * parent not before its child, a free joint that is not a root, an unknown joint, a coupling between bodies that are
+ * not hinges, sizes beyond GS_TREE_MAX, an unknown orbit, a Kepler orbit with a root that is not free). */
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
 
 /* Joint coordinates a body has (7, 2, 13, 0) and velocity degrees of freedom (3, 1, 6, 0). */
@@ -90,8 +115,11 @@ void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, dou
 void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd);
 
 /* Outputs of one system per row: y[0:nx], then every body's world attitude q_world (4 each), then energy (J),
- * energy_error (J), L_x, L_y, L_z (world, about the world origin). GS_TREE_NOUT(t) values. */
-#define GS_TREE_NOUT(t) ((t)->nx + 4 * (t)->n + 5)
+ * energy_error (J), L_x, L_y, L_z (world, about the world origin); with an orbit then every body's attitude in the
+ * orbit frame q_orbit (4 each; body -> local vertical/local horizontal: x along-track, z towards the centre, y = z x
+ * x, the negative orbit normal; w >= 0), the orbit point's position (m) and velocity (m/s) from the central body,
+ * world axes (circular: the orbit point; Kepler: the tree's centre of mass). GS_TREE_NOUT(t) values. */
+#define GS_TREE_NOUT(t) ((t)->nx + 4 * (t)->n + 5 + ((t)->orbit ? 4 * (t)->n + 6 : 0))
 void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out);
 
 /* Start a state: quaternions normalised (0 returned when one is zero or a value is not finite, else 1), the
@@ -106,7 +134,7 @@ void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const dou
  * at a root; 0 elsewhere). Returns the largest (NaN for a non-finite state). */
 double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]);
 
-/* 1 when the tree keeps its angular momentum with these parameters (see gs_tree_drift). */
+/* 1 when the tree keeps its angular momentum with these parameters (see gs_tree_drift; 0 where an orbit acts). */
 int gs_tree_torque_free(const gs_tree *t, const double *p);
 
 /* The fastest rate in the state (rad/s): the largest body angular speed and hinge rate. */
@@ -130,7 +158,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
  * dout[0:GS_TREE_NOUT] = the derivative of gs_tree_outputs (either NULL: not computed). Exact to round-off: no
  * difference quotient. Returns 1 (0 when the sizes exceed the limits below). */
 #define GS_TREE_NPMAX (GS_TP_HEAD + GS_TB_NP * GS_TREE_MAX + GS_TREE_MAX)
-#define GS_TREE_NOUTMAX (GS_ODE_MAX + 4 * GS_TREE_MAX + 5)
+#define GS_TREE_NOUTMAX (GS_ODE_MAX + 8 * GS_TREE_MAX + 11)
 int gs_tree_directional(const gs_tree *t, const double *y, const double *p, const double *vy, const double *vp,
                         double *ddy, double *dout);
 

@@ -37,7 +37,10 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     if (len < 2) return 1;
     const int n = desc[0], nc = desc[1];
     if (n < 1 || n > GS_TREE_MAX || nc < 0 || nc > GS_TREE_MAX) return 2;
-    if (len != (size_t)(2 + 2 * n + 2 * nc)) return 3;
+    const size_t base = (size_t)(2 + 2 * n + 2 * nc);
+    if (len != base && len != base + 1) return 3;
+    t->orbit = len == base + 1 ? desc[base] : GS_ORBIT_NONE;
+    if (t->orbit < GS_ORBIT_NONE || t->orbit > GS_ORBIT_KEPLER) return 10;
     t->n = n;
     t->n_cpl = nc;
     int at = 0;
@@ -60,6 +63,13 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
         t->cpl_a[c] = a;
         t->cpl_b[c] = b;
     }
+    if (t->orbit == GS_ORBIT_KEPLER) {
+        for (int i = 0; i < n; i++) {
+            if (t->parent[i] < 0 && t->joint[i] != GS_J_FREE) return 11;   /* a Kepler orbit moves free roots */
+        }
+    }
+    t->ya = -1;
+    if (t->orbit == GS_ORBIT_CIRCULAR) t->ya = at++;
     t->nx = at;
     t->ny = at + GS_TREE_NMON;
     t->np = GS_TP_HEAD + GS_TB_NP * n + nc;
@@ -593,7 +603,7 @@ static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) 
 
 /* the articulated-body algorithm: joint accelerations qdd[i][0:k] */
 static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
-                double qdd[GS_TREE_MAX][6]) {
+                const double (*fx)[6], double qdd[GS_TREE_MAX][6]) {
     M6 IA[GS_TREE_MAX];
     double pA[GS_TREE_MAX][6], c[GS_TREE_MAX][6], U[GS_TREE_MAX][6][6], Di[GS_TREE_MAX][6][6], u[GS_TREE_MAX][6];
     double tau[GS_TREE_MAX][6];
@@ -618,6 +628,9 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         for (int a = 0; a < 3; a++) {
             pA[i][a] = f[a] - b[GS_TB_TAU + a];
             pA[i][3 + a] = f[3 + a];
+        }
+        if (fx != NULL) {   /* the orbit's forces */
+            for (int a = 0; a < 6; a++) pA[i][a] -= fx[i][a];
         }
         if (t->parent[i] >= 0) {
             crm(kin->v[i], kin->vj[i], c[i]);
@@ -765,6 +778,162 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
     }
 }
 
+/* ---------------------------------------------------------------------------------------------- the orbit */
+
+/* the circular orbit's point: position (m) and velocity (m/s) from the central body, world axes */
+static void circular_point(const gs_tree *t, const double *y, const double *p, double r[3], double v[3]) {
+    const double a = p[GS_TP_ORBIT_R], u = y[t->ya];
+    const double an = a * sqrt(p[GS_TP_MU] / (a * a * a));   /* a n: the orbit speed */
+    const double c = cos(u), s = sin(u);
+    r[0] = a * c;
+    r[1] = a * s;
+    r[2] = 0.0;
+    v[0] = -an * s;
+    v[1] = an * c;
+    v[2] = 0.0;
+}
+
+/* the orbit's forces on every body, body coordinates about its origin, (torque; force) (needs the world
+ * kinematics): nc the gravity-gradient torque and (circular) the tidal force, whose work the balance integrates;
+ * cons (Kepler) the central force, whose potential is in the energy */
+static void orbit_forces(const gs_tree *t, const double *y, const double *p, const Kin *k, double nc[][6],
+                         double cons[][6]) {
+    const double mu = p[GS_TP_MU];
+    double rh[3] = {0.0, 0.0, 0.0}, k1 = 0.0;
+    if (t->orbit == GS_ORBIT_CIRCULAR) {
+        const double a = p[GS_TP_ORBIT_R], u = y[t->ya];
+        rh[0] = cos(u);
+        rh[1] = sin(u);
+        k1 = mu / (a * a * a);
+    }
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), m = b[GS_TB_MASS], *c = b + GS_TB_CM, *J = b + GS_TB_I;
+        double cw[3], F[3];
+        mv3(k->Rw[i], c, cw);
+        for (int a = 0; a < 3; a++) cw[a] += k->ow[i][a];   /* the centre of mass, world */
+        if (t->orbit == GS_ORBIT_KEPLER) {
+            const double r2 = dot3(cw, cw), r = sqrt(r2);
+            k1 = mu / (r2 * r);
+            for (int a = 0; a < 3; a++) {
+                rh[a] = cw[a] / r;
+                F[a] = -k1 * m * cw[a];
+            }
+        } else {   /* the tidal force: gravity at the centre of mass less gravity at the orbit point, linearised */
+            const double rc = 3.0 * dot3(rh, cw);
+            for (int a = 0; a < 3; a++) F[a] = -k1 * m * (cw[a] - rc * rh[a]);
+        }
+        double sb[3], Js[3], tau[3], Fb[3], cF[3];
+        mtv3(k->Rw[i], rh, sb);
+        Js[0] = J[0] * sb[0] + J[3] * sb[1] + J[4] * sb[2];
+        Js[1] = J[3] * sb[0] + J[1] * sb[1] + J[5] * sb[2];
+        Js[2] = J[4] * sb[0] + J[5] * sb[1] + J[2] * sb[2];
+        cross3(sb, Js, tau);
+        mtv3(k->Rw[i], F, Fb);
+        cross3(c, Fb, cF);
+        const int kep = t->orbit == GS_ORBIT_KEPLER;
+        for (int a = 0; a < 3; a++) {
+            nc[i][a] = 3.0 * k1 * tau[a] + (kep ? 0.0 : cF[a]);
+            nc[i][3 + a] = kep ? 0.0 : Fb[a];
+            cons[i][a] = kep ? cF[a] : 0.0;
+            cons[i][3 + a] = kep ? Fb[a] : 0.0;
+        }
+    }
+}
+
+/* the orbit point (circular) or the tree's centre of mass (Kepler): position and velocity, world */
+static void orbit_point(const gs_tree *t, const double *y, const double *p, const Pre *pre, double r[3],
+                        double v[3]) {
+    if (t->orbit == GS_ORBIT_CIRCULAR) {
+        circular_point(t, y, p, r, v);
+        return;
+    }
+    Kin kin;
+    kinematics(t, y, p, pre, &kin, 1);
+    double M = 0.0;
+    for (int a = 0; a < 3; a++) r[a] = v[a] = 0.0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), m = b[GS_TB_MASS], *c = b + GS_TB_CM;
+        double cw[3], wc[3], vb[3], vw[3];
+        mv3(kin.Rw[i], c, cw);
+        cross3(kin.v[i], c, wc);
+        for (int a = 0; a < 3; a++) vb[a] = kin.v[i][3 + a] + wc[a];
+        mv3(kin.Rw[i], vb, vw);
+        M += m;
+        for (int a = 0; a < 3; a++) {
+            r[a] += m * (kin.ow[i][a] + cw[a]);
+            v[a] += m * vw[a];
+        }
+    }
+    if (fabs(M) > 0.0) {
+        for (int a = 0; a < 3; a++) {
+            r[a] /= M;
+            v[a] /= M;
+        }
+    } else {   /* massless: the first body's origin */
+        memcpy(r, kin.ow[0], 3 * sizeof(double));
+        mv3(kin.Rw[0], kin.v[0] + 3, v);
+    }
+}
+
+/* the unit quaternion of a rotation matrix (Shepperd: from the largest of 4 w^2, 4 x^2, 4 y^2, 4 z^2, compared by
+ * fabs: they are >= 0) */
+static void mat_to_quat(const M3 R, double q[4]) {
+    const double t4[4] = {1.0 + R[0][0] + R[1][1] + R[2][2], 1.0 + R[0][0] - R[1][1] - R[2][2],
+                          1.0 - R[0][0] + R[1][1] - R[2][2], 1.0 - R[0][0] - R[1][1] + R[2][2]};
+    int k = 0;
+    for (int j = 1; j < 4; j++) {
+        if (fabs(t4[j]) > fabs(t4[k])) k = j;
+    }
+    const double h = 0.5 * sqrt(t4[k]), f = 0.25 / h;
+    switch (k) {
+        case 0:
+            q[0] = h;
+            q[1] = (R[2][1] - R[1][2]) * f;
+            q[2] = (R[0][2] - R[2][0]) * f;
+            q[3] = (R[1][0] - R[0][1]) * f;
+            break;
+        case 1:
+            q[1] = h;
+            q[0] = (R[2][1] - R[1][2]) * f;
+            q[2] = (R[0][1] + R[1][0]) * f;
+            q[3] = (R[0][2] + R[2][0]) * f;
+            break;
+        case 2:
+            q[2] = h;
+            q[0] = (R[0][2] - R[2][0]) * f;
+            q[1] = (R[0][1] + R[1][0]) * f;
+            q[3] = (R[1][2] + R[2][1]) * f;
+            break;
+        default:
+            q[3] = h;
+            q[0] = (R[1][0] - R[0][1]) * f;
+            q[1] = (R[0][2] + R[2][0]) * f;
+            q[2] = (R[1][2] + R[2][1]) * f;
+            break;
+    }
+}
+
+/* the orbit frame (local vertical, local horizontal) -> world of the point r, v: z towards the centre, y the
+ * negative orbit normal, x = y x z (along-track: the velocity on a circular orbit) */
+static void lvlh_quat(const double r[3], const double v[3], double q[4]) {
+    double h[3], x[3], y[3], z[3];
+    const double nr = sqrt(dot3(r, r));
+    cross3(r, v, h);
+    const double nh = sqrt(dot3(h, h));
+    for (int a = 0; a < 3; a++) {
+        z[a] = -r[a] / nr;
+        y[a] = -h[a] / nh;
+    }
+    cross3(y, z, x);
+    M3 R;
+    for (int a = 0; a < 3; a++) {
+        R[a][0] = x[a];
+        R[a][1] = y[a];
+        R[a][2] = z[a];
+    }
+    mat_to_quat(R, q);
+}
+
 static double power(const gs_tree *t, const double *y, const double *p, const Kin *kin) {
     double P = 0.0;
     for (int i = 0; i < t->n; i++) {
@@ -789,9 +958,16 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
 
 static void derivs(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *dy) {
     Kin kin;
-    double qdd[GS_TREE_MAX][6];
-    kinematics(t, y, p, pre, &kin, 0);
-    aba(t, y, p, pre, &kin, qdd);
+    double qdd[GS_TREE_MAX][6], fnc[GS_TREE_MAX][6], fx[GS_TREE_MAX][6];
+    const int orbit = t->orbit != GS_ORBIT_NONE;
+    kinematics(t, y, p, pre, &kin, orbit);
+    if (orbit) {
+        orbit_forces(t, y, p, &kin, fnc, fx);
+        for (int i = 0; i < t->n; i++) {
+            for (int a = 0; a < 6; a++) fx[i][a] += fnc[i][a];
+        }
+    }
+    aba(t, y, p, pre, &kin, orbit ? (const double (*)[6])fx : NULL, qdd);
     for (int i = 0; i < t->n; i++) {
         const double *s = y + t->yi[i];
         double *d = dy + t->yi[i];
@@ -819,6 +995,13 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
         }
     }
     dy[t->nx] = power(t, y, p, &kin);
+    if (orbit) {   /* the work of the gravity-gradient torques and the tidal forces */
+        for (int i = 0; i < t->n; i++) dy[t->nx] += dot3(fnc[i], kin.v[i]) + dot3(fnc[i] + 3, kin.v[i] + 3);
+    }
+    if (t->ya >= 0) {
+        const double a = p[GS_TP_ORBIT_R];
+        dy[t->ya] = sqrt(p[GS_TP_MU] / (a * a * a));
+    }
 }
 
 void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
@@ -889,6 +1072,20 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
         mv3(kin.Rw[i], h + 3, fw);
         cross3(kin.ow[i], fw, oxf);
         for (int a = 0; a < 3; a++) s->L[a] += nw[a] + oxf[a];
+        if (t->orbit != GS_ORBIT_NONE) {   /* the central potential (Kepler) and the orbit terms' scale */
+            const double mu = p[GS_TP_MU], trJ = b[GS_TB_I] + b[GS_TB_I + 1] + b[GS_TB_I + 2];
+            double c0[3];
+            for (int a = 0; a < 3; a++) c0[a] = kin.ow[i][a] + cw[a];
+            const double c2 = dot3(c0, c0);
+            if (t->orbit == GS_ORBIT_KEPLER) {
+                const double rc = sqrt(c2);
+                s->V -= mu * m / rc;
+                s->pot_scale += mu * m / rc + 1.5 * mu / (c2 * rc) * trJ;
+            } else {
+                const double a = p[GS_TP_ORBIT_R];
+                s->pot_scale += 1.5 * mu / (a * a * a) * (trJ + m * c2);
+            }
+        }
         if (t->joint[i] == GS_J_HINGE) {
             const double e = st[0] - b[GS_TB_REST];
             s->V += 0.5 * b[GS_TB_STIFF] * e * e;
@@ -912,6 +1109,7 @@ static void totals(const gs_tree *t, const double *y, const double *p, Totals *s
 }
 
 int gs_tree_torque_free(const gs_tree *t, const double *p) {
+    if (t->orbit != GS_ORBIT_NONE && p[GS_TP_MU] != 0.0) return 0;   /* gravity gradient, central force */
     double mass = 0.0;
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i);
@@ -1024,6 +1222,20 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
     o[0] = s.T + s.V;
     o[1] = o[0] - y[t->nx];
     memcpy(o + 2, s.L, sizeof(s.L));
+    if (t->orbit != GS_ORBIT_NONE) {   /* the attitudes in the orbit frame, the orbit point */
+        double ro[3], vo[3], qo[4], qc[4];
+        orbit_point(t, y, p, pre, ro, vo);
+        lvlh_quat(ro, vo, qo);
+        const double qoc[4] = {qo[0], -qo[1], -qo[2], -qo[3]};
+        double *oq = o + 5;
+        for (int i = 0; i < t->n; i++) {
+            quat_mul(qoc, qw[i], qc);
+            const treal w = qc[0];   /* the real part: the sign convention w >= 0 */
+            for (int a = 0; a < 4; a++) oq[4 * i + a] = w < 0.0 ? -qc[a] : qc[a];
+        }
+        memcpy(oq + 4 * t->n, ro, sizeof(ro));
+        memcpy(oq + 4 * t->n + 3, vo, sizeof(vo));
+    }
 }
 
 void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out) {
