@@ -256,3 +256,30 @@ def test_every_embedded_scene_linearizes():
         assert np.all(np.isfinite(lin.A)), name
         assert lin.stability in ("unstable", "asymptotically stable", "marginally stable")
         assert lin.table().count("\n") == len(lin.modes)
+
+
+def test_gimbal_gyroscope_nutation_is_the_lagrange_tops():
+    """Massless gimbals: the rotor is a Lagrange top (outer = precession, inner = nutation, rotor = spin relative
+    to the inner gimbal). Steady precession in gimbal coordinates: (I1 - I3) cos(theta) phid^2 - I3 psid phid + m g
+    l = 0 with psid = rotor.rate; the linearization's oscillation (the outer and rotor angles cyclic) is the top's
+    nutation frequency with w3 = psid + phid cos(theta)."""
+    from gyrosim import load_scene
+
+    rotor = load_scene("gimbal_gyroscope").tree[2]
+    mass, d = float(rotor.mass), float(rotor.cm[2])
+    I1 = float(rotor.inertia[0, 0]) + mass * d * d
+    I3 = float(rotor.inertia[2, 2])
+    mgl = mass * G * d
+    theta0, psid = 1.0, 150.0
+    a, b, c = (I1 - I3) * math.cos(theta0), -I3 * psid, mgl
+    phid = 2 * c / (-b + math.sqrt(b * b - 4 * a * c))  # the slow root
+    m = Model("gimbal_gyroscope")
+    for k, v in {"outer.mass": 0.0, "outer.I1": 0.0, "outer.I2": 0.0, "outer.I3": 0.0, "inner.mass": 0.0,
+                 "inner.I1": 0.0, "inner.I2": 0.0, "inner.I3": 0.0, "inner.angle": theta0, "inner.rate": 0.0,
+                 "outer.rate": phid, "rotor.rate": psid}.items():
+        m.set(k, v)
+    lin = m.linearize(about="steady")
+    assert set(lin.rates) == {"outer.angle", "rotor.angle"}
+    (nut,) = lin.oscillations()
+    w3 = psid + phid * math.cos(theta0)
+    assert nut.frequency == pytest.approx(_nutation_exact(I1, I3, mgl, theta0, w3), rel=1e-9)
