@@ -25,6 +25,7 @@ motion (the nutation of a top, the librations of a satellite) as seen in the mov
 """
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -81,8 +82,24 @@ class Mode:
         return 2 * math.pi / self.frequency if self.frequency > 0 else math.inf
 
     def dominant(self, k: int = 3) -> list:
-        """The ``k`` state names with the largest components."""
-        return sorted(self.shape, key=lambda n: -abs(self.shape[n]))[:k]
+        """The ``k`` state names with the largest components, coordinates (angles, small rotations, positions)
+        before rates."""
+        rates = ("rate", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z")
+        disp = [n for n in self.shape if not n.rpartition(".")[2].startswith(rates)]
+        pick = sorted(disp, key=lambda n: -abs(self.shape[n]))
+        pick = [n for n in pick if abs(self.shape[n]) > 1e-9 * abs(self.shape[pick[0]])] if pick else []
+        rest = sorted((n for n in self.shape if n not in disp), key=lambda n: -abs(self.shape[n]))
+        return (pick + rest)[:k]
+
+    def displacement_shape(self) -> dict:
+        """The shape's coordinates (not its rates), the largest 1 and the others in phase with it (real for an
+        undamped mode)."""
+        d = {n: v for n, v in self.shape.items() if n in self.dominant(len(self.shape))
+             and not n.rpartition(".")[2].startswith(("rate", "omega_", "v_"))}
+        if not d:
+            return {}
+        big = max(d.values(), key=abs)
+        return {n: v / big for n, v in d.items() if abs(v) > 1e-9 * abs(big)}
 
 
 @dataclass
@@ -135,14 +152,25 @@ class Linearization:
         rows = [f"{'mode':>4}  {'eigenvalue':>26}  {'frequency rad/s':>15}  {'period s':>11}  {'damping':>8}  "
                 "shape (largest components)"]
         for k, m in enumerate(self.modes, 1):
+            rigid = m.kind.startswith("rigid")
             re = m.eigenvalue.real if abs(m.eigenvalue.real) > 1e-12 * abs(m.eigenvalue) else 0.0
-            ev = f"{re:+.6g} {m.eigenvalue.imag:+.6g}j"
-            per = f"{m.period:.6g}" if math.isfinite(m.period) else "-"
+            ev = "0 (to round-off)" if rigid else f"{re:+.6g} {m.eigenvalue.imag:+.6g}j"
+            per = f"{m.period:.6g}" if math.isfinite(m.period) and not rigid else "-"
             z = m.damping_ratio if abs(m.damping_ratio) > 1e-12 else 0.0  # round-off shown as 0
-            dr = f"{z:.3g}" if math.isfinite(m.damping_ratio) else "-"
-            rows.append(f"{k:>4}  {ev:>26}  {m.frequency:>15.8g}  {per:>11}  {dr:>8}  {m.kind}: "
-                        + ", ".join(m.dominant()))
+            dr = f"{z:.3g}" if math.isfinite(m.damping_ratio) and not rigid else "-"
+            fr = 0.0 if rigid else m.frequency
+            ds = m.displacement_shape()
+            shape = (", ".join(f"{n} {_component(ds[n])}" for n in list(ds)[:3]) if ds and not rigid
+                     else ", ".join(m.dominant()))
+            rows.append(f"{k:>4}  {ev:>26}  {fr:>15.8g}  {per:>11}  {dr:>8}  {m.kind}: {shape}")
         return "\n".join(rows)
+
+
+def _component(v: complex) -> str:
+    """A shape component: signed where it is in phase or opposed (real), else its size and phase."""
+    if abs(v.imag) <= 1e-6 * abs(v):
+        return f"{v.real:+.3g}"
+    return f"{abs(v):.3g} at {math.degrees(cmath.phase(v)):+.0f} deg"
 
 
 @dataclass

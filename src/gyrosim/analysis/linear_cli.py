@@ -158,14 +158,20 @@ def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4) -> None:
     for k, mode in enumerate(osc):
         a = axes[0, 1 + k]
         names = displacements(mode.shape) or list(mode.shape)
-        vals = np.array([mode.shape[s] for s in names])
-        vals = (vals / vals[np.argmax(np.abs(vals))]).real  # the largest displacement 1, the others in phase
-        keep = np.abs(vals) > 1e-9
-        a.barh(np.array(names)[keep], vals[keep], color="C0")
+        z = np.array([mode.shape[s] for s in names])
+        z = z / z[np.argmax(np.abs(z))]  # the largest displacement 1
+        inphase = np.abs(z.imag) <= 1e-6 * np.abs(z)
+        vals = np.where(inphase, z.real, np.abs(z))  # signed where in phase or opposed, else the size
+        keep = np.abs(z) > 1e-9
+        bars = a.barh(np.array(names)[keep], vals[keep], color=np.where(inphase[keep], "C0", "C1"))
+        for bar, zz, ip in zip(bars, z[keep], inphase[keep]):
+            if not ip:
+                a.annotate(f"{np.degrees(np.angle(zz)):+.0f} deg", (bar.get_width(), bar.get_y() + 0.5 *
+                           bar.get_height()), xytext=(3, 0), textcoords="offset points", va="center", fontsize=8)
         a.axvline(0, color="0.6", lw=0.8)
         per = f", period {mode.period:.4g} s" if math.isfinite(mode.period) else ""
         a.set_title(f"mode {k + 1}: {mode.frequency:.5g} rad/s{per}", fontsize=9)
-        a.set_xlabel("shape (displacements, largest 1)", fontsize=8)
+        a.set_xlabel("shape (displacements, largest 1; orange: size, at the phase shown)", fontsize=8)
         a.tick_params(axis="y", labelsize=8)
         a.invert_yaxis()
     if not osc:
