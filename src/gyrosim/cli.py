@@ -1,6 +1,7 @@
 """The ``gyrosim`` command line (argparse only here and in the ``register`` hooks of fmu/, service/, telemetry/).
 
 Subcommands: ``simulate`` (CSV), ``info`` (variables of a scene or FMU), ``bench`` (the speed/accuracy study),
+``chaos`` (the largest Lyapunov exponent and a Poincare section),
 ``fmu build``, ``sweep``, ``serve``, ``record``, ``replay``, ``plot``, ``mcap info|recover``. Exit codes: 0
 success, 1 runtime failure, 2 bad usage or input, 130 interrupted, 141 closed pipe.
 """
@@ -609,6 +610,151 @@ SCENE_NAMES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "space
 SCENE_HELP = f"an embedded scene ({', '.join(SCENE_NAMES)}) or a scene file (.toml, docs/scenes.md)"
 
 
+#: ``gyrosim chaos``'s default run length (s) when the scene's stop time is shorter: a Lyapunov exponent needs many
+#: e-folding times (and a regular orbit's estimate falls only as ln(t)/t).
+CHAOS_TIME = 100.0
+
+
+def cmd_chaos(args) -> int:
+    """The largest Lyapunov exponent (1/s, and per oscillation period) and a Poincare section of a run, printed;
+    a PNG of the exponent's convergence and the section written beside --plot and renamed into place. Every argument
+    is checked before anything runs or is written."""
+    import time
+
+    from ._atomic import check_writable
+    from .analysis.chaos import default_section, lyapunov, parse_section, plot_chaos, poincare
+    from .model import Model
+    from .scene import did_you_mean
+    from .trajectory import _apply_start_values, field_names
+
+    v = verbosity(args)
+    for flag, value in (("--stop-time", args.stop_time), ("--output-interval", args.output_interval),
+                        ("--max-step", args.max_step), ("--interval", args.interval), ("--d0", args.d0)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ConfigError(flag, value, "a finite number > 0" + ("" if flag == "--d0" else " in s"))
+    if args.d0 is not None and args.d0 > 1e-3:
+        raise ConfigError("--d0", args.d0, "at most 1e-3 (scaled state units: the neighbour must stay in the linear "
+                          "regime; the default 1e-8 suits double precision)")
+    tol = args.relative_tolerance
+    if tol is not None and not (MIN_TOLERANCE <= tol < 1.0):
+        raise ConfigError("--relative-tolerance", tol, f"a number from {MIN_TOLERANCE:g} to 1 (exclusive)")
+    want_section = args.section is None or args.section.lower() != "none"
+    section = None
+    if want_section and args.section is not None:
+        try:
+            section = parse_section(args.section)
+        except ConfigError as e:
+            raise ConfigError("--section", args.section, e.allowed) from None
+    model = Model(args.scene, tolerance=tol)
+    _apply_start_values(model, _start_values(args))
+    if args.integrator is not None:
+        model.set("integrator", args.integrator)
+    if args.max_step is not None:
+        model.set("max_step", args.max_step)
+    T = args.stop_time if args.stop_time is not None else max(CHAOS_TIME, model.scene.stop_time)
+    dt = args.output_interval if args.output_interval is not None else model.scene.output_interval
+    if dt > T * (1 + 1e-9):
+        raise ConfigError("--output-interval", dt, f"at most the run's length, {T!r} s")
+    if args.interval is not None and args.interval < dt * (1 - 1e-9):
+        raise ConfigError("--interval", args.interval, f"at least the output interval, {dt!r} s (the neighbour is "
+                          "renormalised at output points)")
+    model.initialize()  # the checks of the first step (moments, quaternion, 'exact' under a torque, work per call)
+    model._check_call(dt, "output interval")
+    if want_section:  # the section's names, checked before the run
+        names = field_names(model)
+        var = section[0] if section else default_section(model.scene)[0]
+        for flag, nm in [("--section", var)] + [("--record", r) for r in (args.record or ())]:
+            if nm not in names:
+                raise ConfigError(flag, nm, f"an output of scene {model.scene.name!r}{did_you_mean(nm, names)}")
+    plot = None if args.no_plot else check_writable(args.plot or f"{model.scene.name}_chaos.png", "--plot")
+    if v > 0:
+        print(f"scene {model.scene.name}, integrator {model.integrator}, max_step {model.max_step:g} s, "
+              f"t = 0 .. {T:g} s every {dt:g} s", file=sys.stderr)
+    bar, t_wall, total = None, time.perf_counter(), (2.0 if want_section else 1.0) * T
+    base = [0.0]
+
+    def progress(t_done, t_total):
+        nonlocal bar
+        if bar is None and v >= 0 and time.perf_counter() - t_wall > 0.5:
+            from tqdm import tqdm
+
+            bar = tqdm(total=round(total, 6), unit="s", desc=f"chaos {model.scene.name}", file=sys.stderr,
+                       bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]")
+        if bar is not None:
+            bar.update(min(total, base[0] + t_done) - bar.n)  # tqdm redraws at most every 0.1 s
+
+    try:
+        res = lyapunov(model, time=T, output_interval=dt, interval=args.interval,
+                       d0=args.d0 if args.d0 is not None else 1e-8, seed=args.seed, progress=progress)
+        sec = None
+        if want_section:
+            base[0] = T
+            sec = poincare(model, section=section, direction=args.direction, record=args.record, time=T,
+                           output_interval=dt, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    print(res.format())
+    if sec is not None:
+        rt = sec.return_time
+        print(f"Poincare section: {sec.text}: {len(sec)} crossings"
+              + (f", every {rt:.6g} s on average" if rt else "") + f"; recorded {', '.join(sec.names)}")
+    if res.max_growth > 1e3:
+        print(f"gyrosim chaos: warning: a neighbour grew by {res.max_growth:.3g} in one interval (the intervals after "
+              "it were halved); a shorter --interval keeps it linear", file=sys.stderr)
+    if plot is not None:
+        plot_chaos(plot, res, sec)
+        if v >= 0:
+            print(f"wrote {plot}", file=sys.stderr)
+    return 0
+
+
+def _chaos_parser(sub) -> None:
+    c = sub.add_parser(
+        "chaos", help="the largest Lyapunov exponent and a Poincare section of a run, with a plot",
+        description="Run SCENE with a neighbour at distance d0 in the state space, renormalised every interval "
+                    "(Benettin et al. 1980), and print the largest Lyapunov exponent (1/s; per oscillation period "
+                    "where a variable oscillates); find where the run crosses a section (an output crossing a "
+                    "value: --section) and write a PNG of the exponent's convergence and the section. Both run on "
+                    "the engine with the scene's integrator and steps. See docs/chaos.md.",
+        epilog="Examples: 'gyrosim chaos double_pendulum --start-values upper.angle 1.5708 lower.angle 0 "
+               "--stop-time 200 --plot dp.png', 'gyrosim chaos heavy_top --stop-time 500 --section none'.")
+    c.add_argument("scene", help=SCENE_HELP)
+    c.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="set a parameter or start value (repeatable)")
+    c.add_argument("--start-values", nargs="+", action="extend", metavar="NAME VALUE",
+                   help="name-value pairs of start values, as FMPy takes them (e.g. --start-values upper.angle 1.57)")
+    c.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact "
+                   "(default: the scene's)")
+    c.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s (default: the scene's)")
+    c.add_argument("--stop-time", type=float, metavar="T",
+                   help=f"length of the run in s (default: {CHAOS_TIME:g} s, or the scene's stop time if longer)")
+    c.add_argument("--output-interval", type=float, metavar="H",
+                   help="output grid in s: where the neighbour is renormalised and crossings are bracketed "
+                        "(default: the scene's)")
+    tol = c.add_mutually_exclusive_group()
+    tol.add_argument("--relative-tolerance", dest="relative_tolerance", type=float, metavar="TOL",
+                     help="tolerance of 'adaptive' and 'dop853' (default: the scene's)")
+    tol.add_argument("--tolerance", dest="relative_tolerance", type=float, metavar="TOL",
+                     help="the same as --relative-tolerance")
+    c.add_argument("--interval", type=float, metavar="S", help="renormalisation interval in s, a whole number of "
+                   "output intervals (default: the run's length / 2000)")
+    c.add_argument("--d0", type=float, metavar="D", help="the neighbour's distance in scaled state units (angles "
+                   "in rad, rates times 1/(the fastest rate); default 1e-8)")
+    c.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the first direction (default: 0)")
+    c.add_argument("--section", metavar="VAR=VALUE", help="the Poincare section: an output crossing a value, e.g. "
+                   "upper.angle=0 (angles modulo 2 pi); 'none': no section (default: the scene's, docs/chaos.md)")
+    c.add_argument("--direction", choices=("up", "down", "both"), default="up",
+                   help="count crossings with VAR increasing (default), decreasing or both")
+    c.add_argument("--record", nargs="+", metavar="NAME", help="the outputs recorded at each crossing (the first "
+                   "two are plotted; default: the scene's pair)")
+    out = c.add_mutually_exclusive_group()
+    out.add_argument("--plot", metavar="FILE.png", help="the PNG to write (default: <scene>_chaos.png)")
+    out.add_argument("--no-plot", action="store_true", help="write no PNG")
+    add_verbosity(c)
+    c.set_defaults(func=cmd_chaos)
+
+
 def _simulate_parser(sub) -> None:
     s = sub.add_parser(
         "simulate", help="run a scene and write a CSV of its outputs (FMPy's 'fmpy simulate' habits)",
@@ -658,6 +804,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"gyrosim {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     _simulate_parser(sub)
+    _chaos_parser(sub)
     i = sub.add_parser("info", help="list a scene's or an FMU's variables (as 'fmpy info')",
                        description="Print a scene's or an FMU's model info and its variables with causality, "
                                    "start value, unit and description (every body's in a multi-body scene). "

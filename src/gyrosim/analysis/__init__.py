@@ -1,1 +1,25 @@
-"""Analyses of classical mechanics on any scene: small oscillations (linear) and chaos."""
+"""Analyses of classical mechanics on any scene: small oscillations (linear) and chaos.
+
+Names are imported on first use (PEP 562): the command line registers its subcommands from this package without
+importing numpy or the engine. One line per module in ``_LAZY``.
+"""
+
+from __future__ import annotations
+
+_LAZY: dict[str, str] = {}
+_LAZY.update(dict.fromkeys(("lyapunov", "poincare", "plot_chaos", "LyapunovResult", "PoincareSection"), ".chaos"))
+
+
+def __getattr__(name):
+    mod = _LAZY.get(name)
+    if mod is None:
+        raise AttributeError(f"module 'gyrosim.analysis' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(mod, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -38,6 +38,9 @@ def register(subparsers) -> None:
     p.add_argument("--chunk-size", type=int, metavar="K", help="samples per chunk: per file and per task "
                    "(default: 2000, or the folder's with --resume)")
     p.add_argument("--resume", action="store_true", help="complete the sweep in DIR: compute only missing chunks")
+    p.add_argument("--lyapunov", action="store_true", default=None,
+                   help="add a column 'lyapunov': each sample's largest Lyapunov exponent in 1/s (renormalised "
+                        "neighbours on the output grid, docs/chaos.md); about twice the work")
     add_verbosity(p)
     p.set_defaults(func=cmd_sweep)
 
@@ -70,7 +73,7 @@ def cmd_sweep(args) -> int:
         res = run_sweep(args.scene, samples=args.samples, vary=args.vary, set=args.set, integrator=args.integrator,
                         max_step=args.max_step, stop_time=args.stop_time, output_interval=args.output_interval,
                         seed=args.seed, output=args.output, scheduler=args.scheduler, chunk_size=args.chunk_size,
-                        resume=args.resume, progress=v >= 0)
+                        resume=args.resume, progress=v >= 0, lyapunov=args.lyapunov)
     except KeyboardInterrupt:
         print(f"gyrosim sweep: interrupted; the chunks written so far are complete: `gyrosim sweep ... --output "
               f"{args.output} --resume` computes the others", file=sys.stderr)

@@ -124,11 +124,12 @@ def run_chunks_dask(spec: SweepSpec, todo, on_result, client) -> None:
 
 def run_sweep(scene=None, *, samples=None, vary=None, set=None, integrator=None, max_step=None,  # noqa: A002
               stop_time=None, output_interval=None, seed=None, output, scheduler=None, chunk_size=None,
-              resume: bool = False, progress: bool = False) -> SweepResult:
+              resume: bool = False, progress: bool = False, lyapunov: bool | None = None) -> SweepResult:
     """Run a sweep and write its Parquet dataset to ``output`` (see :mod:`gyrosim.sweep`).
 
     Every check runs before any work (:func:`gyrosim.sweep.spec.build_spec`); then the chunks not yet in
     ``output`` run in this process or (``scheduler``: an address or a ``distributed.Client``) on a Dask cluster.
+    ``lyapunov``: add each sample's largest Lyapunov exponent (column ``lyapunov``, 1/s; about twice the work).
 
     Examples
     --------
@@ -146,7 +147,8 @@ def run_sweep(scene=None, *, samples=None, vary=None, set=None, integrator=None,
         if old is not None:
             chunk_size = old.get("chunk_size")
     spec = build_spec(scene, samples=samples, vary=vary, set=set, integrator=integrator, max_step=max_step,
-                      stop_time=stop_time, output_interval=output_interval, seed=seed, chunk_size=chunk_size)
+                      stop_time=stop_time, output_interval=output_interval, seed=seed, chunk_size=chunk_size,
+                      lyapunov=lyapunov)
     if scheduler is not None and isinstance(scheduler, str) and "://" not in scheduler:
         raise ConfigError("--scheduler", scheduler, "a Dask scheduler address such as tcp://127.0.0.1:8786")
     client, own = _connect(scheduler) if scheduler is not None else (None, False)

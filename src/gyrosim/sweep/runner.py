@@ -18,6 +18,9 @@ Per sample (row):
 * ``blew_up``: the engine's health monitor (a non-finite state, or a drift beyond ``max_drift``) stopped the
   sample; ``blew_up_time``: the output point (s) at which it was found (NaN when it ran to the end). The drifts of a
   sample that blew up are those of the output points before that.
+* ``lyapunov`` (with ``--lyapunov``): the largest Lyapunov exponent of the sample's run (1/s, renormalised
+  neighbours on the sweep's output grid, :func:`gyrosim.analysis.chaos.lyapunov`; NaN where it blew up): a second
+  run of the chunk's samples, each with its neighbour, so the other columns keep their bits.
 """
 
 from __future__ import annotations
@@ -34,6 +37,9 @@ __all__ = ["run_chunk", "result_columns", "BLOCK_VALUES"]
 
 #: Output values (doubles) held per compiled call: the run goes over the time grid in blocks of this size
 BLOCK_VALUES = 1 << 22
+#: Renormalisations of a sample's neighbour in a run (the ``lyapunov`` column): each is one engine call over the
+#: chunk, and a growth beyond 1e3 in one halves the intervals after it (gyrosim.analysis.chaos.GROWTH_LIMIT)
+LYAPUNOV_INTERVALS = 200
 _REPLICAS: dict = {}
 
 
@@ -46,6 +52,8 @@ def result_columns(spec: SweepSpec) -> list[tuple[str, str]]:
     cols += [(o, "float") for o in _output_names(spec.scene)]
     cols += [("max_energy_drift", "float"), ("max_L_drift", "float"), ("blew_up", "bool"),
              ("blew_up_time", "float")]
+    if spec.lyapunov:
+        cols.append(("lyapunov", "float"))
     return cols
 
 
@@ -201,9 +209,22 @@ def _run_tree_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict
 
 
 def _run_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
-    """``k`` samples sharing the model-wide values ``wide``, with the per-body values ``per_body``."""
-    if spec.scene.is_tree:
-        return _run_tree_group(spec, k, per_body, wide)
+    """``k`` samples sharing the model-wide values ``wide``, with the per-body values ``per_body`` (and their
+    ``lyapunov`` column when the spec asks for it)."""
+    out = _run_tree_group(spec, k, per_body, wide) if spec.scene.is_tree else _run_body_group(spec, k, per_body, wide)
+    if spec.lyapunov:
+        from ..analysis.chaos import lyapunov_copies
+
+        # 200 renormalisations a run: a call of the engine over many copies costs milliseconds however short
+        res = lyapunov_copies(_model_for(spec, k, per_body, wide), time=spec.stop_time,
+                              output_interval=spec.output_interval, interval=spec.stop_time / LYAPUNOV_INTERVALS,
+                              period=False, keep_going=True)
+        out["lyapunov"] = np.atleast_1d(res.exponent)
+    return out
+
+
+def _run_body_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
+    """``k`` samples of a one-body scene: k bodies of one model."""
     model = _model_for(spec, k, per_body, wide)
 
     def per(name):

@@ -44,7 +44,8 @@ _FORMS = "uniform(lo,hi), normal(mean,std), lognormal(mean,sigma), choice(a,b,..
 MODEL_WIDE = ("integrator", "max_step", "max_drift", "tolerance")
 _STATES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z")
 #: The keys of a scene file's [sweep] table.
-SWEEP_KEYS = ("samples", "seed", "chunk_size", "stop_time", "output_interval", "integrator", "max_step", "vary", "set")
+SWEEP_KEYS = ("samples", "seed", "chunk_size", "stop_time", "output_interval", "integrator", "max_step", "vary", "set",
+              "lyapunov")
 #: Default samples per chunk (one compiled call of the engine, one Parquet file, one Dask task).
 DEFAULT_CHUNK = 2000
 
@@ -191,6 +192,8 @@ class SweepSpec:
         s; drifts are taken over the output points ``k * output_interval``, ``k = 0..n_intervals``.
     version : str
         gyrosim's version (a worker with another version refuses the task).
+    lyapunov : bool
+        Add the column ``lyapunov``: each sample's largest Lyapunov exponent (1/s).
     """
 
     scene: Scene
@@ -203,6 +206,7 @@ class SweepSpec:
     n_intervals: int
     chunk_size: int
     version: str = field(default="")
+    lyapunov: bool = False
 
     @property
     def n_chunks(self) -> int:
@@ -216,9 +220,12 @@ class SweepSpec:
     def spec_dict(self) -> dict:
         """The spec as JSON-able data (Parquet metadata ``gyrosim.spec``); chunk_size is not part of it: a sample's
         row does not depend on it."""
-        return {"samples": self.samples, "seed": self.seed, "vary": {n: d.text for n, d in self.vary},
-                "set": {n: v for n, v in self.fixed}, "stop_time": self.stop_time,
-                "output_interval": self.output_interval, "n_intervals": self.n_intervals}
+        d = {"samples": self.samples, "seed": self.seed, "vary": {n: d.text for n, d in self.vary},
+             "set": {n: v for n, v in self.fixed}, "stop_time": self.stop_time,
+             "output_interval": self.output_interval, "n_intervals": self.n_intervals}
+        if self.lyapunov:  # only when asked: a sweep without the column keeps its manifest and token
+            d["lyapunov"] = True
+        return d
 
     def scene_dict(self) -> dict:
         """The scene as JSON-able data (Parquet metadata ``gyrosim.scene``)."""
@@ -380,7 +387,7 @@ def _pairs(items, flag: str) -> dict:
 
 
 def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None, max_step=None,  # noqa: A002
-               stop_time=None, output_interval=None, seed=None, chunk_size=None) -> SweepSpec:
+               stop_time=None, output_interval=None, seed=None, chunk_size=None, lyapunov=None) -> SweepSpec:
     """Merge the command line with the scene file's ``[sweep]`` table (the command line wins, name by name) and
     check everything that can be checked before any work: names, distributions, fixed values, and every sample's
     draws (:func:`gyrosim.sweep.sampling.check_draws`).
@@ -392,6 +399,9 @@ def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None
         ``[sweep]``), Scene, or None (the full model).
     vary : list of "NAME=DIST" or dict {name: DIST text}
     set : list of "NAME=VALUE" or dict {name: value}
+    lyapunov : bool, optional
+        Add each sample's largest Lyapunov exponent (column ``lyapunov``, 1/s); default the ``[sweep]`` table's
+        ``lyapunov`` (false).
 
     Raises
     ------
@@ -460,8 +470,11 @@ def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None
     for name, (value, flag) in merged_set.items():
         _check_name(name, sc, settable, flag)
         fixed.append((name, _coerce_fixed(name, value, settable[name], f"{flag} {name}")))
+    lyap = lyapunov if lyapunov is not None else table.get("lyapunov", False)
+    if not isinstance(lyap, bool):
+        raise ConfigError("lyapunov", lyap, "true or false", where=where)
     spec = SweepSpec(scene=sc, samples=samples, seed=seed, vary=tuple(dists), fixed=tuple(fixed), stop_time=stop,
-                     output_interval=dt, n_intervals=n, chunk_size=cs, version=gyrosim.__version__)
+                     output_interval=dt, n_intervals=n, chunk_size=cs, version=gyrosim.__version__, lyapunov=lyap)
     check_spec(spec)
     return spec
 
