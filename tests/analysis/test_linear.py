@@ -283,3 +283,36 @@ def test_gimbal_gyroscope_nutation_is_the_lagrange_tops():
     (nut,) = lin.oscillations()
     w3 = psid + phid * math.cos(theta0)
     assert nut.frequency == pytest.approx(_nutation_exact(I1, I3, mgl, theta0, w3), rel=1e-9)
+
+
+# ------------------------------------------------------------------------------------------ orbits
+def _roll_yaw(n, Ix, Iy, Iz):
+    """Roll-yaw librations of a satellite aligned with the orbit frame (x along-track, y orbit normal, z nadir):
+    w^4 - w^2 n^2 (1 + 3 kR + kR kY) + 4 n^4 kR kY = 0, kR = (Iy - Iz)/Ix, kY = (Iy - Ix)/Iz (Hughes, Spacecraft
+    Attitude Dynamics, 9.4)."""
+    kR, kY = (Iy - Iz) / Ix, (Iy - Ix) / Iz
+    b = 1 + 3 * kR + kR * kY
+    r = math.sqrt(b * b - 16 * kR * kY)
+    return sorted(n * np.sqrt([(b - r) / 2, (b + r) / 2]))
+
+
+@pytest.mark.parametrize("scene", ["satellite", "satellite_wheels"])
+def test_satellite_librations_about_the_orbit_frame(scene):
+    """diag(10, 12, 8) on a 7000 km circular orbit: pitch at n sqrt(3 (Ix - Iz)/Iy) = 0.70711 n, roll-yaw from the
+    quartic (0.43535 n, 1.45275 n), about the equilibrium Newton finds from the scene's pitched start: the orbit
+    frame itself (q_orbit = 1), turning at the orbit rate n. 1e-9: the eigenvalues of a 6x6 matrix whose entries
+    are the engine's exact derivatives."""
+    m = Model(scene)
+    lin = m.linearize(about="equilibrium")
+    n = math.sqrt(3.986004418e14 / 7.0e6**3)
+    assert lin.about == "steady motion" and lin.rates == {"world": pytest.approx(n, rel=1e-14)}
+    assert abs(abs(m.get("sat.q_orbit_w")) - 1.0) < 1e-12
+    Ix, Iy, Iz = 10.0, 12.0, 8.0
+    w = [x.frequency for x in lin.oscillations()]
+    want = sorted([n * math.sqrt(3 * (Ix - Iz) / Iy), *_roll_yaw(n, Ix, Iy, Iz)])
+    if scene == "satellite":
+        assert w == pytest.approx(want, rel=1e-9)
+        assert want[1] / n == pytest.approx(0.70711, abs=1e-5)
+        assert lin.stability == "marginally stable"
+    else:  # the wheels at rest add their own rigid modes, not oscillations; the hub's inertia includes them
+        assert len(w) == 3

@@ -512,12 +512,32 @@ def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
         if v.causality == "output" and v.start is not None and n.rpartition(".")[2] in (
                 "rate", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"):
             model.set(n, 0.0)
+    orbit = getattr(model.scene, "orbit", None)
+    n_orb = 0.0
+    if orbit is not None and orbit.circular:
+        # on a circular orbit the equilibrium turns with the orbit frame: every root co-rotates at the orbit rate
+        # about the orbit normal (world +z), and Newton solves f(x) = n xi_world(x) (a relative equilibrium)
+        p = model._p if model._p is not None else model._pp
+        mu, r = float(p[0, _engine.TP_MU]), float(p[0, _engine.TP_ORBIT_R])
+        n_orb = math.sqrt(mu / r**3)
+        from ..core.rotations import quat_to_matrix
+
+        for i, b in enumerate(model.scene.tree):
+            if b.parent == -1 and b.joint in ("ball", "free_rotation"):
+                q = model._y[0, model.layout.coord_slots[(i, "q_w")]:][:4]
+                w = quat_to_matrix(q / np.linalg.norm(q)).T @ np.array([0.0, 0.0, n_orb])
+                for k, c in enumerate("xyz"):
+                    model.set(f"{b.name}.omega_{c}", float(w[k]))
     model.initialize()
     for _ in range(iters):
         (bk,) = _blocks(model)
-        f = _derivs(bk)
         x = bk.y[0, :len(bk.states)]
         A, *_ = _block_jacobian(bk)
+        f = _derivs(bk)
+        if n_orb:
+            (_, xi, Dw), *_ = _generators(bk, A, bk.y)
+            f = f - n_orb * xi
+            A = A - n_orb * Dw
         T, P, _ = _reduction(bk, x)
         dz = np.linalg.lstsq(A @ T, -f, rcond=None)[0]
         dx = T @ dz
