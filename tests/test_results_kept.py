@@ -26,7 +26,8 @@ def finished(tmp_path_factory):
 
 
 @pytest.mark.parametrize("argv,msg", [
-    (["--integrator", "exact"], "integrator = 'exact' is not allowed: a torque-free body"),
+    (["--integrator", "exact", "--start-values", "I2", "0.0018"],
+     "integrator = 'exact' is not allowed: a torque-free body or a Lagrange top"),
     (["--start-values", "I3", "9"], "I3 = 9.0 is not allowed: at most I1 + I2 = 0.0035 (triangle inequality"),
     (["--set", "mass=-1"], "mass = -1.0 is not allowed"),
     (["--relative-tolerance", "1e-20"], "--relative-tolerance = 1e-20 is not allowed: a number from 1e-15 to 1"),

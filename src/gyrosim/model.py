@@ -506,17 +506,23 @@ class Model:
             self._out = None
 
     def _torque(self) -> str | None:
-        """What exerts a torque on a body now (for 'exact', which solves the torque-free body), or None."""
+        """Why 'exact' does not apply to a body now, or None: it solves a torque-free body and a Lagrange top
+        (I1 = I2 within round-off, on a pivot, gravity the only torque: gs_exact_applies); the message names the
+        torque (and, for gravity, the asymmetry)."""
         p, sc = self._p, self.scene
-        terms = (((3, "mass*g*cm_distance", "N*m"),) if sc.gravity else ()) + \
-            (((4, "damping", "N*m*s/rad"),) if sc.damping else ()) + \
-            (((5, "tau_x", "N*m"), (6, "tau_y", "N*m"), (7, "tau_z", "N*m")) if sc.torque else ())
-        for col, what, unit in terms:  # the terms the engine carries (gs_torque_free)
-            nz = np.flatnonzero(p[:, col] != 0.0)
-            if nz.size:
-                b = int(nz[0])
-                where = f" of body {self.body_names[b]!r}" if self.n_bodies > 1 else ""
-                return f"{what}{where} = {p[b, col]:.6g} {unit}"
+        flags = sc.flags
+        for b in range(self.n_bodies):
+            if _engine.exact_applies(flags, p[b]):
+                continue
+            where = f" of body {self.body_names[b]!r}" if self.n_bodies > 1 else ""
+            terms = (((4, "damping", "N*m*s/rad"),) if sc.damping else ()) + \
+                (((5, "tau_x", "N*m"), (6, "tau_y", "N*m"), (7, "tau_z", "N*m")) if sc.torque else ())
+            for col, what, unit in terms:  # the terms that no exact flow carries
+                if p[b, col] != 0.0:
+                    return f"{what}{where} = {p[b, col]:.6g} {unit}"
+            # gravity on a body that is not a Lagrange top
+            return (f"mass*g*cm_distance{where} = {p[b, 3]:.6g} N*m on a body with I1 = {p[b, 0]:.6g} and "
+                    f"I2 = {p[b, 1]:.6g} kg*m^2 (not a symmetric top)")
         return None
 
     def _check_call(self, h: float, what: str) -> None:
@@ -525,7 +531,8 @@ class Model:
         if self.integrator == "exact":
             torque = self._torque()
             if torque is not None:
-                raise ConfigError("integrator", "exact", "a torque-free body: 'exact' solves the torque-free flow, "
+                raise ConfigError("integrator", "exact", "a torque-free body or a Lagrange top (I1 = I2, on a pivot, "
+                                  "gravity the only torque): 'exact' solves those flows, "
                                   f"and {torque} now; set it to 0 or choose another integrator ('adaptive', "
                                   "'dop853', 'rk4', 'splitting')")
         elif _engine.substeps(h, self.max_step) == 0:

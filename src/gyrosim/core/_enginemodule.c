@@ -336,6 +336,61 @@ fail:
     return NULL;
 }
 
+/* ht_eval(p(NP), y(NY), t(k), w_out(k,3), q_out(k,4)[, ang_out(k,2)]): the exact heavy symmetric top's flow (the
+ * Lagrange top: p's I1 = I2, I3, mgl > 0) from the state y at times t; returns the number of series terms (0: the
+ * flow from Carlson's integrals at each point) */
+static PyObject *py_ht_eval(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 5 && nargs != 6) {
+        PyErr_SetString(PyExc_TypeError, "ht_eval() takes 5 or 6 arguments");
+        return NULL;
+    }
+    Buf b[6] = {{0}};
+    if (get_buf(args[0], &b[0], "p", 'd', GS_NP, 0) < 0) goto fail;
+    if (get_buf(args[1], &b[1], "y", 'd', GS_NY, 0) < 0) goto fail;
+    if (get_buf(args[2], &b[2], "t", 'd', -1, 0) < 0) goto fail;
+    const Py_ssize_t k = b[2].view.len / (Py_ssize_t)sizeof(double);
+    if (get_buf(args[3], &b[3], "w_out", 'd', 3 * k, 1) < 0) goto fail;
+    if (get_buf(args[4], &b[4], "q_out", 'd', 4 * k, 1) < 0) goto fail;
+    if (nargs == 6 && get_buf(args[5], &b[5], "ang_out", 'd', 2 * k, 1) < 0) goto fail;
+    const double *p = (const double *)b[0].view.buf, *y = (const double *)b[1].view.buf;
+    if (!(p[3] > 0.0)) {
+        PyErr_SetString(PyExc_ValueError, "p: mass*g*cm_distance > 0 (a Lagrange top)");
+        goto fail;
+    }
+    double c[GS_HT_SIZE];
+    gs_ht_setup(p[0] == p[1] ? p[0] : 0.5 * (p[0] + p[1]), p[2], p[3], y + 4, y, y[7], y[8], c);
+    const double *t = (const double *)b[2].view.buf;
+    double *wo = (double *)b[3].view.buf, *qo = (double *)b[4].view.buf;
+    double *ao = nargs == 6 ? (double *)b[5].view.buf : NULL;
+    for (Py_ssize_t i = 0; i < k; i++) gs_ht_eval(c, t[i], wo + 3 * i, qo + 4 * i, ao ? ao + 2 * i : NULL);
+    release(b, 6);
+    return PyLong_FromLong((long)c[32]);
+fail:
+    release(b, 6);
+    return NULL;
+}
+
+/* exact_applies(flags, p(NP)) -> 0 neither, 1 torque-free, 2 a Lagrange top */
+static PyObject *py_exact_applies(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "exact_applies() takes 2 arguments");
+        return NULL;
+    }
+    const long flags = PyLong_AsLong(args[0]);
+    if (PyErr_Occurred()) return NULL;
+    Buf b[1] = {{0}};
+    if (get_buf(args[1], &b[0], "p", 'd', GS_NP, 0) < 0) {
+        release(b, 1);
+        return NULL;
+    }
+    const double *p = (const double *)b[0].view.buf;
+    const int r = gs_torque_free((int)flags, p) ? 1 : (gs_lagrange_top((int)flags, p) ? 2 : 0);
+    release(b, 1);
+    return PyLong_FromLong(r);
+}
+
 static PyObject *py_max_threads(PyObject *self, PyObject *unused) {
     (void)self;
     (void)unused;
@@ -683,6 +738,10 @@ static PyMethodDef methods[] = {
      "substeps(H, max_step) -> internal steps of a fixed-step integrator (0: too many)"},
     {"tf_eval", (PyCFunction)(void (*)(void))py_tf_eval, METH_FASTCALL,
      "tf_eval(I, w, q, t, w_out, q_out): the exact torque-free flow at times t"},
+    {"ht_eval", (PyCFunction)(void (*)(void))py_ht_eval, METH_FASTCALL,
+     "ht_eval(p, y, t, w_out, q_out[, ang_out]) -> series terms: the exact heavy symmetric top's flow at times t"},
+    {"exact_applies", (PyCFunction)(void (*)(void))py_exact_applies, METH_FASTCALL,
+     "exact_applies(flags, p) -> 0 neither, 1 torque-free, 2 a Lagrange top (gs_exact_applies)"},
     {"max_threads", py_max_threads, METH_NOARGS, "threads the many-body loop may use"},
     {NULL, NULL, 0, NULL},
 };

@@ -55,6 +55,17 @@ int gs_torque_free(int flags, const double p[GS_NP]) {
            !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
 }
 
+int gs_lagrange_top(int flags, const double p[GS_NP]) {
+    return (flags & GS_GRAVITY) && p[3] > 0.0 && p[3] < INFINITY &&
+           fabs(p[0] - p[1]) <= 4.0 * 2.220446049250313e-16 * fmax(p[0], p[1]) &&
+           !((flags & GS_DAMPING) && p[4] != 0.0) &&
+           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
+}
+
+int gs_exact_applies(int flags, const double p[GS_NP]) {
+    return gs_torque_free(flags, p) || gs_lagrange_top(flags, p);
+}
+
 int64_t gs_substeps(double H, double max_step) {
     const double r = H / max_step;
     if (!(r <= (double)GS_MAX_WORK * 2.0)) return 0;   /* also NaN */
@@ -553,7 +564,8 @@ static int32_t exact_advance_pre(double *y, const double *p, double t, double H,
     if (!(mf <= 1e6)) return 1;
     double local[GS_EX_SIZE];
     double *c = ex;
-    if (ex[GS_EX_VALID] != 1.0) {   /* set up into a copy: the anchor changes only when the step succeeds */
+    if (ex[GS_EX_VALID] != 1.0 || ex[0] == 2.0) {   /* set up into a copy: the anchor changes only when the step
+                                                      succeeds (a heavy top's anchor: the body is torque-free now) */
         gs_tf_setup(p, y + 4, y, local);
         local[GS_EX_T0] = t;
         local[GS_EX_VALID] = 1.0;
@@ -588,6 +600,35 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
     return exact_advance_pre(y, p, t, H, ex, stats, NULL, NULL);
 }
 
+/* The Lagrange top (gs_lagrange_top): the flow from the anchor at the end of the step, one evaluation; the
+ * reference angles y[7], y[8] are the flow's own unwrapped phi, psi there (no sampling within the step). */
+static int32_t exact_advance_ht(int flags, double *y, const double *p, double t, double H, double *ex,
+                                int64_t *stats) {
+    double local[GS_EX_SIZE];
+    double *c = ex;
+    if (ex[GS_EX_VALID] != 1.0 || ex[0] != 2.0) {   /* set up into a copy, as exact_advance_pre */
+        double phi, psi;
+        unwrapped(y, &phi, &psi);
+        gs_ht_setup(p[0] == p[1] ? p[0] : 0.5 * (p[0] + p[1]), p[2], p[3], y + 4, y, phi, psi, local);
+        local[GS_EX_T0] = t;
+        local[GS_EX_VALID] = 1.0;
+        c = local;
+    }
+    double save[GS_NY];
+    memcpy(save, y, sizeof(save));
+    const double tau = (t - c[GS_EX_T0]) + H * 1.0 / 1.0;   /* the time exact_advance_pre samples */
+    gs_ht_eval(c, tau, y + 4, y, y + 7);
+    y[9] = 0.0;
+    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(flags, y, p)) {
+        memcpy(y, save, sizeof(save));
+        return 1;
+    }
+    if (c == local) memcpy(ex, local, sizeof(local));
+    monitor_commit(flags, y, p);
+    stats[0] += 1;
+    return 0;
+}
+
 /* ------------------------------------------------------------------------------------------- the loop */
 
 /* Before a step: when the rotation since the reference angles were last updated (y[9], rad) and the step's together
@@ -599,7 +640,10 @@ static inline void rebase(double *y, double w, double H) {
 static GS_INLINE int32_t advance_body(int method, int flags, double *y, const double *p, double t, double H,
                                       int64_t n_sub, double rtol, double atol, double max_step, double *hint,
                                       int64_t *stats, double *ex) {
-    if (method == GS_EXACT) return gs_torque_free(flags, p) ? exact_advance(y, p, t, H, ex, stats) : 1;
+    if (method == GS_EXACT) {
+        if (gs_torque_free(flags, p)) return exact_advance(y, p, t, H, ex, stats);
+        return gs_lagrange_top(flags, p) ? exact_advance_ht(flags, y, p, t, H, ex, stats) : 1;
+    }
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
     const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);

@@ -954,6 +954,7 @@ void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_
 
 int gs_tf_valid(const double c[GS_TF_SIZE])
 {
+    if (c[C_MODE] == 2.0) return gs_ht_valid(c);
     if (c[C_MODE] == 0.0) return 1;
     if (c[C_MODE] != 1.0) return 0;
     const double nf = c[C_NF];
@@ -966,4 +967,502 @@ int gs_tf_valid(const double c[GS_TF_SIZE])
         seen |= 1 << (int)v;
     }
     return seen == 7;
+}
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* the heavy symmetric top (Lagrange top)                                                                     */
+/* ---------------------------------------------------------------------------------------------------------- */
+/*
+ * A = I1 = I2, C = I3 about the pivot, mgl > 0. With u = cos(theta) = (R e3).z and Goldstein's a = L3/A,
+ * b = L_z/A, alpha = 2 (E - C w3^2/2)/A, beta = 2 mgl/A:
+ *   u'^2 = f(u) = (1 - u^2)(alpha - beta u) - (b - a u)^2 = beta (u - u1)(u - u2)(u - u3),  u1 <= u <= u2 <= u3,
+ *   u = u1 + d sn^2(w | m),  d = u2 - u1,  m = d / (u3 - u1),  w = lam t + w0,  lam = sqrt(beta (u3 - u1)) / 2.
+ * The angles enter as Sigma = phi + psi and Delta = phi - psi (the quaternion is the Cayley-Klein form
+ * q = (c cos(Sigma/2), -s sin(Delta/2), s cos(Delta/2), c sin(Sigma/2)), s = sin(theta/2), c = cos(theta/2)):
+ *   Sigma' = (w3 - a) + sigma / (1 + u),  sigma = a + b,   Delta' = (a - w3) + delta / (1 - u),  delta = b - a,
+ * each singular at one pole only, and only when the top does not pass it (delta = 0: the top passes the upper
+ * vertical, u2 = 1; sigma = 0: the lower). With v2 = 1 - u2 and s1 = 1 + u1 (kept to full relative precision):
+ *   1 - u = v2 + d cn^2 = (1 - u1)(1 - nD sn^2),  nD = d / (1 - u1):  Delta from Pi(nD; w) (the circular case);
+ *   1 + u = s1 + d sn^2:  Sigma from the same integral shifted by K (sn(w)^2 = cd(w - K)^2), the circular case
+ *   with n' = (s1 m + d)/(s1 + d), so that neither has a large rate cancelling a large periodic part.
+ * Where a pole is passed (v2 = 0 or s1 = 0), s (or c) is signed, s = sqrt(d/2) cn(w) (c = sqrt(d/2) sn(w)):
+ * the quaternion is then smooth through theta = 0 (pi), and the singular term is absent.
+ * Sigma and Delta are rate t + j step + P(w_r) + offset with w = 2 K j + w_r, |w_r| <= K and P odd: from
+ * Carlson's RJ at each point, or (where they converge) from Chebyshev series of P, sn, cn, dn in x = w_r / K,
+ * fitted once per anchor from the integrands (no elliptic integral at the nodes), as the torque-free flow does.
+ * omega (body) = (-P cos psi + theta' sin psi, P sin psi + theta' cos psi, w3), psi = (Sigma - Delta)/2,
+ * P = phi' sin(theta) = (s sigma / c + c delta / s) / 2, theta' = -u' / sin(theta) = -d lam dn (cn / s)(sn / c).
+ */
+enum {
+    H_MODE = 0,            /* 2 */
+    H_LAM, H_W0, H_MC, H_K, H_RK,
+    H_D, H_V2, H_S1, H_UPS, H_LOS,   /* d, v2 = 1 - u2, s1 = 1 + u1; 1: the upper (lower) pole passed, s (c) signed */
+    H_ND, H_KD, H_NP, H_CP, H_PCP, H_KS,   /* nD, delta/(lam (1 - u1)); n', (1 - m/n')/(s1 + d), Pi(n') - K, sigma/lam */
+    H_RD, H_RS, H_JD, H_JS, H_OD, H_OS,   /* rates, steps per period j, offsets of Delta and Sigma */
+    H_PHI, H_PSI,          /* the output angles' offsets (multiples of 2 pi) */
+    H_W3, H_SIG, H_DEL, H_HD, /* w3, sigma, delta, sqrt(d/2) */
+    H_NF = 32,             /* terms per series (0: Carlson's RJ at each point) */
+    H_FS = 40,             /* odd series of sn_r */
+    H_FC = H_FS + GS_TF_NFAST,   /* even series of cn_r (T_0 halved) */
+    H_FD = H_FC + GS_TF_NFAST,   /* even series of dn */
+    H_FPD = H_FD + GS_TF_NFAST,  /* odd series of P_Delta */
+    H_FPS = H_FPD + GS_TF_NFAST  /* odd series of P_Sigma */
+};
+
+_Static_assert(H_FPS + GS_TF_NFAST == GS_HT_SIZE && H_HD < H_NF, "the layout of the heavy top's constants");
+
+static const double GS_TWO_PI_HT = 6.283185307179586;
+
+/* P_Delta(w_r) and P_Sigma(w_r) from Carlson's RJ, |w_r| <= K, given sn_r, cn_r, dn there */
+static void ht_periodic(const double *c, double w_r, double sn, double cn, double dn, double *pd, double *ps)
+{
+    const double d = c[H_D], v2 = c[H_V2], s1 = c[H_S1], mc = c[H_MC];
+    *pd = 0.0;
+    *ps = 0.0;
+    if (c[H_KD] != 0.0 && sn != 0.0)
+        *pd = c[H_KD] * (c[H_ND] / 3.0) * sn * sn * sn * gs_elliprj(cn * cn, dn * dn, 1.0, (v2 + d * cn * cn) / (v2 + d));
+    if (c[H_KS] != 0.0 && w_r != 0.0) {
+        const double opu = s1 + d * sn * sn;   /* 1 + u */
+        if (mc > 0.0) {
+            const double br = c[H_PCP] - (c[H_NP] / 3.0) * cn * cn * cn *
+                              gs_elliprj(mc * sn * sn, mc, dn * dn, mc * opu / (s1 + d));
+            *ps = c[H_KS] * c[H_CP] * (w_r > 0.0 ? br : -br);
+        } else {   /* the separatrix (K infinite): the direct form */
+            *ps = c[H_KS] * (w_r * d / (s1 * (s1 + d)) -
+                             (d / (3.0 * s1 * s1)) * sn * sn * sn * gs_elliprj(cn * cn, dn * dn, 1.0, opu / s1));
+        }
+    }
+}
+
+/* Chebyshev series of sn_r (odd), cn_r, dn (even), P_Delta, P_Sigma (odd, from their derivatives, integrated
+ * term by term) in x = w_r / K from N first-kind nodes. 1 when every series converged within N/2 terms and the
+ * integrals agree with Carlson's at x = 1. */
+static int ht_fit(double *c, int N)
+{
+    enum { NMAX = 2 * GS_TF_NFAST, NS = 5 };
+    const int half = N / 2;
+    const double mc = c[H_MC], K = c[H_K], d = c[H_D], v2 = c[H_V2], s1 = c[H_S1];
+    double f[NS][NMAX / 2];
+    double T[NMAX][NMAX / 2];
+    double fmx[NS] = {0.0, 0.0, 0.0, 0.0, 0.0};
+    for (int k = 0; k < half; k++) {
+        T[0][k] = 1.0;
+        T[1][k] = cos(GS_PI * ((double)k + 0.5) / (double)N);
+        double sn, cn, dn, j;
+        gs_ellipj_reduced(K * T[1][k], mc, K, &sn, &cn, &dn, &j);
+        if (j != 0.0) return 0;
+        f[0][k] = sn;
+        f[1][k] = cn;
+        f[2][k] = dn;
+        /* dP/dx = K dP/dw */
+        f[3][k] = c[H_KD] == 0.0 ? 0.0 : K * c[H_KD] * d * sn * sn / (v2 + d * cn * cn);
+        f[4][k] = c[H_KS] == 0.0 ? 0.0 : K * c[H_KS] * d * cn * cn / ((s1 + d) * (s1 + d * sn * sn));
+        for (int s = 0; s < NS; s++) {
+            if (!(fabs(f[s][k]) <= 1e300)) return 0;
+            if (fabs(f[s][k]) > fmx[s]) fmx[s] = fabs(f[s][k]);
+        }
+    }
+    for (int jn = 2; jn < N; jn++)
+        for (int k = 0; k < half; k++) T[jn][k] = 2.0 * T[1][k] * T[jn - 1][k] - T[jn - 2][k];
+    double a[NS][NMAX / 2 + 1];
+    for (int i = 0; i < half; i++) {
+        const double *te = T[2 * i], *to = T[2 * i + 1];
+        double s0 = 0.0, sc = 0.0, sd = 0.0, sp = 0.0, sq = 0.0;
+        for (int k = 0; k < half; k++) {
+            s0 += f[0][k] * to[k];
+            sc += f[1][k] * te[k];
+            sd += f[2][k] * te[k];
+            sp += f[3][k] * te[k];
+            sq += f[4][k] * te[k];
+        }
+        a[0][i] = s0 * (4.0 / (double)N);
+        a[1][i] = sc * (4.0 / (double)N);
+        a[2][i] = sd * (4.0 / (double)N);
+        a[3][i] = sp * (4.0 / (double)N);
+        a[4][i] = sq * (4.0 / (double)N);
+    }
+    for (int s = 0; s < NS; s++) a[s][half] = 0.0;
+    double pmax[2] = {0.0, 0.0};
+    for (int s = 3; s < 5; s++) {
+        /* the even derivative b_0/2 + sum b_2i T_2i integrates to sum (b_2i - b_2i+2) / (2 (2i + 1)) T_2i+1 */
+        double g[NMAX / 2 + 1];
+        for (int i = 0; i < half; i++) g[i] = (a[s][i] - a[s][i + 1]) / (2.0 * (2.0 * (double)i + 1.0));
+        double at1 = 0.0;
+        for (int i = 0; i < half; i++) {
+            a[s][i] = g[i];
+            at1 += g[i];
+        }
+        pmax[s - 3] = fabs(at1);
+        /* the series at x = 1 (T_k(1) = 1) against Carlson's: the step per half period */
+        const double want = s == 3 ? 0.5 * c[H_JD] : 0.5 * c[H_JS];
+        if (!(fabs(at1 - want) <= 1e-13 * (fabs(want) > 1.0 ? fabs(want) : 1.0))) return 0;
+    }
+    int used = 1;
+    for (int s = 0; s < NS; s++) {
+        const double scale = s >= 3 ? (pmax[s - 3] > 1.0 ? pmax[s - 3] : 1.0) : (fmx[s] > 0.0 ? fmx[s] : 1.0);
+        const double eps = 8e-15 * scale;
+        for (int i = half - 3; i < half; i++)
+            if (fabs(a[s][i]) > eps) return 0;
+        int u = half;
+        while (u > 1 && fabs(a[s][u - 1]) <= eps) u--;
+        if (u > used) used = u;
+    }
+    if (used > GS_TF_NFAST) return 0;
+    a[1][0] *= 0.5;
+    a[2][0] *= 0.5;
+    for (int i = 0; i < GS_TF_NFAST; i++) {
+        c[H_FS + i] = i < used ? a[0][i] : 0.0;
+        c[H_FC + i] = i < used ? a[1][i] : 0.0;
+        c[H_FD + i] = i < used ? a[2][i] : 0.0;
+        c[H_FPD + i] = i < used ? a[3][i] : 0.0;
+        c[H_FPS + i] = i < used ? a[4][i] : 0.0;
+    }
+    c[H_NF] = (double)used;
+    return 1;
+}
+
+/* the five series at x in [-1, 1] (Clenshaw in y = 2 x^2 - 1, as fast_sums) */
+static void ht_sums(const double *c, double x, double *sn, double *cn, double *dn, double *pd, double *ps)
+{
+    const double y2 = 2.0 * (2.0 * x * x - 1.0), y = 0.5 * y2;
+    const int nf = (int)c[H_NF];
+    double s1 = 0.0, s2 = 0.0, c1 = 0.0, c2 = 0.0, d1 = 0.0, d2 = 0.0, p1 = 0.0, p2 = 0.0, q1 = 0.0, q2 = 0.0;
+    for (int i = nf - 1; i >= 1; i--) {
+        const double s0 = y2 * s1 - s2 + c[H_FS + i];
+        const double c0 = y2 * c1 - c2 + c[H_FC + i];
+        const double d0 = y2 * d1 - d2 + c[H_FD + i];
+        const double p0 = y2 * p1 - p2 + c[H_FPD + i];
+        const double q0 = y2 * q1 - q2 + c[H_FPS + i];
+        s2 = s1;
+        s1 = s0;
+        c2 = c1;
+        c1 = c0;
+        d2 = d1;
+        d1 = d0;
+        p2 = p1;
+        p1 = p0;
+        q2 = q1;
+        q1 = q0;
+    }
+    *sn = x * (c[H_FS] + s1 * (y2 - 1.0) - s2);
+    *pd = x * (c[H_FPD] + p1 * (y2 - 1.0) - p2);
+    *ps = x * (c[H_FPS] + q1 * (y2 - 1.0) - q2);
+    *cn = c[H_FC] + c1 * y - c2;
+    *dn = c[H_FD] + d1 * y - d2;
+}
+
+/* j, w_r and the reduced functions at w = lam t + w0 */
+static void ht_reduced(const double *c, double t, double *j, double *w_r, double *sn, double *cn, double *dn,
+                       double *pd, double *ps)
+{
+    const double w = c[H_LAM] * t + c[H_W0];
+    if (c[H_NF] > 0.0) {
+        const double jj = floor(0.5 * c[H_RK] * w + 0.5);
+        const double r = w - jj * (2.0 * c[H_K]);
+        double x = r * c[H_RK];
+        x = x < -1.0 ? -1.0 : (x > 1.0 ? 1.0 : x);
+        ht_sums(c, x, sn, cn, dn, pd, ps);
+        *j = jj;
+        *w_r = r;
+        return;
+    }
+    if (c[H_D] == 0.0) {   /* u constant */
+        *j = 0.0;
+        *w_r = 0.0;
+        *sn = 0.0;
+        *cn = 1.0;
+        *dn = 1.0;
+        *pd = 0.0;
+        *ps = 0.0;
+        return;
+    }
+    double jj;
+    gs_ellipj_reduced(w, c[H_MC], c[H_K], sn, cn, dn, &jj);
+    const double r = isinf(c[H_K]) ? w : w - jj * (2.0 * c[H_K]);
+    ht_periodic(c, r, *sn, *cn, *dn, pd, ps);
+    *j = jj;
+    *w_r = r;
+}
+
+/* the cubic g(x) = f(u0 + x) = f0 + f1 x + f2 x^2 + f3 x^3 */
+static double ht_g(const double f[4], double x) { return f[0] + x * (f[1] + x * (f[2] + f[3] * x)); }
+static double ht_dg(const double f[4], double x) { return f[1] + x * (2.0 * f[2] + 3.0 * f[3] * x); }
+
+/* The root of g in [lo, hi] with g(lo) = glo, g(hi) = ghi of opposite signs (safeguarded Newton). */
+static double ht_root(const double f[4], double lo, double hi, double glo, double ghi)
+{
+    if (glo == 0.0) return lo;
+    if (ghi == 0.0) return hi;
+    double xl = glo < 0.0 ? lo : hi, xh = glo < 0.0 ? hi : lo;   /* g(xl) < 0 < g(xh) */
+    double x = 0.5 * (lo + hi);
+    double dxold = fabs(hi - lo), dx = dxold;
+    for (int it = 0; it < 300; it++) {
+        const double g = ht_g(f, x), dg = ht_dg(f, x);
+        if (g == 0.0) return x;
+        if (g < 0.0) xl = x;
+        else xh = x;
+        double xn;
+        const double newton = x - g / dg;
+        if (!(dg != 0.0) || !((newton - xl) * (newton - xh) < 0.0) || fabs(2.0 * g) > fabs(dxold * dg)) {
+            dxold = dx;
+            dx = 0.5 * (xh - xl);
+            xn = xl + dx;
+        } else {
+            dxold = dx;
+            dx = g / dg;
+            xn = newton;
+        }
+        if (xn == x || fabs(xn - x) <= 2.3e-16 * fabs(xn) || xl + 0.5 * (xh - xl) == xl ||
+            xl + 0.5 * (xh - xl) == xh)
+            return xn;
+        x = xn;
+    }
+    return x;
+}
+
+/* the roots of beta x^2 + B x + Cq (real; a negative discriminant from round-off taken as 0) */
+static void ht_quad(double beta, double B, double Cq, double *r1, double *r2)
+{
+    double D = B * B - 4.0 * beta * Cq;
+    if (D < 0.0) D = 0.0;
+    const double qv = -0.5 * (B + (B >= 0.0 ? sqrt(D) : -sqrt(D)));
+    if (qv == 0.0) {
+        *r1 = 0.0;
+        *r2 = 0.0;
+        return;
+    }
+    *r1 = qv / beta;
+    *r2 = Cq / qv;
+}
+
+static void sort3(double r[3])
+{
+    for (int i = 1; i < 3; i++)
+        for (int k = i; k > 0 && r[k] < r[k - 1]; k--) {
+            const double tmp = r[k];
+            r[k] = r[k - 1];
+            r[k - 1] = tmp;
+        }
+}
+
+/* Newton on a cubic h(v) = h3 v^3 + h2 v^2 + h1 v + h0 from v > 0, kept positive (a small root to full relative
+ * precision) */
+static double ht_polish(double h3, double h2, double h1, double h0, double v)
+{
+    for (int it = 0; it < 20 && v > 0.0; it++) {
+        const double h = h0 + v * (h1 + v * (h2 + h3 * v));
+        const double dh = h1 + v * (2.0 * h2 + 3.0 * h3 * v);
+        if (!(dh != 0.0)) break;
+        double vn = v - h / dh;
+        if (!(vn > 0.0)) vn = 0.5 * v;
+        if (fabs(vn - v) <= 1e-17 * v) {
+            v = vn;
+            break;
+        }
+        v = vn;
+    }
+    return v;
+}
+
+void gs_ht_setup(double A, double C, double mgl, const double w[3], const double q_in[4], double phi_a,
+                 double psi_a, double c[GS_HT_SIZE])
+{
+    for (int k = 0; k < GS_HT_SIZE; ++k) c[k] = 0.0;
+    c[H_MODE] = 2.0;
+    const double qn = sqrt(q_in[0] * q_in[0] + q_in[1] * q_in[1] + q_in[2] * q_in[2] + q_in[3] * q_in[3]);
+    const double qw = q_in[0] / qn, qx = q_in[1] / qn, qy = q_in[2] / qn, qz = q_in[3] / qn;
+    const double w1 = w[0], w2 = w[1], w3 = w[2];
+    /* the world z row of R, u0 and 1 -+ u0 without cancellation */
+    const double R20 = 2.0 * (qx * qz - qw * qy), R21 = 2.0 * (qy * qz + qw * qx);
+    const double v0 = 2.0 * (qx * qx + qy * qy), s0p = 2.0 * (qw * qw + qz * qz);
+    const double u0 = 1.0 - v0;
+    const double wp2 = w1 * w1 + w2 * w2;
+    const double a = C * w3 / A, beta = 2.0 * mgl / A;
+    const double h0 = R20 * w1 + R21 * w2;                /* b - a u0: the world z of the transverse omega */
+    const double del = h0 - a * v0, sig = h0 + a * s0p;   /* b - a, b + a */
+    const double up = R20 * w2 - R21 * w1;                /* u'(0) */
+    double f[4];
+    f[0] = up * up;
+    f[1] = -2.0 * u0 * wp2 - beta * (R20 * R20 + R21 * R21) + 2.0 * a * h0;
+    f[2] = -wp2 + 2.0 * beta * u0 - a * a;
+    f[3] = beta;
+    c[H_W3] = w3;
+    c[H_SIG] = sig;
+    c[H_DEL] = del;
+    /* the roots x = u - u0: x1 <= 0 <= x2 <= v0 <= x3 */
+    double r[3];
+    int constant = 0;
+    if (f[0] == 0.0 && f[1] == 0.0) {   /* a double root at u0: steady precession, a sleeping top */
+        constant = 1;
+        r[0] = r[1] = 0.0;
+        r[2] = -f[2] / beta;
+    } else if (del == 0.0 || sig == 0.0 || f[0] == 0.0) {   /* a known root: deflate */
+        const double k = del == 0.0 ? v0 : (sig == 0.0 ? -s0p : 0.0);
+        const double B = f[2] + beta * k, Cq = f[1] + B * k;
+        r[0] = k;
+        ht_quad(beta, B, Cq, &r[1], &r[2]);
+        sort3(r);
+    } else {
+        r[0] = ht_root(f, -s0p, 0.0, -sig * sig, f[0]);
+        r[1] = ht_root(f, 0.0, v0, f[0], -del * del);
+        r[2] = -f[2] / beta - r[0] - r[1];
+        sort3(r);
+    }
+    double x1 = r[0] < 0.0 ? r[0] : 0.0, x2 = r[1] > 0.0 ? r[1] : 0.0, x3 = r[2];
+    if (x1 < -s0p) x1 = -s0p;
+    if (x2 > v0) x2 = v0;
+    if (x3 < x2) x3 = x2;
+    /* 1 - u2 and 1 + u1 to full relative precision near the poles (the cubic in v = 1 - u, s = 1 + u) */
+    double v2 = v0 - x2, s1 = s0p + x1;
+    const double c0 = wp2 - beta * v0, c1 = wp2 + beta * s0p;   /* alpha - beta, alpha + beta */
+    if (!constant && del != 0.0 && v2 < 0.25) {
+        double st = v2 > 0.0 ? v2 : del * del / (2.0 * (c0 - a * del));
+        if (st > 0.0) {
+            v2 = ht_polish(-beta, 2.0 * beta - c0 - a * a, 2.0 * c0 - 2.0 * a * del, -del * del, st);
+            x2 = v0 - v2;
+        }
+    }
+    if (!constant && sig != 0.0 && s1 < 0.25) {
+        double st = s1 > 0.0 ? s1 : sig * sig / (2.0 * (c1 + a * sig));
+        if (st > 0.0) {
+            s1 = ht_polish(beta, -(2.0 * beta + c1 + a * a), 2.0 * c1 + 2.0 * a * sig, -sig * sig, st);
+            x1 = s1 - s0p;
+        }
+    }
+    const double d = constant ? 0.0 : x2 - x1;
+    c[H_D] = d;
+    c[H_V2] = v2;
+    c[H_S1] = s1;
+    c[H_HD] = sqrt(0.5 * d);
+    c[H_UPS] = v2 == 0.0 ? 1.0 : 0.0;
+    c[H_LOS] = s1 == 0.0 ? 1.0 : 0.0;
+    double mc = 1.0, K = 0.5 * GS_PI, lam = 0.0, w0 = 0.0;
+    if (d > 0.0) {
+        mc = (x3 - x2) / (x3 - x1);
+        if (!(mc >= 0.0)) mc = 0.0;
+        if (mc > 1.0) mc = 1.0;
+        lam = 0.5 * sqrt(beta * (x3 - x1));
+        K = gs_ellipk(mc);
+        double sn02 = -x1 / d, cn02 = x2 / d;
+        if (sn02 > 1.0) sn02 = 1.0;
+        if (cn02 > 1.0) cn02 = 1.0;
+        const double sn0 = up < 0.0 ? -sqrt(sn02) : sqrt(sn02);
+        w0 = sn0 * gs_elliprf(cn02, cn02 + mc * sn02, 1.0);
+        if (!isfinite(w0)) w0 = 0.0;   /* on the separatrix at its end: the motion stays there */
+    }
+    const double m = 1.0 - mc;
+    c[H_LAM] = lam;
+    c[H_W0] = w0;
+    c[H_MC] = mc;
+    c[H_K] = K;
+    c[H_RK] = 1.0 / K;
+    /* Delta: rate, the step per period and the periodic part's factor */
+    c[H_RD] = a - w3;
+    if (del != 0.0 && c[H_UPS] == 0.0) {
+        c[H_RD] += del / (v2 + d);
+        if (d > 0.0) {
+            c[H_ND] = d / (v2 + d);
+            c[H_KD] = del / (lam * (v2 + d));
+            if (mc > 0.0) c[H_JD] = 2.0 * c[H_KD] * (c[H_ND] / 3.0) * gs_elliprj(0.0, mc, 1.0, v2 / (v2 + d));
+        }
+    }
+    /* Sigma */
+    c[H_RS] = w3 - a;
+    if (sig != 0.0 && c[H_LOS] == 0.0) {
+        c[H_RS] += sig / (s1 + d);
+        if (d > 0.0) {
+            c[H_KS] = sig / lam;
+            c[H_NP] = (s1 * m + d) / (s1 + d);
+            c[H_CP] = d * mc / ((s1 * m + d) * (s1 + d));
+            if (mc > 0.0) {
+                c[H_PCP] = (c[H_NP] / 3.0) * gs_elliprj(0.0, mc, 1.0, s1 * mc / (s1 + d));
+                c[H_JS] = 2.0 * c[H_KS] * c[H_CP] * c[H_PCP];
+            }
+        }
+    }
+    /* the fast series where they converge */
+    c[H_NF] = 0.0;
+    if (d > 0.0 && mc > 1e-6 && isfinite(K)) {
+        if (!ht_fit(c, 40) && !ht_fit(c, 2 * GS_TF_NFAST)) c[H_NF] = 0.0;
+    }
+    /* the state at t = 0 as the evaluation has it: s and c (signed where a pole is passed) */
+    double j0, wr0, sn, cn, dn, pd0, ps0;
+    ht_reduced(c, 0.0, &j0, &wr0, &sn, &cn, &dn, &pd0, &ps0);
+    const double sg = (j0 - 2.0 * floor(0.5 * j0)) != 0.0 ? -1.0 : 1.0;
+    sn *= sg;
+    cn *= sg;
+    const double s_0 = c[H_UPS] != 0.0 ? c[H_HD] * cn : sqrt(0.5 * v0);
+    const double c_0 = c[H_LOS] != 0.0 ? c[H_HD] * sn : sqrt(0.5 * s0p);
+    /* Sigma0 / 2 and Delta0 / 2 from q (from q' where c or s is 0: the direction in which the top leaves the pole) */
+    double hS, hD;
+    if (qw != 0.0 || qz != 0.0) {
+        const double sgc = c_0 < 0.0 ? -1.0 : 1.0;
+        hS = atan2(sgc * qz, sgc * qw);
+    } else {
+        const double dw = -0.5 * (qx * w1 + qy * w2), dz = 0.5 * (qx * w2 - qy * w1);
+        const double dc = c[H_HD] * cn * dn * lam;   /* c' */
+        hS = dc < 0.0 ? atan2(-dz, -dw) : atan2(dz, dw);
+    }
+    if (qx != 0.0 || qy != 0.0) {
+        const double sgs = s_0 < 0.0 ? -1.0 : 1.0;
+        hD = atan2(-sgs * qx, sgs * qy);
+    } else {
+        const double dx = 0.5 * (qw * w1 - qz * w2), dy = 0.5 * (qw * w2 + qz * w1);
+        const double ds = -c[H_HD] * sn * dn * lam;   /* s' */
+        hD = ds < 0.0 ? atan2(dx, -dy) : atan2(-dx, dy);
+    }
+    const double S0 = 2.0 * hS, D0 = 2.0 * hD;
+    c[H_OD] = D0 - (j0 * c[H_JD] + pd0);
+    c[H_OS] = S0 - (j0 * c[H_JS] + ps0);
+    const double fs0 = s_0 < 0.0 ? 1.0 : 0.0, fc0 = c_0 < 0.0 ? 1.0 : 0.0;
+    c[H_PHI] = GS_TWO_PI_HT * floor((phi_a - 0.5 * (S0 + D0) - GS_PI * (fs0 + fc0)) / GS_TWO_PI_HT + 0.5);
+    c[H_PSI] = GS_TWO_PI_HT * floor((psi_a - 0.5 * (S0 - D0) - GS_PI * (fc0 - fs0)) / GS_TWO_PI_HT + 0.5);
+}
+
+void gs_ht_eval(const double c[GS_HT_SIZE], double t, double w_out[3], double q_out[4], double ang[2])
+{
+    double j, w_r, sn, cn, dn, pd, ps;
+    ht_reduced(c, t, &j, &w_r, &sn, &cn, &dn, &pd, &ps);
+    const double sg = (j - 2.0 * floor(0.5 * j)) != 0.0 ? -1.0 : 1.0;
+    sn *= sg;
+    cn *= sg;
+    const double d = c[H_D];
+    const int ups = c[H_UPS] != 0.0, los = c[H_LOS] != 0.0;
+    const double omu = c[H_V2] + d * cn * cn, opu = c[H_S1] + d * sn * sn;   /* 1 - u, 1 + u */
+    const double s = ups ? c[H_HD] * cn : sqrt(0.5 * omu);
+    const double cc = los ? c[H_HD] * sn : sqrt(0.5 * opu);
+    const double S = c[H_RS] * t + j * c[H_JS] + ps + c[H_OS];
+    const double D = c[H_RD] * t + j * c[H_JD] + pd + c[H_OD];
+    const double cs = cos(0.5 * S), ss = sin(0.5 * S), cd = cos(0.5 * D), sd = sin(0.5 * D);
+    q_out[0] = cc * cs;
+    q_out[1] = -s * sd;
+    q_out[2] = s * cd;
+    q_out[3] = cc * ss;
+    /* omega: theta' = -d lam dn (cn / s)(sn / c), P = phi' sin(theta) */
+    double th = 0.0;
+    if (d > 0.0) {
+        const double au = ups ? 1.0 / c[H_HD] : cn / s;
+        const double al = los ? 1.0 / c[H_HD] : sn / cc;
+        th = -d * c[H_LAM] * dn * au * al;
+    }
+    const double P = 0.5 * ((ups ? 0.0 : cc * c[H_DEL] / s) + (los ? 0.0 : s * c[H_SIG] / cc));
+    const double cp = cs * cd + ss * sd, sp = ss * cd - cs * sd;   /* cos, sin of psi = (Sigma - Delta)/2 */
+    w_out[0] = -P * cp + th * sp;
+    w_out[1] = P * sp + th * cp;
+    w_out[2] = c[H_W3];
+    if (ang) {
+        const double fs = s < 0.0 ? 1.0 : 0.0, fc = cc < 0.0 ? 1.0 : 0.0;
+        ang[0] = c[H_PHI] + 0.5 * (S + D) + GS_PI * (fs + fc);
+        ang[1] = c[H_PSI] + 0.5 * (S - D) + GS_PI * (fc - fs);
+    }
+}
+
+int gs_ht_valid(const double *c)
+{
+    if (c[H_MODE] != 2.0) return 0;
+    const double nf = c[H_NF];
+    if (!(nf >= 0.0 && nf <= (double)GS_TF_NFAST && nf == floor(nf))) return 0;
+    if (!(c[H_K] > 0.0) || !(c[H_D] >= 0.0) || !(c[H_V2] >= 0.0) || !(c[H_S1] >= 0.0)) return 0;
+    if (nf > 0.0 && !(isfinite(c[H_K]) && c[H_D] > 0.0)) return 0;
+    return (c[H_UPS] == 0.0 || c[H_UPS] == 1.0) && (c[H_LOS] == 0.0 || c[H_LOS] == 1.0);
 }

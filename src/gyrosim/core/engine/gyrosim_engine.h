@@ -23,8 +23,9 @@
  *                        max_drift (the health monitor's bound: gs_drift; 0 or inf = off)
  *   hint[b]              adaptive: the next internal step (s); 0 = choose one (part of the saved state)
  *   stats[b*3 + .]       accepted internal steps, rejected steps, right-hand-side evaluations (accumulated)
- *   ex[b*GS_EX_SIZE + .] exact: the constants of the torque-free flow from its anchor state, ex[GS_EX_T0] the
- *                        anchor time (s) and ex[GS_EX_VALID] 1 when set up (0: set up from y at the next step)
+ *   ex[b*GS_EX_SIZE + .] exact: the constants of the torque-free flow (or of the heavy symmetric top's) from its
+ *                        anchor state, ex[GS_EX_T0] the anchor time (s) and ex[GS_EX_VALID] 1 when set up (0: set
+ *                        up from y at the next step)
  *   status[b]            0, or k + 1 when internal step k of body b failed (non-finite or overflowing state, or
  *                        the health monitor's largest drift beyond max_drift, checked at the end of each
  *                        communication step and output point, and every 1/128 of a call's fixed steps);
@@ -74,12 +75,15 @@ extern "C" {
 #define GS_NOUT 15
 
 /* the torque-free flow's constants (gs_tf_setup: 40, then 12 constants and the four Chebyshev series of the fast
- * evaluation, GS_TF_NFAST terms each) and, after them, the exact integrator's anchor */
+ * evaluation, GS_TF_NFAST terms each), the heavy symmetric top's (gs_ht_setup: 40, then five series) and, after the
+ * larger of them, the exact integrator's anchor (ex[0] tells them apart: 0 or 1 torque-free, 2 the heavy top) */
 #define GS_TF_NFAST 32
 #define GS_TF_SIZE (40 + 12 + 4 * GS_TF_NFAST)
-#define GS_EX_T0 GS_TF_SIZE
-#define GS_EX_VALID (GS_TF_SIZE + 1)
-#define GS_EX_SIZE (GS_TF_SIZE + 2)
+#define GS_HT_SIZE (40 + 5 * GS_TF_NFAST)
+#define GS_EX_NC (GS_HT_SIZE > GS_TF_SIZE ? GS_HT_SIZE : GS_TF_SIZE)
+#define GS_EX_T0 GS_EX_NC
+#define GS_EX_VALID (GS_EX_NC + 1)
+#define GS_EX_SIZE (GS_EX_NC + 2)
 
 /* adaptive (Dormand-Prince 5(4)) controls its local error against GS_ADAPTIVE_TOL_SCALE times the tolerance: with
  * the tolerance as given, its global attitude error over 100 s of the study's free body was 77-350 times the
@@ -122,13 +126,21 @@ int gs_method_code(const char *name);
 int64_t gs_substeps(double H, double max_step);
 
 /* 1 when the parameters p exert no torque (mass*g*cm_distance, damping and the input torque zero where the flags
- * carry them): the body is torque-free and exact applies; exact fails on a body that is not. */
+ * carry them): the body is torque-free and exact applies. */
 int gs_torque_free(int flags, const double p[GS_NP]);
+
+/* 1 when the body is a Lagrange top now: symmetric (|I1 - I2| <= 4 eps max(I1, I2)), on a pivot with its centre of
+ * mass on body +z (mass*g*cm_distance > 0 and finite), gravity the only torque (no damping, no input torque where
+ * the flags carry them). exact then evaluates the heavy symmetric top's flow. */
+int gs_lagrange_top(int flags, const double p[GS_NP]);
+
+/* 1 when exact applies: gs_torque_free or gs_lagrange_top; exact fails on a body that is neither. */
+int gs_exact_applies(int flags, const double p[GS_NP]);
 
 /* Advance n bodies over one communication step H (s) from time t (s), in place.
  * Fixed-step methods take gs_substeps(H, max_step) equal steps; adaptive takes the steps its error control
  * chooses (relative tolerance rtol, absolute atol, none longer than max_step); exact evaluates the torque-free
- * flow from its anchor (only for flags == 0). threads: 0 = the default, 1 = serial, k = at most k (OpenMP
+ * flow or the Lagrange top's from its anchor (a body that is neither fails). threads: 0 = the default, 1 = serial, k = at most k (OpenMP
  * builds only; the bits do not depend on it). Returns the number of bodies that failed (see status). */
 size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, double t, double H,
                   double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
@@ -211,7 +223,8 @@ int gs_max_threads(void);
  * attitude q (4, normalised here). */
 void gs_tf_setup(const double I[3], const double w[3], const double q[4], double c[GS_TF_SIZE]);
 
-/* 1 when c holds constants gs_tf_setup could have written (index fields in range): a check for foreign states. */
+/* 1 when c holds constants gs_tf_setup (or, with c[0] == 2, gs_ht_setup) could have written (index fields in range):
+ * a check for foreign states. */
 int gs_tf_valid(const double c[GS_TF_SIZE]);
 
 /* Body omega (3) and attitude (4) at time t (s after the setup state). */
@@ -222,6 +235,23 @@ void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_
 #define GS_TF_LANES 8
 int gs_tf_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                      double q_out[GS_TF_LANES][4]);
+
+/* ---- the exact heavy symmetric top (exact.c): the Lagrange top, u = cos(theta) by Jacobi's sn, the angles by
+ * Carlson's integrals or their Chebyshev series per nutation period ---- */
+
+/* Constants c[GS_HT_SIZE] of the Lagrange top (moments A = I1 = I2, C = I3 about the pivot, mgl > 0) from body
+ * omega (3), attitude q (4, unit) and the unwrapped output angles phi_a, psi_a of that state (the reference from
+ * which gs_ht_eval's angles continue). */
+void gs_ht_setup(double A, double C, double mgl, const double w[3], const double q[4], double phi_a, double psi_a,
+                 double c[GS_HT_SIZE]);
+
+/* Body omega (3), attitude (4) and the unwrapped ZYZ angles phi, psi (ang, 2; or NULL) at time t (s after the
+ * set-up state). A pure function of t: no Euler-angle singularity (the quaternion from the Cayley-Klein form
+ * cos(theta/2) e^(i (phi + psi)/2), sin(theta/2) e^(i (phi - psi)/2)). */
+void gs_ht_eval(const double c[GS_HT_SIZE], double t, double w_out[3], double q_out[4], double ang[2]);
+
+/* 1 when c holds constants gs_ht_setup could have written (a check for foreign states). */
+int gs_ht_valid(const double *c);
 
 /* Special functions (m = 1 - mc is the parameter): K(m); sn, cn, dn at u reduced to [-K, K] with the integer j
  * (as a double) such that u = u_r + 2 K j; Carlson's RF and RJ. */
