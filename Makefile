@@ -34,10 +34,11 @@ $(BENCH_VENV)/.installed: pyproject.toml $(ENGINE)
 	$(BENCH_VENV)/bin/python -m pip install --quiet -e ".[test,bench]"
 	touch $(BENCH_VENV)/.installed
 
-# the slow tests in the project's venv; the study in .venv-bench (with the benchmark-only peers: CyRK, numba)
+# the slow tests in the project's venv; the study in .venv-bench (with the benchmark-only peers: CyRK, numba;
+# numba's cache inside the bench venv, never next to the sources)
 bench: $(STAMP) $(BENCH_VENV)/.installed
 	$(PY) -m pytest -q -m slow
-	$(BENCH_VENV)/bin/gyrosim bench --output docs/study
+	NUMBA_CACHE_DIR=$(CURDIR)/$(BENCH_VENV)/numba-cache $(BENCH_VENV)/bin/gyrosim bench --output docs/study
 
 # the documentation site into site/ (git-ignored), warnings as errors; the study's tables and plots in docs/study
 # come from `make bench`

@@ -101,3 +101,87 @@ def test_attitude_error_and_only():
     assert study._parse_only(["accuracy,cost", "accuracy"]) == ["accuracy", "cost"]
     with pytest.raises(ConfigError):
         study._parse_only(["acuracy"])
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The peers part (issue 25): the harness, never its timings
+# ---------------------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def quick_peers():
+    from gyrosim import peers
+
+    return peers.run_peers(quick=True)
+
+
+def test_peers_ladders_reach_every_target(quick_peers):
+    """On a quick run gyrosim's ladders meet every judged target of every case (and CyRK's, when it is there)."""
+    from gyrosim import peers
+
+    res = quick_peers
+    assert set(res["cases"]) == {c.name for c in peers.PEER_CASES}
+    tools = ["gyrosim"] + (["CyRK"] if res["cyrk"] else [])
+    for name, info in res["cases"].items():
+        assert info["uncertainty"] < 1e-10, (name, info)
+        assert {1e-3, 1e-6, 1e-9} <= set(info["judged"]), (name, info)
+        for target in info["judged"]:
+            if target < 1e-9:
+                continue  # 1e-11 / 1e-12 where reachable: round-off over 10^5 steps may stop every stepping method
+            for tool in tools:
+                r = peers.cheapest(res["runs"], name, tool, target)
+                assert r is not None and r["error"] <= target and r["ms"] > 0, (name, tool, target)
+        if res["cyrk"]:
+            r = [x for x in res["runs"] if x["case"] == name and x["tool"] == "CyRK"]
+            assert {x["method"] for x in r} == set(peers.CYRK_METHODS)
+            assert all(x["ms_python"] > 0 for x in r)
+    # every integrator the engine has is tried on every case (or refused by the model, with the reason noted)
+    for name in res["cases"]:
+        tried = {r["method"] for r in res["runs"] if r["case"] == name and r["tool"] == "gyrosim"}
+        for integ in peers._integrators():
+            assert integ in tried or f"{integ} not run on {name}" in (res["note"] or ""), (name, integ)
+    # gyrosim is timed both ways: gyrosim.simulate and Model.trajectory
+    g = [r for r in res["runs"] if r["tool"] == "gyrosim" and math.isfinite(r["ms"])]
+    assert g and all(r["ms_trajectory"] > 0 for r in g)
+
+
+def test_peers_tables_and_plots(quick_peers, tmp_path):
+    from gyrosim import peers
+
+    text = peers.peers_table(quick_peers)
+    for case in peers.PEER_CASES:
+        assert case.title in text
+    assert "CyRK from numba" in text and "CyRK from Python" in text
+    choose = peers.peers_choose_table(quick_peers)
+    assert choose.count("\n| ") >= 12
+    assert study.peers_usable(quick_peers) and not study.peers_usable({"runs": [], "cheapest": {}})
+    assert "Which integrator for a trajectory" in study.choose_table({}, {}, None, quick_peers)
+    names = peers.plot_peers(quick_peers, tmp_path)
+    assert names == [f"peers_{c.name}.png" for c in peers.PEER_CASES]
+    for n in names:
+        assert (tmp_path / n).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_peers_skipped_with_a_reason_without_cyrk(monkeypatch):
+    import sys
+
+    from gyrosim import peers
+
+    monkeypatch.setitem(sys.modules, "CyRK", None)  # import CyRK raises ImportError
+    peer, note = peers._load_peer()
+    assert peer is None and "CyRK not available" in note and "pip install -e .[bench]" in note
+
+
+def test_lagrange_reference_is_converged():
+    """The Lagrange top's reference: halving its quadrature panels changes it by round-off only, and it keeps the
+    conserved p_phi (= L_z) and p_psi."""
+    from gyrosim import peers
+    from gyrosim.core.rotations import quat_rotate
+
+    case = next(c for c in peers.PEER_CASES if c.name == "top_a")
+    args = (case.moments[0], case.moments[2], case.mass, case.l, peers.G, case.theta0, case.spin)
+    t = np.linspace(0.0, 5.0, 51)
+    ref = peers.LagrangeTop(*args)
+    q, w = ref.state(t)
+    q2, _ = peers.LagrangeTop(*args, panels_per_period=32).state(t)
+    assert np.max(peers.attitude_error(q2, q)) < 1e-12
+    L = quat_rotate(q, w * np.array([ref.I1, ref.I1, ref.I3]))
+    np.testing.assert_allclose(L[:, 2], ref.p_phi, rtol=1e-11)

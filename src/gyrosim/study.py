@@ -811,11 +811,22 @@ def orders_table(orders: dict) -> str:
 TARGETS = (1e-3, 1e-6, 1e-9)
 
 
-def choose_table(cases: dict, acc: dict, stability: dict | None = None) -> str:
+def choose_table(cases: dict, acc: dict, stability: dict | None = None, peers: dict | None = None) -> str:
     """For each case and target attitude error, the cheapest run of each integrator that reaches it; with the
-    stability part's results, the largest stable step of each integrator too (:func:`stable_steps_table`).
+    stability part's results, the largest stable step of each integrator too (:func:`stable_steps_table`); with
+    the peers part's results, the cheapest integrator for a whole trajectory against CyRK
+    (:func:`gyrosim.peers.peers_choose_table`).
 
     ``cases``: name -> :class:`Case` or name -> its time span T (s)."""
+    if not acc:
+        out = "### Which integrator is cheapest for an accuracy\n"
+        if peers_usable(peers):
+            from .peers import peers_choose_table
+
+            out += "\n" + peers_choose_table(peers)
+        if stability:
+            out += "\n" + stable_steps_table(stability)
+        return out
     head = ["case", "integrator"] + [f"error <= {t:g} rad: time (ms), step" for t in TARGETS]
     rows = []
     for name, recs in acc.items():
@@ -839,9 +850,18 @@ def choose_table(cases: dict, acc: dict, stability: dict | None = None) -> str:
            f"maximum attitude error over the run ({spans}) is within the target, with its time (thread CPU) and "
            "step or tolerance (from the ladders above; 'not reached': no step of the ladder got there).\n\n"
            + md_table(head, rows))
+    if peers_usable(peers):
+        from .peers import peers_choose_table
+
+        out += "\n" + peers_choose_table(peers)
     if stability:
         out += "\n" + stable_steps_table(stability)
     return out
+
+
+def peers_usable(peers) -> bool:
+    """Whether results of the peers part are of the current layout (per case; earlier ones had one problem)."""
+    return isinstance(peers, dict) and isinstance(peers.get("cases"), dict) and "runs" in peers
 
 
 def stable_steps_table(stability: dict) -> str:
@@ -1377,10 +1397,10 @@ def main(args) -> int:
                 from .peers import peers_table, plot_peers, run_peers
 
                 bar.set_postfix_str("trajectories against CyRK and scipy")
-                res = run_peers(quick)
+                res = run_peers(quick, progress=bar.set_postfix_str)
                 plan.results["peers"] = res
                 plan.tables["peers"] = peers_table(res)
-                plan.files.append(plot_peers(res, out))
+                plan.files += plot_peers(res, out)
                 if res.get("note"):
                     messages.append(f"peers: {res['note']}")
                 bar.update()
@@ -1419,9 +1439,11 @@ def main(args) -> int:
     done = [p for p in PARTS if p in parts or (old is not None and p in old.get("parts", []))]
 
     # the recommendation: the accuracy ladders' cheapest runs and the stability map's largest steps
-    if "accuracy" in results:
-        spans = results.get("accuracy_spans") or _accuracy_spans(dict(results, runs=runs), quick)
-        plan.tables["choose"] = blocks["choose"] = choose_table(spans, results["accuracy"], results.get("stability"))
+    if "accuracy" in results or peers_usable(results.get("peers")):
+        spans = (results.get("accuracy_spans") or _accuracy_spans(dict(results, runs=runs), quick)) \
+            if "accuracy" in results else {}
+        plan.tables["choose"] = blocks["choose"] = choose_table(spans, results.get("accuracy", {}),
+                                                                results.get("stability"), results.get("peers"))
     for name, text in plan.tables.items():
         (out / f"{name}.md").write_text(text)
     if len(runs) == 1:
