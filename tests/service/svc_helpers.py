@@ -77,25 +77,58 @@ def run(*args: str, timeout: float = 60, prefix: tuple[str, ...] = ()) -> subpro
 def wait_for_line(proc: subprocess.Popen, needle: str, timeout: float = 90.0) -> list[str]:
     """Read ``proc``'s stderr until a line contains ``needle``; return the lines read. The bound is generous: a
     process started on a loaded 2-core machine (the whole suite running, the first imports of a fresh venv) has
-    been seen to take over 20 s to reach its first line; a process that ends stops the wait at once."""
+    been seen to take over 20 s to reach its first line; a process that ends stops the wait at once.
+
+    It reads the pipe's file descriptor itself, one byte at a time, and never through ``proc.stderr``: that
+    wrapper reads ahead (8 KiB at a time), so when two lines were already in the pipe (``serving scene`` and
+    ``stepping`` come 10 ms apart, and a loaded machine wakes the reader later than that) the second one sat in its
+    buffer, where ``select`` on the pipe cannot see it, and the wait ran out although the line had come. Reading
+    no further than the needle's line leaves the rest of the output in the pipe for ``communicate()``.
+    """
     import selectors
 
     lines: list[str] = []
-    sel = selectors.DefaultSelector()
-    sel.register(proc.stderr, selectors.EVENT_READ)
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if not sel.select(timeout=0.1):
-            if proc.poll() is not None:
-                break
-            continue
-        line = proc.stderr.readline()
-        if not line:
-            break
-        lines.append(line)
-        if needle in line:
-            return lines
-    raise AssertionError(f"{needle!r} not seen within {timeout} s; stderr so far:\n{''.join(lines)}")
+    fd = proc.stderr.fileno()
+    buf = bytearray()
+
+    def read_until(deadline: float, needle: str | None) -> str:
+        """Read lines into ``lines`` until one holds ``needle`` ("found"), EOF ("eof"), the process's end ("exit")
+        or ``deadline`` ("timeout")."""
+        with selectors.DefaultSelector() as sel:
+            sel.register(fd, selectors.EVENT_READ)
+            while time.monotonic() < deadline:
+                if not sel.select(timeout=0.1):
+                    if proc.poll() is not None and not sel.select(timeout=0):
+                        return "exit"
+                    continue
+                b = os.read(fd, 1)
+                if not b:  # EOF: the process closed its stderr
+                    return "eof"
+                buf.extend(b)
+                if b == b"\n":
+                    lines.append(buf.decode(errors="replace"))
+                    buf.clear()
+                    if needle is not None and needle in lines[-1]:
+                        return "found"
+        return "timeout"
+
+    why = read_until(time.monotonic() + timeout, needle)
+    if why == "found":
+        return lines
+    if why == "eof":  # ending: give it a moment to be reaped
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            pass
+    running = proc.poll() is None
+    if running:  # the gyrosim service commands print every thread's stack on SIGUSR1 (faulthandler)
+        proc.send_signal(signal.SIGUSR1)
+        read_until(time.monotonic() + 2.0, None)
+    if buf:
+        lines.append(buf.decode(errors="replace"))
+    state = "still running (its stacks on SIGUSR1 at the end)" if running else f"exited {proc.returncode}"
+    raise AssertionError(f"{needle!r} not seen within {timeout} s; process {state}; stderr so far:\n"
+                         f"{''.join(lines)}")
 
 
 def stop(proc: subprocess.Popen, sig=signal.SIGINT, timeout: float = 20.0) -> tuple[int, str, str]:

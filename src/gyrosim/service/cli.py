@@ -53,6 +53,20 @@ def _durations(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument("--wall-duration", type=float, metavar="S", help="Wall-clock seconds to run at most.")
 
 
+def _stacks_on_sigusr1() -> None:
+    """``kill -USR1 PID`` makes a running ``serve``/``record``/``replay`` print every thread's Python stack to
+    stderr and go on (a debugging aid for a process that seems stuck; ``py-spy dump`` needs no such help)."""
+    import faulthandler
+    import signal
+
+    if not hasattr(signal, "SIGUSR1") or sys.stderr is not sys.__stderr__:  # called in-process (captured): no
+        return
+    try:
+        faulthandler.register(signal.SIGUSR1, all_threads=True)
+    except (AttributeError, ValueError, OSError, RuntimeError):  # a stderr without a file descriptor
+        pass
+
+
 def _summary(args, text: str) -> None:
     if not args.quiet:
         print(text)
@@ -83,6 +97,7 @@ def _serve(args: argparse.Namespace) -> int:
         _summary(args, stats.format())
         return 0
 
+    _stacks_on_sigusr1()
     return run_handler("gyrosim serve", run, args)
 
 
@@ -104,6 +119,7 @@ def _record(args: argparse.Namespace) -> int:
         _summary(args, summary.format())
         return 0
 
+    _stacks_on_sigusr1()
     return run_handler("gyrosim record", run, args)
 
 
@@ -129,6 +145,7 @@ def _replay(args: argparse.Namespace) -> int:
         _summary(args, stats.format())
         return 0
 
+    _stacks_on_sigusr1()
     return run_handler("gyrosim replay", run, args)
 
 
