@@ -613,18 +613,25 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         const double *b = body_p(p, i);
         double h[6], f[6];
         if (!pre->rotor[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));   /* a rotor's is folded (precompute) */
-        {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product) */
+        {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product), then f = v x* h with
+             * v_lin x m v_lin = 0 left out: at orbital speeds its round-off (1e-16 m |v|^2) would be a torque */
             const double m = b[GS_TB_MASS], *cm = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin->v[i], *vl = kin->v[i] + 3;
-            double wc[3], vc[3], cvc[3];
+            double wc[3], vc[3], cvc[3], mwc[3], a1[3], a2[3];
             cross3(w, cm, wc);
-            for (int a = 0; a < 3; a++) vc[a] = m * (vl[a] + wc[a]);   /* momentum: m (v + w x c) */
+            for (int a = 0; a < 3; a++) {
+                vc[a] = m * (vl[a] + wc[a]);   /* momentum: m (v + w x c) */
+                mwc[a] = m * wc[a];
+            }
             cross3(cm, vc, cvc);
             h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2] + cvc[0];
             h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2] + cvc[1];
             h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cvc[2];
             memcpy(h + 3, vc, sizeof(vc));
+            cross3(w, h, a1);
+            cross3(vl, mwc, a2);
+            for (int a = 0; a < 3; a++) f[a] = a1[a] + a2[a];
+            cross3(w, vc, f + 3);
         }
-        crf(kin->v[i], h, f);
         for (int a = 0; a < 3; a++) {
             pA[i][a] = f[a] - b[GS_TB_TAU + a];
             pA[i][3 + a] = f[3 + a];
