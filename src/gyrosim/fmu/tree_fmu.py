@@ -29,6 +29,7 @@ from ..core import _engine
 from ..core.tree import TreeLayout
 from ..errors import ConfigError
 from ..scene import TREE_INTEGRATORS, Scene
+from . import build as _build
 from .build import ME_NORM_TOL, _hexf, _platforms_note, description_head
 
 __all__ = ["TreeRow", "tree_rows", "tree_me_rows", "tree_config_header", "tree_model_description",
@@ -51,6 +52,7 @@ _KIND_C = {"none": "GS_K_NONE", "time": "GS_K_TIME", "param": "GS_K_PARAM", "max
 _TP_G, _TP_DRIFT = _engine.TP_G, _engine.TP_DRIFT
 #: an orbit's parameters in the parameter row (GS_TP_MU, GS_TP_ORBIT_R)
 _ORBIT_SLOTS = {"orbit_mu": _engine.TP_MU, "orbit_radius": _engine.TP_ORBIT_R}
+_build._UNITS.setdefault("m3/s2", {"m": 3, "s": -2})   # orbit_mu's unit (only tree FMUs on an orbit use it)
 #: Parameters that must be >= 0 (TreeModel: g, couplings, and these body parameters).
 _NONNEG = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
 #: A body parameter's slot in the body's block of the parameter row (core/engine/gyrosim_tree.h GS_TB_*).
@@ -78,7 +80,7 @@ class TreeRow:
 
 
 def _layout(sc: Scene) -> TreeLayout:
-    return TreeLayout(sc.tree, sc.couplings)
+    return TreeLayout(sc.tree, sc.couplings, sc.orbit)
 
 
 def tree_rows(sc: Scene) -> list[TreeRow]:
@@ -120,7 +122,7 @@ def tree_rows(sc: Scene) -> list[TreeRow]:
         elif v.causality == "input" and body in bodies and short in _INPUT_SLOTS:
             row = TreeRow(name, v, "input", lay.body_offset(bodies[body]) + _INPUT_SLOTS[short])
         elif v.causality == "output" and v.start is not None and (bodies.get(body), short) in lay.coord_slots:
-            row = TreeRow(name, v, "state", lay.coord_slots[(bodies[body], short)])
+            row = TreeRow(name, v, "state", lay.coord_slots[(bodies.get(body), short)])
         elif v.causality == "output" and name in columns:
             row = TreeRow(name, v, "output", columns[name])
         else:
