@@ -59,7 +59,10 @@ WINDOWS_C_FLAGS = (*(f for f in C_FLAGS if f not in ("-fPIC", "-fvisibility=hidd
 #: The platforms an FMU may carry: name -> (FMI 2.0 folder, FMI 3.0 folder, library suffix).
 PLATFORMS = {"linux": ("linux64", "x86_64-linux", ".so"), "windows": ("win64", "x86_64-windows", ".dll")}
 
-_ENGINE = ("gyrosim_engine.h", "rk_tables.h", "engine.c", "exact.c", "cflags.txt")
+#: The one-body FMU's engine files: the one-body engine, and the tree engine's complex step (tree_cs.c, which
+#: #includes tree.c; tree.c and rk.c compiled too) for the directional derivatives.
+_ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "engine.c", "exact.c", "rk.c",
+           "tree.c", "tree_cs.c", "cflags.txt")
 _GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_model.c")
 #: Scene-wide variables (not per body) of a multi-body FMU.
 SCENE_VARIABLES = ("integrator", "max_step", "max_drift")
@@ -312,11 +315,11 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
             attrs = {"needsExecutionTool": "false", "completedIntegratorStepNotNeeded": "false",
                      "canBeInstantiatedOnlyOncePerProcess": "false", "canNotUseMemoryManagementFunctions": "true",
                      "canGetAndSetFMUstate": "true", "canSerializeFMUstate": "true",
-                     "providesDirectionalDerivative": "false"}
+                     "providesDirectionalDerivative": "true"}
         else:
             attrs = {"needsExecutionTool": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
                      "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
-                     "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
+                     "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "false",
                      "needsCompletedIntegratorStep": "true"}
         for k, v in attrs.items():
             me.set(k, v)
@@ -332,10 +335,10 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
     if fmi_version == 2:
         common.update({"canInterpolateInputs": "false", "canRunAsynchronuously": "false",
                        "canNotUseMemoryManagementFunctions": "true", "canGetAndSetFMUstate": "true",
-                       "canSerializeFMUstate": "true", "providesDirectionalDerivative": "false"})
+                       "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
     else:
         common.update({"canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
-                       "providesDirectionalDerivatives": "false", "providesAdjointDerivatives": "false",
+                       "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "false",
                        "hasEventMode": "false", "canReturnEarlyAfterIntermediateUpdate": "false",
                        "providesIntermediateUpdate": "false"})
     for k, v in common.items():
@@ -433,27 +436,72 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
         else:
             attrs.update(unit=unit, derivative=str(si + 1))
             ET.SubElement(mv, "Float64", attrs)
-    ms = ET.SubElement(root, "ModelStructure")
-    if fmi_version == 2:
-        oe = ET.SubElement(ms, "Outputs")
-        for index, _ in outputs:
-            ET.SubElement(oe, "Unknown", index=str(index))
-        if derivatives:
-            de = ET.SubElement(ms, "Derivatives")
-            for index, _ in derivatives:
-                ET.SubElement(de, "Unknown", index=str(index))
-        ie = ET.SubElement(ms, "InitialUnknowns")
-        for index, _ in initial_unknowns:
-            ET.SubElement(ie, "Unknown", index=str(index))
-    else:
-        for _, vr in outputs:
-            ET.SubElement(ms, "Output", valueReference=str(vr))
-        for _, vr in derivatives:
-            ET.SubElement(ms, "ContinuousStateDerivative", valueReference=str(vr))
-        for _, vr in initial_unknowns:
-            ET.SubElement(ms, "InitialUnknown", valueReference=str(vr))
+    model_structure(root, fmi_version, [vr for _, vr in outputs], [vr for _, vr in derivatives],
+                    [vr for _, vr in initial_unknowns], one_body_dependencies(sc, rows, has_me))
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def one_body_dependencies(sc: Scene, rows, has_me: bool) -> dict[int, list[int]]:
+    """The ModelStructure's dependencies of a one-body scene's FMU: ``{value reference of an output or a state
+    derivative: value references of the knowns it depends on}`` (the knowns of the directional derivatives: the
+    continuous states and the inputs). Bodies are independent. Co-simulation only: no output depends on an input at
+    an instant (the outputs are the state and functions of it), so every list is empty. Model exchange: q_*, omega_*
+    on themselves; phi, theta, psi on q; L, energy, energy_error on q and omega; der(q_*) on q and omega; der(omega_*)
+    on omega, the body's inputs and, with gravity, q (the gravity torque; domega/dt sees q normalised, so all four)."""
+    vr_of = {(b, v.name): i + 1 for i, (_, b, v) in enumerate(rows)}
+    out: dict[int, list[int]] = {}
+    for i, (_, _, v) in enumerate(rows):
+        if v.causality == "output":
+            out[i + 1] = []
+    if not has_me:
+        return out
+    gravity = bool(sc.flags & 1)
+    for b in range(len(sc.bodies)):
+        q = [vr_of[(b, n)] for n in STATES[:4]]
+        w = [vr_of[(b, n)] for n in STATES[4:]]
+        tau = [vr_of[(b, n)] for n in ("tau_x", "tau_y", "tau_z") if (b, n) in vr_of]
+        for (bb, name), vr in vr_of.items():
+            if bb != b or vr not in out:
+                continue
+            out[vr] = [vr] if name in STATES else q if name in ("phi", "theta", "psi") else q + w
+        for j, (_, db, _, k) in enumerate(derivative_rows(sc, rows)):
+            if db == b:
+                out[len(rows) + 1 + j] = q + w if k < 4 else (q if gravity else []) + w + tau
+    return {k: sorted(v) for k, v in out.items()}
+
+
+def model_structure(root: ET.Element, fmi_version: int, outputs, derivatives, initial_unknowns, deps) -> None:
+    """The ModelStructure of value references ``outputs``, ``derivatives`` and ``initial_unknowns`` (in FMI 2.0 the
+    1-based index in ModelVariables, which is the value reference here: FMI 2.0 has no variable at 0); ``deps``
+    gives the outputs' and derivatives' ``dependencies`` (value references of the knowns: continuous states and
+    inputs, those of the directional derivatives). The initial unknowns carry none: they depend on every known of
+    the initialisation (parameters and start values), which the directional derivatives do not take."""
+    ms = ET.SubElement(root, "ModelStructure")
+
+    def dep(attrs, vr):
+        if vr in deps:
+            attrs["dependencies"] = " ".join(str(k) for k in deps[vr])
+        return attrs
+
+    if fmi_version == 2:
+        oe = ET.SubElement(ms, "Outputs")
+        for vr in outputs:
+            ET.SubElement(oe, "Unknown", dep({"index": str(vr)}, vr))
+        if derivatives:
+            de = ET.SubElement(ms, "Derivatives")
+            for vr in derivatives:
+                ET.SubElement(de, "Unknown", dep({"index": str(vr)}, vr))
+        ie = ET.SubElement(ms, "InitialUnknowns")
+        for vr in initial_unknowns:
+            ET.SubElement(ie, "Unknown", index=str(vr))
+    else:
+        for vr in outputs:
+            ET.SubElement(ms, "Output", dep({"valueReference": str(vr)}, vr))
+        for vr in derivatives:
+            ET.SubElement(ms, "ContinuousStateDerivative", dep({"valueReference": str(vr)}, vr))
+        for vr in initial_unknowns:
+            ET.SubElement(ms, "InitialUnknown", valueReference=str(vr))
 
 
 def _build_description(ident: str, sources) -> str:
@@ -481,9 +529,10 @@ def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None =
     else:
         cc, flags = cc or os.environ.get("CC", "gcc"), C_FLAGS
     if tree:
-        srcs = ["engine.c", "exact.c", "rk.c", "tree.c", "gyrosim_tree_model.c", f"fmi{fmi_version}Functions.c"]
+        srcs = ["engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "gyrosim_tree_model.c",
+                f"fmi{fmi_version}Functions.c"]
     else:
-        srcs = ["engine.c", "exact.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
+        srcs = ["engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
     return [cc, *flags, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 

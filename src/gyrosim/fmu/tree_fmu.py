@@ -30,14 +30,14 @@ from ..core.tree import TreeLayout
 from ..errors import ConfigError
 from ..scene import TREE_INTEGRATORS, Scene
 from . import build as _build
-from .build import ME_NORM_TOL, _hexf, _platforms_note, description_head
+from .build import ME_NORM_TOL, _hexf, _platforms_note, description_head, model_structure
 
-__all__ = ["TreeRow", "tree_rows", "tree_me_rows", "tree_config_header", "tree_model_description",
+__all__ = ["TreeRow", "tree_rows", "tree_me_rows", "tree_config_header", "tree_model_description", "tree_dependencies",
            "TREE_ENGINE", "TREE_GLUE", "WORK_STATE", "DER_UNITS"]
 
 #: The engine's files a tree FMU is compiled from (core/engine/) and its glue (fmu/c/).
 TREE_ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "engine.c", "exact.c", "rk.c",
-               "tree.c", "cflags.txt")
+               "tree.c", "tree_cs.c", "cflags.txt")
 TREE_GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_tree_model.h",
              "gyrosim_tree_model.c")
 #: Model exchange: the continuous state of the work integral (the engine's y[nx]).
@@ -241,6 +241,79 @@ def _fmt(x) -> str:
     return repr(float(x))
 
 
+def _jacobian_pattern(sc: Scene, rows: list[TreeRow], seed: int):
+    """Where the engine's derivatives are not zero at a generic point (random state, parameters and inputs):
+    ``(ddy (nx + 1, nx + n_inputs), dout (nout, nx + n_inputs))`` as booleans, columns the joint coordinates, then the
+    input slots of ``rows`` in their order."""
+    import numpy as np
+
+    lay = _layout(sc)
+    rng = np.random.default_rng(seed)
+    p = lay.params(float(sc.g), float(sc.max_drift)).copy()
+    slots = [r.index for r in rows if r.kind in ("param", "input")]
+    slots += [lay.body_offset(bi) + _BODY_SLOTS[pn] for a in sc.aliases for bi, pn, _ in a.sets]
+    for k in slots:
+        if k != _TP_DRIFT:
+            p[k] = rng.uniform(0.5, 1.5)
+    y = lay.state().copy()
+    y[:lay.nx] = rng.normal(size=lay.nx)
+    for b in range(len(sc.tree)):
+        if (b, "q_w") in lay.coord_slots:
+            k = lay.coord_slots[(b, "q_w")]
+            y[k:k + 4] /= np.linalg.norm(y[k:k + 4])
+    inputs = [r.index for r in rows if r.kind == "input"]
+    n = lay.nx + len(inputs)
+    ddy, dout = np.zeros((n, lay.nx + 1)), np.zeros((n, lay.nout))   # a column per row here: transposed below
+    for j in range(n):
+        vy, vp = np.zeros(lay.nx), np.zeros(lay.np)
+        if j < lay.nx:
+            vy[j] = 1.0
+        else:
+            vp[inputs[j - lay.nx]] = 1.0
+        _engine.tree_directional(lay.desc, y.reshape(1, -1), p.reshape(1, -1), vy, vp, ddy[j], dout[j])
+    return ddy.T != 0.0, dout.T != 0.0
+
+
+def tree_dependencies(sc: Scene, rows: list[TreeRow], me_rows: list[TreeRow], has_me: bool) -> dict[int, list[int]]:
+    """The ModelStructure's dependencies of a tree FMU: ``{value reference of an output or a state derivative: value
+    references of the knowns it depends on}``; the knowns are those of the directional derivatives (the inputs, and
+    with model exchange the continuous states). Found from the engine's complex-step derivatives at two generic
+    points (random state, parameters and inputs): an entry that is zero at both is zero by the equations' structure.
+    As the FMU computes them (gyrosim_tree_model.c): a joint-coordinate output depends on itself; a derivative or a
+    derived output that depends on one component of a quaternion depends on all four (it sees q normalised);
+    energy_error also on energy_expected."""
+    lay = _layout(sc)
+    pattern = [_jacobian_pattern(sc, rows, seed) for seed in (1, 2)]
+    ddy, dout = pattern[0][0] | pattern[1][0], pattern[0][1] | pattern[1][1]
+    state_vr = {r.index: vr for vr, r in enumerate(rows, start=1) if r.kind == "state"}
+    input_vr = [vr for vr, r in enumerate(rows, start=1) if r.kind == "input"]
+    quats = [lay.coord_slots[(b, "q_w")] for b in range(len(sc.tree)) if (b, "q_w") in lay.coord_slots]
+    in_quat = {k + a: k for k in quats for a in range(4)}
+    work_vr = len(rows) + 1
+    energy_error = lay.nx + 4 * len(sc.tree) + 1
+
+    def knowns(row, raw: bool) -> list[int]:
+        out = [vr for j, vr in enumerate(input_vr) if row[lay.nx + j]]
+        if has_me:
+            cols = {j for j in range(lay.nx) if row[j]}
+            if not raw:
+                cols |= {in_quat[j] + a for j in cols if j in in_quat for a in range(4)}
+            out += [state_vr[j] for j in cols if j in state_vr]
+        return sorted(out)
+
+    deps = {}
+    for vr, r in enumerate(rows, start=1):
+        if r.kind == "state":
+            deps[vr] = [vr] if has_me else []
+        elif r.kind == "output":
+            deps[vr] = knowns(dout[r.index], False) + ([work_vr] if has_me and r.index == energy_error else [])
+    if has_me:
+        for vr, r in enumerate(me_rows, start=len(rows) + 1):
+            if r.kind == "der":
+                deps[vr] = knowns(ddy[r.index], r.index in in_quat)
+    return deps
+
+
 def _me_note(sc: Scene) -> str:
     """The model description's words on model exchange for scene ``sc``."""
     joints = {b.joint for b in sc.tree}
@@ -350,24 +423,7 @@ def tree_model_description(sc: Scene, rows: list[TreeRow], me_rows: list[TreeRow
             se = ET.SubElement(mv, "String", attrs)
             ET.SubElement(se, "Start", value=str(start))
     initial_unknowns.sort()
-    ms = ET.SubElement(root, "ModelStructure")
-    if fmi_version == 2:   # FMI 2.0 refers to variables by their 1-based index: here the value reference
-        oe = ET.SubElement(ms, "Outputs")
-        for vr in outputs:
-            ET.SubElement(oe, "Unknown", index=str(vr))
-        if derivatives:
-            de = ET.SubElement(ms, "Derivatives")
-            for vr in derivatives:
-                ET.SubElement(de, "Unknown", index=str(vr))
-        ie = ET.SubElement(ms, "InitialUnknowns")
-        for vr in initial_unknowns:
-            ET.SubElement(ie, "Unknown", index=str(vr))
-    else:
-        for vr in outputs:
-            ET.SubElement(ms, "Output", valueReference=str(vr))
-        for vr in derivatives:
-            ET.SubElement(ms, "ContinuousStateDerivative", valueReference=str(vr))
-        for vr in initial_unknowns:
-            ET.SubElement(ms, "InitialUnknown", valueReference=str(vr))
+    model_structure(root, fmi_version, outputs, derivatives, initial_unknowns,
+                    tree_dependencies(sc, rows, me_rows, has_me))
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

@@ -320,15 +320,15 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
                                         const fmi2Real dvKnown[], fmi2Real dvUnknown[]) {
-    (void)vUnknown_ref;
-    (void)nUnknown;
-    (void)vKnown_ref;
-    (void)nKnown;
-    (void)dvKnown;
-    (void)dvUnknown;
-    CHECK(ALL_STATES, "fmi2GetDirectionalDerivative");
-    gs_log_error(M, "not provided (providesDirectionalDerivative=\"false\")");
-    return fmi2Error;
+    CHECK(GET_MASK, "fmi2GetDirectionalDerivative");
+    if (nUnknown == 0) return fmi2OK;
+    NOT_NULL(vUnknown_ref, "fmi2GetDirectionalDerivative", "vUnknown_ref[]");
+    NOT_NULL(dvUnknown, "fmi2GetDirectionalDerivative", "dvUnknown[]");
+    if (nKnown > 0) {
+        NOT_NULL(vKnown_ref, "fmi2GetDirectionalDerivative", "vKnown_ref[]");
+        NOT_NULL(dvKnown, "fmi2GetDirectionalDerivative", "dvKnown[]");
+    }
+    return st(gs_directional(M, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown));
 }
 
 /* ----------------------------------------------------------------------------------------------- co-simulation */

@@ -391,15 +391,25 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
                                         size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,
                                         const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
                                         size_t nSensitivity) {
-    (void)unknowns;
-    (void)nUnknowns;
-    (void)knowns;
-    (void)nKnowns;
-    (void)seed;
-    (void)nSeed;
-    (void)sensitivity;
-    (void)nSensitivity;
-    return not_provided(instance, "fmi3GetDirectionalDerivative", "providesDirectionalDerivatives=\"false\"");
+    CHECK(GET_MASK, "fmi3GetDirectionalDerivative");
+    if (nSeed != nKnowns) {
+        gs_log_error(M, "nSeed = %zu is not allowed: the knowns are scalars, so nSeed = nKnowns = %zu", nSeed,
+                     nKnowns);
+        return fmi3Error;
+    }
+    if (nSensitivity != nUnknowns) {
+        gs_log_error(M, "nSensitivity = %zu is not allowed: the unknowns are scalars, so nSensitivity = nUnknowns = "
+                     "%zu", nSensitivity, nUnknowns);
+        return fmi3Error;
+    }
+    if (nUnknowns == 0) return fmi3OK;
+    NOT_NULL(unknowns, "fmi3GetDirectionalDerivative", "unknowns[]");
+    NOT_NULL(sensitivity, "fmi3GetDirectionalDerivative", "sensitivity[]");
+    if (nKnowns > 0) {
+        NOT_NULL(knowns, "fmi3GetDirectionalDerivative", "knowns[]");
+        NOT_NULL(seed, "fmi3GetDirectionalDerivative", "seed[]");
+    }
+    return st(gs_directional(M, unknowns, nUnknowns, knowns, nKnowns, seed, sensitivity));
 }
 
 fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,

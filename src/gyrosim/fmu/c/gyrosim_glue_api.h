@@ -54,6 +54,14 @@ int gs_me_completed_step(GsInstance *m, int *enter_event_mode, int *terminate);
 void gs_me_enter_event_mode(GsInstance *m);
 int gs_me_update(GsInstance *m, int *values_changed);
 
+/* Directional derivatives (providesDirectionalDerivative(s)="true"): sensitivity[i] = sum over j of
+ * d unknowns[i] / d knowns[j] * seed[j], by the engine's complex step (gs_tree_directional), one evaluation per known
+ * with a nonzero seed, summed over the knowns in their order. Knowns: the inputs, and in model exchange the continuous
+ * states; unknowns: the outputs, and in model exchange the state derivatives. GS_OK, or GS_ERROR (logged) for a value
+ * reference that is not one of these. */
+int gs_directional(GsInstance *m, const uint32_t unknowns[], size_t n_unknowns, const uint32_t knowns[],
+                   size_t n_knowns, const double seed[], double sensitivity[]);
+
 /* FMU states: heap copies of GsData. Serialised: a small header (magic, size) followed by GsData. */
 GsData *gs_state_alloc(GsInstance *m);
 size_t gs_serialized_size(void);

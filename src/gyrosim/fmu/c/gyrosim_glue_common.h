@@ -205,6 +205,41 @@ static int start_step(GsInstance *m, double current_time, double h) {
     return GS_OK;
 }
 
+/* ------------------------------------------------------------------------------------------ directional derivatives */
+/* The driver both glues share. The glue defines GS_DD_COLUMN (the size of one column) before it includes this file,
+ * and the four functions below: dd_known / dd_unknown check a value reference (1, or 0 with the message logged),
+ * dd_column writes the derivatives of everything along one known's unit seed into col[GS_DD_COLUMN] (the engine's
+ * complex step), dd_pick reads an unknown's derivative from the column of a known. */
+static int dd_known(GsInstance *m, uint32_t vr);
+static int dd_unknown(GsInstance *m, uint32_t vr);
+static void dd_column(GsInstance *m, uint32_t known, double col[GS_DD_COLUMN]);
+static double dd_pick(const GsInstance *m, const double col[GS_DD_COLUMN], uint32_t known, uint32_t unknown);
+
+int gs_directional(GsInstance *m, const uint32_t unknowns[], size_t n_unknowns, const uint32_t knowns[],
+                   size_t n_knowns, const double seed[], double sensitivity[]) {
+    for (size_t i = 0; i < n_unknowns; i++) {
+        if (!dd_unknown(m, unknowns[i])) return GS_ERROR;
+    }
+    for (size_t j = 0; j < n_knowns; j++) {
+        if (!dd_known(m, knowns[j])) return GS_ERROR;
+    }
+    if (gs_initialize(m) != GS_OK) return GS_ERROR;
+    for (size_t i = 0; i < n_unknowns; i++) sensitivity[i] = 0.0;
+    int first = 1;
+    for (size_t j = 0; j < n_knowns; j++) {
+        if (seed[j] == 0.0) continue;
+        double col[GS_DD_COLUMN];
+        dd_column(m, knowns[j], col);
+        /* a unit seed gives the column's own bits: the first term is assigned, not added to 0 */
+        for (size_t i = 0; i < n_unknowns; i++) {
+            const double v = seed[j] * dd_pick(m, col, knowns[j], unknowns[i]);
+            sensitivity[i] = first ? v : sensitivity[i] + v;
+        }
+        first = 0;
+    }
+    return GS_OK;
+}
+
 /* ------------------------------------------------------------------------------------------ FMU states */
 /* heap copies of GsData; serialised as a header (GS_MAGIC, defined by the glue before it includes this file, and
  * the size) followed by GsData */

@@ -43,7 +43,11 @@ static const char *const KIND_UNIT[GS_V_COUNT] = {
 /* ------------------------------------------------------------------------------------------ helpers */
 
 #define GS_MAGIC 0x32535947u  /* "GYS2" */
+#define GS_DD_COLUMN (7 + GS_NOUT)   /* a directional derivative's column: one body's dx[7], then its outputs */
 #include "gyrosim_glue_common.h"
+
+/* a body as a one-body tree: n = 1, no couplings, the root a ball joint (directional derivatives) */
+static const int32_t ONE_BODY_TREE[4] = {1, 0, -1, GS_J_BALL};
 
 /* The variable's name as in modelDescription.xml: "<body>.<name>" in multi-body scenes. */
 typedef struct { char s[160]; } Name;
@@ -96,6 +100,11 @@ GsInstance *gs_new(const char *instance_name, void *env, GsLogger log, int loggi
     if (!m) return NULL;
     m->instance_name = dup_string(instance_name ? instance_name : "");
     if (!m->instance_name) {
+        free(m);
+        return NULL;
+    }
+    if (gs_tree_init(&m->tree, ONE_BODY_TREE, 4) != 0) {
+        free(m->instance_name);
         free(m);
         return NULL;
     }
@@ -413,8 +422,9 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         d->p[b][5] = d->tau[b][0];
         d->p[b][6] = d->tau[b][1];
         d->p[b][7] = d->tau[b][2];
-        if (method == GS_EXACT && !gs_torque_free(GS_FLAGS, d->p[b])) {
-            gs_log_error(m, "integrator 'exact' solves a torque-free body only, and %s%s%s has mass*g*cm_distance = "
+        if (method == GS_EXACT && !gs_exact_applies(GS_FLAGS, d->p[b])) {
+            gs_log_error(m, "integrator 'exact' solves a torque-free body or a Lagrange top (I1 = I2, gravity the only "
+                         "torque) only, and %s%s%s has mass*g*cm_distance = "
                          "%s N*m, damping = %s N*m*s/rad, torque = (%s, %s, %s) N*m; set them to 0 or choose another "
                          "integrator ('adaptive', 'dop853', 'rk4', 'splitting')", GS_N_BODIES > 1 ? "body '" : "the body",
                          where(b), GS_N_BODIES > 1 ? "'" : "", num(d->p[b][3]).s, num(d->p[b][4]).s,
@@ -661,6 +671,175 @@ int gs_me_update(GsInstance *m, int *values_changed) {
         m->outputs_valid = 0;
     }
     return GS_OK;
+}
+
+/* ------------------------------------------------------------------------------------------ directional derivatives */
+/* The Jacobian of what this FMU computes, from the tree engine's complex step (gs_tree_directional, tree_cs.c), a
+ * column per known from its unit seed. The one-body engine's equations are the tree's for a one-body tree: each body
+ * b is the tree {1, 0, -1, GS_J_BALL} (a ball joint at the pivot, the world origin) with the parameter row
+ *   p[GS_TP_G] = g, p[GS_TP_DRIFT] = max_drift, the rest 0 but the body's block bp = p + GS_TP_HEAD:
+ *   bp[GS_TB_AXIS + 2] = 1, bp[GS_TB_MASS] = mass, bp[GS_TB_CM + 2] = cm_distance (the centre of mass on body +z),
+ *   bp[GS_TB_I] = I1 - mass * cm_distance * cm_distance, bp[GS_TB_I + 1] = I2 - mass * cm_distance * cm_distance,
+ *   bp[GS_TB_I + 2] = I3 (the inertia about the centre of mass), bp[GS_TB_DAMP] = damping, bp[GS_TB_TAU + c] = tau
+ * and the state y[0:7] = q, omega (the rest 0); gyrosim.analysis.linear.one_body_tree builds the same rows. The
+ * continuous states q_w..omega_z are the tree's y[0:7], their derivatives its ddy[0:7]; the tree's power ddy[7] is not
+ * a state here (the FMU integrates the work by the trapezoidal rule). Outputs: q, omega, L, energy and energy_error
+ * (d energy_error = d energy at an instant: the work is an integral) from the tree's output row; phi, theta, psi from
+ * the derivative of the attitude (euler_rates). Co-simulation: the knowns are the inputs, one evaluation at the state.
+ * Model exchange: as me_rhs and outputs() compute, dq/dt and the outputs q, omega at the state as the host has it, the
+ * rest (domega/dt with gravity, the derived outputs) at q normalised with a quaternion seed projected as
+ * d(q / |q|) = (e_k - qn qn_k) / |q|; a second evaluation where the raw rows differ (gyrosim_tree_model.c). */
+
+static int is_input_kind(int k) {
+    return k == GS_V_TX || k == GS_V_TY || k == GS_V_TZ;
+}
+
+static int is_state_kind(int k) {
+    return k >= GS_V_QW && k <= GS_V_OZ;
+}
+
+static int is_output_kind(int k) {
+    return is_state_kind(k) || (k >= GS_V_PHI && k <= GS_V_ENERGY_ERROR);
+}
+
+static int dd_known(GsInstance *m, uint32_t vr) {
+    int b = 0;
+    const int k = vr_kind(vr, &b);
+    if (is_input_kind(k) || (m->d.me && is_state_kind(k))) return 1;
+    gs_log_error(m, "known value reference %u%s%s%s is not allowed: %s", (unsigned)vr, k != GS_V_NONE ? " (" : "",
+                 k != GS_V_NONE ? var_name(b, k).s : "", k != GS_V_NONE ? ")" : "", m->d.me ? "an input or a "
+                 "continuous state (q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z)" : "an input (co-simulation: the "
+                 "outputs' derivatives with respect to the inputs)");
+    return 0;
+}
+
+static int dd_unknown(GsInstance *m, uint32_t vr) {
+    int b = 0;
+    const int k = vr_kind(vr, &b);
+    if (is_output_kind(k) || (m->d.me && k >= GS_V_DQW && k <= GS_V_DOZ)) return 1;
+    gs_log_error(m, "unknown value reference %u%s%s%s is not allowed: %s", (unsigned)vr, k != GS_V_NONE ? " (" : "",
+                 k != GS_V_NONE ? var_name(b, k).s : "", k != GS_V_NONE ? ")" : "",
+                 m->d.me ? "an output or a state derivative" : "an output");
+    return 0;
+}
+
+/* body b's one-body tree (the mapping above) with its attitude q */
+static void one_body_tree(const GsData *d, int b, const double q[4], double *y, double *p, int ny, int np) {
+    memset(y, 0, (size_t)ny * sizeof(double));
+    memset(p, 0, (size_t)np * sizeof(double));
+    p[GS_TP_G] = d->g[b];
+    p[GS_TP_DRIFT] = d->max_drift;
+    double *bp = p + GS_TP_HEAD;
+    const double mass = d->mass[b], dist = d->cm_distance[b];
+    bp[GS_TB_AXIS + 2] = 1.0;
+    bp[GS_TB_MASS] = mass;
+    bp[GS_TB_CM + 2] = dist;
+    bp[GS_TB_I] = d->moments[b][0] - mass * dist * dist;
+    bp[GS_TB_I + 1] = d->moments[b][1] - mass * dist * dist;
+    bp[GS_TB_I + 2] = d->moments[b][2];
+    bp[GS_TB_DAMP] = d->damping[b];
+    for (int c = 0; c < 3; c++) bp[GS_TB_TAU + c] = d->tau[b][c];
+    for (int i = 0; i < 4; i++) y[i] = q[i];
+    for (int i = 4; i < 7; i++) y[i] = d->y[b][i];
+}
+
+/* d(phi, theta, psi) of the unit quaternion q along dq (the engine's ZYZ angles: phi = hs + hd, psi = hs - hd with
+ * hs = atan2(z, w), hd = atan2(-x, y), theta = 2 atan2(|(x, y)|, |(w, z)|); at theta = 0 or pi phi alone moves, as
+ * the engine's unwrapping has it, and theta's derivative is the one-sided one there) */
+static void euler_rates(const double q[4], const double dq[4], double e[3]) {
+    const double w = q[0], x = q[1], y = q[2], z = q[3];
+    const double a2 = w * w + z * z, b2 = x * x + y * y;
+    const double dhs = a2 > 0.0 ? (w * dq[3] - z * dq[0]) / a2 : 0.0;
+    const double dhd = b2 > 0.0 ? (x * dq[2] - y * dq[1]) / b2 : 0.0;
+    if (b2 < 1e-24 * a2) {
+        e[0] = 2.0 * dhs;
+        e[2] = 0.0;
+    } else if (a2 < 1e-24 * b2) {
+        e[0] = 2.0 * dhd;
+        e[2] = 0.0;
+    } else {
+        e[0] = dhs + dhd;
+        e[2] = dhs - dhd;
+    }
+    const double a = sqrt(a2), bb = sqrt(b2);
+    if (a > 0.0 && bb > 0.0) {
+        e[1] = 2.0 * (a * (x * dq[1] + y * dq[2]) / bb - bb * (w * dq[0] + z * dq[3]) / a) / (a2 + b2);
+    } else if (a > 0.0) {
+        e[1] = 2.0 * hypot(dq[1], dq[2]) / a;
+    } else {
+        e[1] = bb > 0.0 ? -2.0 * hypot(dq[0], dq[3]) / bb : 0.0;
+    }
+}
+
+static void dd_column(GsInstance *m, uint32_t known, double col[GS_DD_COLUMN]) {
+    const GsData *d = &m->d;
+    const gs_tree *t = &m->tree;
+    int b = 0;
+    const int k = vr_kind(known, &b);
+    double y[GS_ODE_MAX + GS_TREE_NMON], yn[GS_ODE_MAX + GS_TREE_NMON], p[GS_TREE_NPMAX];
+    double vy[7] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, vn[7], vp[GS_TREE_NPMAX];
+    double ddy[GS_ODE_MAX + 1], out[GS_TREE_NOUTMAX], ddn[GS_ODE_MAX + 1], outn[GS_TREE_NOUTMAX];
+    double *dx = col, *o = col + 7;
+    memset(vp, 0, sizeof(vp));
+    if (is_input_kind(k)) {
+        vp[GS_TP_HEAD + GS_TB_TAU + (k - GS_V_TX)] = 1.0;
+    } else {
+        vy[k - GS_V_QW] = 1.0;
+    }
+    one_body_tree(d, b, d->y[b], y, p, t->ny, t->np);
+    /* the attitude the derived outputs (and domega/dt with gravity) see: q normalised in model exchange */
+    double qn[4] = {d->y[b][0], d->y[b][1], d->y[b][2], d->y[b][3]};
+    const double nq = gs_norm4(qn);
+    memcpy(vn, vy, sizeof(vn));
+    int raw = 1;   /* the raw rows need an evaluation of their own */
+    if (d->me && nq > 0.0 && isfinite(nq)) {
+        for (int i = 0; i < 4; i++) qn[i] /= nq;
+        if (k >= GS_V_QW && k <= GS_V_QZ) {
+            const int a = k - GS_V_QW;
+            for (int j = 0; j < 4; j++) vn[j] = ((j == a ? 1.0 : 0.0) - qn[j] * qn[a]) / nq;
+        } else {
+            raw = memcmp(qn, d->y[b], sizeof(qn)) != 0;
+        }
+    }
+    if (d->me) {
+        one_body_tree(d, b, qn, yn, p, t->ny, t->np);
+        gs_tree_directional(t, yn, p, vn, vp, ddn, outn);
+    }
+    if (!d->me || raw) {
+        gs_tree_directional(t, y, p, vy, vp, ddy, out);
+    } else {
+        memcpy(ddy, ddn, sizeof(ddy));
+        memcpy(out, outn, sizeof(out));
+    }
+    const double *dn = d->me ? ddn : ddy, *on = d->me ? outn : out;   /* the normalised rows */
+    const double *qa = d->me ? qn : y;
+    for (int i = 0; i < 4; i++) dx[i] = ddy[i];
+    for (int i = 4; i < 7; i++) dx[i] = (GS_FLAGS & GS_GRAVITY) ? dn[i] : ddy[i];
+    for (int i = 0; i < 7; i++) o[i] = out[i];   /* q, omega: the states as they are */
+    /* the tree's row (n = 1): y[0:7], q_world[7:11], energy 11, energy_error 12, L 13..15 */
+    double q_unit[4];
+    const double nqa = gs_norm4(qa);
+    for (int i = 0; i < 4; i++) q_unit[i] = nqa > 0.0 ? qa[i] / nqa : qa[i];
+    euler_rates(q_unit, on + t->nx, o + 7);
+    const int e = t->nx + 4 * t->n;
+    o[10] = on[e + 2];
+    o[11] = on[e + 3];
+    o[12] = on[e + 4];
+    o[13] = on[e];
+    o[14] = on[e + 1];
+}
+
+static double dd_pick(const GsInstance *m, const double col[GS_DD_COLUMN], uint32_t known, uint32_t unknown) {
+    (void)m;
+    int bk = 0, bu = 0;
+    (void)vr_kind(known, &bk);
+    const int k = vr_kind(unknown, &bu);
+    if (bk != bu) return 0.0;   /* the bodies are independent */
+    static const int SLOT[GS_V_COUNT] = {
+        [GS_V_QW] = 0, [GS_V_QX] = 1, [GS_V_QY] = 2, [GS_V_QZ] = 3, [GS_V_OX] = 4, [GS_V_OY] = 5, [GS_V_OZ] = 6,
+        [GS_V_PHI] = 7, [GS_V_THETA] = 8, [GS_V_PSI] = 9, [GS_V_LX] = 10, [GS_V_LY] = 11, [GS_V_LZ] = 12,
+        [GS_V_ENERGY] = 13, [GS_V_ENERGY_ERROR] = 14};
+    return k >= GS_V_DQW ? col[k - GS_V_DQW] : col[7 + SLOT[k]];
 }
 
 /* ------------------------------------------------------------------------------------------ state */

@@ -21,6 +21,8 @@
 #include "gyrosim_tree_model.h"
 #else
 
+#include "gyrosim_tree.h"   /* directional derivatives: every body as a one-body tree (gyrosim_model.c) */
+
 /* Variable kinds; the generated gyrosim_config.h maps value references to (body, kind). */
 enum {
     GS_V_NONE = 0, GS_V_TIME,
@@ -89,6 +91,7 @@ typedef struct {
     int outputs_valid;
     int32_t status[GS_N_BODIES];
     GsData *scratch;          /* the state before a multi-body step (restored when a body fails) */
+    gs_tree tree;             /* directional derivatives: the one-body tree of a body (a ball joint; constant) */
 } GsInstance;
 
 #include "gyrosim_glue_api.h"

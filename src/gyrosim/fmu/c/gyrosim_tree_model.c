@@ -42,6 +42,7 @@ static const char *const QUAT_BODY[] = GS_QUAT_BODIES;
 /* ------------------------------------------------------------------------------------------ helpers */
 
 #define GS_MAGIC 0x54535947u  /* "GYST" */
+#define GS_DD_COLUMN (GS_NX + GS_SYS_NOUT)   /* a directional derivative's column: dx[GS_NX], then the output row */
 #include "gyrosim_glue_common.h"
 
 
@@ -526,6 +527,96 @@ int gs_me_update(GsInstance *m, int *values_changed) {
     }
     if (*values_changed) m->outputs_valid = 0;
     return GS_OK;
+}
+
+/* ------------------------------------------------------------------------------------------ directional derivatives */
+/* The Jacobian of what this FMU computes, by the engine's complex step (gs_tree_directional, tree_cs.c), a column per
+ * known from its unit seed. Co-simulation: the knowns are the inputs, the unknowns the outputs, at the state as it is
+ * (one evaluation). Model exchange: the knowns are the continuous states (the joint coordinates, energy_expected)
+ * and the inputs, the unknowns the outputs and the state derivatives, of the model-exchange right-hand side me_rhs:
+ * dq/dt of every ball and free joint and the joint-coordinate outputs at the state as the host has it, the rest (every
+ * other derivative, the derived outputs) at q normalised. So a column is one evaluation at q normalised with the seed
+ * (a seed on a quaternion component projected as d(q / |q|) = (e_k - qn qn_k) / |q|, qn = q / |q|: the rest does
+ * not change with |q|), and where the raw rows differ (a quaternion's own seed, or |q| != 1 in the host's state) a
+ * second evaluation at the state as it is with the unit seed for dq/dt and the coordinate outputs.
+ * energy_expected moves energy_error = energy - energy_expected alone (by -1). */
+
+static int dd_known(GsInstance *m, uint32_t vr) {
+    const GsTreeVar *v = var_of(vr);
+    const int k = v ? v->kind : GS_K_NONE;
+    if (k == GS_K_INPUT || (m->d.me && (k == GS_K_STATE || k == GS_K_WORK))) return 1;
+    gs_log_error(m, "known value reference %u%s%s%s is not allowed: %s", (unsigned)vr, v ? " (" : "",
+                 v ? v->name : "", v ? ")" : "", m->d.me ? "an input or a continuous state (the joints' coordinates, "
+                 "energy_expected)" : "an input (co-simulation: the outputs' derivatives with respect to the inputs)");
+    return 0;
+}
+
+static int dd_unknown(GsInstance *m, uint32_t vr) {
+    const GsTreeVar *v = var_of(vr);
+    const int k = v ? v->kind : GS_K_NONE;
+    if (k == GS_K_STATE || k == GS_K_OUTPUT || (m->d.me && k == GS_K_DER)) return 1;
+    gs_log_error(m, "unknown value reference %u%s%s%s is not allowed: %s", (unsigned)vr, v ? " (" : "",
+                 v ? v->name : "", v ? ")" : "", m->d.me ? "an output or a state derivative" : "an output");
+    return 0;
+}
+
+/* the slot of the quaternion holding joint coordinate i, or -1 */
+static int quat_of(int i) {
+    for (size_t j = 0; j < sizeof(QUAT_SLOT) / sizeof(QUAT_SLOT[0]); j++) {
+        const int k = QUAT_SLOT[j];
+        if (k >= 0 && i >= k && i < k + 4) return k;
+    }
+    return -1;
+}
+
+static void dd_column(GsInstance *m, uint32_t known, double col[GS_DD_COLUMN]) {
+    const GsTreeVar *v = var_of(known);
+    const GsData *d = &m->d;
+    double *dx = col, *out = col + GS_NX;
+    double vy[GS_SYS_NX + 1], vp[GS_SYS_NP];
+    memset(col, 0, GS_DD_COLUMN * sizeof(double));
+    if (v->kind == GS_K_WORK) {   /* energy_error = energy - energy_expected */
+        out[GS_SYS_NX + 4 * m->tree.n + 1] = -1.0;
+        return;
+    }
+    memset(vy, 0, sizeof(vy));
+    memset(vp, 0, sizeof(vp));
+    if (v->kind == GS_K_INPUT) {
+        vp[v->index] = 1.0;
+    } else {
+        vy[v->index] = 1.0;
+    }
+    if (!d->me) {
+        gs_tree_directional(&m->tree, d->y, d->p, vy, vp, dx, out);
+        return;
+    }
+    double y[GS_SYS_NY], vn[GS_SYS_NX + 1];
+    normalised(d, y);
+    memcpy(vn, vy, sizeof(vn));
+    const int q = v->kind == GS_K_STATE ? quat_of(v->index) : -1;
+    if (q >= 0) {
+        const int a = v->index - q;
+        const double nq = norm4(d->y + q);
+        if (nq > 0.0 && isfinite(nq)) {
+            for (int j = 0; j < 4; j++) vn[q + j] = ((j == a ? 1.0 : 0.0) - y[q + j] * y[q + a]) / nq;
+        }
+    }
+    gs_tree_directional(&m->tree, y, d->p, vn, vp, dx, out);
+    if (q >= 0 || memcmp(y, d->y, sizeof(y)) != 0) {   /* dq/dt and the coordinate outputs of the state as it is */
+        double dr[GS_NX], outr[GS_SYS_NOUT];
+        gs_tree_directional(&m->tree, d->y, d->p, vy, vp, dr, outr);
+        memcpy(out, outr, GS_SYS_NX * sizeof(double));
+        for (size_t j = 0; j < sizeof(QUAT_SLOT) / sizeof(QUAT_SLOT[0]); j++) {
+            if (QUAT_SLOT[j] >= 0) memcpy(dx + QUAT_SLOT[j], dr + QUAT_SLOT[j], 4 * sizeof(double));
+        }
+    }
+}
+
+static double dd_pick(const GsInstance *m, const double col[GS_DD_COLUMN], uint32_t known, uint32_t unknown) {
+    (void)m;
+    (void)known;
+    const GsTreeVar *v = var_of(unknown);
+    return v->kind == GS_K_DER ? col[v->index] : col[GS_NX + v->index];
 }
 
 /* ------------------------------------------------------------------------------------------ state */
