@@ -66,6 +66,7 @@ def test_every_key_the_parser_knows_is_documented():
     assert {"name", "bodies", "stiffness"} <= tables["`[[coupling]]`"]
     assert {"value", "unit", "description", "sets"} <= tables["`[parameters.NAME]`"]
     assert set(SWEEP_KEYS) <= tables["`[sweep]`"]
+    assert {"mu", "radius", "anomaly"} <= tables["`[scene.orbit]`"]
 
 
 @pytest.mark.parametrize("body,msg", [

@@ -518,7 +518,10 @@ def scene_info(scene) -> str:
                           for b in sc.tree)
         terms = [t for t, on in (("gravity", sc.g > 0), ("joint damping", sc.damping),
                                  ("motor and torque inputs", sc.torque), ("springs", bool(sc.couplings) or any(
-                                     b.stiffness > 0 for b in sc.tree))) if on]
+                                     b.stiffness > 0 for b in sc.tree)),
+                                 ("gravity gradient on a circular orbit" if getattr(sc.orbit, "circular", False)
+                                  else "gravity gradient and central force on Kepler orbits", sc.orbit is not None))
+                 if on]
     lines = ["", "Model Info", "",
              f"  Scene              {sc.name}",
              f"  Description        {sc.description}",

@@ -71,7 +71,7 @@ INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", 
 G_DEFAULT = 9.81
 
 _SCENE_KEYS = ("name", "description", "integrator", "max_step", "max_drift", "tolerance", "output_interval",
-               "stop_time", "g")
+               "stop_time", "g", "orbit")
 _BODY_KEYS = ("name", "count", "inertia", "mass", "cm_distance", "damping", "torque_input", "attitude", "rates",
               "spread")
 _SHAPES = {"sphere": ("mass", "radius"), "cylinder": ("mass", "radius", "height"),
@@ -395,7 +395,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     if not isinstance(sc, dict):
         raise ConfigError("scene", sc, "a table [scene]", where=source)
     where = f"{source} [scene]"
-    _check_keys(sc, _SCENE_KEYS + ("orbit",), where)   # [scene.orbit]: a tree's orbit (scene_tree.orbit_from_dict)
+    _check_keys(sc, _SCENE_KEYS, where)   # [scene.orbit]: a tree's orbit (scene_tree.orbit_from_dict)
     name = sc.get("name")
     if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
         raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-'", where=where)
