@@ -12,7 +12,7 @@ error over the points (the angle of ``q_ref^-1 q``, rad) against a reference tha
 * ``asym_top``: asymmetric heavy top, I = (0.01, 0.0125, 0.015) kg*m^2, m = 0.5 kg, l = 0.1 m, theta0 = pi/4,
   spin 200 rad/s about the axis of largest inertia; no closed form: the reference is gyrosim's dop853 at
   tolerance 1e-15, checked against dop853 at 1e-14, CyRK's DOP853 and Vern8 at 1e-14 and scipy's DOP853 at
-  rtol 1e-13 (the spread of those is the reference's uncertainty: targets below 10x it are not judged).
+  rtol 1e-13 (the spread of those is the reference's uncertainty: targets below 5x it are not judged).
 
 For each problem and target (1e-3, 1e-6, 1e-9 and 1e-11 / 1e-12 where reachable) each tool's cheapest run that
 meets it is found on a ladder of settings (steps for the fixed-step integrators, tolerances for the adaptive
@@ -52,6 +52,8 @@ G = 9.81
 CYRK_METHODS = ("RK45", "Tsit5", "DOP853", "Vern7", "Vern8")
 #: The integrators timed by tolerance; ``exact`` runs once; every other one by steps
 TOL_INTEGRATORS = ("adaptive", "dop853")
+#: A target is judged where it is at least this many times the reference's uncertainty
+JUDGE = 5.0
 
 
 @dataclass(frozen=True)
@@ -565,7 +567,7 @@ def run_peers(quick: bool = False, cases=None, progress=None) -> dict:
             progress(f"peers: {case.name} reference")
         ref = reference(case, T, quick, peer)
         targets = [tg for tg in case.targets]
-        judged = [tg for tg in targets if tg >= 10 * ref["uncertainty"]]
+        judged = [tg for tg in targets if tg >= JUDGE * ref["uncertainty"]]
         refs[case.name] = {"checks": ref["checks"], "uncertainty": ref["uncertainty"], "targets": targets,
                            "judged": judged, "title": case.title, "kind": case.kind}
         if progress:
@@ -606,7 +608,7 @@ def _cell(r, key="ms", with_method=True) -> str:
 
 def _targets(res, name):
     info = res["cases"][name]
-    return info["targets"], set(info["judged"])
+    return info["targets"], {tg for tg in info["targets"] if tg >= JUDGE * info["uncertainty"]}
 
 
 def peers_table(res: dict) -> str:
@@ -623,7 +625,7 @@ def peers_table(res: dict) -> str:
             + (f" {res['cyrk']['version']} (numba {res['cyrk']['numba']})" if have_cyrk else "")
             + ": `nbsolve2_ivp` with a `cyjit` right-hand side **called from an `@njit` function** (ranked), and "
             "from Python (beside it). Ratio: CyRK (numba) time / gyrosim.simulate time; above 1 gyrosim is faster. "
-            "Targets below 10x the reference's uncertainty are not judged (-).\n")
+            "Targets below 5x the reference's uncertainty are not judged (-).\n")
     for name, info in res["cases"].items():
         targets, judged = _targets(res, name)
         rows = []
@@ -740,9 +742,9 @@ def plot_peers(res: dict, out) -> list[str]:
                 ax.loglog(err, [r["ms"] for r in rs], "-.", color=col, marker="^", ms=4, label=f"scipy {method}")
         for tg in info["targets"]:
             ax.axvline(tg, color="0.8", lw=0.8, zorder=0)
-        ax.axvspan(1e-16, max(1e-16, 10 * info["uncertainty"]), color="0.93", zorder=0)
+        ax.axvspan(1e-16, max(1e-16, JUDGE * info["uncertainty"]), color="0.93", zorder=0)
         ax.set_xlabel(f"largest attitude error over {round(res['T'] / res['dt']) + 1} points (rad); "
-                      "grey band: within 10x the reference's uncertainty")
+                      "grey band: within 5x the reference's uncertainty")
         ax.set_ylabel("time per run (ms, thread CPU)")
         ax.set_title(textwrap.fill(f"Work against precision, {res['T']:g} s: {info['title']}", 80), fontsize=8)
         ax.grid(True, which="major", alpha=0.3)
