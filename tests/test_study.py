@@ -185,3 +185,18 @@ def test_lagrange_reference_is_converged():
     assert np.max(peers.attitude_error(q2, q)) < 1e-12
     L = quat_rotate(q, w * np.array([ref.I1, ref.I1, ref.I3]))
     np.testing.assert_allclose(L[:, 2], ref.p_phi, rtol=1e-11)
+
+
+def test_plain_rk4_baseline_builds_and_runs_in_one_process(tmp_path):
+    """bench/rk4_plain.c: the engine's rk4 and a plain RK4 of the same equations in one program; both produce a
+    time (no timing assertion: the ratio is a benchmark figure, reported by `gyrosim bench --only cost`)."""
+    import shutil
+
+    from gyrosim.study import run_plain_rk4
+
+    if shutil.which("gcc") is None:
+        pytest.skip("no gcc on PATH")
+    r = run_plain_rk4(tmp_path, True)
+    assert "reason" not in r, r.get("reason")
+    assert r["plain_ns"] > 0 and r["engine_ns"] > 0 and r["ratio"] == pytest.approx(r["engine_ns"] / r["plain_ns"],
+                                                                                     rel=1e-2)

@@ -443,6 +443,43 @@ class CBaseline:
                           float(h), int(n))
 
 
+def run_plain_rk4(workdir: Path, quick: bool) -> dict:
+    """The heavy top's rk4 step, the engine's (health monitor on) against a plain hand-written RK4 of the same
+    seven equations, both compiled into one program (bench/rk4_plain.c: the engine's sources with its own flags,
+    the plain RK4 with gcc -O2; no shared library, no Python), best of repeats of thread CPU time. Returns
+    ``{"plain_ns", "engine_ns", "ratio", "compiler"}`` or ``{"reason"}``."""
+    base = _find_baseline_source()
+    gcc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+    if base is None or not (base.parent / "rk4_plain.c").is_file():
+        return {"reason": "bench/rk4_plain.c not found (run from the source checkout)"}
+    if gcc is None:
+        return {"reason": "no C compiler (gcc) on PATH"}
+    from importlib import resources
+
+    eng = Path(str(resources.files("gyrosim.core").joinpath("engine")))
+    flags = (eng / "cflags.txt").read_text().split()
+    objs = []
+    for name in ("engine.c", "exact.c", "rk.c"):
+        o = workdir / (name[:-2] + ".o")
+        r = subprocess.run([gcc, *flags, "-c", str(eng / name), "-o", str(o)], capture_output=True, text=True)
+        if r.returncode != 0:
+            return {"reason": f"compiling {name} failed: {r.stderr.strip()[:300]}"}
+        objs.append(str(o))
+    exe = workdir / "rk4_plain"
+    cmd = [gcc, "-O2", "-I", str(eng), str(base.parent / "rk4_plain.c"), *objs, "-lm", "-o", str(exe)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        return {"reason": f"{' '.join(cmd)} failed: {r.stderr.strip()[:300]}"}
+    r = subprocess.run([str(exe), "200000" if quick else "2000000", "5" if quick else "9"], capture_output=True,
+                       text=True)
+    if r.returncode != 0:
+        return {"reason": f"rk4_plain failed: {r.stderr.strip()[:300]}"}
+    out = json.loads(r.stdout)
+    v = subprocess.run([gcc, "--version"], capture_output=True, text=True).stdout.splitlines()
+    out["compiler"] = v[0] if v else gcc
+    return out
+
+
 def _find_baseline_source() -> Path | None:
     here = Path(__file__).resolve()
     for base in (here.parents[2], Path.cwd()):
@@ -925,6 +962,15 @@ def cost_table(res: dict, cbase: CBaseline) -> str:
            "than a scheduler slice doubles at random when other jobs run; the thread's CPU time is the wall time "
            "on an idle core.\n\n"
            + md_table(head, rows))
+    pl = res.get("plain_rk4") or {}
+    if "ratio" in pl:
+        out += ("\n### The rk4 step against a plain C RK4\n\nThe heavy top (issue 25's case A), one rk4 step: the "
+                "engine's (`gs_advance_one`, health monitor on, every check it makes) against a plain hand-written "
+                "RK4 of the same seven equations (no flags, no monitor, no checks), both compiled into one program "
+                f"(`bench/rk4_plain.c`; {pl['compiler']}: the engine with its own flags, the plain RK4 with -O2), "
+                f"{pl['steps']:,} steps, the best of repeats of the thread's CPU time. Target: at most 1.05x.\n\n"
+                + md_table(["engine rk4 (ns/step)", "plain C RK4 (ns/step)", "engine / plain"],
+                           [[fmt(pl["engine_ns"], 1), fmt(pl["plain_ns"], 1), f"**{pl['ratio']:.3f}x**"]]) + "\n")
     head = ["scene", "integrator", "Model.step(0.01 s), 10 internal steps (us)", "per internal step (us)",
             "Model.step of one internal step (us)", "overhead per call (us)"]
     rows = [[r["scene"], r["integrator"], fmt(r["us_per_call_10"]), fmt(r["us_per_call_10"] / 10),
@@ -1363,6 +1409,10 @@ def main(args) -> int:
                     messages.append(f"cost: C baseline skipped: {cbase.reason}")
                 bar.set_postfix_str("cost per step")
                 res = run_cost(quick, cbase, bar)
+                bar.set_postfix_str("rk4 against a plain C RK4")
+                res["plain_rk4"] = run_plain_rk4(Path(tmp), quick)
+                if "reason" in res["plain_rk4"]:
+                    messages.append(f"cost: plain C RK4 skipped: {res['plain_rk4']['reason']}")
                 res["quick"] = quick
                 res["c_compiler"] = cbase.compiler
                 plan.results["cost"] = res
