@@ -36,11 +36,10 @@ from gyrosim.fmu import build_fmu
 from gyrosim.scene import EMBEDDED_SCENES, load_scene
 
 TWO_GYROS = "service/scenes/two_gyros.toml"
-#: scenes on an orbit: their tree FMU does not map the orbit's parameters yet (tree_rows refuses orbit_mu; the orbit
-#: variables' glue is another change), so they have no FMU to differentiate today
+#: scenes on an orbit: FMI 2 only (their glue is the other trees'; the orbit's terms are what is new)
 ORBIT_SCENES = ("satellite", "satellite_wheels")
 SCENES = (None, *(s for s in EMBEDDED_SCENES if s not in ORBIT_SCENES), TWO_GYROS)
-BUILDS = ([(s, v, "both") for s in SCENES for v in (2, 3)]
+BUILDS = ([(s, v, "both") for s in SCENES for v in (2, 3)] + [(s, 2, "both") for s in ORBIT_SCENES]
           + [("heavy_top", 3, "cs"), ("heavy_top", 3, "me"), ("gimbal_gyroscope", 2, "cs")])
 RTOL = 1e-6
 EULER_ANGLES = ("phi", "theta", "psi")
@@ -447,4 +446,50 @@ def test_bad_value_references_are_errors_with_a_message(fmus, scene, v):
                 f.f.fmi3GetDirectionalDerivative(f.f.component, unk, 1, kn, 1, seed, 2, sens, 1)
             assert any("nSeed = 2 is not allowed" in m for m in f.messages)
         f.f.getDirectionalDerivative([outs[0]], [], [])   # still usable afterwards
+        f.free()
+
+
+@pytest.mark.parametrize("scene", ["heavy_top", "spacecraft", "double_pendulum", "satellite"])
+def test_model_exchange_columns_equal_model_jacobian_to_the_bit(fmus, scene):
+    """The ME FMU's directional derivatives at a state equal ``Model.jacobian()`` at the same state, to the bit
+    (``gyrosim.analysis.linear`` computes each column as the glue's ``gs_directional`` does), and hence feed
+    ``Model.linearize`` the same numbers an FMI importer gets."""
+    from gyrosim import Model
+
+    path, unz = fmus[(scene, 2, "both")]
+    m = Model(scene)
+    m.initialize()
+    m.step(0.3)
+    inputs = [n for n, v in m.variables.items() if v.causality == "input"]
+    for k, n in enumerate(inputs):
+        m.set(n, 0.3 * (-0.7) ** k)
+    J = m.jacobian()
+    f = Fmu(path, unz, me=True)
+    try:
+        f.init()
+        if inputs:
+            f.set([f.vr[n] for n in inputs], [0.3 * (-0.7) ** k for k in range(len(inputs))])
+        states, ders, outs, _, _ = _structure(f.md)
+        x = f.x()
+        for i, vr in enumerate(states):
+            name = f.name[vr]
+            if name in J.states:
+                x[i] = m._y[0, J.states.index(name)]   # the engine's state row: the states in J's order
+        f.set_x(x)
+        out_rows = [(vr, J.outputs.index(f.name[vr])) for vr in outs if f.name[vr] in J.outputs]
+        assert len(out_rows) >= len(J.states)
+        checked = 0
+        for j, sname in enumerate(J.states):
+            known = f.vr[sname]
+            col = f.dd([*ders, *(vr for vr, _ in out_rows)], [known], [1.0])
+            want_d = [J.A[J.states.index(f.name[states[i]]), j] for i in range(len(ders))
+                      if f.name[states[i]] in J.states]
+            got_d = [col[i] for i in range(len(ders)) if f.name[states[i]] in J.states]
+            assert got_d == want_d, (sname, np.array(got_d) - np.array(want_d))
+            got_o = list(col[len(ders):])
+            want_o = [J.C[r, j] for _, r in out_rows]
+            assert got_o == want_o, (sname, np.array(got_o) - np.array(want_o))
+            checked += 1
+        assert checked == len(J.states)
+    finally:
         f.free()

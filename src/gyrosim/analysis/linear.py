@@ -9,7 +9,8 @@ exact to round-off, no difference quotient, no step to choose. A one-body scene 
 Three objects:
 
 - :func:`jacobian`: A = d(state derivatives)/d(states), B = .../d(inputs), C = d(outputs)/d(states), D =
-  .../d(inputs), in the model's own variables (quaternions as four numbers: the FMUs' continuous states).
+  .../d(inputs), in the model's own variables (quaternions as four numbers: the FMUs' continuous states), column
+  by column the bits of the model-exchange FMUs' ``GetDirectionalDerivative`` (see :func:`_column`).
 - :func:`linearize`: the same about an equilibrium or a steady motion, in minimal coordinates (a quaternion
   becomes the small rotation ``<body>.rot_x..z`` in the body frame, q = q0 (1, rot / 2)), with the motion's
   symmetry taken out (below), and its :class:`Mode` list.
@@ -291,29 +292,54 @@ def _derivs(bk: _Block, y=None) -> np.ndarray:
     return d[:nx]
 
 
-def _block_jacobian(bk: _Block):
+def _quats(bk: _Block) -> list:
+    return [k for k, s in enumerate(bk.states) if s.endswith("q_w")]
+
+
+def _column(bk: _Block, vy: np.ndarray, vp: np.ndarray):
+    """One column of the Jacobian as the model-exchange FMUs compute it (``gs_directional`` in the FMU glue), to
+    the bit: the quaternion rates dq/dt = q (0, omega)/2 and the coordinates as outputs at q as it is, with the
+    seed as given; every other row at q normalised, a quaternion's seed projected on the unit sphere's tangent
+    ((e_k - q^ q^_k) / |q|): what the engine integrates, whose dynamics see only the rotation q stands for."""
     nx = len(bk.states)
     nout = _engine.tree_info(bk.desc)[3]
+    raw_d, raw_o = np.zeros(nx + 1), np.zeros(nout)
+    _engine.tree_directional(bk.desc, bk.y, bk.p, vy, vp, raw_d, raw_o)
+    y, vn = bk.y.copy(), vy.copy()
+    for k in _quats(bk):
+        q = bk.y[0, k:k + 4]
+        nq = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+        y[0, k:k + 4] = q / nq
+        hot = np.flatnonzero(vy[k:k + 4])
+        if hot.size:
+            a = int(hot[0])
+            vn[k:k + 4] = [((1.0 if j == a else 0.0) - y[0, k + j] * y[0, k + a]) / nq for j in range(4)]
+    n_d, n_o = np.zeros(nx + 1), np.zeros(nout)
+    _engine.tree_directional(bk.desc, y, bk.p, vn, vp, n_d, n_o)
+    inq = np.zeros(nx, dtype=bool)
+    for k in _quats(bk):
+        inq[k:k + 4] = True
+    d = np.where(inq, raw_d[:nx], n_d[:nx])
+    o = np.array([raw_o[i] if i < nx else n_o[i] for _, i in bk.outputs])
+    return d, o
+
+
+def _block_jacobian(bk: _Block):
+    nx = len(bk.states)
     A = np.zeros((nx, nx))
     C = np.zeros((len(bk.outputs), nx))
     B = np.zeros((nx, len(bk.inputs)))
     D = np.zeros((len(bk.outputs), len(bk.inputs)))
-    oi = [k for _, k in bk.outputs]
-    ddy, dout = np.zeros(nx + 1), np.zeros(nout)
-    zy, zp = np.zeros(nx), np.zeros(bk.p.shape[0])
+    zp = np.zeros(bk.p.shape[0])
     for j in range(nx):
-        zy[j] = 1.0
-        _engine.tree_directional(bk.desc, bk.y, bk.p, zy, zp, ddy, dout)
-        zy[j] = 0.0
-        A[:, j] = ddy[:nx]
-        C[:, j] = dout[oi]
+        vy = np.zeros(nx)
+        vy[j] = 1.0
+        A[:, j], C[:, j] = _column(bk, vy, zp)
     for j, (_, cols) in enumerate(bk.inputs):
         vp = np.zeros_like(zp)
         for col, f in cols:
             vp[col] = f
-        _engine.tree_directional(bk.desc, bk.y, bk.p, zy, vp, ddy, dout)
-        B[:, j] = ddy[:nx]
-        D[:, j] = dout[oi]
+        B[:, j], D[:, j] = _column(bk, np.zeros(nx), vp)
     return A, B, C, D
 
 
