@@ -423,8 +423,8 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         d->p[b][6] = d->tau[b][1];
         d->p[b][7] = d->tau[b][2];
         if (method == GS_EXACT && !gs_exact_applies(GS_FLAGS, d->p[b])) {
-            gs_log_error(m, "integrator 'exact' solves a torque-free body or a Lagrange top (I1 = I2, gravity the only "
-                         "torque) only, and %s%s%s has mass*g*cm_distance = "
+            gs_log_error(m, "integrator 'exact' solves a torque-free body only, or a Lagrange top (I1 = I2, gravity "
+                         "the only torque), and %s%s%s has mass*g*cm_distance = "
                          "%s N*m, damping = %s N*m*s/rad, torque = (%s, %s, %s) N*m; set them to 0 or choose another "
                          "integrator ('adaptive', 'dop853', 'rk4', 'splitting')", GS_N_BODIES > 1 ? "body '" : "the body",
                          where(b), GS_N_BODIES > 1 ? "'" : "", num(d->p[b][3]).s, num(d->p[b][4]).s,
