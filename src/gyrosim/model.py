@@ -50,7 +50,7 @@ _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 OUTPUT_NAMES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "phi", "theta", "psi",
                 "L_x", "L_y", "L_z", "energy", "energy_error")
 _STATE_NAMES = OUTPUT_NAMES[:7]
-_FIXED = ("euler", "rk4", "splitting", "splitting4")
+_FIXED = ("euler", "rk4", "splitting", "splitting4", "strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact")
 #: The variables that enter the engine's parameter rows.
 _PARAM_NAMES = frozenset(("I1", "I2", "I3", "mass", "cm_distance", "g", "damping", "tau_x", "tau_y", "tau_z",
                           "max_drift"))
@@ -695,7 +695,8 @@ class Model:
         """A max_step from the fastest rate in the state and the study's stability map, or another integrator."""
         integ = self.integrator
         alt = {"euler": "rk4", "rk4": "splitting", "splitting": "dop853", "splitting4": "dop853",
-               "adaptive": "splitting", "dop853": "splitting", "exact": "dop853"}[integ]
+               "adaptive": "splitting", "dop853": "splitting", "exact": "dop853", "strang_exact": "dop853",
+               "yoshida_exact": "dop853", "bm4_exact": "dop853", "bm6_exact": "dop853"}[integ]
         rate = _engine.fastest_rate(self.scene.flags, y, p)
         w = math.sqrt(float(y[4] ** 2 + y[5] ** 2 + y[6] ** 2))
         what = "|omega|" if rate <= w else "the nutation frequency I3*|omega_3|/sqrt(I1*I2) (or the pendulum's)"
@@ -708,6 +709,10 @@ class Model:
         if not rate > 0:
             return (f"the body was at rest before the step; check the torques and parameters, or try the integrator "
                     f"{alt!r}")
+        if x_max == math.inf:  # the exact-flow splittings: the spin does not bound their step, the torque does
+            return (f"{integ}'s free part is exact at any step (internal steps of {h:.4g} s here); its step is bounded "
+                    "by the torque's time scale: use a smaller max_step, check the torques and parameters, or try "
+                    f"the integrator {alt!r}")
         if x_max == 0.0:
             x_rk4 = _engine.STABLE_X[_METHOD_CODES["rk4"]]
             return (f"the fastest rate in the state is {what} = {rate:.4g} rad/s, so h*rate = {x:.3g} with internal "

@@ -9,7 +9,8 @@ File format (every key optional unless said)::
     [scene]
     name = "my_scene"            # required in files
     description = "..."
-    integrator = "rk4"           # euler, rk4, splitting, splitting4, adaptive, dop853, exact
+    integrator = "rk4"           # euler, rk4, splitting, splitting4, adaptive, dop853, exact, strang_exact,
+                                 # yoshida_exact, bm4_exact, bm6_exact
     max_step = 1e-3              # s
     max_drift = 0.02             # health monitor: relative drift of the invariants counted as a blow-up (0: off)
     tolerance = 1e-8             # relative and absolute tolerance of adaptive
@@ -67,7 +68,8 @@ __all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SC
 
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
                    "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels")
-INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact")
+INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact", "strang_exact",
+               "yoshida_exact", "bm4_exact", "bm6_exact")
 G_DEFAULT = 9.81
 
 _SCENE_KEYS = ("name", "description", "integrator", "max_step", "max_drift", "tolerance", "output_interval",

@@ -24,7 +24,8 @@
 #define GS_TWO_PI 6.283185307179586
 
 const char *const gs_method_names[GS_N_METHODS] = {"euler", "rk4", "splitting", "splitting4", "adaptive",
-                                                   "exact", "dop853"};
+                                                   "exact", "dop853", "strang_exact", "yoshida_exact",
+                                                   "bm4_exact", "bm6_exact"};
 
 static int64_t erk_step_mode(int method, double *y, const double *p, int flags, double H, double rtol,
                              double atol, double max_step, double *hint, int64_t *stats);
@@ -38,7 +39,8 @@ int gs_method_code(const char *name) {
 }
 
 /* the study's stability map (docs/accuracy.md) */
-const double gs_stable_x[GS_N_METHODS] = {0.0, 0.445, 1.15, 1.21, INFINITY, INFINITY, INFINITY};
+const double gs_stable_x[GS_N_METHODS] = {0.0, 0.445, 1.15, 1.21, INFINITY, INFINITY, INFINITY,
+                                          INFINITY, INFINITY, INFINITY, INFINITY};
 
 double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]) {
     double r = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
@@ -467,6 +469,137 @@ static void strang(double L[3], double *q, const double *p, int flags, double h,
 #define GS_Y1 0x1.59e8b6eb96339p+0    /* 1 / (2 - 2^(1/3)) = 1.3512071919596578 */
 #define GS_Y0 (-0x1.b3d16dd72c672p+0) /* -2^(1/3) / (2 - 2^(1/3)) = -1.7024143839193155 */
 
+/* ---------------------------------------------------------------------------------------------------------
+ * Splittings on exact flows (strang_exact, yoshida_exact, bm4_exact, bm6_exact). H = T (the free body, whose exact
+ * flow F is gs_tf_flow: Jacobi elliptic functions) + the torque (gravity, the input torque, damping: with q fixed a
+ * linear ODE in L_body, whose exact flow K is the kick below). A method is the symmetric composition
+ *   K(a_0 h) F(b_1 h) K(a_1 h) F(b_2 h) ... F(b_s h) K(a_s h),
+ * with s free flows per step (the costly part) and s + 1 kicks; every piece exact, so the composition has its full
+ * order with any torque, keeps |L| where the body is torque-free and L_z, L_3 on a symmetric top on a pivot (the
+ * free flow of a symmetric body turns L_body about e_3; gravity's kick is horizontal and normal to e_3), and the
+ * error constant scales with the torque (Celledoni, Fasso, Safstrom, Zanna, SIAM J. Sci. Comput. 30 (2008) 2084).
+ * A body torque-free now takes one free flow per step: the step is exact.
+ * Coefficients (docs/accuracy.md):
+ *   strang_exact: a = (1/2, 1/2), b = (1).
+ *   yoshida_exact: Strang steps of g h, g = (y1, y0, y1), y1 = 1/(2 - 2^(1/3)), y0 = 1 - 2 y1 (Yoshida, Phys. Lett.
+ *     A 150 (1990) 262): a = (y1/2, (y1 + y0)/2, (y0 + y1)/2, y1/2), b = g.
+ *   bm4_exact: Blanes and Moan, J. Comput. Appl. Math. 142 (2002) 313, table 2, S6 (order 4, 6 stages): their
+ *     A = the kick, B = the free flow.
+ *   bm6_exact: the same paper, table 3, S10 (order 6, 10 stages).
+ * --------------------------------------------------------------------------------------------------------- */
+
+/* the kick's functions: phi1(x) = (1 - e^-x)/x, phi2(x) = (x - 1 + e^-x)/x^2 (both to full precision at small x) */
+static double phi1(double x) {
+    return x == 0.0 ? 1.0 : -expm1(-x) / x;
+}
+
+static double phi2(double x) {
+    if (fabs(x) < 0.1) {   /* sum_k (-x)^k / (k + 2)!, to x^10 */
+        double s = 1.0 / 479001600.0;   /* 1/12! */
+        double f = 479001600.0;
+        for (int k = 9; k >= 0; k--) {
+            f /= (double)(k + 3);   /* (k + 2)! */
+            s = 1.0 / f - x * s;
+        }
+        return s;
+    }
+    return (expm1(-x) + x) / (x * x);
+}
+
+/* The torque's exact flow over h with q fixed: dL_i/dt = tau_i - c L_i / I_i, tau = gravity + the input torque
+ * (constant while q is), c the damping: L_i(h) = L_i + (tau_i - c L_i / I_i) h phi1(c h / I_i). *W gains the work of
+ * the input torque and the damping: the kinetic energy's change less gravity's work tau_g . int omega dt. */
+static void kick_exact(double L[3], const double *q, const double *p, int flags, double h, double *W) {
+    double tg[3] = {0.0, 0.0, 0.0}, tau[3];
+    if (flags & GS_GRAVITY) {
+        tg[0] = p[3] * 2.0 * (q[2] * q[3] + q[0] * q[1]);
+        tg[1] = -p[3] * 2.0 * (q[1] * q[3] - q[0] * q[2]);
+    }
+    for (int i = 0; i < 3; i++) tau[i] = tg[i] + ((flags & GS_TORQUE) ? p[5 + i] : 0.0);
+    const double c = (flags & GS_DAMPING) ? p[4] : 0.0;
+    if (!(flags & GS_WORK)) {   /* gravity only: no work to integrate */
+        for (int i = 0; i < 3; i++) L[i] += h * tau[i];
+        return;
+    }
+    const double t0 = kinetic_l(L, p);
+    double wg = 0.0;   /* gravity's work: tau_g . int omega dt, int L_i dt = L_i h + (tau_i - c L_i/I_i) h^2 phi2 */
+    for (int i = 0; i < 3; i++) {
+        const double x = c * h / p[i];
+        const double r = tau[i] - c * L[i] / p[i];
+        if (tg[i] != 0.0) wg += tg[i] * (L[i] * h + r * h * h * (c == 0.0 ? 0.5 : phi2(x))) / p[i];
+        L[i] += r * h * (c == 0.0 ? 1.0 : phi1(x));
+    }
+    *W += (kinetic_l(L, p) - t0) - wg;
+}
+
+/* F: the exact torque-free flow of L_body, q over h */
+static void free_flow(double L[3], double *q, const double *p, double h) {
+    const double w[3] = {L[0] / p[0], L[1] / p[1], L[2] / p[2]};
+    double wo[3], qo[4];
+    gs_tf_flow(p, w, q, h, wo, qo);
+    for (int i = 0; i < 3; i++) L[i] = p[i] * wo[i];
+    memcpy(q, qo, sizeof(qo));
+}
+
+/* the compositions' coefficients: ns free flows b[0..ns-1], kicks a[0..ns] */
+typedef struct {
+    int ns;
+    double a[12];
+    double b[11];
+} Composition;
+
+#define GS_BM4_A1 0.0792036964311957
+#define GS_BM4_A2 0.353172906049774
+#define GS_BM4_A3 (-0.0420650803577195)
+#define GS_BM4_A4 (1.0 - 2.0 * (GS_BM4_A1 + GS_BM4_A2 + GS_BM4_A3))
+#define GS_BM4_B1 0.209515106613362
+#define GS_BM4_B2 (-0.143851773179818)
+#define GS_BM4_B3 (0.5 - (GS_BM4_B1 + GS_BM4_B2))
+#define GS_BM6_A1 0.0502627644003922
+#define GS_BM6_A2 0.413514300428344
+#define GS_BM6_A3 0.0450798897943977
+#define GS_BM6_A4 (-0.188054853819569)
+#define GS_BM6_A5 0.541960678450780
+#define GS_BM6_A6 (1.0 - 2.0 * (GS_BM6_A1 + GS_BM6_A2 + GS_BM6_A3 + GS_BM6_A4 + GS_BM6_A5))
+#define GS_BM6_B1 0.148816447901042
+#define GS_BM6_B2 (-0.132385865767784)
+#define GS_BM6_B3 0.067307604692185
+#define GS_BM6_B4 0.432666402578175
+#define GS_BM6_B5 (0.5 - (GS_BM6_B1 + GS_BM6_B2 + GS_BM6_B3 + GS_BM6_B4))
+
+static const Composition COMPOSITIONS[4] = {
+    {1, {0.5, 0.5}, {1.0}},
+    {3, {0.5 * 0x1.59e8b6eb96339p+0, 0.5 * (0x1.59e8b6eb96339p+0 - 0x1.b3d16dd72c672p+0),
+         0.5 * (0x1.59e8b6eb96339p+0 - 0x1.b3d16dd72c672p+0), 0.5 * 0x1.59e8b6eb96339p+0},
+     {0x1.59e8b6eb96339p+0, -0x1.b3d16dd72c672p+0, 0x1.59e8b6eb96339p+0}},
+    {6, {GS_BM4_A1, GS_BM4_A2, GS_BM4_A3, GS_BM4_A4, GS_BM4_A3, GS_BM4_A2, GS_BM4_A1},
+     {GS_BM4_B1, GS_BM4_B2, GS_BM4_B3, GS_BM4_B3, GS_BM4_B2, GS_BM4_B1}},
+    {10, {GS_BM6_A1, GS_BM6_A2, GS_BM6_A3, GS_BM6_A4, GS_BM6_A5, GS_BM6_A6, GS_BM6_A5, GS_BM6_A4, GS_BM6_A3,
+          GS_BM6_A2, GS_BM6_A1},
+     {GS_BM6_B1, GS_BM6_B2, GS_BM6_B3, GS_BM6_B4, GS_BM6_B5, GS_BM6_B5, GS_BM6_B4, GS_BM6_B3, GS_BM6_B2,
+      GS_BM6_B1}},
+};
+
+static GS_INLINE int exact_split(int method) {
+    return method >= GS_STRANG_EXACT && method <= GS_BM6_EXACT;
+}
+
+/* one step of h of a composition on the state y (the kicks' work to y[10]); kicks = 0: one free flow of h */
+static void composition_step(const Composition *c, double *y, const double *p, int flags, double h, int kicks) {
+    double L[3];
+    for (int i = 0; i < 3; i++) L[i] = p[i] * y[4 + i];
+    if (!kicks) {
+        free_flow(L, y, p, h);
+    } else {
+        for (int i = 0; i < c->ns; i++) {
+            kick_exact(L, y, p, flags, c->a[i] * h, y + 10);
+            free_flow(L, y, p, c->b[i] * h);
+        }
+        kick_exact(L, y, p, flags, c->a[c->ns] * h, y + 10);
+    }
+    for (int i = 0; i < 3; i++) y[4 + i] = L[i] / p[i];
+}
+
 /* ------------------------------------------------------------------------------------------- fixed steps */
 
 /* Substeps between updates of the reference angles y[7], y[8] within a step: every floor(1 / (|omega| h)) substeps
@@ -514,6 +647,16 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
                 strang(L, y, p, flags, GS_Y1 * h, s, pp, r);
             }
             for (int i = 0; i < 3; i++) y[4 + i] = L[i] / p[i];
+            normalize_q(y);
+            if (check && !ok(y)) return k + 1;
+            if (CHECKED(k, cstride, flags)) return k + 1;
+            if (DUE(k, stride, n_sub)) gs_unwrap(y);
+        }
+    } else if (exact_split(method)) {
+        const Composition *c = &COMPOSITIONS[method - GS_STRANG_EXACT];
+        const int kicks = !gs_torque_free(flags, p);
+        for (int64_t k = 0; k < n_sub; k++) {
+            composition_step(c, y, p, flags, h, kicks);
             normalize_q(y);
             if (check && !ok(y)) return k + 1;
             if (CHECKED(k, cstride, flags)) return k + 1;

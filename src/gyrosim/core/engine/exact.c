@@ -1466,3 +1466,175 @@ int gs_ht_valid(const double *c)
     if (nf > 0.0 && !(isfinite(c[H_K]) && c[H_D] > 0.0)) return 0;
     return (c[H_UPS] == 0.0 || c[H_UPS] == 1.0) && (c[H_LOS] == 0.0 || c[H_LOS] == 1.0);
 }
+
+/* ---------------------------------------------------------------------------------------------------------- */
+/* the torque-free flow over one step, from the state itself (the splittings' free part)                      */
+/* ---------------------------------------------------------------------------------------------------------- */
+/*
+ * gs_tf_setup's constants without their costly parts: no u0 (Carlson's RF), no complete integrals unless the step
+ * spans more than half a period, no series. The state at u0 is known by sn0, cn0, dn0 (algebraic in omega); the
+ * step's argument v = lam t (reduced to |v_r| <= K, v = 2 K j + v_r) gives sn, cn, dn at u0 + v by their addition
+ * theorems, and the angle about L, Pi(n; am u) - u, by the addition theorem of the third kind (for n < 0):
+ *   P(u) + P(v) - P(u + v) = sqrt(-n / ((m - n)(1 - n))) atan2(sqrt(-n (m - n)(1 - n)) sn u sn v sn(u + v),
+ *                                                               1 - n sn^2(u + v) + n sn u sn v cn(u + v) dn(u + v))
+ * (P(u) = Pi(n; am u | m); from Jacobi's Pi(u, a) with n = m sn^2 a, a imaginary; the atan2 never crosses its cut:
+ * where the sine part vanishes the cosine part is 1 - n sn^2 > 0). One sncndn and one RJ per step, then the
+ * attitude as gs_tf_eval builds it: q = q0 q_F zyz(0, theta0, psi0)* zyz(dphi, theta1, psi0 + dpsi) q_F*, with
+ * dpsi continuous (the amplitude's turns counted by j), so q is continuous in t.
+ */
+static void steady_flow(const double w[3], const double q[4], double t, double w_out[3], double q_out[4])
+{
+    const double wn = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+    const double h = 0.5 * wn * t;
+    double e0 = 1.0, e1 = 0.0, e2 = 0.0, e3 = 0.0;
+    if (wn > 0.0) {
+        const double sh = sin(h) / wn;
+        e0 = cos(h);
+        e1 = sh * w[0];
+        e2 = sh * w[1];
+        e3 = sh * w[2];
+    }
+    w_out[0] = w[0];
+    w_out[1] = w[1];
+    w_out[2] = w[2];
+    qmul(q[0], q[1], q[2], q[3], e0, e1, e2, e3, q_out);
+}
+
+/* atan2((k2 - k1) sn cn, k1 cn^2 + k2 sn^2): psi_ref's bounded part */
+static double psi_bounded(double sn, double cn, double k1, double k2)
+{
+    return atan2((k2 - k1) * sn * cn, k1 * cn * cn + k2 * sn * sn);
+}
+
+void gs_tf_flow(const double I[3], const double w[3], const double q[4], double t, double w_out[3], double q_out[4])
+{
+    const double e0 = (I[1] - I[2]) * w[1] * w[2];
+    const double e1 = (I[2] - I[0]) * w[2] * w[0];
+    const double e2 = (I[0] - I[1]) * w[0] * w[1];
+    if (e0 == 0.0 && e1 == 0.0 && e2 == 0.0) {
+        steady_flow(w, q, t, w_out, q_out);
+        return;
+    }
+    int order[3] = {0, 1, 2};
+    for (int i = 1; i < 3; ++i) {
+        const int key = order[i];
+        int k = i - 1;
+        while (k >= 0 && sort_less(I[key], I[order[k]])) {
+            order[k + 1] = order[k];
+            --k;
+        }
+        order[k + 1] = key;
+    }
+    const int iA = order[0], iB = order[1], iC = order[2];
+    const double A = I[iA], B = I[iB], C = I[iC];
+    const double ws = max3(fabs(w[0]), fabs(w[1]), fabs(w[2]));
+    const double wA = w[iA] / ws, wB = w[iB] / ws, wC = w[iC] / ws;
+    const double XC = A * (C - A) * wA * wA + B * (C - B) * wB * wB;
+    const double YA = B * (B - A) * wB * wB + C * (C - A) * wC * wC;
+    const double Z = A * (A - B) * wA * wA + C * (C - B) * wC * wC;
+    int io, ib, ip;
+    double X, Y;
+    if (Z >= 0.0) {
+        io = iA;
+        ib = iB;
+        ip = iC;
+        X = XC;
+        Y = YA;
+    } else {
+        io = iC;
+        ib = iB;
+        ip = iA;
+        X = -YA;
+        Y = -XC;
+    }
+    const double Io = I[io], Ib = I[ib], Ip = I[ip];
+    if (X == 0.0 || Y == 0.0 || Ip == Ib) {
+        steady_flow(w, q, t, w_out, q_out);
+        return;
+    }
+    int inv = 0;
+    const int perm[3] = {io, ib, ip};
+    for (int a_ = 0; a_ < 3; ++a_)
+        for (int b_ = a_ + 1; b_ < 3; ++b_)
+            if (perm[a_] > perm[b_]) ++inv;
+    const double eps = inv % 2 == 0 ? 1.0 : -1.0;
+    const double alpha = sqrt(X / (Io * (Ip - Io)));
+    const double beta = sqrt(X / (Ib * (Ip - Ib)));
+    const double lam = sqrt((Ip - Ib) * Y / (Io * Ib * Ip)) * ws;
+    double mc = fabs((Ip - Io) * Z / ((Ip - Ib) * Y));
+    if (mc > 1.0) mc = 1.0;
+    const double m = 1.0 - mc;
+    const double wo = eps * w[io] / ws, wb = eps * w[ib] / ws, wp = eps * w[ip] / ws;
+    const double sgn = Ip > Ib ? 1.0 : -1.0;
+    const double s3 = wp >= 0.0 ? 1.0 : -1.0;
+    const double s1 = wo >= 0.0 ? 1.0 : -1.0;
+    const double s2 = sgn * s3 * s1;
+    double cn0 = s1 * wo / alpha;
+    double sn0 = s2 * wb / beta;
+    const double hn = hypot(cn0, sn0);
+    cn0 /= hn;
+    sn0 /= hn;
+    const double dn0 = sqrt(cn0 * cn0 + mc * sn0 * sn0);
+    /* the step's argument, reduced by the period 2K where it can pass K (K >= pi/2) */
+    const double v = lam * t;
+    double j = 0.0, vr = v, K = INFINITY;
+    if (!(fabs(v) <= 1.5)) {
+        K = gs_ellipk(mc);
+        if (isfinite(K)) {
+            j = floor(v / (2.0 * K) + 0.5);
+            vr = v - j * (2.0 * K);
+        }
+    }
+    if (!isfinite(v)) {
+        for (int k = 0; k < 3; k++) w_out[k] = NAN;
+        for (int k = 0; k < 4; k++) q_out[k] = NAN;
+        return;
+    }
+    double sv, cv, dv;
+    sncndn(vr, mc, &sv, &cv, &dv);
+    const double den = 1.0 - m * sn0 * sn0 * sv * sv;
+    const double sn1 = (sn0 * cv * dv + sv * cn0 * dn0) / den;
+    const double cn1 = (cn0 * cv - sn0 * sv * dn0 * dv) / den;
+    const double dn1 = (dn0 * dv - m * sn0 * sv * cn0 * cv) / den;
+    const double sg = odd(j) ? -1.0 : 1.0;
+    /* omega at the end: the amplitudes as gs_tf_setup's (physical rates) */
+    w_out[io] = eps * s1 * alpha * ws * (sg * cn1);
+    w_out[ib] = eps * s2 * beta * ws * (sg * sn1);
+    w_out[ip] = eps * s3 * sqrt(Y / (Ip * (Ip - Io))) * ws * dn1;
+    /* the angle about L: |L| t / Io + coef (G(u0 + v) - G(u0)), G = P - u */
+    double n = Ip * (Io - Ib) / (Io * (Ip - Ib));
+    if (n > 0.0) n = 0.0;
+    double dG = 0.0;
+    if (n != 0.0) {
+        dG = g_reduced(sv, cv, dv, n);
+        if (j != 0.0 && mc > 0.0) dG += 2.0 * j * (n / 3.0 * gs_elliprj(0.0, mc, 1.0, 1.0 - n));
+        const double nm = m - n, n1 = 1.0 - n;
+        dG -= sqrt(-n / (nm * n1)) *
+              atan2(sqrt(-n * nm * n1) * sn0 * sv * sn1, 1.0 - n * sn1 * sn1 + n * sn0 * sv * cn1 * dn1);
+    }
+    const double l0 = I[0] * w[0] / ws, l1 = I[1] * w[1] / ws, l2 = I[2] * w[2] / ws;
+    const double Ln = ws * sqrt(l0 * l0 + l1 * l1 + l2 * l2);
+    const double coef = Ln * (1.0 / Io - 1.0 / Ip) / lam;
+    const double dphi = Ln * t / Io + coef * dG;
+    /* psi: psi_ref's amplitude and bounded part, continued by the amplitude's turns */
+    const double S1c = -eps * s1, k1 = Io * alpha, k2 = Ib * beta;
+    const double dam = j * GS_PI + atan2(sn1 * cn0 - cn1 * sn0, cn1 * cn0 + sn1 * sn0);
+    const double dpsi = s2 * (S1c < 0.0 ? -1.0 : 1.0) *
+                        (dam + psi_bounded(sn1, cn1, k1, k2) - psi_bounded(sn0, cn0, k1, k2));
+    const double psi0 = psi_ref(atan2(sn0, cn0), sn0, cn0, S1c, s2, k1, k2);
+    /* theta of L in the frame (o, b, p), at both ends */
+    const double th0 = atan2(hypot(Io * w[io], Ib * w[ib]), Ip * w[ip]);
+    const double th1 = atan2(hypot(Io * w_out[io], Ib * w_out[ib]), Ip * w_out[ip]);
+    double F[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
+    F[io][0] = 1.0;
+    F[ib][1] = eps;
+    F[ip][2] = 1.0;
+    double f[4], ea[4], eb[4], a[4], b[4], c[4];
+    mat_to_quat((const double(*)[3])F, f);
+    zyz_quat(0.0, th0, psi0, ea);
+    zyz_quat(dphi, th1, psi0 + dpsi, eb);
+    qmul(q[0], q[1], q[2], q[3], f[0], f[1], f[2], f[3], a);
+    qmul(a[0], a[1], a[2], a[3], ea[0], -ea[1], -ea[2], -ea[3], b);
+    qmul(b[0], b[1], b[2], b[3], eb[0], eb[1], eb[2], eb[3], c);
+    qmul(c[0], c[1], c[2], c[3], f[0], -f[1], -f[2], -f[3], q_out);
+}

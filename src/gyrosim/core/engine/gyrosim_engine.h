@@ -67,7 +67,13 @@ extern "C" {
 #define GS_ADAPTIVE 4
 #define GS_EXACT 5
 #define GS_DOP853 6
-#define GS_N_METHODS 7
+/* compositions of the exact torque-free flow (gs_tf_flow) and the exact torque kick (q fixed): Strang (order 2),
+ * Yoshida's triple jump (4), Blanes and Moan's S6 (4) and S10 (6) (engine.c, docs/accuracy.md) */
+#define GS_STRANG_EXACT 7
+#define GS_YOSHIDA_EXACT 8
+#define GS_BM4_EXACT 9
+#define GS_BM6_EXACT 10
+#define GS_N_METHODS 11
 
 #define GS_NY 15
 #define GS_NP 9
@@ -97,7 +103,9 @@ extern "C" {
 /* The largest stable h*rate of each fixed-step integrator, the minimum over the study's stability map (rate =
  * |omega|, on a pivot the larger of |omega| and the nutation frequency I3 |omega_3| / sqrt(I1 I2)): what the blow-up
  * messages compute a max_step from. 0: no step is stable over a long run (euler's energy grows by a factor 1 +
- * (h w)^2 per step); inf: the method chooses its own steps or needs none (adaptive, dop853, exact). */
+ * (h w)^2 per step); inf: the method chooses its own steps or needs none (adaptive, dop853, exact), or the rate does
+ * not bound its step (the *_exact splittings: exact for any h without a torque; with one, the torque's time scale
+ * sets their step, not |omega|). */
 extern const double gs_stable_x[GS_N_METHODS];
 
 /* The fastest rate of a body's state (rad/s): |omega| and, on a pivot (mgl != 0), the nutation frequency
@@ -108,7 +116,9 @@ double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]);
 #define GS_OMEGA_LIMIT 1e100
 
 /* The integrator names, indexed by code ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact",
- * "dop853"). adaptive is Dormand-Prince 5(4), dop853 Dormand-Prince 8(5,3); both take rtol and atol. */
+ * "dop853", "strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact"). adaptive is Dormand-Prince 5(4), dop853
+ * Dormand-Prince 8(5,3); both take rtol and atol. The *_exact ones are fixed-step compositions whose free part is the
+ * exact torque-free flow (Jacobi elliptic functions) and whose kick is the torque's exact flow with q fixed. */
 extern const char *const gs_method_names[GS_N_METHODS];
 
 /* The code of an integrator name, or -1. */
@@ -229,6 +239,12 @@ int gs_tf_valid(const double c[GS_TF_SIZE]);
 
 /* Body omega (3) and attitude (4) at time t (s after the setup state). */
 void gs_tf_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4]);
+
+/* The same flow from (w, q) over t (s) in one call, with no set-up kept: the state's elliptic functions carried over
+ * the step by their addition theorems (one sncndn and one Carlson RJ; two RJ when the step spans more than half a
+ * nutation period). The free part of the exact-flow splittings (strang_exact, yoshida_exact, bm4_exact, bm6_exact);
+ * agrees with gs_tf_setup + gs_tf_eval to round-off. q continuous in t (q(0) = q). */
+void gs_tf_flow(const double I[3], const double w[3], const double q[4], double t, double w_out[3], double q_out[4]);
 
 /* gs_tf_eval at GS_TF_LANES times at once, to the same bits, where the flow has its fast series (returns 1); 0 and
  * nothing written otherwise. */
