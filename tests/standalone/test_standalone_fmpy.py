@@ -200,7 +200,9 @@ def test_error_paths_leave_the_host_running(version, standalone):
     assert s.get(*OUTPUT_NAMES) == before  # the state from before the step
     expect_error(lambda: s.deserialize(b"not a state"), s.log, "size = 11 is not allowed")
     if version == 2:
-        expect_error(lambda: f.getDirectionalDerivative([1], [2], [1.0]), s.log, "not provided")
+        # parameters are neither unknowns nor knowns of a directional derivative: Error, named
+        expect_error(lambda: f.getDirectionalDerivative([1], [2], [1.0]), s.log, "unknown value reference 1 (I1)",
+                     "is not allowed")
     # still usable: a valid step (h*|omega| = 7e-3), then a clean end
     s.do_step(0.0, 1e-4)
     assert np.all(np.isfinite(s.get(*OUTPUT_NAMES)))
