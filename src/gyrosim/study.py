@@ -63,6 +63,13 @@ PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "se
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
+#: The splittings on the exact torque-free flow and their orders (measured on the asymmetric fast top by
+#: :func:`exact_splitting_wp`; not yet in the ladders of the accuracy part, whose cases they would only repeat).
+EXACT_SPLITS = ("strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact")
+EXACT_SPLIT_ORDER = {"strang_exact": 2, "yoshida_exact": 4, "bm4_exact": 4, "bm6_exact": 6}
+#: The asymmetric fast heavy top (the peers' asym_top): I about the pivot, m, l, theta0, spin about body axis 3.
+ASYM_TOP = {"moments": (0.01, 0.0125, 0.015), "mass": 0.5, "cm_distance": 0.1, "g": 9.81, "theta0": math.pi / 4,
+            "spin": 200.0}
 COLORS = {"euler": "tab:red", "rk4": "tab:blue", "splitting": "tab:green", "splitting4": "tab:olive",
           "adaptive": "tab:purple", "dop853": "tab:cyan", "exact": "black"}
 MARKERS = {"euler": "v", "rk4": "o", "splitting": "s", "splitting4": "D", "adaptive": "^", "dop853": "P", "exact": "*"}
@@ -1338,6 +1345,85 @@ def _accuracy_spans(results: dict, quick_default: bool) -> dict:
                results.get("environment", {}).get("command", ""))
     quick = "--quick" in cmd if cmd else quick_default
     return {name: c.T for name, c in make_cases(quick).items() if name in results.get("accuracy", {})}
+
+
+def asym_top_scene(name: str = "study_asym_top"):
+    """The asymmetric fast heavy top (:data:`ASYM_TOP`) from a scene dict."""
+    from .scene import scene_from_dict
+
+    a = ASYM_TOP
+    body = {"name": "top", "inertia": {"principal": list(a["moments"])}, "mass": a["mass"],
+            "cm_distance": a["cm_distance"], "attitude": {"zyz": [0.0, a["theta0"], 0.0]},
+            "rates": {"zyz_rates": [0.0, 0.0, a["spin"]]}}
+    return scene_from_dict({"scene": {"name": name, "g": a["g"]}, "body": [body]}, f"<study scene {name}>")
+
+
+def exact_splitting_wp(T: float = 20.0, dt_out: float = 0.1, targets=(1e-6, 1e-9), rounds: int = 3,
+                       progress=None) -> dict:
+    """Work-precision of the exact-flow splittings against gyrosim's dop853 on the asymmetric fast top.
+
+    The error is the largest attitude error (rad) over the output points (``gyrosim.simulate``, output every
+    ``dt_out`` s to ``T``) against dop853 at tolerance 1e-15, checked by halving its max_step (and at 1e-14); each
+    run is timed with the thread's CPU time, best of ``rounds``. Returns ``{"runs": [...], "reference": {...},
+    "cheapest": {(method, target): run}}``; :func:`exact_splitting_table` prints it."""
+    from . import simulate
+
+    sc = asym_top_scene()
+    names = ("q_w", "q_x", "q_y", "q_z")
+
+    def run(integ, h=None, tol=None):
+        kw = dict(stop_time=T, output_interval=dt_out, integrator=integ, max_step=h or T, relative_tolerance=tol,
+                  output=list(names))
+        best, r = math.inf, None
+        for _ in range(rounds):
+            t0 = cpu_clock()
+            r = simulate(sc, **kw)
+            best = min(best, cpu_clock() - t0)
+        q = np.column_stack([r[k] for k in names])
+        return best, q / np.linalg.norm(q, axis=1)[:, None]
+
+    _, ref = run("dop853", tol=1e-15)
+    checks = {"dop853 1e-15, max_step 1e-3": float(np.max(attitude_error(run("dop853", 1e-3, 1e-15)[1], ref))),
+              "dop853 1e-14": float(np.max(attitude_error(run("dop853", tol=1e-14)[1], ref)))}
+    runs = []
+    for tol in [10.0 ** (-k / 2) for k in range(10, 28)]:
+        sec, q = run("dop853", tol=tol)
+        runs.append({"method": "dop853", "h": None, "tol": tol, "ms": sec * 1e3,
+                     "error": float(np.max(attitude_error(q, ref)))})
+    for integ in EXACT_SPLITS:
+        for k in range(13):
+            h = 0.025 / 2.0 ** (k / 2)
+            if progress:
+                progress(f"{integ} h = {h:.3g}")
+            sec, q = run(integ, h=h)
+            err = float(np.max(attitude_error(q, ref)))
+            runs.append({"method": integ, "h": h, "tol": None, "ms": sec * 1e3, "error": err})
+            if err < min(targets) / 10:
+                break
+    cheapest = {}
+    for m in ("dop853",) + EXACT_SPLITS:
+        for tg in targets:
+            ok = [r for r in runs if r["method"] == m and r["error"] <= tg]
+            cheapest[(m, tg)] = min(ok, key=lambda r: r["ms"]) if ok else None
+    return {"runs": runs, "reference": checks, "cheapest": cheapest, "T": T, "targets": tuple(targets)}
+
+
+def exact_splitting_table(res: dict) -> str:
+    """Markdown: per target the cheapest run of each method and its time against dop853's."""
+    lines = ["| method | " + " | ".join(f"error <= {t:g}: ms (setting) | vs dop853" for t in res["targets"]) + " |",
+             "|---|" + "---|---|" * len(res["targets"])]
+    for m in ("dop853",) + EXACT_SPLITS:
+        cells = []
+        for t in res["targets"]:
+            r, d = res["cheapest"][(m, t)], res["cheapest"][("dop853", t)]
+            if r is None:
+                cells += ["not reached", "-"]
+                continue
+            setting = f"tol {r['tol']:.2g}" if r["tol"] else f"h {r['h']:.3g}"
+            cells += [f"{r['ms']:.2f} ({setting}, err {r['error']:.2g})",
+                      f"{d['ms'] / r['ms']:.2f}x" if d else "-"]
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def main(args) -> int:
