@@ -57,13 +57,17 @@ def test_bad_toml_and_missing_file(tmp_path):
         load_scene("heavy_tp")
 
 
-def test_exact_needs_a_body_that_starts_torque_free(tmp_path):
-    """exact is refused where gravity acts on an offset centre of mass (named with its torque scale); a scene with
-    torque inputs (zero at the start) may use it."""
+def test_exact_needs_a_body_that_starts_torque_free_or_a_lagrange_top(tmp_path):
+    """exact is refused where gravity acts on an offset centre of mass of a body that is not symmetric (named with
+    its torque scale); a Lagrange top (I1 = I2) may use it, and a scene with torque inputs (zero at the start)."""
     p = write(tmp_path, '[scene]\nname = "x"\nintegrator = "exact"\n[[body]]\n'
                         'inertia = {principal = [1, 2, 3]}\nmass = 0.5\ncm_distance = 0.05\n')
-    with pytest.raises(ConfigError, match=r"torque-free body only, and this scene has mass\*g\*cm_distance = 0.245"):
+    with pytest.raises(ConfigError, match=r"torque-free body or a Lagrange top only, and this scene has "
+                                          r"mass\*g\*cm_distance = 0.245"):
         load_scene(p)
+    p = write(tmp_path, '[scene]\nname = "t"\nintegrator = "exact"\n[[body]]\n'
+                        'inertia = {principal = [2, 2, 3]}\nmass = 0.5\ncm_distance = 0.05\n')
+    assert load_scene(p).integrator == "exact"
     p = write(tmp_path, '[scene]\nname = "y"\nintegrator = "exact"\n[[body]]\n'
                         'inertia = {principal = [1, 2, 3]}\ntorque_input = true\n')
     assert load_scene(p).integrator == "exact"

@@ -74,8 +74,8 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
         V.append(Variable("damping", "parameter", "fixed", "Real", "N.m.s", "viscous torque -damping*omega",
                           float(b.damping)))
     V += [Variable("integrator", "parameter", "fixed", "String", "",
-                   "integrator: " + ", ".join(INTEGRATORS) + ("" if scene.torque_free else
-                                                               " (exact: while the body is torque-free)"),
+                   "integrator: " + ", ".join(INTEGRATORS) + (
+                       "" if scene.torque_free else " (exact: while the body is torque-free or a Lagrange top)"),
                    scene.integrator),
           Variable("max_step", "parameter", "fixed", "Real", "s",
                    "largest internal step; fixed-step integrators take h/max_step substeps rounded up (a ratio within "

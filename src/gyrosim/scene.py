@@ -161,6 +161,20 @@ class Scene:
         """True when no term can exert a torque (gravity, damping and inputs all absent)."""
         return not (self.gravity or self.damping or self.torque)
 
+    def exact_start(self) -> str | None:
+        """None when ``exact`` applies to every body at the start (torque-free, or a Lagrange top: I1 = I2 on a
+        pivot, gravity the only torque), else why not (for a message)."""
+        for b in self.bodies:
+            where = f" (body {b.name!r})" if len(self.bodies) > 1 else ""
+            if self.damping and b.damping != 0.0:
+                return f"damping = {b.damping:.6g} N*m*s/rad{where}"
+            mgl = b.mass * self.g * b.cm_distance if self.gravity else 0.0
+            I1, I2 = float(b.moments[0]), float(b.moments[1])
+            if mgl != 0.0 and abs(I1 - I2) > 4 * 2.220446049250313e-16 * max(I1, I2):
+                return (f"mass*g*cm_distance = {mgl:.6g} N*m on a body that is not symmetric about its axis "
+                        f"(I1 = {I1:.6g} != I2 = {I2:.6g}: not a Lagrange top){where}")
+        return None
+
     def torque_free_start(self) -> str | None:
         """None when every body starts torque-free with its parameters (mass*g*cm_distance = 0 where there is
         gravity, damping = 0; torque inputs start at 0), else what exerts a torque (for a message)."""
@@ -428,9 +442,9 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source)
-    if integ == "exact" and scene.torque_free_start() is not None:
-        raise ConfigError("integrator", integ, "a general integrator: 'exact' solves a torque-free body only, and "
-                          f"this scene has {scene.torque_free_start()}", where=where)
+    if integ == "exact" and scene.exact_start() is not None:
+        raise ConfigError("integrator", integ, "a general integrator: 'exact' solves a torque-free body or a "
+                          f"Lagrange top only, and this scene has {scene.exact_start()}", where=where)
     return scene
 
 

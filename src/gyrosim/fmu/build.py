@@ -361,7 +361,8 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
 def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs",
                        platforms=("linux",)) -> str:
     has_me = fmi_type in ("me", "both")
-    integ = [i if i != "exact" or sc.torque_free else "exact (a torque-free body only)" for i in INTEGRATORS]
+    integ = [i if i != "exact" or sc.exact_start() is None else "exact (a torque-free body or a Lagrange top only)"
+             for i in INTEGRATORS]
     kind = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[fmi_type]
     desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
             f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python), {kind}; "
@@ -594,9 +595,9 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
                               "bodies is integrated by the tree engine)")
     elif integrator not in INTEGRATORS:
         raise ConfigError("integrator", integrator, "one of " + ", ".join(INTEGRATORS))
-    elif integrator == "exact" and sc.torque_free_start() is not None:
-        raise ConfigError("integrator", integrator, "a general integrator: 'exact' solves a torque-free body only, "
-                          f"and scene {sc.name!r} starts with {sc.torque_free_start()}")
+    elif integrator == "exact" and sc.exact_start() is not None:
+        raise ConfigError("integrator", integrator, "a general integrator: 'exact' solves a torque-free body or a "
+                          f"Lagrange top only, and scene {sc.name!r} starts with {sc.exact_start()}")
     ident = model_identifier(scene)
     win_cc = windows_compiler() if windows is not False else None
     if windows and win_cc is None:
