@@ -20,6 +20,7 @@ its variables are :func:`gyrosim.tree_model.tree_variables` and the configuratio
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 import os
@@ -538,6 +539,67 @@ def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None =
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 
 
+#: The engine's translation units: the same text in every FMU, so compiled once per compiler, flags and text and kept
+#: (:func:`_engine_objects`); an FMU build then compiles only its glue.
+ENGINE_UNITS = ("engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c")
+#: The headers the engine's units include (and nothing else: the glue's headers and the generated configuration
+#: are not the engine's).
+ENGINE_HEADERS = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h")
+
+
+def object_cache_dir() -> Path | None:
+    """Where compiled engine objects are kept: ``$GYROSIM_CACHE_DIR/fmu-objects``, else
+    ``$XDG_CACHE_HOME/gyrosim/fmu-objects`` (``~/.cache``); None when it cannot be created (then every build
+    compiles everything)."""
+    base = os.environ.get("GYROSIM_CACHE_DIR")
+    root = Path(base) if base else Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "gyrosim"
+    d = root / "fmu-objects"
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    return d if os.access(d, os.W_OK) else None
+
+
+_CC_VERSION: dict = {}
+
+
+def _cc_identity(cc: str) -> str:
+    if cc not in _CC_VERSION:
+        try:
+            r = subprocess.run([cc, "--version"], capture_output=True, text=True)
+            _CC_VERSION[cc] = (shutil.which(cc) or cc) + "\n" + r.stdout
+        except OSError:
+            _CC_VERSION[cc] = ""
+    return _CC_VERSION[cc]
+
+
+def _engine_objects(src_dir: Path, cc: str, flags, platform: str, units) -> tuple[list[str], list]:
+    """The engine's objects for this compiler, flags and source text: from the cache, or compiled into it (side
+    by side, written beside their name and renamed into place, so builds running at once never see half an
+    object). Returns (object paths, [(unit, command, Popen)] still compiling) or ([], []) without a cache. The
+    object is what the one-command build would compile (no link-time optimisation: each file is its own unit)."""
+    cache = object_cache_dir()
+    ident = _cc_identity(cc)
+    if cache is None or not ident:
+        return [], []
+    # every engine text in every key: a unit may include another (tree_cs.c includes tree.c)
+    headers = "".join((src_dir / h).read_text() for h in (*ENGINE_HEADERS, *units) if (src_dir / h).is_file())
+    objs, jobs = [], []
+    for unit in units:
+        key = hashlib.sha256("\0".join((ident, " ".join(flags), platform, headers,
+                                         (src_dir / unit).read_text())).encode()).hexdigest()[:32]
+        obj = cache / f"{unit[:-2]}-{key}.o"
+        objs.append(str(obj))
+        if obj.is_file():
+            continue
+        part = obj.with_name(f".{obj.name}.{os.getpid()}.{len(jobs)}.tmp")
+        cmd = [cc, *flags, f"-I{src_dir}", "-c", str(src_dir / unit), "-o", str(part)]
+        jobs.append((unit, cmd, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True),
+                     part, obj))
+    return objs, jobs
+
+
 def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
               output_dir: str | Path = DEFAULT_OUTPUT, *, integrator: str | None = None,
               cc: str | None = None, fmi_type: str = "both", windows: bool | None = None) -> Path:
@@ -636,12 +698,37 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         if fmi_version == 3:
             (src_dir / "buildDescription.xml").write_text(_build_description(ident, sources))
         (root / "modelDescription.xml").write_text(md)
-        jobs = []   # the platforms' compilers run side by side
+        # the engine's objects: compiled once per compiler, flags and text (a cache shared by builds), side by side
+        # for the platforms; then each platform's library from them and the glue
+        plans, pending = [], []
         for platform in platforms:
             so = root / binary_path(fmi_version, ident, platform)
             so.parent.mkdir(parents=True)
             cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows", tree=sc.is_tree)
                    if platform == "windows" else compile_command(src_dir, so, fmi_version, cc, tree=sc.is_tree))
+            try:
+                flags = cmd[1:cmd.index("-shared")]
+                objs, jobs = _engine_objects(src_dir, cmd[0], flags, platform, ENGINE_UNITS)
+            except FileNotFoundError:
+                objs, jobs = [], []
+            if objs:  # each engine source replaced by its object, in place: the same link, the same bits
+                at = {str(src_dir / u): o for u, o in zip(ENGINE_UNITS, objs)}
+                cmd = [at.get(c, c) for c in cmd]
+            plans.append((platform, cmd))
+            pending += jobs
+        failed = []
+        for _unit, ucmd, p, part, obj in pending:
+            out, err = p.communicate()
+            if p.returncode != 0 or out.strip() or err.strip():
+                failed.append(f"{' '.join(ucmd)}\n{out}{err}")
+                with contextlib.suppress(OSError):
+                    part.unlink()
+            else:
+                os.replace(part, obj)
+        if failed:
+            raise RuntimeError("compiling the FMU's engine failed or warned:\n" + "\n".join(failed))
+        jobs = []   # the platforms' compilers run side by side
+        for platform, cmd in plans:
             try:
                 jobs.append((platform, cmd, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                                               text=True)))
