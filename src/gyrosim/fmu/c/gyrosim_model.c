@@ -462,7 +462,9 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         pp[8] = 0.0;
         const double rate = gs_fastest_rate(GS_FLAGS, y, pp);
         /* the monitor looks within long steps: a fixed-step method stopped at internal step k is rerun to it */
-        const int fixed = method == GS_EULER || method == GS_RK4 || method == GS_SPLITTING || method == GS_SPLITTING4;
+        const int fixed = method == GS_EULER || method == GS_RK4 || method == GS_SPLITTING || method == GS_SPLITTING4 ||
+                          method == GS_STRANG_EXACT || method == GS_YOSHIDA_EXACT || method == GS_BM4_EXACT ||
+                          method == GS_BM6_EXACT;
         const int64_t run_sub = fixed && k > 0 && k < n_sub ? k : (n_sub ? n_sub : 1);
         const double run_h = run_sub == n_sub || !fixed ? h : (double)run_sub * (h / (double)n_sub);
         const int again = gs_advance_one(method, GS_FLAGS, y, pp, t, run_h, run_sub, d->tolerance,
@@ -489,7 +491,7 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
                      (long long)(n_sub ? n_sub : 1), d->max_drift);
         }
         static const char *const alt[GS_N_METHODS] = {"rk4", "splitting", "dop853", "dop853", "splitting",
-                                                      "dop853", "splitting"};
+                                                      "dop853", "splitting", "dop853", "dop853", "dop853", "dop853"};
         const double hi = method == GS_ADAPTIVE || method == GS_DOP853 || method == GS_EXACT ? h : h / (double)n_sub;
         const double xs = gs_stable_x[method];
         if (method == GS_ADAPTIVE || method == GS_DOP853 || method == GS_EXACT) {
@@ -498,6 +500,10 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         } else if (!(rate > 0.0)) {
             snprintf(advice, sizeof(advice), "the body was at rest before the step; check the torques and "
                      "parameters, or try the integrator '%s'", alt[method]);
+        } else if (!(xs < INFINITY)) {   /* a splitting on the exact free flow: no stability bound, an error */
+            snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s (h*rate = %.3g); %s's "
+                     "error grows with the step: use a smaller max_step, or the integrator '%s'", rate, hi * rate,
+                     gs_method_names[method], alt[method]);
         } else if (xs == 0.0) {
             snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s, so h*rate = %.3g; %s's "
                      "energy grows by a factor 1 + (h*rate)^2 every step at any step size: use the integrator 'rk4' "

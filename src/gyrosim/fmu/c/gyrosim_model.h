@@ -97,7 +97,8 @@ typedef struct {
 #include "gyrosim_glue_api.h"
 
 /* the integrators this FMU offers, for messages */
-#define GS_INTEGRATOR_LIST "euler, rk4, splitting, splitting4, adaptive, dop853" GS_EXACT_LIST
+#define GS_INTEGRATOR_LIST "euler, rk4, splitting, splitting4, adaptive, dop853" GS_EXACT_LIST \
+    ", strang_exact, yoshida_exact, bm4_exact, bm6_exact"
 #if GS_FLAGS == 0
 #define GS_EXACT_LIST ", exact"
 #else
