@@ -595,8 +595,8 @@ def _engine_objects(src_dir: Path, cc: str, flags, platform: str, units) -> tupl
             continue
         part = obj.with_name(f".{obj.name}.{os.getpid()}.{len(jobs)}.tmp")
         cmd = [cc, *flags, f"-I{src_dir}", "-c", str(src_dir / unit), "-o", str(part)]
-        jobs.append((unit, cmd, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True),
-                     part, obj))
+        jobs.append((platform, cmd, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                                      text=True), part, obj))
     return objs, jobs
 
 
@@ -717,16 +717,16 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
             plans.append((platform, cmd))
             pending += jobs
         failed = []
-        for _unit, ucmd, p, part, obj in pending:
+        for platform, ucmd, p, part, obj in pending:
             out, err = p.communicate()
             if p.returncode != 0 or out.strip() or err.strip():
-                failed.append(f"{' '.join(ucmd)}\n{out}{err}")
+                failed.append(f"compiling the FMU ({platform}) failed or warned:\n{' '.join(ucmd)}\n{out}{err}")
                 with contextlib.suppress(OSError):
                     part.unlink()
             else:
                 os.replace(part, obj)
         if failed:
-            raise RuntimeError("compiling the FMU's engine failed or warned:\n" + "\n".join(failed))
+            raise RuntimeError("\n".join(failed))
         jobs = []   # the platforms' compilers run side by side
         for platform, cmd in plans:
             try:
