@@ -1207,23 +1207,55 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     }
     /* dop853: 12 stages, then f(y1) as the 13th (FSAL); error as scipy's DOP853 (E5 with an E3 correction) */
     for (int st = 1; st < 12; st++) {
-        double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+        /* the sums in registers (the compiler cannot keep an array there past the stores into K): the same
+         * products and sums in the same order as an array loop */
+        double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
         for (int j = 0; j < st; j++) {   /* the tableau is sparse: skip its zeros */
             const double a = D8_A[st][j];
             if (a == 0.0) continue;
-            for (int i = 0; i < nv; i++) acc[i] += a * s->K[j][i];
+            const double *k = s->K[j];
+            c0 += a * k[0];
+            c1 += a * k[1];
+            c2 += a * k[2];
+            c3 += a * k[3];
+            c4 += a * k[4];
+            c5 += a * k[5];
+            c6 += a * k[6];
+            if (nv == 8) c7 += a * k[7];
         }
-        for (int i = 0; i < nv; i++) yt[i] = s->y0[i] + h * acc[i];
+        yt[0] = s->y0[0] + h * c0;
+        yt[1] = s->y0[1] + h * c1;
+        yt[2] = s->y0[2] + h * c2;
+        yt[3] = s->y0[3] + h * c3;
+        yt[4] = s->y0[4] + h * c4;
+        yt[5] = s->y0[5] + h * c5;
+        yt[6] = s->y0[6] + h * c6;
+        if (nv == 8) yt[7] = s->y0[7] + h * c7;
         rhs(yt, p, flags, s->K[st]);
     }
     {
-        double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+        double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
         for (int j = 0; j < 12; j++) {
             const double bj = D8_B[j];
             if (bj == 0.0) continue;
-            for (int i = 0; i < nv; i++) acc[i] += bj * s->K[j][i];
+            const double *k = s->K[j];
+            c0 += bj * k[0];
+            c1 += bj * k[1];
+            c2 += bj * k[2];
+            c3 += bj * k[3];
+            c4 += bj * k[4];
+            c5 += bj * k[5];
+            c6 += bj * k[6];
+            if (nv == 8) c7 += bj * k[7];
         }
-        for (int i = 0; i < nv; i++) s->y1[i] = s->y0[i] + h * acc[i];
+        s->y1[0] = s->y0[0] + h * c0;
+        s->y1[1] = s->y0[1] + h * c1;
+        s->y1[2] = s->y0[2] + h * c2;
+        s->y1[3] = s->y0[3] + h * c3;
+        s->y1[4] = s->y0[4] + h * c4;
+        s->y1[5] = s->y0[5] + h * c5;
+        s->y1[6] = s->y0[6] + h * c6;
+        if (nv == 8) s->y1[7] = s->y0[7] + h * c7;
     }
     rhs(s->y1, p, flags, s->K[12]);
     stats[2] += 12;
