@@ -1180,6 +1180,34 @@ static GS_INLINE void from_step(const double *v, int nv, double *y) {
 }
 
 /* One step of h from s.y0 with s.K[0] = f(y0): s.y1, s.K[last] = f(y1); returns the scaled error norm. */
+/* out = y0 + h * sum_j w[j] K[j] over the first nk stages, skipping the tableau's zeros. The sums in registers
+ * (the compiler cannot keep an array there past the stores into K): the same products and sums in the same order
+ * as an array loop, the same bits. */
+static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double h, int nv, double *out) {
+    double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
+    for (int j = 0; j < nk; j++) {
+        const double a = w[j];
+        if (a == 0.0) continue;
+        const double *k = s->K[j];
+        c0 += a * k[0];
+        c1 += a * k[1];
+        c2 += a * k[2];
+        c3 += a * k[3];
+        c4 += a * k[4];
+        c5 += a * k[5];
+        c6 += a * k[6];
+        if (nv == 8) c7 += a * k[7];
+    }
+    out[0] = s->y0[0] + h * c0;
+    out[1] = s->y0[1] + h * c1;
+    out[2] = s->y0[2] + h * c2;
+    out[3] = s->y0[3] + h * c3;
+    out[4] = s->y0[4] + h * c4;
+    out[5] = s->y0[5] + h * c5;
+    out[6] = s->y0[6] + h * c6;
+    if (nv == 8) out[7] = s->y0[7] + h * c7;
+}
+
 static double erk_step(int method, Step *s, const double *p, int flags, double h, double rtol, double atol,
                        int64_t *stats) {
     double yt[8];
@@ -1207,56 +1235,10 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     }
     /* dop853: 12 stages, then f(y1) as the 13th (FSAL); error as scipy's DOP853 (E5 with an E3 correction) */
     for (int st = 1; st < 12; st++) {
-        /* the sums in registers (the compiler cannot keep an array there past the stores into K): the same
-         * products and sums in the same order as an array loop */
-        double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
-        for (int j = 0; j < st; j++) {   /* the tableau is sparse: skip its zeros */
-            const double a = D8_A[st][j];
-            if (a == 0.0) continue;
-            const double *k = s->K[j];
-            c0 += a * k[0];
-            c1 += a * k[1];
-            c2 += a * k[2];
-            c3 += a * k[3];
-            c4 += a * k[4];
-            c5 += a * k[5];
-            c6 += a * k[6];
-            if (nv == 8) c7 += a * k[7];
-        }
-        yt[0] = s->y0[0] + h * c0;
-        yt[1] = s->y0[1] + h * c1;
-        yt[2] = s->y0[2] + h * c2;
-        yt[3] = s->y0[3] + h * c3;
-        yt[4] = s->y0[4] + h * c4;
-        yt[5] = s->y0[5] + h * c5;
-        yt[6] = s->y0[6] + h * c6;
-        if (nv == 8) yt[7] = s->y0[7] + h * c7;
+        erk_combine(s, D8_A[st], st, h, nv, yt);
         rhs(yt, p, flags, s->K[st]);
     }
-    {
-        double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
-        for (int j = 0; j < 12; j++) {
-            const double bj = D8_B[j];
-            if (bj == 0.0) continue;
-            const double *k = s->K[j];
-            c0 += bj * k[0];
-            c1 += bj * k[1];
-            c2 += bj * k[2];
-            c3 += bj * k[3];
-            c4 += bj * k[4];
-            c5 += bj * k[5];
-            c6 += bj * k[6];
-            if (nv == 8) c7 += bj * k[7];
-        }
-        s->y1[0] = s->y0[0] + h * c0;
-        s->y1[1] = s->y0[1] + h * c1;
-        s->y1[2] = s->y0[2] + h * c2;
-        s->y1[3] = s->y0[3] + h * c3;
-        s->y1[4] = s->y0[4] + h * c4;
-        s->y1[5] = s->y0[5] + h * c5;
-        s->y1[6] = s->y0[6] + h * c6;
-        if (nv == 8) s->y1[7] = s->y0[7] + h * c7;
-    }
+    erk_combine(s, D8_B, 12, h, nv, s->y1);
     rhs(s->y1, p, flags, s->K[12]);
     stats[2] += 12;
     double e5 = 0.0, e3 = 0.0;
