@@ -160,19 +160,7 @@ class LagrangeTop(TopReference):
 
     def angles(self, t):
         t = np.asarray(t, dtype=float)
-        x, wq = np.polynomial.legendre.leggauss(self.NODES)
-        panel = self.nut.period / self.PANELS_PER_PERIOD
-        edges, out_idx, prev, count = [np.array([0.0])], [], 0.0, 0
-        for tk in t:
-            n = max(1, math.ceil((tk - prev) / panel)) if tk > prev else 0
-            edges.append(np.linspace(prev, tk, n + 1)[1:])
-            count += n
-            out_idx.append(count)
-            prev = tk
-        e = np.concatenate(edges)
-        a, b = e[:-1], e[1:]
-        mid, half = 0.5 * (a + b), 0.5 * (b - a)
-        tn = mid[:, None] + half[:, None] * x[None, :]
+        tn, half, wq, out_idx = self._panels(t, empty=True)
         th_n, _, pd, _ = self._rates(tn)
         phi = _fsum_prefix((pd * wq).sum(axis=1) * half, out_idx)
         slow = _fsum_prefix((pd * np.cos(th_n) * wq).sum(axis=1) * half, out_idx)

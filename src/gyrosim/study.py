@@ -169,17 +169,15 @@ class TopReference:
         psi_dot = self.p_psi / self.I3 - phi_dot * u
         return th, th_dot, phi_dot, psi_dot
 
-    def angles(self, t):
-        """Exact (phi, theta, psi, phi_dot, theta_dot, psi_dot) at sorted times t (n,) >= 0."""
-        t = np.asarray(t, dtype=float)
+    def _panels(self, t, *, empty: bool = False):
+        """Gauss-Legendre nodes over panels of at most a PANELS_PER_PERIOD-th of the nutation period from 0 to each
+        time in ``t`` (sorted): (nodes (panels, NODES), half widths (panels,), weights (NODES,), the panel count
+        up to each time). ``empty``: no panel between equal times (else one of zero width)."""
         x, wq = np.polynomial.legendre.leggauss(self.NODES)
         panel = self.nut.period / self.PANELS_PER_PERIOD
-        edges = [np.array([0.0])]
-        out_idx = []
-        prev = 0.0
-        count = 0
+        edges, out_idx, prev, count = [np.array([0.0])], [], 0.0, 0
         for tk in t:
-            n = max(1, math.ceil((tk - prev) / panel))
+            n = 0 if empty and not tk > prev else max(1, math.ceil((tk - prev) / panel))
             edges.append(np.linspace(prev, tk, n + 1)[1:])
             count += n
             out_idx.append(count)
@@ -187,7 +185,12 @@ class TopReference:
         e = np.concatenate(edges)
         a, b = e[:-1], e[1:]
         mid, half = 0.5 * (a + b), 0.5 * (b - a)
-        tn = mid[:, None] + half[:, None] * x[None, :]
+        return mid[:, None] + half[:, None] * x[None, :], half, wq, out_idx
+
+    def angles(self, t):
+        """Exact (phi, theta, psi, phi_dot, theta_dot, psi_dot) at sorted times t (n,) >= 0."""
+        t = np.asarray(t, dtype=float)
+        tn, half, wq, out_idx = self._panels(t)
         _, _, pd, sd = self._rates(tn)
         phi = np.concatenate([[0.0], np.cumsum((pd * wq).sum(axis=1) * half)])[out_idx]
         psi = np.concatenate([[0.0], np.cumsum((sd * wq).sum(axis=1) * half)])[out_idx]
