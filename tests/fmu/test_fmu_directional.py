@@ -31,6 +31,7 @@ from fmpy.fmi2 import FMU2Model
 from fmpy.fmi3 import FMU3Model
 from fmpy.validation import validate_fmu
 
+from gyrosim.analysis.linear import one_body_tree
 from gyrosim.core import _engine
 from gyrosim.fmu import build_fmu
 from gyrosim.scene import EMBEDDED_SCENES, load_scene
@@ -169,25 +170,10 @@ def _inputs_on(f, inputs):
 
 # ---------------------------------------------------------------------------------------------- the engine in Python
 def _one_body_tree(g, max_drift, I1, I2, I3, mass, d, damping, tau, q, omega):
-    """The one-body FMU's mapping of a body to a one-body tree (gyrosim_model.c), built from the engine's constants."""
-    desc = np.array([1, 0, -1, _engine.J_BALL], dtype=np.int32)
-    _, ny, np_, _ = _engine.tree_info(desc)
-    p = np.zeros(np_)
-    p[_engine.TP_G] = g
-    p[_engine.TP_DRIFT] = max_drift
-    b = _engine.TP_HEAD
-    p[b + _engine.TB_AXIS + 2] = 1.0
-    p[b + _engine.TB_MASS] = mass
-    p[b + _engine.TB_CM + 2] = d
-    p[b + _engine.TB_I] = I1 - mass * d * d
-    p[b + _engine.TB_I + 1] = I2 - mass * d * d
-    p[b + _engine.TB_I + 2] = I3
-    p[b + _engine.TB_DAMP] = damping
-    p[b + _engine.TB_TAU:b + _engine.TB_TAU + 3] = tau
-    y = np.zeros(ny)
-    y[0:4] = q
-    y[4:7] = omega
-    return desc, y, p
+    """The one-body FMU's mapping of a body to a one-body tree (gyrosim_model.c), as Model.jacobian builds it
+    (gyrosim.analysis.linear.one_body_tree): the C and the Python mapping must give the same bits."""
+    desc, y, p = one_body_tree(I1, I2, I3, mass, d, g, damping, tau, max_drift, q, omega)
+    return desc, y[0], p
 
 
 def _directional(desc, y, p, vy, vp):
