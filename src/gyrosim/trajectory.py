@@ -70,6 +70,17 @@ def _apply_start_values(model: Model, start_values: dict) -> None:
         model.set(key, value, body=body)
 
 
+def apply_overrides(model, start_values=None, integrator=None, max_step=None) -> None:
+    """A run's overrides on a fresh model, as simulate takes them: start values (and parameters) by name, then the
+    integrator and max_step."""
+    if start_values:
+        _apply_start_values(model, dict(start_values))
+    if integrator is not None:
+        model.set("integrator", integrator)
+    if max_step is not None:
+        model.set("max_step", max_step)
+
+
 def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
              integrator=None, max_step=None, relative_tolerance=None, output=None, input=None) -> np.ndarray:
     """Simulate a scene and return its outputs on a regular grid, as ``fmpy.simulate_fmu`` does.
@@ -166,12 +177,7 @@ class Run:
             raise ConfigError("stop_time", stop_time, f"a finite number > start_time = {t0!r} s")
         self.scene = sc
         self.model = model = Model(sc, start_time=t0, stop_time=stop, tolerance=relative_tolerance)
-        if start_values:
-            _apply_start_values(model, dict(start_values))
-        if integrator is not None:
-            model.set("integrator", integrator)
-        if max_step is not None:
-            model.set("max_step", max_step)
+        apply_overrides(model, start_values, integrator, max_step)
         self.t0, self.dt, self.stop_time = t0, dt, stop
         self.n = output_intervals(stop - t0, dt, stop)
         (self.names, self._columns, self.dtype, self.angles,

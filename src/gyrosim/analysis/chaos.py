@@ -98,19 +98,14 @@ def _copies(model: Model, r: int) -> Model:
 
 def _prepare(model_or_scene, start_values, integrator, max_step, tolerance) -> Model:
     """The model to study: a Model is copied (it is not advanced), a scene is loaded; then the overrides."""
-    from ..trajectory import _apply_start_values
+    from ..trajectory import apply_overrides
 
     if isinstance(model_or_scene, Model):
         model = _copies(model_or_scene, 1)
     else:
         model = Model(model_or_scene, tolerance=tolerance)
         tolerance = None
-    if start_values:
-        _apply_start_values(model, dict(start_values))
-    if integrator is not None:
-        model.set("integrator", integrator)
-    if max_step is not None:
-        model.set("max_step", max_step)
+    apply_overrides(model, start_values, integrator, max_step)
     if tolerance is not None:
         model.set_tolerance(tolerance)
     return model
