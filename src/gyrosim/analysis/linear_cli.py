@@ -43,6 +43,7 @@ def _model(args):
     from ..cli import _start_values
     from ..errors import ConfigError
     from ..model import Model
+    from ..trajectory import apply_overrides
 
     values = _start_values(args)
     extra = {}
@@ -51,13 +52,7 @@ def _model(args):
             if k in values:
                 extra[k] = values.pop(k)
     m = Model(args.scene)
-    for k, v in values.items():
-        try:
-            x = float(v)
-        except ValueError:
-            m.set(k, v)  # the integrator's name; the model names what is allowed
-            continue
-        m.set(k, x)
+    apply_overrides(m, values)  # as simulate takes them: text to numbers by the variable's type
     for k, v in extra.items():
         try:
             extra[k] = float(v)
