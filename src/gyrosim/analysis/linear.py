@@ -358,7 +358,11 @@ def jacobian(model, *, system: int = 0) -> Jacobian:
     >>> round(float(J.A[1, 0]), 6)   # -(g/L + k/(m L^2)) = -(9.81 + 0.5)
     -10.31
     """
-    parts = [(_block_jacobian(bk), bk) for bk in _blocks(model, system)]
+    return _jacobian_of(_blocks(model, system))
+
+
+def _jacobian_of(blocks: list) -> Jacobian:
+    parts = [(_block_jacobian(bk), bk) for bk in blocks]
     from scipy.linalg import block_diag
 
     A, B, C, D = (block_diag(*[p[0][k] for p in parts]) for k in range(4))
@@ -607,8 +611,8 @@ def linearize(model, *, about=None, system: int = 0) -> Linearization:
         raise ConfigError("about", about, "state, equilibrium, steady, steady_precession, a dict of start values "
                           "or None")
     _state_from(model, about)
-    J = jacobian(model, system=system)
     blocks = _blocks(model, system)
+    J = _jacobian_of(blocks)
     Ts, Ps, names, rates, A_rel = [], [], [], {}, []
     kind = "equilibrium"
     at = 0
