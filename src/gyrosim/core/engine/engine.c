@@ -761,8 +761,8 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
 
 /* The Lagrange top (gs_lagrange_top): the flow from the anchor at the end of the step, one evaluation; the
  * reference angles y[7], y[8] are the flow's own unwrapped phi, psi there (no sampling within the step). */
-static int32_t exact_advance_ht(int flags, double *y, const double *p, double t, double H, double *ex,
-                                int64_t *stats) {
+static int32_t exact_advance_ht_pre(int flags, double *y, const double *p, double t, double H, double *ex,
+                                    int64_t *stats, const double *pw, const double *pq, const double *pa) {
     double local[GS_EX_SIZE];
     double *c = ex;
     if (ex[GS_EX_VALID] != 1.0 || ex[0] != 2.0) {   /* set up into a copy, as exact_advance_pre */
@@ -776,7 +776,13 @@ static int32_t exact_advance_ht(int flags, double *y, const double *p, double t,
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
     const double tau = (t - c[GS_EX_T0]) + H * 1.0 / 1.0;   /* the time exact_advance_pre samples */
-    gs_ht_eval(c, tau, y + 4, y, y + 7);
+    if (pw && c == ex) {   /* the same flow at the same time, evaluated beforehand (gs_ht_eval_lanes) */
+        memcpy(y + 4, pw, 3 * sizeof(double));
+        memcpy(y, pq, 4 * sizeof(double));
+        memcpy(y + 7, pa, 2 * sizeof(double));
+    } else {
+        gs_ht_eval(c, tau, y + 4, y, y + 7);
+    }
     y[9] = 0.0;
     if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(flags, y, p)) {
         memcpy(y, save, sizeof(save));
@@ -786,6 +792,11 @@ static int32_t exact_advance_ht(int flags, double *y, const double *p, double t,
     monitor_commit(flags, y, p);
     stats[0] += 1;
     return 0;
+}
+
+static int32_t exact_advance_ht(int flags, double *y, const double *p, double t, double H, double *ex,
+                                int64_t *stats) {
+    return exact_advance_ht_pre(flags, y, p, t, H, ex, stats, NULL, NULL, NULL);
 }
 
 /* ------------------------------------------------------------------------------------------- the loop */
@@ -1499,24 +1510,36 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
             continue;
         }
         double *eb = ex ? ex + b * GS_EX_SIZE : NULL;
-        double lw[GS_TF_LANES][3], lq[GS_TF_LANES][4];
-        int64_t lanes_from = 0, lanes_n = 0;   /* output steps k in [from, from + n) have lw, lq */
+        double lw[GS_TF_LANES][3], lq[GS_TF_LANES][4], la[GS_TF_LANES][2];
+        int64_t lanes_from = 0, lanes_n = 0;   /* output steps k in [from, from + n) have lw, lq (and la) */
+        double lanes_t0 = 0.0;                 /* their anchor's time, and whether they are the heavy top's */
+        int lanes_ht = 0;
         for (int64_t k = 0; k < n_out; k++) {
             const double tk = t0 + (double)(k0 + k) * dt;
             int st;
-            if (method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0 && gs_torque_free(flags, pb)) {
-                /* the grid's flow GS_TF_LANES points at a time: the times exact_advance would sample */
-                if (k >= lanes_from + lanes_n) {
+            const int tf = method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0 && gs_torque_free(flags, pb);
+            const int ht = !tf && method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0 && eb[0] == 2.0 &&
+                           gs_lagrange_top(flags, pb);
+            if (tf || ht) {
+                /* the grid's flow GS_TF_LANES points at a time: the times exact_advance(_ht) would evaluate; a
+                 * block is kept while the anchor is (a new anchor: evaluated again) */
+                if (k >= lanes_from + lanes_n || (lanes_n && (lanes_t0 != eb[GS_EX_T0] || lanes_ht != ht))) {
                     double tl[GS_TF_LANES];
                     for (int l = 0; l < GS_TF_LANES; l++) {
                         const int64_t kl = k + l < n_out ? k + l : n_out - 1;
                         tl[l] = (t0 + (double)(k0 + kl) * dt - eb[GS_EX_T0]) + dt;   /* tau0 + H*k/m, k = m = 1 */
                     }
                     lanes_from = k;
-                    lanes_n = gs_tf_eval_lanes(eb, tl, lw, lq) ? GS_TF_LANES : 0;
+                    lanes_t0 = eb[GS_EX_T0];
+                    lanes_ht = ht;
+                    lanes_n = (ht ? gs_ht_eval_lanes(eb, tl, lw, lq, la) : gs_tf_eval_lanes(eb, tl, lw, lq))
+                                  ? GS_TF_LANES : 0;
                 }
                 const int64_t l = k - lanes_from;
-                st = exact_advance_pre(yb, pb, tk, dt, eb, sb, l < lanes_n ? lw[l] : NULL, l < lanes_n ? lq[l] : NULL);
+                const int have = l < lanes_n;
+                st = ht ? exact_advance_ht_pre(flags, yb, pb, tk, dt, eb, sb, have ? lw[l] : NULL,
+                                               have ? lq[l] : NULL, have ? la[l] : NULL)
+                        : exact_advance_pre(yb, pb, tk, dt, eb, sb, have ? lw[l] : NULL, have ? lq[l] : NULL);
             } else {
                 st = advance_body(method, flags, yb, pb, tk, dt, n_sub, rtol, atol, max_step, hint + b, sb, eb);
             }

@@ -1419,8 +1419,110 @@ void gs_ht_setup(double A, double C, double mgl, const double w[3], const double
     c[H_PSI] = GS_TWO_PI_HT * floor((psi_a - 0.5 * (S0 - D0) - GS_PI * (fc0 - fs0)) / GS_TWO_PI_HT + 0.5);
 }
 
+/* The Lagrange top's flow at the GS_VW times tp with its fast series (H_NF > 0), written once on vectors as
+ * fast_vec is: every operation an IEEE add, multiply, divide, square root or floor element by element, the
+ * sines and cosines of Sigma / 2 and Delta / 2 by VSINCOS, so one time and GS_VW times give the same bits. */
+static GS_TF_INLINE void ht_vec(const double *c, const double *tp, double w_out[][3], double q_out[][4],
+                                double ang[][2])
+{
+    vd t;
+    memcpy(&t, tp, sizeof(t));
+    const vd w = VSPLAT(c[H_LAM]) * t + c[H_W0];
+    const vd j = VMAP(floor, 0.5 * c[H_RK] * w + 0.5);
+    const vd r = w - j * (2.0 * c[H_K]);
+    vd x = r * c[H_RK];
+    x = VSEL(x < -1.0, VSPLAT(-1.0), VSEL(x > 1.0, VSPLAT(1.0), x));
+    /* the five series (Clenshaw in y = 2 x^2 - 1, as ht_sums) */
+    const vd y2 = 2.0 * (2.0 * x * x - 1.0), yh = 0.5 * y2;
+    const int nf = (int)c[H_NF];
+    vd s1 = VSPLAT(0.0), s2 = s1, c1 = s1, c2 = s1, d1 = s1, d2 = s1, p1 = s1, p2 = s1, q1 = s1, q2 = s1;
+    for (int i = nf - 1; i >= 1; i--) {
+        const vd s0 = y2 * s1 - s2 + c[H_FS + i];
+        const vd c0 = y2 * c1 - c2 + c[H_FC + i];
+        const vd d0 = y2 * d1 - d2 + c[H_FD + i];
+        const vd p0 = y2 * p1 - p2 + c[H_FPD + i];
+        const vd q0 = y2 * q1 - q2 + c[H_FPS + i];
+        s2 = s1;
+        s1 = s0;
+        c2 = c1;
+        c1 = c0;
+        d2 = d1;
+        d1 = d0;
+        p2 = p1;
+        p1 = p0;
+        q2 = q1;
+        q1 = q0;
+    }
+    const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
+    const vd sn = sg * (x * (c[H_FS] + s1 * (y2 - 1.0) - s2));
+    const vd pd = x * (c[H_FPD] + p1 * (y2 - 1.0) - p2);
+    const vd ps = x * (c[H_FPS] + q1 * (y2 - 1.0) - q2);
+    const vd cn = sg * (c[H_FC] + c1 * yh - c2);
+    const vd dn = c[H_FD] + d1 * yh - d2;
+    const double d = c[H_D];
+    const int ups = c[H_UPS] != 0.0, los = c[H_LOS] != 0.0;
+    const vd s = ups ? c[H_HD] * cn : VMAP(sqrt, 0.5 * (c[H_V2] + d * cn * cn));   /* sin(theta / 2) */
+    const vd cc = los ? c[H_HD] * sn : VMAP(sqrt, 0.5 * (c[H_S1] + d * sn * sn));  /* cos(theta / 2) */
+    const vd S = c[H_RS] * t + j * c[H_JS] + ps + c[H_OS];
+    const vd D = c[H_RD] * t + j * c[H_JD] + pd + c[H_OD];
+    vd cs, ss, cd, sd;
+    VSINCOS(0.5 * S, cs, ss);
+    VSINCOS(0.5 * D, cd, sd);
+    /* omega: theta' = -d lam dn (cn / s)(sn / c), P = phi' sin(theta) */
+    const vd au = ups ? VSPLAT(1.0 / c[H_HD]) : cn / s;
+    const vd al = los ? VSPLAT(1.0 / c[H_HD]) : sn / cc;
+    const vd th = -d * c[H_LAM] * dn * au * al;
+    const vd P = 0.5 * ((ups ? VSPLAT(0.0) : cc * c[H_DEL] / s) + (los ? VSPLAT(0.0) : s * c[H_SIG] / cc));
+    const vd cp = cs * cd + ss * sd, sp = ss * cd - cs * sd;   /* cos, sin of psi = (Sigma - Delta)/2 */
+    const vd wx = -P * cp + th * sp, wy = P * sp + th * cp;
+    const vd fs = VSEL(s < 0.0, VSPLAT(1.0), VSPLAT(0.0)), fc = VSEL(cc < 0.0, VSPLAT(1.0), VSPLAT(0.0));
+    const vd a0 = c[H_PHI] + 0.5 * (S + D) + GS_PI * (fs + fc);
+    const vd a1 = c[H_PSI] + 0.5 * (S - D) + GS_PI * (fc - fs);
+    for (int i = 0; i < GS_VW; i++) {
+        q_out[i][0] = LANE(cc, i) * LANE(cs, i);
+        q_out[i][1] = -LANE(s, i) * LANE(sd, i);
+        q_out[i][2] = LANE(s, i) * LANE(cd, i);
+        q_out[i][3] = LANE(cc, i) * LANE(ss, i);
+        w_out[i][0] = LANE(wx, i);
+        w_out[i][1] = LANE(wy, i);
+        w_out[i][2] = c[H_W3];
+        ang[i][0] = LANE(a0, i);
+        ang[i][1] = LANE(a1, i);
+    }
+}
+
+/* ht_vec over GS_TF_LANES times (the exact integrator's output grid), compiled for AVX2 too where it helps */
+GS_TF_CLONES static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                                       double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+{
+    for (int l = 0; l < GS_TF_LANES; l += GS_VW) ht_vec(c, t + l, w_out + l, q_out + l, ang + l);
+}
+
+int gs_ht_eval_lanes(const double c[GS_HT_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                     double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+{
+    if (c[H_MODE] != 2.0 || !(c[H_NF] > 0.0)) return 0;
+    ht_eval_lanes(c, t, w_out, q_out, ang);
+    return 1;
+}
+
+/* lane 0 of ht_vec: the bits of the output grid's lanes (for AVX2 too: twice as fast as on SSE2's pairs) */
+GS_TF_CLONES static void ht_eval_one(const double *c, double t, double w_out[3], double q_out[4], double ang[2])
+{
+    double w[GS_VW][3], q[GS_VW][4], a[GS_VW][2], tv[GS_VW];
+    for (int i = 0; i < GS_VW; i++) tv[i] = t;
+    ht_vec(c, tv, w, q, a);
+    memcpy(w_out, w[0], sizeof(w[0]));
+    memcpy(q_out, q[0], sizeof(q[0]));
+    if (ang) memcpy(ang, a[0], sizeof(a[0]));
+}
+
 void gs_ht_eval(const double c[GS_HT_SIZE], double t, double w_out[3], double q_out[4], double ang[2])
 {
+    if (c[H_NF] > 0.0) {
+        ht_eval_one(c, t, w_out, q_out, ang);
+        return;
+    }
     double j, w_r, sn, cn, dn, pd, ps;
     ht_reduced(c, t, &j, &w_r, &sn, &cn, &dn, &pd, &ps);
     const double sg = (j - 2.0 * floor(0.5 * j)) != 0.0 ? -1.0 : 1.0;

@@ -266,6 +266,11 @@ void gs_ht_setup(double A, double C, double mgl, const double w[3], const double
  * cos(theta/2) e^(i (phi + psi)/2), sin(theta/2) e^(i (phi - psi)/2)). */
 void gs_ht_eval(const double c[GS_HT_SIZE], double t, double w_out[3], double q_out[4], double ang[2]);
 
+/* gs_ht_eval at GS_TF_LANES times at once, to the same bits, where the top has its fast series (returns 1); 0 and
+ * nothing written otherwise. */
+int gs_ht_eval_lanes(const double c[GS_HT_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                     double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2]);
+
 /* 1 when c holds constants gs_ht_setup could have written (a check for foreign states). */
 int gs_ht_valid(const double *c);
 
