@@ -522,33 +522,39 @@ typedef long long vm;
 #define GS_PIO2_1 1.57079632673412561417e+00  /* first 33 bits of pi/2 */
 #define GS_PIO2_2 6.07710050630396597660e-11  /* next 33 bits */
 #define GS_PIO2_3 2.02226624871116645580e-21  /* the next */
-#define VSINCOS(x, cos_out, sin_out)                                                                              \
+#define VSINCOS_T(x, cos_out, sin_out, VT, MT, SEL, MAP, NL, LN)                                                                         \
     do {                                                                                                          \
-        const vd x_ = (x);                                                                                        \
-        const vd n_ = VMAP(floor, x_ * GS_INVPIO2 + 0.5);                                                         \
-        const vd r_ = ((x_ - n_ * GS_PIO2_1) - n_ * GS_PIO2_2) - n_ * GS_PIO2_3;                                 \
-        const vd z_ = r_ * r_;                                                                                    \
-        const vd sr_ = r_ + (z_ * r_) * (-1.66666666666666324348e-01 +                                            \
+        const VT x_ = (x);                                                                                        \
+        const VT n_ = MAP(floor, x_ * GS_INVPIO2 + 0.5);                                                         \
+        const VT r_ = ((x_ - n_ * GS_PIO2_1) - n_ * GS_PIO2_2) - n_ * GS_PIO2_3;                                 \
+        const VT z_ = r_ * r_;                                                                                    \
+        const VT sr_ = r_ + (z_ * r_) * (-1.66666666666666324348e-01 +                                            \
                        z_ * (8.33333333332248946124e-03 + z_ * (-1.98412698298579493134e-04 +                    \
                        z_ * (2.75573137070700676789e-06 + z_ * (-2.50507602534068634195e-08 +                     \
                        z_ * 1.58969099521155010221e-10)))));                                                      \
-        const vd cz_ = z_ * (z_ * (4.16666666666666019037e-02 + z_ * (-1.38888888888741095749e-03 +              \
+        const VT cz_ = z_ * (z_ * (4.16666666666666019037e-02 + z_ * (-1.38888888888741095749e-03 +              \
                        z_ * (2.48015872894767294178e-05 + z_ * (-2.75573143513906633035e-07 +                     \
                        z_ * (2.08757232129817482790e-09 + z_ * -1.13596475577881948265e-11))))));                 \
-        const vd hz_ = 0.5 * z_, w_ = 1.0 - hz_;                                                                  \
-        const vd cr_ = w_ + (((1.0 - w_) - hz_) + cz_);                                                           \
-        const vd q_ = n_ - 4.0 * VMAP(floor, 0.25 * n_);   /* the quadrant, 0 .. 3 */                             \
-        const vm odd_ = (q_ == 1.0) | (q_ == 3.0), negs_ = q_ >= 2.0, negc_ = (q_ == 1.0) | (q_ == 2.0);          \
-        const vd s0_ = VSEL(odd_, cr_, sr_), c0_ = VSEL(odd_, sr_, cr_);                                          \
-        sin_out = VSEL(negs_, -s0_, s0_);                                                                         \
-        cos_out = VSEL(negc_, -c0_, c0_);                                                                         \
-        for (int i_ = 0; i_ < GS_VW; i_++) {                                                                      \
-            if (!(fabs(LANE(x_, i_)) <= 823549.6)) {   /* 2^19 pi/2, and NaN */                                          \
-                LANE(cos_out, i_) = cos(LANE(x_, i_));                                                                        \
-                LANE(sin_out, i_) = sin(LANE(x_, i_));                                                                        \
+        const VT hz_ = 0.5 * z_, w_ = 1.0 - hz_;                                                                  \
+        const VT cr_ = w_ + (((1.0 - w_) - hz_) + cz_);                                                           \
+        const VT q_ = n_ - 4.0 * MAP(floor, 0.25 * n_);   /* the quadrant, 0 .. 3 */                             \
+        const MT odd_ = (q_ == 1.0) | (q_ == 3.0), negs_ = q_ >= 2.0, negc_ = (q_ == 1.0) | (q_ == 2.0);          \
+        const VT s0_ = SEL(odd_, cr_, sr_), c0_ = SEL(odd_, sr_, cr_);                                          \
+        sin_out = SEL(negs_, -s0_, s0_);                                                                         \
+        cos_out = SEL(negc_, -c0_, c0_);                                                                         \
+        for (int i_ = 0; i_ < NL; i_++) {                                                                      \
+            if (!(fabs(LN(x_, i_)) <= 823549.6)) {   /* 2^19 pi/2, and NaN */                                          \
+                LN(cos_out, i_) = cos(LN(x_, i_));                                                                        \
+                LN(sin_out, i_) = sin(LN(x_, i_));                                                                        \
             }                                                                                                     \
         }                                                                                                         \
     } while (0)
+/* on GS_VW lanes, and on one double (the same operations: the same bits as a lane) */
+#define VSINCOS(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, vd, vm, VSEL, VMAP, GS_VW, LANE)
+#define S1_SEL(m, a, b) ((m) ? (a) : (b))
+#define S1_MAP(f, a) f(a)
+#define S1_LANE(v, i) (v)
+#define SINCOS1(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, double, long long, S1_SEL, S1_MAP, 1, S1_LANE)
 
 /* The four series at x = u_r / K in [-1, 1] (GS_VW of them), one Clenshaw recurrence each in y = 2 x^2 - 1
  * (W_{i+1} = 2y W_i - W_{i-1} for the odd ones): odd series sum a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1,
@@ -1506,23 +1512,10 @@ int gs_ht_eval_lanes(const double c[GS_HT_SIZE], const double t[GS_TF_LANES], do
     return 1;
 }
 
-/* lane 0 of ht_vec: the bits of the output grid's lanes (for AVX2 too: twice as fast as on SSE2's pairs) */
-GS_TF_CLONES static void ht_eval_one(const double *c, double t, double w_out[3], double q_out[4], double ang[2])
-{
-    double w[GS_VW][3], q[GS_VW][4], a[GS_VW][2], tv[GS_VW];
-    for (int i = 0; i < GS_VW; i++) tv[i] = t;
-    ht_vec(c, tv, w, q, a);
-    memcpy(w_out, w[0], sizeof(w[0]));
-    memcpy(q_out, q[0], sizeof(q[0]));
-    if (ang) memcpy(ang, a[0], sizeof(a[0]));
-}
-
+/* One time: the operations of a lane of ht_vec on doubles (the same bits as the output grid's lanes), or with
+ * Carlson's RJ where the series do not converge. */
 void gs_ht_eval(const double c[GS_HT_SIZE], double t, double w_out[3], double q_out[4], double ang[2])
 {
-    if (c[H_NF] > 0.0) {
-        ht_eval_one(c, t, w_out, q_out, ang);
-        return;
-    }
     double j, w_r, sn, cn, dn, pd, ps;
     ht_reduced(c, t, &j, &w_r, &sn, &cn, &dn, &pd, &ps);
     const double sg = (j - 2.0 * floor(0.5 * j)) != 0.0 ? -1.0 : 1.0;
@@ -1535,7 +1528,9 @@ void gs_ht_eval(const double c[GS_HT_SIZE], double t, double w_out[3], double q_
     const double cc = los ? c[H_HD] * sn : sqrt(0.5 * opu);
     const double S = c[H_RS] * t + j * c[H_JS] + ps + c[H_OS];
     const double D = c[H_RD] * t + j * c[H_JD] + pd + c[H_OD];
-    const double cs = cos(0.5 * S), ss = sin(0.5 * S), cd = cos(0.5 * D), sd = sin(0.5 * D);
+    double cs, ss, cd, sd;
+    SINCOS1(0.5 * S, cs, ss);
+    SINCOS1(0.5 * D, cd, sd);
     q_out[0] = cc * cs;
     q_out[1] = -s * sd;
     q_out[2] = s * cd;
