@@ -8,7 +8,7 @@ import pytest
 
 from gyrosim import TorqueFreeSolution
 from gyrosim.core import _engine
-from gyrosim.model import Model
+from gyrosim.model import OUTPUT_NAMES, Model
 from gyrosim.scene import scene_from_dict
 
 N = 37  # four blocks of 8 bodies and a remainder of 5
@@ -196,3 +196,33 @@ def test_exact_flow_meets_the_closed_form_at_long_times(moments, omega, kind):
     np.testing.assert_allclose(w, w_ref, rtol=0, atol=1e-11 * scale)
     sign = np.sign(np.sum(q * q_ref, axis=1))[:, None]   # q and -q are the same attitude
     np.testing.assert_allclose(q, sign * q_ref, rtol=0, atol=1e-11)
+
+
+@pytest.mark.parametrize("spin,dt", [(30.0, 1.0), (7.0, 1.3), (200.0, 0.25)])
+def test_exact_steps_that_sample_many_times_per_step(spin, dt):
+    """A fast spin with a long output step: exact samples the flow ceil(|omega| dt) times within each step (to unwrap
+    phi and psi), GS_TF_LANES samples at a time. The trajectory is the bits of stepping; q and omega meet the closed
+    form; the unwrapped angles equal those of the same run sampled at every point (m = 1 per step)."""
+    omega = (spin, 0.1 * spin, 0.1 * spin)
+    params = {"integrator": "exact", "I1": 1.0, "I2": 2.0, "I3": 3.0,
+              "omega_x": omega[0], "omega_y": omega[1], "omega_z": omega[2]}
+    n = 21
+    a = Model("free_body", parameters=params, stop_time=1e4)
+    b = Model("free_body", parameters=params, stop_time=1e4)
+    rows = a.trajectory(dt, n)
+    for k in range(n):
+        b.step(dt)
+        np.testing.assert_array_equal(rows[k + 1], b.outputs_array(), err_msg=f"row {k + 1}")
+    col = {nm: i for i, nm in enumerate(OUTPUT_NAMES)}
+    t = dt * np.arange(n + 1)
+    w_ref, q_ref = TorqueFreeSolution(1.0, 2.0, 3.0, omega, [1.0, 0.0, 0.0, 0.0]).state(t)
+    q = rows[:, 0, [col["q_w"], col["q_x"], col["q_y"], col["q_z"]]]
+    sign = np.sign(np.sum(q * q_ref, axis=1))[:, None]
+    np.testing.assert_allclose(q, sign * q_ref, rtol=0, atol=1e-12 * spin * t[-1] + 1e-13)
+    # the same run with a step short enough for one sample per step (|omega| h <= 1): the same unwrapped angles
+    wmag = float(np.linalg.norm(omega))
+    sub = int(np.ceil(wmag * dt))
+    c = Model("free_body", parameters=params, stop_time=1e4)
+    fine = c.trajectory(dt / sub, n * sub)[::sub]
+    for name in ("phi", "psi"):
+        np.testing.assert_allclose(rows[:, 0, col[name]], fine[:, 0, col[name]], rtol=0, atol=1e-9 * spin * t[-1])

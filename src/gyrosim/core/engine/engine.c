@@ -735,6 +735,10 @@ static int32_t exact_advance_pre(double *y, const double *p, double t, double H,
     memcpy(save, y, sizeof(save));
     const double tau0 = t - c[GS_EX_T0];
     const double turn = wmag * H / (double)m;   /* rotation per sample, at most 1 rad */
+    /* several samples: GS_TF_LANES at a time where the flow has its fast series (the bits of gs_tf_eval) */
+    double bw[GS_TF_LANES][3], bq[GS_TF_LANES][4];
+    int64_t b_from = 1, b_n = 0;   /* samples k in [b_from, b_from + b_n) are in bw, bq */
+    int lanes = m > 1;
     for (int64_t k = 1; k <= m; k++) {
         /* move the reference angles before the rotation from them could pass 1 rad (|omega| is conserved) */
         if (y[9] + turn > 1.0) gs_unwrap(y);
@@ -742,7 +746,22 @@ static int32_t exact_advance_pre(double *y, const double *p, double t, double H,
             memcpy(y + 4, pw, 3 * sizeof(double));
             memcpy(y, pq, 4 * sizeof(double));
         } else {
-            gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
+            if (lanes && k >= b_from + b_n) {
+                double tl[GS_TF_LANES];
+                for (int l = 0; l < GS_TF_LANES; l++) {
+                    const int64_t kl = k + l < m ? k + l : m;
+                    tl[l] = tau0 + H * (double)kl / (double)m;
+                }
+                b_from = k;
+                b_n = gs_tf_eval_lanes(c, tl, bw, bq) ? GS_TF_LANES : 0;
+                lanes = b_n > 0;
+            }
+            if (lanes) {
+                memcpy(y + 4, bw[k - b_from], 3 * sizeof(double));
+                memcpy(y, bq[k - b_from], 4 * sizeof(double));
+            } else {
+                gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
+            }
         }
         y[9] += turn;
     }
