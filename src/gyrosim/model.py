@@ -160,10 +160,13 @@ def _moments_plainly_valid(moments: np.ndarray) -> bool:
 
 
 def _layout(scene: Scene) -> tuple:
-    """variables_for(scene) for body 0, their slots, the scene's start arrays (copied by each model), the body
-    names and their index, and the engine parameters of the start values (None when they do not pass
-    :meth:`Model.initialize`'s checks, which then names what is wrong), computed once per scene object (scenes are
-    frozen)."""
+    """variables_for(scene) for body 0, their slots, the scene's start arrays, the body names and their index, and
+    the engine parameters of the start values (None when they do not pass :meth:`Model.initialize`'s checks, which
+    then names what is wrong), computed once per scene object (scenes are frozen).
+
+    The start arrays come in two kinds: the parameter arrays (``_moments``, ``_mass``, ``_cm``, ``_g``,
+    ``_damping``, ``_tau``: read-only, shared by every model of the scene until it sets one, :meth:`Model._own`)
+    and the state arrays (``_y``, ``_hint``, ``_stats``, ``_ex``, ``_status``: copied by each model)."""
     hit = _LAYOUT.get(id(scene))
     if hit is None or hit[0] is not scene:
         if len(_LAYOUT) > 64:
@@ -174,21 +177,23 @@ def _layout(scene: Scene) -> tuple:
         y = np.zeros((n, _engine.NY))
         y[:, 0:4] = [b.q0 for b in bs]
         y[:, 4:7] = [b.omega0 for b in bs]
-        arrays = {"_moments": np.array([b.moments for b in bs], dtype=float).reshape(n, 3),
+        params = {"_moments": np.array([b.moments for b in bs], dtype=float).reshape(n, 3),
                   "_mass": np.array([b.mass for b in bs], dtype=float),
                   "_cm": np.array([b.cm_distance for b in bs], dtype=float),
                   "_g": np.full(n, scene.g if scene.gravity else 0.0),
                   "_damping": np.array([b.damping for b in bs], dtype=float),
-                  "_tau": np.zeros((n, 3)), "_y": y, "_hint": np.zeros(n),
-                  "_stats": np.zeros((n, 3), dtype=np.int64),
-                  "_ex": np.zeros((n, _engine.EX_SIZE)),  # the exact integrator's anchor (EX_VALID = 0: none)
-                  "_outbuf": np.empty((n, len(OUTPUT_NAMES))), "_status": np.zeros(n, dtype=np.int32)}
+                  "_tau": np.zeros((n, 3))}
+        for a in params.values():
+            a.flags.writeable = False
+        states = (y, np.zeros(n), np.zeros((n, 3), dtype=np.int64),
+                  np.zeros((n, _engine.EX_SIZE)),  # the exact integrator's anchor (EX_VALID = 0: none)
+                  np.zeros(n, dtype=np.int32))
         names = scene.body_names
-        ok = _moments_plainly_valid(arrays["_moments"]) and not (
-            scene.gravity and np.any((arrays["_cm"] > 0) & ~(arrays["_mass"] > 0)))
-        p = _params_of(arrays["_moments"], arrays["_mass"], arrays["_g"], arrays["_cm"], arrays["_damping"],
-                       arrays["_tau"], scene.max_drift) if ok else None
-        hit = (scene, variables, _slots(variables), arrays, names, {b: i for i, b in enumerate(names)}, p)
+        ok = _moments_plainly_valid(params["_moments"]) and not (
+            scene.gravity and np.any((params["_cm"] > 0) & ~(params["_mass"] > 0)))
+        p = _params_of(params["_moments"], params["_mass"], params["_g"], params["_cm"], params["_damping"],
+                       params["_tau"], scene.max_drift) if ok else None
+        hit = (scene, variables, _slots(variables), params, states, names, {b: i for i, b in enumerate(names)}, p)
         _LAYOUT[id(scene)] = hit
     return hit[1:]
 
@@ -248,12 +253,23 @@ class Model:
     def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
                  stop_time: float | None = None, tolerance: float | None = None):
         self.scene = load_scene(scene)
-        self.variables, self._slots, arrays, self.body_names, self._index, self._p_start = _layout(self.scene)
-        n = len(self.body_names)
-        self.n_bodies = n
-        for k, a in arrays.items():  # _moments, _mass, _cm, _g, _damping, _tau, _y, _hint, _stats, _ex, ...
-            setattr(self, k, a.copy())
+        (self.variables, self._slots, params, (y, hint, stats, ex, status), self.body_names, self._index,
+         self._p_start) = _layout(self.scene)
+        self.n_bodies = len(self.body_names)
+        self.__dict__.update(params)  # _moments, _mass, _cm, _g, _damping, _tau: shared until set (_own)
+        self._y, self._hint, self._stats, self._ex, self._status = y.copy(), hint.copy(), stats.copy(), ex.copy(), \
+            status.copy()
+        self._outbuf = None  # the outputs' buffer, allocated at the first use
         self._start(start_time, stop_time, tolerance, parameters)
+
+    def _own(self, attr: str) -> np.ndarray:
+        """The parameter array ``attr`` (``_moments``, ``_mass``, ...) to write into: a new model shares the scene's
+        start values (read-only) until it sets one; then it gets its own copy."""
+        a = getattr(self, attr)
+        if not a.flags.writeable:
+            a = a.copy()
+            setattr(self, attr, a)
+        return a
 
     def _start(self, start_time, stop_time, tolerance, parameters) -> None:
         """The scene's integrator settings, the clock at ``start_time``, nothing initialised yet; then
@@ -335,13 +351,13 @@ class Model:
             raise ConfigError(name, value, f"a finite number in {v.unit or '1'}")
         if name in ("I1", "I2", "I3"):
             self._check_positive(name, x)
-            self._moments[i, int(name[1]) - 1] = x
+            self._own("_moments")[i, int(name[1]) - 1] = x
             self._initialized = False
             self._ex[i, _engine.EX_VALID] = 0.0
         elif name in ("mass", "cm_distance", "g", "damping"):
             if x < 0 or (name == "mass" and x == 0):
                 raise ConfigError(name, value, f"a number {'>' if name == 'mass' else '>='} 0 in {v.unit}")
-            getattr(self, self._BODY_ARRAYS[name])[i] = x
+            self._own(self._BODY_ARRAYS[name])[i] = x
             self._initialized = False
         elif name == "max_step":
             self._check_positive(name, x)
@@ -354,7 +370,7 @@ class Model:
                 self._p[:, 8] = x
         elif name in ("tau_x", "tau_y", "tau_z"):
             k = "xyz".index(name[-1])
-            self._tau[i, k] = x
+            self._own("_tau")[i, k] = x
             if self._initialized:
                 self._p[i, 5 + k] = x
         elif name in _STATE_NAMES:
@@ -402,15 +418,15 @@ class Model:
         if name in _PARAM_NAMES:
             self._p_start = None
         if name in ("I1", "I2", "I3"):
-            self._moments[:, int(name[1]) - 1] = x
+            self._own("_moments")[:, int(name[1]) - 1] = x
             self._initialized = False
             self._ex[:, _engine.EX_VALID] = 0.0
         elif name in self._BODY_ARRAYS:
-            getattr(self, self._BODY_ARRAYS[name])[:] = x
+            self._own(self._BODY_ARRAYS[name])[:] = x
             self._initialized = False
         elif name in ("tau_x", "tau_y", "tau_z"):
             k = "xyz".index(name[-1])
-            self._tau[:, k] = x
+            self._own("_tau")[:, k] = x
             if self._initialized:
                 self._p[:, 5 + k] = x
         elif name in _STATE_NAMES:
@@ -795,6 +811,8 @@ class Model:
         if self._out is None:
             if not self._initialized or self._state_dirty:
                 self.initialize()
+            if self._outbuf is None:
+                self._outbuf = np.empty((self.n_bodies, len(OUTPUT_NAMES)))
             _engine.outputs(self._y, self._p, self._outbuf)
             self._out = self._outbuf
         return self._out
