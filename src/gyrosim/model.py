@@ -143,6 +143,9 @@ def _slots(variables: dict[str, Variable]) -> dict[str, tuple]:
     return slots
 
 
+#: The parameter arrays of a Model (shared with its scene's start values until set: Model._own).
+_PARAM_ARRAYS = ("_moments", "_mass", "_cm", "_g", "_damping", "_tau")
+
 _LAYOUT: dict[int, tuple[Scene, dict[str, Variable], dict[str, tuple]]] = {}
 
 
@@ -193,6 +196,8 @@ def _layout(scene: Scene) -> tuple:
             scene.gravity and np.any((params["_cm"] > 0) & ~(params["_mass"] > 0)))
         p = _params_of(params["_moments"], params["_mass"], params["_g"], params["_cm"], params["_damping"],
                        params["_tau"], scene.max_drift) if ok else None
+        if p is not None:
+            p.flags.writeable = False  # each model copies it (initialize)
         hit = (scene, variables, _slots(variables), params, states, names, {b: i for i, b in enumerate(names)}, p)
         _LAYOUT[id(scene)] = hit
     return hit[1:]
@@ -261,6 +266,27 @@ class Model:
             status.copy()
         self._outbuf = None  # the outputs' buffer, allocated at the first use
         self._start(start_time, stop_time, tolerance, parameters)
+
+    def _replica(self) -> Model:
+        """A model in this one's state, for a model built from a scene with no parameter set and nothing
+        initialised or run yet (:class:`gyrosim.trajectory.Run` keeps one per prepared run): its state arrays
+        copied, the rest shared (the parameter arrays are the scene's, read-only and copied on write)."""
+        d = self.__dict__.copy()
+        d["_y"] = self._y.copy()
+        d["_hint"] = self._hint.copy()
+        d["_stats"] = self._stats.copy()
+        d["_ex"] = self._ex.copy()
+        d["_status"] = self._status.copy()
+        m = object.__new__(Model)
+        m.__dict__ = d
+        return m
+
+    def _replicable(self) -> bool:
+        """True when :meth:`_replica` makes a model indistinguishable from this one: a one-body-engine model with
+        the scene's parameter arrays, not initialised and no outputs computed."""
+        return (type(self) is Model and not self._initialized and self._out is None and self._outbuf is None
+                and self._p_start is not None and not hasattr(self, "_p")
+                and not any(getattr(self, k).flags.writeable for k in _PARAM_ARRAYS))
 
     def _own(self, attr: str) -> np.ndarray:
         """The parameter array ``attr`` (``_moments``, ``_mass``, ...) to write into: a new model shares the scene's

@@ -14,7 +14,7 @@ import numpy as np
 from .core import _engine
 from .errors import ConfigError, IntegrationError
 from .model import OUTPUT_NAMES, Model
-from .scene import did_you_mean, load_scene
+from .scene import EMBEDDED_SCENES, Scene, did_you_mean, load_scene
 
 __all__ = ["simulate", "Run", "field_names", "output_intervals"]
 
@@ -165,6 +165,31 @@ class Run:
 
     def __init__(self, scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
                  integrator=None, max_step=None, relative_tolerance=None, output=None, input=None):
+        key = None
+        if not start_values and input is None and (isinstance(scene, Scene) or (type(scene) is str
+                                                                                 and scene in EMBEDDED_SCENES)):
+            sc = load_scene(scene)  # frozen, and the same object for an embedded name
+            key = (id(sc), start_time, stop_time, output_interval, integrator, max_step, relative_tolerance,
+                   None if output is None else tuple(output))
+            try:
+                hit = _PREPARED.get(key)
+            except TypeError:  # an argument that is not hashable: prepared afresh
+                key = hit = None
+            if hit is not None and hit[0] is sc:
+                self.__dict__.update(hit[1])
+                self.model = hit[2]._replica()
+                return
+        self._prepare(scene, start_values, start_time, stop_time, output_interval, integrator, max_step,
+                      relative_tolerance, output, input)
+        if key is not None and self.model.n_bodies <= 64 and self.model._replicable():  # a few kB kept
+            if len(_PREPARED) > 256:
+                _PREPARED.clear()
+            attrs = dict(self.__dict__)
+            _PREPARED[key] = (self.scene, attrs, attrs.pop("model"))
+            self.model = self.model._replica()  # the kept one is never run
+
+    def _prepare(self, scene, start_values, start_time, stop_time, output_interval, integrator, max_step,
+                 relative_tolerance, output, input):
         sc = load_scene(scene)
         t0 = float(start_time)
         if not math.isfinite(t0):
@@ -283,6 +308,11 @@ class Run:
             yield self.pack(block, done) if done == 0 else self.pack(block[1:], done + 1)
             done += m
 
+
+#: Prepared runs of the one-body engine without start values or inputs, by scene and arguments: (scene, the Run's
+#: attributes but the model, a model to replicate); a hit gives the attributes and a replica of the model (the
+#: arguments equal, the same checks passed and the same model built: a run's set-up is a few copies).
+_PREPARED: dict = {}
 
 _SELECTIONS: dict = {}
 
