@@ -280,7 +280,7 @@ class Run:
         _engine.pack(block, self._columns, self.t0, self.dt, res)
         if k0:
             res[:, 0] = self.t0 + (np.arange(block.shape[0]) + k0) * self.dt
-        return res.view(self.dtype).reshape(-1)
+        return np.frombuffer(res, self.dtype)  # res.view(self.dtype).reshape(-1), without view's checks of fields
 
     def chunks(self, size: int):
         """Yield the result in blocks: the first holds output points ``0..m``, the next ``m+1..``, ... (``size``
