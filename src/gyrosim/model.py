@@ -604,11 +604,15 @@ class Model:
         if status is not None and not (isinstance(status, np.ndarray) and status.dtype == np.int32
                                        and status.shape == (copies,)):
             raise ConfigError("status", type(status).__name__, f"an int32 array of shape ({copies},)")
-        dt = _positive_step(dt, "output interval dt")
-        if not (isinstance(n, (int, np.integer)) and n >= 0):
+        if not (type(dt) is float and 0.0 < dt < math.inf):  # a plain float > 0 passes as it is
+            dt = _positive_step(dt, "output interval dt")
+        if type(n) is not int:
+            if not (isinstance(n, (int, np.integer)) and n >= 0):
+                raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
+            n = int(n)
+        elif n < 0:
             raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
-        n = int(n)
-        t = self.time
+        t = self._t_base + self._n * self._h  # self.time
         t_end = t + n * dt
         if self.stop_time is not None and t_end > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
             raise StepError(f"a run of {n} intervals of {dt!r} s from t = {t!r} s ends at {t_end!r} s, after the "
@@ -798,32 +802,41 @@ class Model:
             A body blew up (without ``status``); the model keeps its state from before the call, and the error
             carries the rows computed before the failing interval (``error.rows``).
         """
+        return self._trajectory(dt, n, angles, momentum, status, True)
+
+    def _trajectory(self, dt, n, angles: bool, momentum: bool, status, restore: bool) -> np.ndarray:
+        """:meth:`trajectory`; ``restore=False`` for a caller that drops the model when the run fails
+        (:func:`gyrosim.simulate`): the state before the call is kept only where the message needs it."""
         keep_going = status is not None
         dt, n, t = self._start_run(dt, n, status, self.n_bodies)
-        method = _METHOD_CODES[self.integrator]
+        integrator = self.integrator
+        method = _METHOD_CODES[integrator]
+        erk = integrator == "adaptive" or integrator == "dop853"
         out = np.empty((n + 1, self.n_bodies, len(OUTPUT_NAMES)))
-        saved = None if keep_going else (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
+        saved = None if keep_going or not (restore or erk) else (self._y.copy(), self._hint.copy(),
+                                                                 self._stats.copy(), self._ex.copy())
         if keep_going:
             status[:] = 0
         else:
-            status = np.zeros(self.n_bodies, dtype=np.int32)
+            status = self._status  # zeros (set back after a failure)
         # continue the clock of a run of equal steps (t_base + n*h) as step() would, for the same bits
         t_base, k0 = (self._t_base, self._n) if dt == self._h else (t, 0)
         failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t_base, dt, n, self.tolerance,
                                     self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
                                     (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0),
                                     k0)
-        erk = self.integrator in ("adaptive", "dop853")
         if failed and not keep_going:
             b = int(np.flatnonzero(status)[0])
             k = int(status[b])
+            status[:] = 0
             where = (f"the output interval from t = {t + (k - 1) * dt!r} s to {t + k * dt!r} s (interval {k} of {n}, "
                      f"step {k0 + k} from t = {t_base!r} s)")
             if erk:  # the state that tripped the monitor is in row k
                 msg = self._blowup(b, saved, t_base, dt, k0, k, where, rows=out[:, b])
             else:  # the engine left the failing body at the start of its failing interval
                 msg = self._blowup(b, (self._y, self._hint, self._stats, self._ex), t_base, dt, k0 + k - 1, 1, where)
-            self._y, self._hint, self._stats, self._ex = saved
+            if saved is not None:
+                self._y, self._hint, self._stats, self._ex = saved
             err = IntegrationError(msg)
             err.rows = out[:k]
             raise err

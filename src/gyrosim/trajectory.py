@@ -133,10 +133,13 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
               output_interval=output_interval, integrator=integrator, max_step=max_step,
               relative_tolerance=relative_tolerance, output=output, input=input)
     try:
-        if run.input is None:
-            out = run.model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
-        else:
+        model = run.model
+        if run.input is not None:
             out = run._advance_with_input(0, run.n)
+        elif type(model) is Model:  # the model is dropped when the run fails: its state before the call not kept
+            out = model._trajectory(run.dt, run.n, run.angles, run.momentum, None, False)
+        else:
+            out = model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
     except IntegrationError as e:
         e.rows = run.pack(e.rows)
         raise
