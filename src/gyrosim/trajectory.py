@@ -169,8 +169,9 @@ class Run:
     def __init__(self, scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
                  integrator=None, max_step=None, relative_tolerance=None, output=None, input=None):
         key = None
-        if not start_values and input is None and (isinstance(scene, Scene) or (type(scene) is str
-                                                                                 and scene in EMBEDDED_SCENES)):
+        if ((start_values is None or (type(start_values) is dict and not start_values)) and input is None
+                and (output is None or type(output) in (list, tuple))
+                and (isinstance(scene, Scene) or (type(scene) is str and scene in EMBEDDED_SCENES))):
             sc = load_scene(scene)  # frozen, and the same object for an embedded name
             key = (id(sc), start_time, stop_time, output_interval, integrator, max_step, relative_tolerance,
                    None if output is None else tuple(output))
