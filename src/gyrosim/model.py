@@ -143,6 +143,9 @@ def _slots(variables: dict[str, Variable]) -> dict[str, tuple]:
     return slots
 
 
+#: The parameter arrays of a Model (shared with its scene's start values until set: Model._own).
+_PARAM_ARRAYS = ("_moments", "_mass", "_cm", "_g", "_damping", "_tau")
+
 _LAYOUT: dict[int, tuple[Scene, dict[str, Variable], dict[str, tuple]]] = {}
 
 
@@ -160,10 +163,13 @@ def _moments_plainly_valid(moments: np.ndarray) -> bool:
 
 
 def _layout(scene: Scene) -> tuple:
-    """variables_for(scene) for body 0, their slots, the scene's start arrays (copied by each model), the body
-    names and their index, and the engine parameters of the start values (None when they do not pass
-    :meth:`Model.initialize`'s checks, which then names what is wrong), computed once per scene object (scenes are
-    frozen)."""
+    """variables_for(scene) for body 0, their slots, the scene's start arrays, the body names and their index, and
+    the engine parameters of the start values (None when they do not pass :meth:`Model.initialize`'s checks, which
+    then names what is wrong), computed once per scene object (scenes are frozen).
+
+    The start arrays come in two kinds: the parameter arrays (``_moments``, ``_mass``, ``_cm``, ``_g``,
+    ``_damping``, ``_tau``: read-only, shared by every model of the scene until it sets one, :meth:`Model._own`)
+    and the state arrays (``_y``, ``_hint``, ``_stats``, ``_ex``, ``_status``: copied by each model)."""
     hit = _LAYOUT.get(id(scene))
     if hit is None or hit[0] is not scene:
         if len(_LAYOUT) > 64:
@@ -174,21 +180,25 @@ def _layout(scene: Scene) -> tuple:
         y = np.zeros((n, _engine.NY))
         y[:, 0:4] = [b.q0 for b in bs]
         y[:, 4:7] = [b.omega0 for b in bs]
-        arrays = {"_moments": np.array([b.moments for b in bs], dtype=float).reshape(n, 3),
+        params = {"_moments": np.array([b.moments for b in bs], dtype=float).reshape(n, 3),
                   "_mass": np.array([b.mass for b in bs], dtype=float),
                   "_cm": np.array([b.cm_distance for b in bs], dtype=float),
                   "_g": np.full(n, scene.g if scene.gravity else 0.0),
                   "_damping": np.array([b.damping for b in bs], dtype=float),
-                  "_tau": np.zeros((n, 3)), "_y": y, "_hint": np.zeros(n),
-                  "_stats": np.zeros((n, 3), dtype=np.int64),
-                  "_ex": np.zeros((n, _engine.EX_SIZE)),  # the exact integrator's anchor (EX_VALID = 0: none)
-                  "_outbuf": np.empty((n, len(OUTPUT_NAMES))), "_status": np.zeros(n, dtype=np.int32)}
+                  "_tau": np.zeros((n, 3))}
+        for a in params.values():
+            a.flags.writeable = False
+        states = (y, np.zeros(n), np.zeros((n, 3), dtype=np.int64),
+                  np.zeros((n, _engine.EX_SIZE)),  # the exact integrator's anchor (EX_VALID = 0: none)
+                  np.zeros(n, dtype=np.int32))
         names = scene.body_names
-        ok = _moments_plainly_valid(arrays["_moments"]) and not (
-            scene.gravity and np.any((arrays["_cm"] > 0) & ~(arrays["_mass"] > 0)))
-        p = _params_of(arrays["_moments"], arrays["_mass"], arrays["_g"], arrays["_cm"], arrays["_damping"],
-                       arrays["_tau"], scene.max_drift) if ok else None
-        hit = (scene, variables, _slots(variables), arrays, names, {b: i for i, b in enumerate(names)}, p)
+        ok = _moments_plainly_valid(params["_moments"]) and not (
+            scene.gravity and np.any((params["_cm"] > 0) & ~(params["_mass"] > 0)))
+        p = _params_of(params["_moments"], params["_mass"], params["_g"], params["_cm"], params["_damping"],
+                       params["_tau"], scene.max_drift) if ok else None
+        if p is not None:
+            p.flags.writeable = False  # each model copies it (initialize)
+        hit = (scene, variables, _slots(variables), params, states, names, {b: i for i, b in enumerate(names)}, p)
         _LAYOUT[id(scene)] = hit
     return hit[1:]
 
@@ -248,12 +258,44 @@ class Model:
     def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
                  stop_time: float | None = None, tolerance: float | None = None):
         self.scene = load_scene(scene)
-        self.variables, self._slots, arrays, self.body_names, self._index, self._p_start = _layout(self.scene)
-        n = len(self.body_names)
-        self.n_bodies = n
-        for k, a in arrays.items():  # _moments, _mass, _cm, _g, _damping, _tau, _y, _hint, _stats, _ex, ...
-            setattr(self, k, a.copy())
+        (self.variables, self._slots, params, (y, hint, stats, ex, status), self.body_names, self._index,
+         self._p_start) = _layout(self.scene)
+        self.n_bodies = len(self.body_names)
+        self.__dict__.update(params)  # _moments, _mass, _cm, _g, _damping, _tau: shared until set (_own)
+        self._y, self._hint, self._stats, self._ex, self._status = y.copy(), hint.copy(), stats.copy(), ex.copy(), \
+            status.copy()
+        self._outbuf = None  # the outputs' buffer, allocated at the first use
         self._start(start_time, stop_time, tolerance, parameters)
+
+    def _replica(self) -> Model:
+        """A model in this one's state, for a model built from a scene with no parameter set and nothing
+        initialised or run yet (:class:`gyrosim.trajectory.Run` keeps one per prepared run): its state arrays
+        copied, the rest shared (the parameter arrays are the scene's, read-only and copied on write)."""
+        d = self.__dict__.copy()
+        d["_y"] = self._y.copy()
+        d["_hint"] = self._hint.copy()
+        d["_stats"] = self._stats.copy()
+        d["_ex"] = self._ex.copy()
+        d["_status"] = self._status.copy()
+        m = object.__new__(Model)
+        m.__dict__ = d
+        return m
+
+    def _replicable(self) -> bool:
+        """True when :meth:`_replica` makes a model indistinguishable from this one: a one-body-engine model with
+        the scene's parameter arrays, not initialised and no outputs computed."""
+        return (type(self) is Model and not self._initialized and self._out is None and self._outbuf is None
+                and self._p_start is not None and not hasattr(self, "_p")
+                and not any(getattr(self, k).flags.writeable for k in _PARAM_ARRAYS))
+
+    def _own(self, attr: str) -> np.ndarray:
+        """The parameter array ``attr`` (``_moments``, ``_mass``, ...) to write into: a new model shares the scene's
+        start values (read-only) until it sets one; then it gets its own copy."""
+        a = getattr(self, attr)
+        if not a.flags.writeable:
+            a = a.copy()
+            setattr(self, attr, a)
+        return a
 
     def _start(self, start_time, stop_time, tolerance, parameters) -> None:
         """The scene's integrator settings, the clock at ``start_time``, nothing initialised yet; then
@@ -335,13 +377,13 @@ class Model:
             raise ConfigError(name, value, f"a finite number in {v.unit or '1'}")
         if name in ("I1", "I2", "I3"):
             self._check_positive(name, x)
-            self._moments[i, int(name[1]) - 1] = x
+            self._own("_moments")[i, int(name[1]) - 1] = x
             self._initialized = False
             self._ex[i, _engine.EX_VALID] = 0.0
         elif name in ("mass", "cm_distance", "g", "damping"):
             if x < 0 or (name == "mass" and x == 0):
                 raise ConfigError(name, value, f"a number {'>' if name == 'mass' else '>='} 0 in {v.unit}")
-            getattr(self, self._BODY_ARRAYS[name])[i] = x
+            self._own(self._BODY_ARRAYS[name])[i] = x
             self._initialized = False
         elif name == "max_step":
             self._check_positive(name, x)
@@ -354,7 +396,7 @@ class Model:
                 self._p[:, 8] = x
         elif name in ("tau_x", "tau_y", "tau_z"):
             k = "xyz".index(name[-1])
-            self._tau[i, k] = x
+            self._own("_tau")[i, k] = x
             if self._initialized:
                 self._p[i, 5 + k] = x
         elif name in _STATE_NAMES:
@@ -402,15 +444,15 @@ class Model:
         if name in _PARAM_NAMES:
             self._p_start = None
         if name in ("I1", "I2", "I3"):
-            self._moments[:, int(name[1]) - 1] = x
+            self._own("_moments")[:, int(name[1]) - 1] = x
             self._initialized = False
             self._ex[:, _engine.EX_VALID] = 0.0
         elif name in self._BODY_ARRAYS:
-            getattr(self, self._BODY_ARRAYS[name])[:] = x
+            self._own(self._BODY_ARRAYS[name])[:] = x
             self._initialized = False
         elif name in ("tau_x", "tau_y", "tau_z"):
             k = "xyz".index(name[-1])
-            self._tau[:, k] = x
+            self._own("_tau")[:, k] = x
             if self._initialized:
                 self._p[:, 5 + k] = x
         elif name in _STATE_NAMES:
@@ -562,11 +604,15 @@ class Model:
         if status is not None and not (isinstance(status, np.ndarray) and status.dtype == np.int32
                                        and status.shape == (copies,)):
             raise ConfigError("status", type(status).__name__, f"an int32 array of shape ({copies},)")
-        dt = _positive_step(dt, "output interval dt")
-        if not (isinstance(n, (int, np.integer)) and n >= 0):
+        if not (type(dt) is float and 0.0 < dt < math.inf):  # a plain float > 0 passes as it is
+            dt = _positive_step(dt, "output interval dt")
+        if type(n) is not int:
+            if not (isinstance(n, (int, np.integer)) and n >= 0):
+                raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
+            n = int(n)
+        elif n < 0:
             raise StepError(f"n = {n!r} is not allowed: a number of output intervals >= 0")
-        n = int(n)
-        t = self.time
+        t = self._t_base + self._n * self._h  # self.time
         t_end = t + n * dt
         if self.stop_time is not None and t_end > self.stop_time + 1e-9 * max(1.0, abs(self.stop_time)):
             raise StepError(f"a run of {n} intervals of {dt!r} s from t = {t!r} s ends at {t_end!r} s, after the "
@@ -756,32 +802,41 @@ class Model:
             A body blew up (without ``status``); the model keeps its state from before the call, and the error
             carries the rows computed before the failing interval (``error.rows``).
         """
+        return self._trajectory(dt, n, angles, momentum, status, True)
+
+    def _trajectory(self, dt, n, angles: bool, momentum: bool, status, restore: bool) -> np.ndarray:
+        """:meth:`trajectory`; ``restore=False`` for a caller that drops the model when the run fails
+        (:func:`gyrosim.simulate`): the state before the call is kept only where the message needs it."""
         keep_going = status is not None
         dt, n, t = self._start_run(dt, n, status, self.n_bodies)
-        method = _METHOD_CODES[self.integrator]
+        integrator = self.integrator
+        method = _METHOD_CODES[integrator]
+        erk = integrator == "adaptive" or integrator == "dop853"
         out = np.empty((n + 1, self.n_bodies, len(OUTPUT_NAMES)))
-        saved = None if keep_going else (self._y.copy(), self._hint.copy(), self._stats.copy(), self._ex.copy())
+        saved = None if keep_going or not (restore or erk) else (self._y.copy(), self._hint.copy(),
+                                                                 self._stats.copy(), self._ex.copy())
         if keep_going:
             status[:] = 0
         else:
-            status = np.zeros(self.n_bodies, dtype=np.int32)
+            status = self._status  # zeros (set back after a failure)
         # continue the clock of a run of equal steps (t_base + n*h) as step() would, for the same bits
         t_base, k0 = (self._t_base, self._n) if dt == self._h else (t, 0)
         failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t_base, dt, n, self.tolerance,
                                     self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
                                     (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0),
                                     k0)
-        erk = self.integrator in ("adaptive", "dop853")
         if failed and not keep_going:
             b = int(np.flatnonzero(status)[0])
             k = int(status[b])
+            status[:] = 0
             where = (f"the output interval from t = {t + (k - 1) * dt!r} s to {t + k * dt!r} s (interval {k} of {n}, "
                      f"step {k0 + k} from t = {t_base!r} s)")
             if erk:  # the state that tripped the monitor is in row k
                 msg = self._blowup(b, saved, t_base, dt, k0, k, where, rows=out[:, b])
             else:  # the engine left the failing body at the start of its failing interval
                 msg = self._blowup(b, (self._y, self._hint, self._stats, self._ex), t_base, dt, k0 + k - 1, 1, where)
-            self._y, self._hint, self._stats, self._ex = saved
+            if saved is not None:
+                self._y, self._hint, self._stats, self._ex = saved
             err = IntegrationError(msg)
             err.rows = out[:k]
             raise err
@@ -795,6 +850,8 @@ class Model:
         if self._out is None:
             if not self._initialized or self._state_dirty:
                 self.initialize()
+            if self._outbuf is None:
+                self._outbuf = np.empty((self.n_bodies, len(OUTPUT_NAMES)))
             _engine.outputs(self._y, self._p, self._outbuf)
             self._out = self._outbuf
         return self._out

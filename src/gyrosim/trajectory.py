@@ -14,7 +14,7 @@ import numpy as np
 from .core import _engine
 from .errors import ConfigError, IntegrationError
 from .model import OUTPUT_NAMES, Model
-from .scene import did_you_mean, load_scene
+from .scene import EMBEDDED_SCENES, Scene, did_you_mean, load_scene
 
 __all__ = ["simulate", "Run", "field_names", "output_intervals"]
 
@@ -133,10 +133,13 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
               output_interval=output_interval, integrator=integrator, max_step=max_step,
               relative_tolerance=relative_tolerance, output=output, input=input)
     try:
-        if run.input is None:
-            out = run.model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
-        else:
+        model = run.model
+        if run.input is not None:
             out = run._advance_with_input(0, run.n)
+        elif type(model) is Model:  # the model is dropped when the run fails: its state before the call not kept
+            out = model._trajectory(run.dt, run.n, run.angles, run.momentum, None, False)
+        else:
+            out = model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
     except IntegrationError as e:
         e.rows = run.pack(e.rows)
         raise
@@ -165,6 +168,32 @@ class Run:
 
     def __init__(self, scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
                  integrator=None, max_step=None, relative_tolerance=None, output=None, input=None):
+        key = None
+        if ((start_values is None or (type(start_values) is dict and not start_values)) and input is None
+                and (output is None or type(output) in (list, tuple))
+                and (isinstance(scene, Scene) or (type(scene) is str and scene in EMBEDDED_SCENES))):
+            sc = load_scene(scene)  # frozen, and the same object for an embedded name
+            key = (id(sc), start_time, stop_time, output_interval, integrator, max_step, relative_tolerance,
+                   None if output is None else tuple(output))
+            try:
+                hit = _PREPARED.get(key)
+            except TypeError:  # an argument that is not hashable: prepared afresh
+                key = hit = None
+            if hit is not None and hit[0] is sc:
+                self.__dict__.update(hit[1])
+                self.model = hit[2]._replica()
+                return
+        self._prepare(scene, start_values, start_time, stop_time, output_interval, integrator, max_step,
+                      relative_tolerance, output, input)
+        if key is not None and self.model.n_bodies <= 64 and self.model._replicable():  # a few kB kept
+            if len(_PREPARED) > 256:
+                _PREPARED.clear()
+            attrs = dict(self.__dict__)
+            _PREPARED[key] = (self.scene, attrs, attrs.pop("model"))
+            self.model = self.model._replica()  # the kept one is never run
+
+    def _prepare(self, scene, start_values, start_time, stop_time, output_interval, integrator, max_step,
+                 relative_tolerance, output, input):
         sc = load_scene(scene)
         t0 = float(start_time)
         if not math.isfinite(t0):
@@ -255,7 +284,7 @@ class Run:
         _engine.pack(block, self._columns, self.t0, self.dt, res)
         if k0:
             res[:, 0] = self.t0 + (np.arange(block.shape[0]) + k0) * self.dt
-        return res.view(self.dtype).reshape(-1)
+        return np.frombuffer(res, self.dtype)  # res.view(self.dtype).reshape(-1), without view's checks of fields
 
     def chunks(self, size: int):
         """Yield the result in blocks: the first holds output points ``0..m``, the next ``m+1..``, ... (``size``
@@ -283,6 +312,11 @@ class Run:
             yield self.pack(block, done) if done == 0 else self.pack(block[1:], done + 1)
             done += m
 
+
+#: Prepared runs of the one-body engine without start values or inputs, by scene and arguments: (scene, the Run's
+#: attributes but the model, a model to replicate); a hit gives the attributes and a replica of the model (the
+#: arguments equal, the same checks passed and the same model built: a run's set-up is a few copies).
+_PREPARED: dict = {}
 
 _SELECTIONS: dict = {}
 
