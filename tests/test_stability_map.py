@@ -3,6 +3,7 @@ with the closed forms they should reproduce. Every tolerance says why; nothing i
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -39,12 +40,32 @@ def test_quick_map_runs(quick_map, tmp_path):
     for m in res["maps"]:
         if m["integrator"].startswith("splitting") and m["case"].startswith("free 1:1:2"):
             assert m["capped"] == "above", m
+    # the splittings on the exact free flow are exact at any h on every torque-free body: stable over the whole
+    # scan (">= 100"), which the tables say without a number divided by the engine's infinite gs_stable_x
+    exact_splits = [i for i in S.FIXED if i.endswith("_exact")]
+    assert len(exact_splits) == 4
+    for m in res["maps"]:
+        if m["integrator"] in exact_splits and m["kind"] == "free":
+            assert m["capped"] == "above" and m["x_max"] == S.X_HI, m
+    for integ in exact_splits:
+        assert safe[integ]["free"] == (S.X_HI, "above")
+        eng = next(e for e in res["engine_rate_summary"] if e["integrator"] == integ)
+        assert all(math.isfinite(eng[k]) for k in ("safe_x", "free"))
     # a good study run never drifts as far as the map's bound (10 %); the non-euler ones stay far below
     md = res["max_drift"]
     assert md["good_runs"] > 0 and md["good_max_drift"] < S.BOUND
     assert md["good_max_drift_not_euler"] < 1e-2
     text = S.stability_table(json.loads(json.dumps(res, default=float)))  # as read back from results.json
     assert "### Stability map" in text and "### max_drift: the evidence" in text
+    for integ in exact_splits:
+        assert f"| {integ} | **>= 100** | - (stable on every case) |" in text
+    assert not re.search(r"\b(nan|inf)\b", text, re.IGNORECASE)
+    from gyrosim.study import stable_steps_table
+
+    choose = stable_steps_table(res)
+    for integ in exact_splits:
+        assert f"| {integ} | no limit found (>= 100 / \\|omega\\|) |" in choose
+    assert not re.search(r"\bnan\b", choose, re.IGNORECASE)
     png = tmp_path / S.plot_stability(res, tmp_path)
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

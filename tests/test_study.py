@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -36,19 +37,57 @@ def test_tables_and_plots_exist(quick_study):
 
 
 # observed order of the attitude error against h (least squares over the quick ladder)
-ORDER_RANGES = {"euler": (0.8, 1.3), "rk4": (3.4, 4.5), "splitting": (1.7, 2.3), "splitting4": (3.4, 4.5)}
+ORDER_RANGES = {"euler": (0.8, 1.3), "rk4": (3.4, 4.5), "splitting": (1.7, 2.3), "splitting4": (3.4, 4.5),
+                "strang_exact": (1.7, 2.3), "yoshida_exact": (3.4, 4.5), "bm4_exact": (3.4, 4.5),
+                "bm6_exact": (5.0, 7.5)}
+
+
+def test_every_fixed_step_method_of_the_engine_is_in_the_study():
+    # the stability map takes its integrators from the engine; the ladders, orders and recommendation from
+    # study.FIXED: a method the engine gains must be in both
+    from gyrosim import stability
+
+    assert set(study.FIXED) == set(stability.FIXED)
+    assert set(study.EXACT_SPLITS) <= set(study.FIXED) and set(study.EXPECTED_ORDER) == set(study.FIXED)
 
 
 @pytest.mark.parametrize("case", study.CASES)
 def test_observed_orders(quick_study, case):
     _, res = quick_study
     orders = res["orders"][case]
+    recs = res["accuracy"][case]
     for integ, (lo, hi) in ORDER_RANGES.items():
         p = orders[integ]["order"]
+        errs = [r["attitude_error"] for r in recs if r["integrator"] == integ and not r["blew_up"]]
+        if integ in study.EXACT_SPLITS and case != "heavy_top":
+            # torque-free: one exact free flow per step, exact at every h (the four are the same run): no order
+            assert orders[integ]["exact_flow"] and max(errs) < 1e-12, (case, integ, errs)
+            continue
         if integ == "euler" and (p is None or not math.isfinite(p)):
             continue  # euler's errors may all sit above the fitted range on a short ladder
+        if integ == "bm6_exact" and (p is None or not math.isfinite(p)):
+            assert min(errs) < 1e-10, errs  # the quick top's ladder may sit at the reference's floor
+            continue
         assert lo <= p <= hi, (case, integ, p)
     assert 3.5 <= orders["adaptive"]["order_steps"] <= 8.0, orders["adaptive"]
+
+
+def test_orders_table_and_plots_take_the_exact_flow_splittings(quick_study):
+    out, res = quick_study
+    text = (out / "orders.md").read_text()
+    for integ in study.EXACT_SPLITS:
+        assert f"{integ} (expected {study.EXACT_SPLIT_ORDER[integ]})" in text
+    assert "exact at any h" in text and not re.search(r"\b(nan|inf)\b", text, re.IGNORECASE)
+    choose = (out / "choose.md").read_text()
+    for integ in study.EXACT_SPLITS:
+        assert f"| heavy_top | {integ} |" in choose
+    # their ladder on the top starts at the output interval (their errors fall to the reference's floor at larger
+    # steps than the others'), and every step of it divides that interval (so sampling does not change the run)
+    for quick in (True, False):
+        case = study.make_cases(quick)["heavy_top"]
+        for h in study.ladder(case, "bm6_exact"):
+            assert abs(case.dt_out / h - round(case.dt_out / h)) < 1e-9, h
+        assert max(study.ladder(case, "bm6_exact")) == case.dt_out
 
 
 def test_errors_are_against_the_exact_solution(quick_study):
@@ -58,8 +97,10 @@ def test_errors_are_against_the_exact_solution(quick_study):
     assert exact["attitude_error"] < 1e-12 and exact["omega_error"] < 1e-12
     # the splittings keep |L| to round-off in torque-free motion; rk4 does not
     for r in recs:
-        if r["integrator"].startswith("splitting"):
+        if r["integrator"].startswith("splitting") or r["integrator"] in study.EXACT_SPLITS:
             assert r["L_drift"] < 1e-12
+    # the exact-flow splittings on a torque-free body: the exact flow at every step
+    assert all(r["attitude_error"] < 1e-12 for r in recs if r["integrator"] in study.EXACT_SPLITS)
     top = res["accuracy"]["heavy_top"]
     fine = min((r for r in top if r["integrator"] == "rk4"), key=lambda r: r["h"])
     assert fine["theta_error"] < 1e-8 and fine["bounds_excess"] == 0.0
@@ -71,7 +112,7 @@ def test_long_run_and_cost(quick_study):
     assert long[("free_body", "splitting")]["L_drift"] < 1e-12
     assert long[("free_body", "rk4")]["energy_drift"] < 1e-8
     cost = res["cost"]
-    assert len(cost["per_step"]) == 3 * len(study.INTEGRATORS)
+    assert len(cost["per_step"]) == 3 * len(study.TIMED)
     assert all(r["ns_per_step"] > 0 for r in cost["per_step"])
     if cost["c"]:  # gcc present: the baseline ran in the same benchmark
         assert all(v > 0 for v in cost["c"].values())

@@ -433,16 +433,28 @@ def study_drifts(quick: bool = False, bar=None) -> list[dict]:
     """Every run of the study's accuracy ladders and long runs, sampled at every internal step (the step-free
     integrators at 20 points per study output interval): max drift, attitude error, first steps past each
     candidate bound, the engine's stop (if any)."""
-    from .study import ADAPTIVE, FREE_I, FreeReference, TopReference, attitude_error, free_scene, make_cases, top_scene
+    from .study import (
+        ADAPTIVE,
+        FREE_I,
+        TIMED,
+        FreeReference,
+        TopReference,
+        attitude_error,
+        free_scene,
+        ladder,
+        make_cases,
+        top_scene,
+    )
     from .study import FIXED as STUDY_FIXED
 
     fixed = tuple(i for i in STUDY_FIXED if i in FIXED)
+    long_fixed = tuple(i for i in fixed if i in TIMED)  # the long part's integrators
     recs = []
     for case in make_cases(quick).values():
         kind = _study_kind(case.reference)
         n_out = round(case.T / case.dt_out)
         q_ex, _ = case.reference.state(case.dt_out * np.arange(1, n_out + 1))
-        runs = [(i, h, None) for i in fixed for h in case.steps] + \
+        runs = [(i, h, None) for i in fixed for h in ladder(case, i)] + \
                [(i, None, tol) for i in ADAPTIVE for tol in case.tolerances]
         for integ, h, tol in runs:
             if bar is not None:
@@ -468,7 +480,7 @@ def study_drifts(quick: bool = False, bar=None) -> list[dict]:
             h, scene, ref = 1e-3, top_scene("long_heavy_top"), TopReference()
         kind = _study_kind(ref)
         q_ex, _ = ref.state(n_steps * h / 100 * np.arange(1, 101))
-        for integ in fixed + ADAPTIVE:
+        for integ in long_fixed + ADAPTIVE:
             if bar is not None:
                 bar.set_postfix_str(f"drift long {case_name} {integ}")
             T = n_steps * h
@@ -595,8 +607,11 @@ def run_stability(quick: bool = False, bar=None) -> dict:
     for integ in FIXED:
         mm = [m for m in maps if m["integrator"] == integ and m.get("x_engine") is not None]
         if mm:
-            w = min(mm, key=lambda m: m["x_engine"])
+            bounded = [m for m in mm if m["capped"] != "above"]
+            w = min(bounded or mm, key=lambda m: m["x_engine"])  # a case stable to the cap bounds nothing
             engine.append({"integrator": integ, "safe_x": w["x_engine"], "capped": w["capped"], "worst_case": w["case"],
+                           "unbounded": not bounded,
+                           "free_unbounded": all(m["capped"] == "above" for m in mm if m["kind"] == "free"),
                            "free": min(m["x_engine"] for m in mm if m["kind"] == "free"),
                            "top": min((m["x_engine"] for m in mm if m["kind"] == "top"), default=None)})
     step_free = [step_free_run(integ, case, tol) for case in cases.values() for integ in STEP_FREE
@@ -673,7 +688,9 @@ def stability_table(res: dict) -> str:
         if s is None:
             return ["-"] * 4
         longer = "-" if s.get("x_longer") is None else fmt_x(s["x_longer"], s.get("x_longer_capped"))
-        return [f"**{fmt_x(s['safe_x'], s['safe_capped'])}**", _short(s["worst_case"]), longer,
+        worst = ("- (stable on every case)" if s["safe_capped"] == "above" and s["n_capped"] == s["n_cases"]
+                 else _short(s["worst_case"]))
+        return [f"**{fmt_x(s['safe_x'], s['safe_capped'])}**", worst, longer,
                 f"{_fmt(s['median_x'])}" + (f" ({s['n_capped']}/{s['n_cases']} >= {_fmt(st['x_hi'])})"
                                             if s["n_capped"] else "")]
 
@@ -726,17 +743,28 @@ def stability_table(res: dict) -> str:
         for r in ss:
             k = (r["integrator"], r["kind"])
             worst[k] = max(worst.get(k, 1.0), r["ratio"])
-        free_cells = ", ".join(f"{i} {_fmt(v, 3)}" for (i, k), v in sorted(worst.items()) if k == "free")
-        top_cells = ", ".join(f"{i} {_fmt(v, 3)}" for (i, k), v in sorted(worst.items()) if k == "top")
+        order = {i: n for n, i in enumerate(FIXED)}
+        ranked = sorted(worst.items(), key=lambda kv: (order.get(kv[0][0], len(order)), kv[0]))
+        free_cells = ", ".join(f"{i} {_fmt(v, 3)}" for (i, k), v in ranked if k == "free")
+        top_cells = ", ".join(f"{i} {_fmt(v, 3)}" for (i, k), v in ranked if k == "top")
+        capped = [i for i in FIXED if not any(k == (i, "free") for k in worst)
+                  and any(m["integrator"] == i and m["kind"] == "free" for m in res["maps"])]
         out += ("\nSpin independence (largest ratio of x_max over the spins of one case; 1: the same x at every "
-                f"spin): free body {free_cells}; top {top_cells}.\n")
+                f"spin; cases stable to the cap at every spin left out): free body {free_cells}"
+                + (f" ({', '.join(capped)}: stable to the cap on every case)" if capped else "")
+                + f"; top {top_cells}.\n")
     eng = res.get("engine_rate_summary") or []
     if eng:
         out += ("\nIn the engine's rate (`_engine.fastest_rate` of the start state: \\|omega\\|, on a pivot the "
                 "largest of \\|omega\\|, I3 \\|omega_3\\| / sqrt(I1 I2) and sqrt(M g l / I1)), the safe h * rate "
                 "over every case, free bodies and tops, fast and slow (for the engine's `gs_stable_x`): "
-                + ", ".join(f"{e['integrator']} **{fmt_x(e['safe_x'], e['capped'])}** ({_short(e['worst_case'])})"
-                            for e in eng) + ".\n")
+                + ", ".join(_engine_cell(e) for e in eng) + ".")
+        free_only = [e["integrator"] for e in eng if e.get("free_unbounded") and not e.get("unbounded")]
+        if free_only:
+            out += (f" {', '.join(free_only)}: stable to the cap on every free body (their free part is the exact "
+                    "flow), bounded on the tops only, by gravity's kicks; the engine's gs_stable_x is inf for them "
+                    "(the torque, not the spin, bounds their step).")
+        out += "\n"
     out += "\n" + per_case_tables(res)
     rows = [[r["integrator"], _fmt(r["tol"]), r["failed"], _fmt(r["median_drift"]), _fmt(r["worst_drift"]),
              _short(r["worst_case"]), f"{_fmt(r['x_mean_min'])} .. {_fmt(r['x_mean_max'])}"]
@@ -749,6 +777,14 @@ def stability_table(res: dict) -> str:
                             "mean x = h rate taken"], rows))
     out += "\n" + max_drift_table(res)
     return out
+
+
+def _engine_cell(e: dict) -> str:
+    """One integrator's safe h * rate in the engine's rate; stable to the cap on every case: no bound (the engine's
+    gs_stable_x is inf for the exact-flow splittings)."""
+    if e.get("unbounded"):
+        return f"{e['integrator']} **no limit** (stable to the cap on every case)"
+    return f"{e['integrator']} **{fmt_x(e['safe_x'], e['capped'])}** ({_short(e['worst_case'])})"
 
 
 def per_case_tables(res: dict) -> str:
@@ -853,7 +889,7 @@ def plot_stability(res: dict, out) -> str:
     for k, integ in enumerate(FIXED):
         for j, a in enumerate(axes):
             pts = [(ratios.index(":".join(f"{v:g}" for v in m["params"]["moments"])) + (j - 1.5) * 0.18
-                    + (k - 1.5) * 0.035, m["x_max"])
+                    + (k - (len(FIXED) - 1) / 2) * 0.14 / len(FIXED), m["x_max"])
                    for m in maps if m["kind"] == "free" and m["integrator"] == integ and m["params"]["axis"] == a]
             if pts:
                 x, y = zip(*pts)
@@ -869,7 +905,7 @@ def plot_stability(res: dict, out) -> str:
     ax.set_title(f"free body ({_fmt(st['x_hi'])}: stable over the whole scan)", fontsize=10)
     ax.set_ylim(3e-3, 3e2)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left")
+    handles, labels = ax.get_legend_handles_labels()  # one legend of the integrators for the three panels, below
     # (b) x_max against spin
     ax = axs[1]
     sels = (("free", "-", lambda m: m["params"]["axis"] == "generic" and m["params"]["moments"] == [1.0, 2.0, 3.0]),
@@ -881,8 +917,7 @@ def plot_stability(res: dict, out) -> str:
                          if m["kind"] == kind and m["integrator"] == integ and sel(m))
             if pts:
                 x, y = zip(*pts)
-                ax.plot(x, y, ls=ls, marker=MARKERS.get(integ, "o"), color=COLORS.get(integ, "k"), ms=5,
-                        label=integ if kind == "free" else None)
+                ax.plot(x, y, ls=ls, marker=MARKERS.get(integ, "o"), color=COLORS.get(integ, "k"), ms=5)
     ax.plot([], [], color="gray", ls="-", label="free 1:2:3, generic axis")
     ax.plot([], [], color="gray", ls="--", label="top I3/I1 = 0.57, theta0 = 0.3")
     ax.set_xscale("log")
@@ -892,7 +927,7 @@ def plot_stability(res: dict, out) -> str:
     ax.set_ylabel("largest stable x")
     ax.set_title("against spin (free body: x = h|omega|; top: x = h omega_n)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="upper left")
+    ax.legend(fontsize=7, loc="upper left")
     # (c) top: x_max against I3/I1
     ax = axs[2]
     spins = sorted({m["params"]["spin"] for m in maps if m["kind"] == "top"})
@@ -903,8 +938,7 @@ def plot_stability(res: dict, out) -> str:
             if pts:
                 x, y = zip(*pts)
                 ax.scatter(x, y, s=16, marker=MARKERS.get(integ, "o"), color=COLORS.get(integ, "k"),
-                           alpha=0.35 + 0.65 * si / max(1, len(spins) - 1),
-                           label=integ if si == len(spins) - 1 else None)
+                           alpha=0.35 + 0.65 * si / max(1, len(spins) - 1))
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("I3 / I1 (both tilts; paler to darker: spin " + ", ".join(f"{s:.0e}" for s in spins) + " rad/s)",
@@ -912,10 +946,10 @@ def plot_stability(res: dict, out) -> str:
     ax.set_ylabel("largest stable x = h omega_n")
     ax.set_title("symmetric top on a pivot", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    fig.legend(handles, labels, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
     fig.suptitle(f"Stability map: largest x with every invariant within {st['bound']:g} of its start over "
                  f"{st['n_steps']} steps", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     f = Path(out) / "stability.png"
     fig.savefig(f, dpi=110)
     plt.close(fig)

@@ -54,25 +54,33 @@ import numpy as np
 
 __all__ = ["main", "PARTS", "CASES", "EXPECTED_ORDER", "observed_order"]
 
-FIXED = ("euler", "rk4", "splitting", "splitting4")
+#: The splittings on the exact torque-free flow and their orders: in the accuracy ladders (:func:`ladder`), the
+#: observed orders and the stability map; measured on the asymmetric fast top by :func:`exact_splitting_wp`.
+EXACT_SPLITS = ("strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact")
+EXACT_SPLIT_ORDER = {"strang_exact": 2, "yoshida_exact": 4, "bm4_exact": 4, "bm6_exact": 6}
+#: The fixed-step integrators on the study's own right-hand sides or Lie-Poisson splitting.
+CLASSIC = ("euler", "rk4", "splitting", "splitting4")
+#: Fixed-step integrators of the accuracy ladders, the observed orders and the recommendation.
+FIXED = CLASSIC + EXACT_SPLITS
 ADAPTIVE = ("adaptive", "dop853")
 INTEGRATORS = FIXED + ADAPTIVE
+#: Integrators of the cost-per-step and long-run parts (the exact-flow splittings are not in them yet: their cost
+#: per step is in the accuracy ladders' ns/step and in :func:`exact_splitting_wp`).
+TIMED = CLASSIC + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
 PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "service", "sweep", "tree")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
-EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4}
+EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4, **EXACT_SPLIT_ORDER}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
-#: The splittings on the exact torque-free flow and their orders (measured on the asymmetric fast top by
-#: :func:`exact_splitting_wp`; not yet in the ladders of the accuracy part, whose cases they would only repeat).
-EXACT_SPLITS = ("strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact")
-EXACT_SPLIT_ORDER = {"strang_exact": 2, "yoshida_exact": 4, "bm4_exact": 4, "bm6_exact": 6}
 #: The asymmetric fast heavy top (the peers' asym_top): I about the pivot, m, l, theta0, spin about body axis 3.
 ASYM_TOP = {"moments": (0.01, 0.0125, 0.015), "mass": 0.5, "cm_distance": 0.1, "g": 9.81, "theta0": math.pi / 4,
             "spin": 200.0}
 COLORS = {"euler": "tab:red", "rk4": "tab:blue", "splitting": "tab:green", "splitting4": "tab:olive",
-          "adaptive": "tab:purple", "dop853": "tab:cyan", "exact": "black"}
-MARKERS = {"euler": "v", "rk4": "o", "splitting": "s", "splitting4": "D", "adaptive": "^", "dop853": "P", "exact": "*"}
+          "adaptive": "tab:purple", "dop853": "tab:cyan", "exact": "black", "strang_exact": "tab:brown",
+          "yoshida_exact": "tab:pink", "bm4_exact": "tab:orange", "bm6_exact": "tab:gray"}
+MARKERS = {"euler": "v", "rk4": "o", "splitting": "s", "splitting4": "D", "adaptive": "^", "dop853": "P", "exact": "*",
+           "strang_exact": "<", "yoshida_exact": ">", "bm4_exact": "h", "bm6_exact": "X"}
 
 # The heavy top of the study (the embedded heavy_top scene, spun faster).
 TOP = {"I1": 1.75e-3, "I3": 1.0e-3, "mass": 0.5, "cm_distance": 0.05, "g": 9.81, "theta0": 0.3, "spin": 100.0}
@@ -228,6 +236,13 @@ class Case:
     steps: list
     tolerances: list
     exact: bool
+    #: The ladder of the exact-flow splittings (:func:`ladder`); None: ``steps``.
+    split_steps: list | None = None
+
+
+def ladder(case: Case, integrator: str) -> list:
+    """The steps h of ``integrator``'s ladder on ``case``: ``case.split_steps`` for the exact-flow splittings."""
+    return case.split_steps if integrator in EXACT_SPLITS and case.split_steps is not None else case.steps
 
 
 def make_cases(quick: bool) -> dict[str, Case]:
@@ -235,24 +250,32 @@ def make_cases(quick: bool) -> dict[str, Case]:
                                                                5e-4, 2e-4, 1e-4]
     tols = [1e-4, 1e-6, 1e-8] if quick else [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12]
     steps_top = [2e-3, 1e-3, 5e-4, 2.5e-4] if quick else [5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5]
+    # The exact-flow splittings: on a torque-free body one exact free flow per step (the four are the same run, exact
+    # at every h; smaller steps add only round-off, ~0.6 us a flow), so their ladder stops at 1e-3 s. On the top they
+    # are so accurate that bm6_exact meets the reference's floor (~2e-12 rad) at h = 5e-3 s: their ladder starts at
+    # the output interval 0.02 s (steps dividing it) and stops at 5e-5 s, where every one but strang_exact has long
+    # been at that floor.
+    split_free = steps_free if quick else [h for h in steps_free if h >= 1e-3]
+    split_top = ([0.005, 0.0025, 0.005 / 3, 0.00125, 1e-3, 5e-4] if quick else
+                 [0.02, 0.01, 0.02 / 3, 0.005, 0.004, 0.0025, 0.002, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5])
     w_free = (1.0, 0.1, 0.1)
     w_mid = (1e-3, 1.0, 1e-3)
     return {
         "free_body": Case("free_body", "Torque-free asymmetric body, I = (1, 2, 3), omega0 = (1, 0.1, 0.1) rad/s",
                           free_scene("study_free_body", w_free), FreeReference(FREE_I, w_free),
                           T=5.0 if quick else 20.0, dt_out=0.1 if quick else 0.2, steps=steps_free,
-                          tolerances=tols, exact=True),
+                          tolerances=tols, exact=True, split_steps=split_free),
         "intermediate_axis": Case("intermediate_axis",
                                   "Near the intermediate axis, I = (1, 2, 3), omega0 = (1e-3, 1, 1e-3) rad/s",
                                   free_scene("study_intermediate_axis", w_mid), FreeReference(FREE_I, w_mid),
                                   T=15.0 if quick else 60.0, dt_out=0.1 if quick else 0.2,
-                                  steps=steps_free, tolerances=tols, exact=True),
+                                  steps=steps_free, tolerances=tols, exact=True, split_steps=split_free),
         "heavy_top": Case("heavy_top", f"Fast heavy top, spin {TOP['spin']:g} rad/s, theta0 = {TOP['theta0']} rad, "
                           f"I1 = {TOP['I1']}, I3 = {TOP['I3']} kg*m^2, M g l = "
                           f"{TOP['mass'] * TOP['g'] * TOP['cm_distance']:.4g} N*m",
                           top_scene("study_heavy_top"), TopReference(),
                           T=0.5 if quick else 2.0, dt_out=0.005 if quick else 0.02, steps=steps_top,
-                          tolerances=tols, exact=False),
+                          tolerances=tols, exact=False, split_steps=split_top),
     }
 
 
@@ -366,14 +389,15 @@ def _min_time(run, quick: bool, budget: float = 0.06) -> float:
     return best
 
 
-def observed_order(xs, errs, hi=0.1, floor_factor=100.0):
+def observed_order(xs, errs, hi=0.1, floor_factor=100.0, fallback_factor=5.0):
     """Observed order: least-squares slope of log10(err) against log10(x) over the asymptotic range of a ladder.
 
     The ladder is ordered so that the error should fall (x descending when the error grows with x, i.e. steps
     or tolerances). The asymptotic range is every point with ``err <= hi`` (not saturated) up to the smallest
     error; when that minimum is not the last point, or the last point gained less than order 1/2 on the one
-    before, round-off has taken over (a floor), and points within ``floor_factor`` of the minimum are left out.
-    Returns (slope, points used); nan with fewer than 3 points.
+    before, round-off has taken over (a floor), and points within ``floor_factor`` of the minimum are left out
+    (within ``fallback_factor`` where that leaves fewer than 3 points: a high order falls to the floor in a few
+    steps of the ladder). Returns (slope, points used); nan with fewer than 3 points.
     """
     pts = [(float(x), float(e)) for x, e in zip(xs, errs) if e is not None and np.isfinite(e) and e > 0.0]
     if len({p[0] for p in pts}) < 3:   # fewer than 3 distinct steps (an adaptive pair at loose tolerances)
@@ -387,6 +411,8 @@ def observed_order(xs, errs, hi=0.1, floor_factor=100.0):
     stalled = x1 == x2 or abs(math.log(e1 / e2) / math.log(x1 / x2)) < 0.5
     lo = pts[k_min][1] * floor_factor if (k_min < len(pts) - 1 or stalled) else 0.0
     use = [p for p in pts[:k_min + 1] if p[1] <= hi and p[1] >= lo]
+    if len(use) < 3 and lo > 0.0:
+        use = [p for p in pts[:k_min + 1] if p[1] <= hi and p[1] >= pts[k_min][1] * fallback_factor]
     if len(use) < 3:
         return float("nan"), len(use)
     return float(np.polyfit(np.log10([p[0] for p in use]), np.log10([p[1] for p in use]), 1)[0]), len(use)
@@ -397,6 +423,13 @@ def case_orders(case: Case, recs: list[dict]) -> dict:
     key = "attitude_error"
     for integ in FIXED:
         rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
+        if integ in EXACT_SPLITS and case.reference.kind == "free":
+            # torque-free: one exact free flow per step, exact at every h; the error is round-off, no order
+            errs = [r[key] for r in rr]
+            out[integ] = {"order": float("nan"), "order_omega": float("nan"), "points": 0,
+                          "expected": EXPECTED_ORDER[integ], "exact_flow": True,
+                          "error_min": min(errs, default=None), "error_max": max(errs, default=None)}
+            continue
         p, n = observed_order([r["h"] for r in rr], [r[key] for r in rr])
         po, _ = observed_order([r["h"] for r in rr], [r["omega_error"] for r in rr])
         out[integ] = {"order": p, "order_omega": po, "points": n, "expected": EXPECTED_ORDER[integ]}
@@ -615,15 +648,15 @@ def run_cost(quick: bool, cbase: CBaseline, bar) -> dict:
     res["n_steps"] = n
     have_c = cbase is not None and cbase.lib is not None
     for label, scene, desc in cost_scenes():
-        runners = [_kernel_runner(integ, scene, h, n) for integ in INTEGRATORS]
+        runners = [_kernel_runner(integ, scene, h, n) for integ in TIMED]
         fns = [r[0] for r in runners] + ([_c_runner(cbase, scene, h, n)] if have_c else [])
         t = best_times(fns, quick)
-        for integ, (_, steps), ti in zip(INTEGRATORS, runners, t):
+        for integ, (_, steps), ti in zip(TIMED, runners, t):
             res["per_step"].append({"scene": label, "integrator": integ, "ns_per_step": ti / steps() * 1e9,
                                     "steps": steps(), "description": desc})
         if have_c:
             res["c"][label] = t[-1] / n * 1e9
-        bar.update(len(INTEGRATORS))
+        bar.update(len(TIMED))
         # Model.step: a co-simulation step of 0.01 s in 10 internal steps, and a step of one internal step
         calls = 200 if quick else 2000
         integs = ("rk4", "splitting") + (("exact",) if scene.torque_free else ())
@@ -841,18 +874,37 @@ def accuracy_table(case: Case, recs: list[dict]) -> str:
 
 
 def orders_table(orders: dict) -> str:
-    head = (["case"] + [f"{i} (expected {EXPECTED_ORDER[i]})" for i in FIXED]
+    head = (["case"] + [f"{i} (expected {EXPECTED_ORDER[i]})" for i in CLASSIC]
             + [f"{i}: err vs {x}" for i in ADAPTIVE for x in ("tol", "steps")])
     rows = []
     for case, o in orders.items():
-        rows.append([case] + [f"{fmt(o[i]['order'])} ({o[i]['points']} pts)" for i in FIXED]
+        rows.append([case] + [_order_cell(o.get(i)) for i in CLASSIC]
                     + [fmt(o[i][k]) for i in ADAPTIVE for k in ("order_tol", "order_steps")])
-    return ("### Observed order of convergence\n\nLeast-squares slope of log(attitude error) against log(h) over "
-            "the ladder's asymptotic range: errors <= 0.1 (not saturated) down to the smallest error of the ladder; "
-            "where the error stalls or rises again at smaller steps (round-off has taken over), the points within a "
-            "factor 100 of that floor are left out. Adaptive: slope against the tolerance, and minus the slope "
-            "against the number of steps (5 for Dormand-Prince 5(4), 8 for Dormand-Prince 8(5,3)).\n\n"
-            + md_table(head, rows))
+    out = ("### Observed order of convergence\n\nLeast-squares slope of log(attitude error) against log(h) over "
+           "the ladder's asymptotic range: errors <= 0.1 (not saturated) down to the smallest error of the ladder; "
+           "where the error stalls or rises again at smaller steps (round-off has taken over), the points within a "
+           "factor 100 of that floor are left out (a factor 5 where that leaves fewer than 3 points). Adaptive: "
+           "slope against the tolerance, and minus the slope "
+           "against the number of steps (5 for Dormand-Prince 5(4), 8 for Dormand-Prince 8(5,3)).\n\n"
+           + md_table(head, rows))
+    splits = [i for i in EXACT_SPLITS if any(i in o for o in orders.values())]
+    if splits:
+        rows = [[case] + [_order_cell(o.get(i)) for i in splits] for case, o in orders.items()]
+        out += ("\nThe splittings on the exact torque-free flow (kick: the torque's exact flow with the attitude "
+                "fixed). On a torque-free body they take one exact free flow per step: exact at every h (the four "
+                "are the same run), so no order; the cell gives the range of their attitude error over the ladder "
+                "(round-off, growing with the number of flows). On the heavy top their ladder starts at h = "
+                "dt_out (they reach the reference's floor of ~2e-12 rad at larger steps than the others).\n\n"
+                + md_table(["case"] + [f"{i} (expected {EXPECTED_ORDER[i]})" for i in splits], rows))
+    return out
+
+
+def _order_cell(o: dict | None) -> str:
+    if o is None:
+        return "-"
+    if o.get("exact_flow"):
+        return f"exact at any h (err {fmt(o['error_min'])} .. {fmt(o['error_max'])})"
+    return f"{fmt(o['order'])} ({o['points']} pts)"
 
 
 TARGETS = (1e-3, 1e-6, 1e-9)
@@ -938,6 +990,9 @@ def stable_steps_table(stability: dict) -> str:
                 "splitting": "\\|L\\|, L_z, L_3 exact at any h; E bounded, but an asymmetric body leaves its "
                              "axis (a resonance of the splitting) beyond the bound; exact for symmetric bodies",
                 "splitting4": "as splitting; its substeps are 1.35 h and -1.70 h, so the bound is no higher",
+                **dict.fromkeys(EXACT_SPLITS, "the free part is the exact torque-free flow: no limit from the spin "
+                                "(exact at any h on a torque-free body, the engine's gs_stable_x = inf); the torque's "
+                                "time scale bounds h"),
                 }.get(integ, "")
         rows.append([integ, cell(integ, "free", "\\|omega\\|"), cell(integ, "top", "omega_n"),
                      cell(integ, "slow_top", "omega_n"), note])
@@ -956,7 +1011,7 @@ def cost_table(res: dict, cbase: CBaseline) -> str:
     scenes = [s for s, _, _ in cost_scenes()]
     ns = {(r["scene"], r["integrator"]): r["ns_per_step"] for r in res["per_step"]}
     head = ["integrator"] + [f"{s} (ns/step)" for s in scenes]
-    rows = [[i] + [fmt(ns[(s, i)], 1) for s in scenes] for i in INTEGRATORS]
+    rows = [[i] + [fmt(ns[(s, i)], 1) for s in scenes] for i in TIMED]
     if res["c"]:
         rows.append(["C rk4 (gcc -O2)"] + [fmt(res["c"].get(s), 1) for s in scenes])
         rows.append(["**rk4 / C**"] + [f"**{fmt(ns[(s, 'rk4')] / res['c'][s], 1)}x**" for s in scenes])
@@ -1045,38 +1100,41 @@ def plot_case(case: Case, recs: list[dict], orders: dict, out: Path) -> list[str
     plt = _plt()
     files = []
     # work-precision
-    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    free = case.reference.kind == "free"
+    fig, ax = plt.subplots(figsize=(8.6, 4.6))
     for integ in INTEGRATORS + ("exact",):
         rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
-        if not rr:
+        if not rr or (free and integ in EXACT_SPLITS[1:]):
             continue
         ax.loglog([r["wall"] for r in rr], [max(r["attitude_error"], 1e-17) for r in rr], marker=MARKERS[integ],
-                  color=COLORS[integ], label=integ + (" (reference)" if integ == "exact" else ""),
-                  ms=9 if integ == "exact" else 5, ls="" if integ == "exact" else "-")
+                  color=COLORS[integ], label=_plot_label(integ, free) + (" (reference)" if integ == "exact" else ""),
+                  ms=9 if integ == "exact" else 5, ls="" if integ == "exact" else "--" if integ in EXACT_SPLITS
+                  else "-")
     ax.set_xlabel("time of the run (s, thread CPU time)")
     ax.set_ylabel("max attitude error (rad)")
     ax.set_title(f"Work-precision: {case.name} (T = {case.T:g} s)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes, off the lines
     fig.tight_layout()
     f = out / f"wp_{case.name}.png"
     fig.savefig(f, dpi=110)
     plt.close(fig)
     files.append(f.name)
     # error against step / tolerance
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 5.2))
     for integ in FIXED:
         rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
-        if not rr:
+        if not rr or (free and integ in EXACT_SPLITS[1:]):
             continue
-        p = orders[integ]["order"]
+        o = orders[integ]
         a1.loglog([r["h"] for r in rr], [max(r["attitude_error"], 1e-17) for r in rr], marker=MARKERS[integ],
-                  color=COLORS[integ], label=f"{integ} (order {fmt(p)})")
+                  color=COLORS[integ], ls="--" if integ in EXACT_SPLITS else "-",
+                  label=_plot_label(integ, free) + ("" if o.get("exact_flow") else f" (order {fmt(o['order'])})"))
     a1.set_xlabel("internal step h (s)")
     a1.set_ylabel("max attitude error (rad)")
     a1.set_title("fixed step", fontsize=10)
     a1.grid(True, which="both", alpha=0.3)
-    a1.legend(fontsize=8)
+    a1.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.13))  # below the axes, off the lines
     for integ in ADAPTIVE:
         rr = [r for r in recs if r["integrator"] == integ and not r["blew_up"]]
         if rr:
@@ -1090,7 +1148,7 @@ def plot_case(case: Case, recs: list[dict], orders: dict, out: Path) -> list[str
     a2.set_xlabel("tolerance")
     a2.set_title("adaptive: Dormand-Prince 5(4); dop853: 8(5,3)", fontsize=10)
     a2.grid(True, which="both", alpha=0.3)
-    a2.legend(fontsize=8)
+    a2.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.13))
     fig.suptitle(case.title, fontsize=9)
     fig.tight_layout()
     f = out / f"step_{case.name}.png"
@@ -1098,6 +1156,14 @@ def plot_case(case: Case, recs: list[dict], orders: dict, out: Path) -> list[str
     plt.close(fig)
     files.append(f.name)
     return files
+
+
+def _plot_label(integ: str, free: bool) -> str:
+    """An integrator's label in the ladders' plots; on a torque-free case the exact-flow splittings are one run
+    (one exact free flow per step), drawn once."""
+    if free and integ in EXACT_SPLITS:
+        return "strang/yoshida/bm4/bm6_exact\n(the same run: one exact flow a step)"
+    return integ
 
 
 def plot_long(recs: list[dict], out: Path) -> list[str]:
@@ -1134,12 +1200,12 @@ def plot_cost(res: dict, out: Path) -> str:
     scenes = [s for s, _, _ in cost_scenes()]
     ns = {(r["scene"], r["integrator"]): r["ns_per_step"] for r in res["per_step"]}
     fig, ax = plt.subplots(figsize=(7.5, 4.2))
-    width = 0.8 / (len(INTEGRATORS) + 1)
+    width = 0.8 / (len(TIMED) + 1)
     x = np.arange(len(scenes))
-    for k, integ in enumerate(INTEGRATORS):
+    for k, integ in enumerate(TIMED):
         ax.bar(x + k * width, [ns[(s, integ)] for s in scenes], width, color=COLORS[integ], label=integ)
     if res["c"]:
-        ax.bar(x + len(INTEGRATORS) * width, [res["c"][s] for s in scenes], width, color="gray",
+        ax.bar(x + len(TIMED) * width, [res["c"][s] for s in scenes], width, color="gray",
                label="C rk4 (gcc -O2)")
     ax.set_xticks(x + 0.4 - width / 2)
     ax.set_xticklabels(scenes)
@@ -1450,10 +1516,10 @@ def main(args) -> int:
     old = _previous(out, parts) if only else None
 
     cases = make_cases(quick) if "accuracy" in parts else {}
-    n_acc = sum(len(FIXED) * len(c.steps) + len(ADAPTIVE) * len(c.tolerances) + (1 if c.exact else 0)
+    n_acc = sum(sum(len(ladder(c, i)) for i in FIXED) + len(ADAPTIVE) * len(c.tolerances) + (1 if c.exact else 0)
                 for c in cases.values())
-    n_cost = (len(cost_scenes()) * (len(INTEGRATORS) + 1) + 4) if "cost" in parts else 0  # see run_cost
-    long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in INTEGRATORS] if "long" in parts else []
+    n_cost = (len(cost_scenes()) * (len(TIMED) + 1) + 4) if "cost" in parts else 0  # see run_cost
+    long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in TIMED] if "long" in parts else []
     total = n_acc + n_cost + len(long_runs) + sum(p in parts for p in ("stability", "startup", "peers"))
     messages = []
     part_tables = {}
@@ -1469,7 +1535,7 @@ def main(args) -> int:
                 for case in cases.values():
                     recs = []
                     for integ in FIXED:
-                        for h in case.steps:
+                        for h in ladder(case, integ):
                             bar.set_postfix_str(f"{case.name} {integ} h={h:g}")
                             recs.append(run_accuracy(case, integ, h, None, quick))
                             bar.update()
