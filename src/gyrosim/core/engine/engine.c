@@ -1179,12 +1179,71 @@ static GS_INLINE void from_step(const double *v, int nv, double *y) {
     if (nv == 8) y[10] = v[7];
 }
 
-/* out = y0 + h * sum_j w[j] K[j] over the first nk stages and nv components, skipping the tableau's zeros; with y0
- * NULL, out = the sums (h unused). The sums in registers (the compiler cannot keep an array there past the stores
- * into K; through an array here too the stages were slower, measured): the same products and sums in the same order
- * as an array loop, the same bits. */
+/* dop853's sums on pairs of components (GCC and Clang vector extensions: SSE2 on x86-64, NEON on aarch64; a lane
+ * does the scalar code's multiply and add, no contraction (the header's pragmas): the same bits), half the
+ * floating-point instructions of the stages, whose chain is what a step waits on; a stage's derivatives stored as
+ * pairs too, so that the next stage's 16-byte loads are forwarded from the stores (from two 8-byte stores they are
+ * not, and the pairs were slower than the scalars). Component 7 (the work term) is 0 without GS_WORK terms, so the
+ * pairs always cover 8 components. GS_NO_VECTOR, or another compiler: the scalar code. */
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(GS_NO_VECTOR)
+#define GS_PAIRS 1
+typedef double gs_v2 __attribute__((vector_size(16)));
+static GS_INLINE gs_v2 v2_load(const double *p) {
+    gs_v2 v;
+    memcpy(&v, p, sizeof(v));
+    return v;
+}
+static GS_INLINE void v2_store(double *p, gs_v2 v) { memcpy(p, &v, sizeof(v)); }
+#endif
+
+/* a stage's derivatives into a row of Step.K (8 components) */
+static GS_INLINE void rhs_row(const double *y, const double *p, int flags, double *K) {
+#ifdef GS_PAIRS
+    double k[8];
+    rhs(y, p, flags, k);
+    const gs_v2 k01 = {k[0], k[1]}, k23 = {k[2], k[3]}, k45 = {k[4], k[5]};
+    const gs_v2 k67 = {k[6], (flags & GS_WORK) ? k[7] : 0.0};
+    v2_store(K, k01);
+    v2_store(K + 2, k23);
+    v2_store(K + 4, k45);
+    v2_store(K + 6, k67);
+#else
+    rhs(y, p, flags, K);
+    if (!(flags & GS_WORK)) K[7] = 0.0;
+#endif
+}
+
+/* out = y0 + h * sum_j w[j] K[j] over the first nk stages, skipping the tableau's zeros; with y0 NULL, out = the
+ * sums (h unused). 8 components are written (out has 8); nv of them count (7: without GS_WORK terms). The sums in
+ * registers (the compiler cannot keep an array there past the stores into K; through an array here too the stages
+ * were slower, measured): the same products and sums in the same order as an array loop, the same bits. */
 static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double h, int nv, const double *y0,
                                   double *out) {
+#ifdef GS_PAIRS
+    (void)nv;
+    gs_v2 c01 = {0.0, 0.0}, c23 = {0.0, 0.0}, c45 = {0.0, 0.0}, c67 = {0.0, 0.0};
+    for (int j = 0; j < nk; j++) {
+        const double a = w[j];
+        if (a == 0.0) continue;
+        const double *k = s->K[j];
+        const gs_v2 av = {a, a};
+        c01 += av * v2_load(k);
+        c23 += av * v2_load(k + 2);
+        c45 += av * v2_load(k + 4);
+        c67 += av * v2_load(k + 6);
+    }
+    if (y0) {
+        const gs_v2 hv = {h, h};
+        c01 = v2_load(y0) + hv * c01;
+        c23 = v2_load(y0 + 2) + hv * c23;
+        c45 = v2_load(y0 + 4) + hv * c45;
+        c67 = v2_load(y0 + 6) + hv * c67;
+    }
+    v2_store(out, c01);
+    v2_store(out + 2, c23);
+    v2_store(out + 4, c45);
+    v2_store(out + 6, c67);
+#else
     double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
     for (int j = 0; j < nk; j++) {
         const double a = w[j];
@@ -1207,7 +1266,7 @@ static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double
         out[4] = y0[4] + h * c4;
         out[5] = y0[5] + h * c5;
         out[6] = y0[6] + h * c6;
-        if (nv == 8) out[7] = y0[7] + h * c7;
+        out[7] = y0[7] + h * c7;
     } else {
         out[0] = c0;
         out[1] = c1;
@@ -1216,8 +1275,9 @@ static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double
         out[4] = c4;
         out[5] = c5;
         out[6] = c6;
-        if (nv == 8) out[7] = c7;
+        out[7] = c7;
     }
+#endif
 }
 
 /* fmax(|a|, |b|) without the library call: the same value where neither is NaN (fabs makes the zeros alike); a NaN
@@ -1259,13 +1319,13 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     /* dop853: 12 stages, then f(y1) as the 13th (FSAL); error as scipy's DOP853 (E5 with an E3 correction) */
     for (int st = 1; st < 12; st++) {
         erk_combine(s, D8_A[st], st, h, nv, s->y0, yt);
-        rhs(yt, p, flags, s->K[st]);
+        rhs_row(yt, p, flags, s->K[st]);
     }
     erk_combine(s, D8_B, 12, h, nv, s->y0, s->y1);
-    rhs(s->y1, p, flags, s->K[12]);
+    rhs_row(s->y1, p, flags, s->K[12]);
     stats[2] += 12;
     double e5 = 0.0, e3 = 0.0;
-    double a5v[7], a3v[7];
+    double a5v[8], a3v[8];
     /* E5 and E3 have the same zeros: the terms of a loop that skipped the stages where both are zero */
     erk_combine(s, D8_E5, 13, 0.0, 7, NULL, a5v);
     erk_combine(s, D8_E3, 13, 0.0, 7, NULL, a3v);
@@ -1298,7 +1358,7 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
         double yt[8];
         for (int st = 13; st < 16; st++) {
             erk_combine(s, D8_A[st], st, h, nv, s->y0, yt);
-            rhs(yt, p, flags, s->K[st]);
+            rhs_row(yt, p, flags, s->K[st]);
         }
         stats[2] += 3;
         for (int i = 0; i < nv; i++) {
@@ -1344,7 +1404,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
         atol *= GS_ADAPTIVE_TOL_SCALE;
     }
     double h = *hint;
-    rhs(yc, p, flags, s.K[0]);
+    rhs_row(yc, p, flags, s.K[0]);
     stats[2] += 1;
     if (!(h > 0.0)) {
         double d0 = 0.0, d1 = 0.0;
