@@ -1329,12 +1329,24 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     /* E5 and E3 have the same zeros: the terms of a loop that skipped the stages where both are zero */
     erk_combine(s, D8_E5, 13, 0.0, 7, NULL, a5v);
     erk_combine(s, D8_E3, 13, 0.0, 7, NULL, a3v);
+#ifdef GS_PAIRS
+    gs_v2 e = {0.0, 0.0};   /* (e5, e3): one division per component for both (on the chain to the next step) */
+    for (int i = 0; i < 7; i++) {
+        const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
+        const gs_v2 a = {a5v[i], a3v[i]}, scv = {sc, sc};
+        const gs_v2 q = a / scv;
+        e += q * q;
+    }
+    e5 = e[0];
+    e3 = e[1];
+#else
     for (int i = 0; i < 7; i++) {
         const double a5 = a5v[i], a3 = a3v[i];
         const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
         e5 += (a5 / sc) * (a5 / sc);
         e3 += (a3 / sc) * (a3 / sc);
     }
+#endif
     if (e5 == 0.0 && e3 == 0.0) return 0.0;
     return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * 7.0);
 }
