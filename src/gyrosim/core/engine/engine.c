@@ -1209,11 +1209,71 @@ static GS_INLINE void from_step(const double *v, int nv, double *y) {
     if (nv == 8) y[10] = v[7];
 }
 
-/* One step of h from s.y0 with s.K[0] = f(y0): s.y1, s.K[last] = f(y1); returns the scaled error norm. */
-/* out = y0 + h * sum_j w[j] K[j] over the first nk stages, skipping the tableau's zeros. The sums in registers
- * (the compiler cannot keep an array there past the stores into K): the same products and sums in the same order
- * as an array loop, the same bits. */
-static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double h, int nv, double *out) {
+/* dop853's sums on pairs of components (GCC and Clang vector extensions: SSE2 on x86-64, NEON on aarch64; a lane
+ * does the scalar code's multiply and add, no contraction (the header's pragmas): the same bits), half the
+ * floating-point instructions of the stages, whose chain is what a step waits on; a stage's derivatives stored as
+ * pairs too, so that the next stage's 16-byte loads are forwarded from the stores (from two 8-byte stores they are
+ * not, and the pairs were slower than the scalars). Component 7 (the work term) is 0 without GS_WORK terms, so the
+ * pairs always cover 8 components. GS_NO_VECTOR, or another compiler: the scalar code. */
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(GS_NO_VECTOR)
+#define GS_PAIRS 1
+typedef double gs_v2 __attribute__((vector_size(16)));
+static GS_INLINE gs_v2 v2_load(const double *p) {
+    gs_v2 v;
+    memcpy(&v, p, sizeof(v));
+    return v;
+}
+static GS_INLINE void v2_store(double *p, gs_v2 v) { memcpy(p, &v, sizeof(v)); }
+#endif
+
+/* a stage's derivatives into a row of Step.K (8 components) */
+static GS_INLINE void rhs_row(const double *y, const double *p, int flags, double *K) {
+#ifdef GS_PAIRS
+    double k[8];
+    rhs(y, p, flags, k);
+    const gs_v2 k01 = {k[0], k[1]}, k23 = {k[2], k[3]}, k45 = {k[4], k[5]};
+    const gs_v2 k67 = {k[6], (flags & GS_WORK) ? k[7] : 0.0};
+    v2_store(K, k01);
+    v2_store(K + 2, k23);
+    v2_store(K + 4, k45);
+    v2_store(K + 6, k67);
+#else
+    rhs(y, p, flags, K);
+    if (!(flags & GS_WORK)) K[7] = 0.0;
+#endif
+}
+
+/* out = y0 + h * sum_j w[j] K[j] over the first nk stages, skipping the tableau's zeros; with y0 NULL, out = the
+ * sums (h unused). 8 components are written (out has 8); nv of them count (7: without GS_WORK terms). The sums in
+ * registers (the compiler cannot keep an array there past the stores into K; through an array here too the stages
+ * were slower, measured): the same products and sums in the same order as an array loop, the same bits. */
+static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double h, int nv, const double *y0,
+                                  double *out) {
+#ifdef GS_PAIRS
+    (void)nv;
+    gs_v2 c01 = {0.0, 0.0}, c23 = {0.0, 0.0}, c45 = {0.0, 0.0}, c67 = {0.0, 0.0};
+    for (int j = 0; j < nk; j++) {
+        const double a = w[j];
+        if (a == 0.0) continue;
+        const double *k = s->K[j];
+        const gs_v2 av = {a, a};
+        c01 += av * v2_load(k);
+        c23 += av * v2_load(k + 2);
+        c45 += av * v2_load(k + 4);
+        c67 += av * v2_load(k + 6);
+    }
+    if (y0) {
+        const gs_v2 hv = {h, h};
+        c01 = v2_load(y0) + hv * c01;
+        c23 = v2_load(y0 + 2) + hv * c23;
+        c45 = v2_load(y0 + 4) + hv * c45;
+        c67 = v2_load(y0 + 6) + hv * c67;
+    }
+    v2_store(out, c01);
+    v2_store(out + 2, c23);
+    v2_store(out + 4, c45);
+    v2_store(out + 6, c67);
+#else
     double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
     for (int j = 0; j < nk; j++) {
         const double a = w[j];
@@ -1228,16 +1288,39 @@ static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double
         c6 += a * k[6];
         if (nv == 8) c7 += a * k[7];
     }
-    out[0] = s->y0[0] + h * c0;
-    out[1] = s->y0[1] + h * c1;
-    out[2] = s->y0[2] + h * c2;
-    out[3] = s->y0[3] + h * c3;
-    out[4] = s->y0[4] + h * c4;
-    out[5] = s->y0[5] + h * c5;
-    out[6] = s->y0[6] + h * c6;
-    if (nv == 8) out[7] = s->y0[7] + h * c7;
+    if (y0) {
+        out[0] = y0[0] + h * c0;
+        out[1] = y0[1] + h * c1;
+        out[2] = y0[2] + h * c2;
+        out[3] = y0[3] + h * c3;
+        out[4] = y0[4] + h * c4;
+        out[5] = y0[5] + h * c5;
+        out[6] = y0[6] + h * c6;
+        out[7] = y0[7] + h * c7;
+    } else {
+        out[0] = c0;
+        out[1] = c1;
+        out[2] = c2;
+        out[3] = c3;
+        out[4] = c4;
+        out[5] = c5;
+        out[6] = c6;
+        out[7] = c7;
+    }
+#endif
 }
 
+/* fmax(|a|, |b|) without the library call: the same value where neither is NaN (fabs makes the zeros alike); a NaN
+ * there fails the step whatever the error norm (ok() checks y1, and y0 was accepted) */
+static GS_INLINE double max_abs(double a, double b) {
+    const double x = fabs(a), y = fabs(b);
+    return x > y ? x : y;
+}
+
+/* fmin(a, b) for a not NaN, inline */
+static GS_INLINE double gmin(double a, double b) { return b < a ? b : a; }
+
+/* One step of h from s.y0 with s.K[0] = f(y0): s.y1, s.K[last] = f(y1); returns the scaled error norm. */
 static double erk_step(int method, Step *s, const double *p, int flags, double h, double rtol, double atol,
                        int64_t *stats) {
     double yt[8];
@@ -1258,35 +1341,42 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
             double e = 0.0;
             for (int j = 0; j < 7; j++) e += D5_E[j] * s->K[j][i];
             e *= h;
-            const double sc = atol + rtol * fmax(fabs(s->y0[i]), fabs(s->y1[i]));
+            const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
             err += (e / sc) * (e / sc);
         }
         return sqrt(err / 7.0);
     }
     /* dop853: 12 stages, then f(y1) as the 13th (FSAL); error as scipy's DOP853 (E5 with an E3 correction) */
     for (int st = 1; st < 12; st++) {
-        erk_combine(s, D8_A[st], st, h, nv, yt);
-        rhs(yt, p, flags, s->K[st]);
+        erk_combine(s, D8_A[st], st, h, nv, s->y0, yt);
+        rhs_row(yt, p, flags, s->K[st]);
     }
-    erk_combine(s, D8_B, 12, h, nv, s->y1);
-    rhs(s->y1, p, flags, s->K[12]);
+    erk_combine(s, D8_B, 12, h, nv, s->y0, s->y1);
+    rhs_row(s->y1, p, flags, s->K[12]);
     stats[2] += 12;
     double e5 = 0.0, e3 = 0.0;
-    double a5v[7] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, a3v[7] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    for (int j = 0; j < 13; j++) {
-        const double c5 = D8_E5[j], c3 = D8_E3[j];
-        if (c5 == 0.0 && c3 == 0.0) continue;
-        for (int i = 0; i < 7; i++) {
-            a5v[i] += c5 * s->K[j][i];
-            a3v[i] += c3 * s->K[j][i];
-        }
+    double a5v[8], a3v[8];
+    /* E5 and E3 have the same zeros: the terms of a loop that skipped the stages where both are zero */
+    erk_combine(s, D8_E5, 13, 0.0, 7, NULL, a5v);
+    erk_combine(s, D8_E3, 13, 0.0, 7, NULL, a3v);
+#ifdef GS_PAIRS
+    gs_v2 e = {0.0, 0.0};   /* (e5, e3): one division per component for both (on the chain to the next step) */
+    for (int i = 0; i < 7; i++) {
+        const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
+        const gs_v2 a = {a5v[i], a3v[i]}, scv = {sc, sc};
+        const gs_v2 q = a / scv;
+        e += q * q;
     }
+    e5 = e[0];
+    e3 = e[1];
+#else
     for (int i = 0; i < 7; i++) {
         const double a5 = a5v[i], a3 = a3v[i];
-        const double sc = atol + rtol * fmax(fabs(s->y0[i]), fabs(s->y1[i]));
+        const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
         e5 += (a5 / sc) * (a5 / sc);
         e3 += (a3 / sc) * (a3 / sc);
     }
+#endif
     if (e5 == 0.0 && e3 == 0.0) return 0.0;
     return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * 7.0);
 }
@@ -1309,14 +1399,8 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
     if (!s->dense_ready) {
         double yt[8];
         for (int st = 13; st < 16; st++) {
-            double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-            for (int j = 0; j < st; j++) {
-                const double a = D8_A[st][j];
-                if (a == 0.0) continue;
-                for (int i = 0; i < nv; i++) acc[i] += a * s->K[j][i];
-            }
-            for (int i = 0; i < nv; i++) yt[i] = s->y0[i] + h * acc[i];
-            rhs(yt, p, flags, s->K[st]);
+            erk_combine(s, D8_A[st], st, h, nv, s->y0, yt);
+            rhs_row(yt, p, flags, s->K[st]);
         }
         stats[2] += 3;
         for (int i = 0; i < nv; i++) {
@@ -1324,13 +1408,11 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
             s->F[0][i] = dy;
             s->F[1][i] = h * s->K[0][i] - dy;
             s->F[2][i] = 2.0 * dy - h * (s->K[12][i] + s->K[0][i]);
-            for (int r = 0; r < 4; r++) {
-                double acc = 0.0;
-                for (int j = 0; j < 16; j++) {
-                    if (D8_D[r][j] != 0.0) acc += D8_D[r][j] * s->K[j][i];
-                }
-                s->F[3 + r][i] = h * acc;
-            }
+        }
+        for (int r = 0; r < 4; r++) {   /* the sums of the loop over the stages that skipped D's zeros */
+            double acc[8];
+            erk_combine(s, D8_D[r], 16, 0.0, nv, NULL, acc);
+            for (int i = 0; i < nv; i++) s->F[3 + r][i] = h * acc[i];
         }
         s->dense_ready = 1;
     }
@@ -1364,7 +1446,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
         atol *= GS_ADAPTIVE_TOL_SCALE;
     }
     double h = *hint;
-    rhs(yc, p, flags, s.K[0]);
+    rhs_row(yc, p, flags, s.K[0]);
     stats[2] += 1;
     if (!(h > 0.0)) {
         double d0 = 0.0, d1 = 0.0;
@@ -1398,10 +1480,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
         s.h = h;
         s.dense_ready = 0;
         const double err = erk_step(method, &s, p, flags, h, rtol, atol, stats);
-        double ynew[GS_NY];
-        memcpy(ynew, yc, sizeof(ynew));
-        from_step(s.y1, s.nv, ynew);
-        if (!(isfinite(err) && ok(ynew))) {
+        if (!(isfinite(err) && ok(s.y1))) {   /* ok() reads q and omega, the step's first 7 components */
             if (h <= h_min) {
                 *fail_row = k_next;
                 return nstep;
@@ -1459,10 +1538,11 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
         yc[9] += w * h;
         if (yc[9] > 1.0) gs_unwrap(yc);
         t = t1;
-        const double fac = err == 0.0 ? fmax_grow : fmin(fmax_grow, fmax(0.2, 0.9 * pow(err, expo)));
+        /* fmin and fmax inline: err is finite and positive here, pow's result too */
+        const double fac = err == 0.0 ? fmax_grow : gmin(fmax_grow, gmax(0.2, 0.9 * pow(err, expo)));
         if (!clipped) last_h = h;
-        h = fmin(h * fac, max_step);
-        if (clipped) last_h = fmax(last_h, h);
+        h = gmin(h * fac, max_step);
+        if (clipped) last_h = gmax(last_h, h);
     }
     *hint = fmin(last_h, max_step);
     memcpy(y, yc, sizeof(yc));
