@@ -1214,8 +1214,8 @@ static GS_INLINE void from_step(const double *v, int nv, double *y) {
  * floating-point instructions of the stages, whose chain is what a step waits on; a stage's derivatives stored as
  * pairs too, so that the next stage's 16-byte loads are forwarded from the stores (from two 8-byte stores they are
  * not, and the pairs were slower than the scalars). Component 7 (the work term) is 0 without GS_WORK terms, so the
- * pairs always cover 8 components. GS_NO_VECTOR, or another compiler: the scalar code. */
-#if (defined(__GNUC__) || defined(__clang__)) && !defined(GS_NO_VECTOR)
+ * pairs always cover 8 components. GS_NO_VECTORS, or another compiler: the scalar code. */
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(GS_NO_VECTORS)
 #define GS_PAIRS 1
 typedef double gs_v2 __attribute__((vector_size(16)));
 static GS_INLINE gs_v2 v2_load(const double *p) {
