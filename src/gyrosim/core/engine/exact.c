@@ -585,19 +585,25 @@ static GS_TF_INLINE void fast_sums(const double *c, const vd *xp, vd *sn, vd *cn
     *dn = c[C_FD] + d1 * y - d2;
 }
 
+/* The elliptic functions' argument u = lam t + u0 at GS_VW times, reduced by their period: u = 2 K j + u_r with
+ * x = u_r / K clamped to [-1, 1] (rk = 1 / K) */
+static GS_TF_INLINE void reduce_arg(const vd *t, double lam, double u0, double K, double rk, vd *u, vd *j, vd *x)
+{
+    *u = VSPLAT(lam) * *t + u0;
+    *j = VMAP(floor, 0.5 * rk * *u + 0.5);
+    const vd xr = (*u - *j * (2.0 * K)) * rk;
+    *x = VSEL(xr < -1.0, VSPLAT(-1.0), VSEL(xr > 1.0, VSPLAT(1.0), xr));
+}
+
 /* The flow at the GS_VW times tp (relative to the anchor) with the fast series (C_NF > 0); circular (mc == 1, a
  * symmetric body) takes sn, cn from libm's sin and cos of u, whose own reduction of u is exact (2K = pi is not). */
 static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circular, double w_out[][3],
                                   double q_out[][4])
 {
-    vd t;
+    vd t, u, j, x;
     memcpy(&t, tp, sizeof(t));
     /* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
-    const vd u = VSPLAT(c[C_LAM]) * t + c[C_U0];
-    const vd j = VMAP(floor, 0.5 * c[C_RK] * u + 0.5);
-    const vd u_r = u - j * (2.0 * c[C_K]);
-    vd x = u_r * c[C_RK];
-    x = VSEL(x < -1.0, VSPLAT(-1.0), VSEL(x > 1.0, VSPLAT(1.0), x));
+    reduce_arg(&t, c[C_LAM], c[C_U0], c[C_K], c[C_RK], &u, &j, &x);
     const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
     vd sn_r, cn_r, dn, p;
     fast_sums(c, &x, &sn_r, &cn_r, &dn, &p);
@@ -1130,34 +1136,42 @@ static int ht_fit(double *c, int N)
     return 1;
 }
 
-/* the five series at x in [-1, 1] (Clenshaw in y = 2 x^2 - 1, as fast_sums) */
+/* The five series at x in [-1, 1] (Clenshaw in y = 2 x^2 - 1, as fast_sums), on values of type T (double, or the
+ * vectors of ht_vec: the same operations, the same bits): sn_r, cn_r, dn, P_Delta, P_Sigma */
+#define HT_SUMS_T(T, SPLAT, c, x, sn, cn, dn, pd, ps)                                                          \
+    do {                                                                                                    \
+        const T y2_ = 2.0 * (2.0 * (x) * (x) - 1.0), yh_ = 0.5 * y2_;                                       \
+        const int nf_ = (int)(c)[H_NF];                                                                     \
+        T s1_ = SPLAT(0.0), s2_ = s1_, c1_ = s1_, c2_ = s1_, d1_ = s1_, d2_ = s1_, p1_ = s1_, p2_ = s1_,   \
+          q1_ = s1_, q2_ = s1_;                                                                             \
+        for (int i_ = nf_ - 1; i_ >= 1; i_--) {                                                             \
+            const T s0_ = y2_ * s1_ - s2_ + (c)[H_FS + i_];                                                 \
+            const T c0_ = y2_ * c1_ - c2_ + (c)[H_FC + i_];                                                 \
+            const T d0_ = y2_ * d1_ - d2_ + (c)[H_FD + i_];                                                 \
+            const T p0_ = y2_ * p1_ - p2_ + (c)[H_FPD + i_];                                                \
+            const T q0_ = y2_ * q1_ - q2_ + (c)[H_FPS + i_];                                                \
+            s2_ = s1_;                                                                                      \
+            s1_ = s0_;                                                                                      \
+            c2_ = c1_;                                                                                      \
+            c1_ = c0_;                                                                                      \
+            d2_ = d1_;                                                                                      \
+            d1_ = d0_;                                                                                      \
+            p2_ = p1_;                                                                                      \
+            p1_ = p0_;                                                                                      \
+            q2_ = q1_;                                                                                      \
+            q1_ = q0_;                                                                                      \
+        }                                                                                                   \
+        sn = (x) * ((c)[H_FS] + s1_ * (y2_ - 1.0) - s2_);                                                   \
+        pd = (x) * ((c)[H_FPD] + p1_ * (y2_ - 1.0) - p2_);                                                  \
+        ps = (x) * ((c)[H_FPS] + q1_ * (y2_ - 1.0) - q2_);                                                  \
+        cn = (c)[H_FC] + c1_ * yh_ - c2_;                                                                   \
+        dn = (c)[H_FD] + d1_ * yh_ - d2_;                                                                   \
+    } while (0)
+#define S1_SPLAT(a) (a)
+
 static void ht_sums(const double *c, double x, double *sn, double *cn, double *dn, double *pd, double *ps)
 {
-    const double y2 = 2.0 * (2.0 * x * x - 1.0), y = 0.5 * y2;
-    const int nf = (int)c[H_NF];
-    double s1 = 0.0, s2 = 0.0, c1 = 0.0, c2 = 0.0, d1 = 0.0, d2 = 0.0, p1 = 0.0, p2 = 0.0, q1 = 0.0, q2 = 0.0;
-    for (int i = nf - 1; i >= 1; i--) {
-        const double s0 = y2 * s1 - s2 + c[H_FS + i];
-        const double c0 = y2 * c1 - c2 + c[H_FC + i];
-        const double d0 = y2 * d1 - d2 + c[H_FD + i];
-        const double p0 = y2 * p1 - p2 + c[H_FPD + i];
-        const double q0 = y2 * q1 - q2 + c[H_FPS + i];
-        s2 = s1;
-        s1 = s0;
-        c2 = c1;
-        c1 = c0;
-        d2 = d1;
-        d1 = d0;
-        p2 = p1;
-        p1 = p0;
-        q2 = q1;
-        q1 = q0;
-    }
-    *sn = x * (c[H_FS] + s1 * (y2 - 1.0) - s2);
-    *pd = x * (c[H_FPD] + p1 * (y2 - 1.0) - p2);
-    *ps = x * (c[H_FPS] + q1 * (y2 - 1.0) - q2);
-    *cn = c[H_FC] + c1 * y - c2;
-    *dn = c[H_FD] + d1 * y - d2;
+    HT_SUMS_T(double, S1_SPLAT, c, x, *sn, *cn, *dn, *pd, *ps);
 }
 
 /* j, w_r and the reduced functions at w = lam t + w0 */
@@ -1434,40 +1448,13 @@ void gs_ht_setup(double A, double C, double mgl, const double w[3], const double
 static GS_TF_INLINE void ht_vec(const double *c, const double *tp, double w_out[][3], double q_out[][4],
                                 double ang[][2])
 {
-    vd t;
+    vd t, w, j, x;
     memcpy(&t, tp, sizeof(t));
-    const vd w = VSPLAT(c[H_LAM]) * t + c[H_W0];
-    const vd j = VMAP(floor, 0.5 * c[H_RK] * w + 0.5);
-    const vd r = w - j * (2.0 * c[H_K]);
-    vd x = r * c[H_RK];
-    x = VSEL(x < -1.0, VSPLAT(-1.0), VSEL(x > 1.0, VSPLAT(1.0), x));
-    /* the five series (Clenshaw in y = 2 x^2 - 1, as ht_sums) */
-    const vd y2 = 2.0 * (2.0 * x * x - 1.0), yh = 0.5 * y2;
-    const int nf = (int)c[H_NF];
-    vd s1 = VSPLAT(0.0), s2 = s1, c1 = s1, c2 = s1, d1 = s1, d2 = s1, p1 = s1, p2 = s1, q1 = s1, q2 = s1;
-    for (int i = nf - 1; i >= 1; i--) {
-        const vd s0 = y2 * s1 - s2 + c[H_FS + i];
-        const vd c0 = y2 * c1 - c2 + c[H_FC + i];
-        const vd d0 = y2 * d1 - d2 + c[H_FD + i];
-        const vd p0 = y2 * p1 - p2 + c[H_FPD + i];
-        const vd q0 = y2 * q1 - q2 + c[H_FPS + i];
-        s2 = s1;
-        s1 = s0;
-        c2 = c1;
-        c1 = c0;
-        d2 = d1;
-        d1 = d0;
-        p2 = p1;
-        p1 = p0;
-        q2 = q1;
-        q1 = q0;
-    }
+    reduce_arg(&t, c[H_LAM], c[H_W0], c[H_K], c[H_RK], &w, &j, &x);
+    vd sn_r, cn_r, dn, pd, ps;
+    HT_SUMS_T(vd, VSPLAT, c, x, sn_r, cn_r, dn, pd, ps);
     const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
-    const vd sn = sg * (x * (c[H_FS] + s1 * (y2 - 1.0) - s2));
-    const vd pd = x * (c[H_FPD] + p1 * (y2 - 1.0) - p2);
-    const vd ps = x * (c[H_FPS] + q1 * (y2 - 1.0) - q2);
-    const vd cn = sg * (c[H_FC] + c1 * yh - c2);
-    const vd dn = c[H_FD] + d1 * yh - d2;
+    const vd sn = sg * sn_r, cn = sg * cn_r;
     const double d = c[H_D];
     const int ups = c[H_UPS] != 0.0, los = c[H_LOS] != 0.0;
     const vd s = ups ? c[H_HD] * cn : VMAP(sqrt, 0.5 * (c[H_V2] + d * cn * cn));   /* sin(theta / 2) */
