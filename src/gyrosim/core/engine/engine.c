@@ -774,14 +774,49 @@ static int32_t exact_advance_pre(double *y, const double *p, double t, double H,
     return 0;
 }
 
+/* exact_advance_pre's one-sample step from the anchor in ex with the flow at its end evaluated beforehand (the
+ * output grid's lanes), without the general step's set-up copy and sampling: the same operations, the same bits.
+ * Returns -1 (nothing done) where the step needs more than one sample (|omega| H > 1): the general step then. */
+static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, const double *pw, const double *pq,
+                                          int64_t *stats) {
+    const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    const double turn = wmag * H;   /* ceil(turn) <= 1: one sample (m = 1), and the rotation per sample */
+    if (!(turn <= 1.0)) return -1;
+    double save[10];
+    memcpy(save, y, sizeof(save));   /* y[10..14] (the monitor's start values) are not touched */
+    if (y[9] + turn > 1.0) gs_unwrap(y);
+    memcpy(y + 4, pw, 3 * sizeof(double));
+    memcpy(y, pq, 4 * sizeof(double));
+    y[9] += turn;
+    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(0, y, p)) {   /* torque-free: flags 0 */
+        memcpy(y, save, sizeof(save));
+        return 1;
+    }
+    stats[0] += 1;
+    return 0;
+}
+
 static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
     return exact_advance_pre(y, p, t, H, ex, stats, NULL, NULL);
 }
 
+/* The Lagrange top's step once the flow at its end is in y (q, omega and the flow's own unwrapped phi, psi as the
+ * reference angles): the checks and the monitor's update; y back to save on a failure. */
+static GS_INLINE int32_t exact_ht_commit(int flags, double *y, const double *p, const double *save, int64_t *stats) {
+    y[9] = 0.0;
+    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(flags, y, p)) {
+        memcpy(y, save, GS_NY * sizeof(double));
+        return 1;
+    }
+    monitor_commit(flags, y, p);
+    stats[0] += 1;
+    return 0;
+}
+
 /* The Lagrange top (gs_lagrange_top): the flow from the anchor at the end of the step, one evaluation; the
  * reference angles y[7], y[8] are the flow's own unwrapped phi, psi there (no sampling within the step). */
-static int32_t exact_advance_ht_pre(int flags, double *y, const double *p, double t, double H, double *ex,
-                                    int64_t *stats, const double *pw, const double *pq, const double *pa) {
+static int32_t exact_advance_ht(int flags, double *y, const double *p, double t, double H, double *ex,
+                                int64_t *stats) {
     double local[GS_EX_SIZE];
     double *c = ex;
     if (ex[GS_EX_VALID] != 1.0 || ex[0] != 2.0) {   /* set up into a copy, as exact_advance_pre */
@@ -795,27 +830,22 @@ static int32_t exact_advance_ht_pre(int flags, double *y, const double *p, doubl
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
     const double tau = (t - c[GS_EX_T0]) + H * 1.0 / 1.0;   /* the time exact_advance_pre samples */
-    if (pw && c == ex) {   /* the same flow at the same time, evaluated beforehand (gs_ht_eval_lanes) */
-        memcpy(y + 4, pw, 3 * sizeof(double));
-        memcpy(y, pq, 4 * sizeof(double));
-        memcpy(y + 7, pa, 2 * sizeof(double));
-    } else {
-        gs_ht_eval(c, tau, y + 4, y, y + 7);
-    }
-    y[9] = 0.0;
-    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(flags, y, p)) {
-        memcpy(y, save, sizeof(save));
-        return 1;
-    }
-    if (c == local) memcpy(ex, local, sizeof(local));
-    monitor_commit(flags, y, p);
-    stats[0] += 1;
-    return 0;
+    gs_ht_eval(c, tau, y + 4, y, y + 7);
+    const int32_t st = exact_ht_commit(flags, y, p, save, stats);
+    if (!st && c == local) memcpy(ex, local, sizeof(local));
+    return st;
 }
 
-static int32_t exact_advance_ht(int flags, double *y, const double *p, double t, double H, double *ex,
-                                int64_t *stats) {
-    return exact_advance_ht_pre(flags, y, p, t, H, ex, stats, NULL, NULL, NULL);
+/* exact_advance_ht from the anchor in ex with the flow at the step's end evaluated beforehand (gs_ht_eval_lanes at
+ * the same time): the same bits */
+static GS_INLINE int32_t exact_ht_grid_point(int flags, double *y, const double *p, const double *pw,
+                                             const double *pq, const double *pa, int64_t *stats) {
+    double save[GS_NY];
+    memcpy(save, y, sizeof(save));
+    memcpy(y + 4, pw, 3 * sizeof(double));
+    memcpy(y, pq, 4 * sizeof(double));
+    memcpy(y + 7, pa, 2 * sizeof(double));
+    return exact_ht_commit(flags, y, p, save, stats);
 }
 
 /* ------------------------------------------------------------------------------------------- the loop */
@@ -1149,31 +1179,32 @@ void gs_outputs(size_t n, const double *y, const double *p, double *out) {
     gs_outputs_select(n, y, p, out, GS_OUT_ANGLES | GS_OUT_MOMENTUM);
 }
 
-void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want) {
-    for (size_t b = 0; b < n; b++) {
-        const double *yb = y + b * GS_NY, *pb = p + b * GS_NP;
-        double *o = out + b * GS_NOUT;
-        const double w = yb[0], x = yb[1], yy = yb[2], z = yb[3];
-        const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
-        const double o1 = yb[4], o2 = yb[5], o3 = yb[6];
-        for (int i = 0; i < 7; i++) o[i] = yb[i];
-        if (want & GS_OUT_ANGLES) {
-            unwrapped(yb, &o[7], &o[9]);
-            o[8] = 2.0 * atan2(hypot(x, yy), hypot(w, z));
-        } else {
-            o[7] = o[8] = o[9] = NAN;
-        }
-        if (!(want & GS_OUT_MOMENTUM)) {
-            o[10] = o[11] = o[12] = o[13] = o[14] = NAN;
-            continue;
-        }
-        const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
-        o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
-        o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
-        o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
-        o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
-        o[14] = o[13] - yb[10];
+/* one body's output row (gs_outputs_select), inline where a trajectory writes its rows */
+static GS_INLINE void output_row(const double *yb, const double *pb, double *o, int want) {
+    const double w = yb[0], x = yb[1], yy = yb[2], z = yb[3];
+    const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
+    const double o1 = yb[4], o2 = yb[5], o3 = yb[6];
+    for (int i = 0; i < 7; i++) o[i] = yb[i];
+    if (want & GS_OUT_ANGLES) {
+        unwrapped(yb, &o[7], &o[9]);
+        o[8] = 2.0 * atan2(hypot(x, yy), hypot(w, z));
+    } else {
+        o[7] = o[8] = o[9] = NAN;
     }
+    if (!(want & GS_OUT_MOMENTUM)) {
+        o[10] = o[11] = o[12] = o[13] = o[14] = NAN;
+        return;
+    }
+    const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
+    o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
+    o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
+    o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
+    o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
+    o[14] = o[13] - yb[10];
+}
+
+void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want) {
+    for (size_t b = 0; b < n; b++) output_row(y + b * GS_NY, p + b * GS_NP, out + b * GS_NOUT, want);
 }
 
 /* ---------------------------------------------------------------------------------------------------------
@@ -1636,9 +1667,11 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                 }
                 const int64_t l = k - lanes_from;
                 const int have = l < lanes_n;
-                st = ht ? exact_advance_ht_pre(flags, yb, pb, tk, dt, eb, sb, have ? lw[l] : NULL,
-                                               have ? lq[l] : NULL, have ? la[l] : NULL)
-                        : exact_advance_pre(yb, pb, tk, dt, eb, sb, have ? lw[l] : NULL, have ? lq[l] : NULL);
+                if (ht)
+                    st = have ? exact_ht_grid_point(flags, yb, pb, lw[l], lq[l], la[l], sb)
+                              : exact_advance_ht(flags, yb, pb, tk, dt, eb, sb);
+                else if (!have || (st = exact_grid_point(yb, pb, dt, lw[l], lq[l], sb)) < 0)
+                    st = exact_advance_pre(yb, pb, tk, dt, eb, sb, have ? lw[l] : NULL, have ? lq[l] : NULL);
             } else {
                 st = advance_body(method, flags, yb, pb, tk, dt, n_sub, rtol, atol, max_step, hint + b, sb, eb);
             }
@@ -1648,7 +1681,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                 failed += 1;
                 break;
             }
-            gs_outputs_select(1, yb, pb, out + ((size_t)(k + 1) * n + b) * GS_NOUT, want);
+            output_row(yb, pb, out + ((size_t)(k + 1) * n + b) * GS_NOUT, want);
         }
     }
     return failed;
