@@ -566,10 +566,10 @@ static GS_TF_INLINE void fast_sums(const double *c, const vd *xp, vd *sn, vd *cn
     const int nf = (int)c[C_NF];
     vd s1 = VSPLAT(0.0), s2 = s1, c1 = s1, c2 = s1, d1 = s1, d2 = s1, p1 = s1, p2 = s1;
     for (int i = nf - 1; i >= 1; i--) {
-        const vd s0 = y2 * s1 - s2 + c[C_FS + i];
-        const vd c0 = y2 * c1 - c2 + c[C_FC + i];
-        const vd d0 = y2 * d1 - d2 + c[C_FD + i];
-        const vd p0 = y2 * p1 - p2 + c[C_FP + i];
+        const vd s0 = y2 * s1 + (c[C_FS + i] - s2);   /* (a_i - b_i+2) off the chain through b_i+1 */
+        const vd c0 = y2 * c1 + (c[C_FC + i] - c2);
+        const vd d0 = y2 * d1 + (c[C_FD + i] - d2);
+        const vd p0 = y2 * p1 + (c[C_FP + i] - p2);
         s2 = s1;
         s1 = s0;
         c2 = c1;
@@ -626,8 +626,9 @@ static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circula
     }
     /* direction of L in the frame (o, b, p): theta from cos = lp, sin = |(lo, lb)|, its half angles without trig */
     const vd lo = c[C_LO] * cn, lb = c[C_LB] * sn, lp = c[C_LP] * dn;
-    const vd ro2 = lo * lo + lb * lb, il = 1.0 / VMAP(sqrt, ro2 + lp * lp);
-    const vd ct = lp * il, st = VMAP(sqrt, ro2) * il;
+    /* (lo, lb, lp) = L / |L| in the frame: |L| is the flow's constant, so no normalisation */
+    const vd ro2 = lo * lo + lb * lb;
+    const vd ct = lp, st = VMAP(sqrt, ro2);
     const vm pos = ct >= 0.0;
     const vd big = VMAP(sqrt, 0.5 * (1.0 + VSEL(pos, ct, -ct)));   /* the larger of cos and sin of theta / 2 */
     const vd small = 0.5 * st / big;
@@ -1145,11 +1146,11 @@ static int ht_fit(double *c, int N)
         T s1_ = SPLAT(0.0), s2_ = s1_, c1_ = s1_, c2_ = s1_, d1_ = s1_, d2_ = s1_, p1_ = s1_, p2_ = s1_,   \
           q1_ = s1_, q2_ = s1_;                                                                             \
         for (int i_ = nf_ - 1; i_ >= 1; i_--) {                                                             \
-            const T s0_ = y2_ * s1_ - s2_ + (c)[H_FS + i_];                                                 \
-            const T c0_ = y2_ * c1_ - c2_ + (c)[H_FC + i_];                                                 \
-            const T d0_ = y2_ * d1_ - d2_ + (c)[H_FD + i_];                                                 \
-            const T p0_ = y2_ * p1_ - p2_ + (c)[H_FPD + i_];                                                \
-            const T q0_ = y2_ * q1_ - q2_ + (c)[H_FPS + i_];                                                \
+            const T s0_ = y2_ * s1_ + ((c)[H_FS + i_] - s2_);                                                 \
+            const T c0_ = y2_ * c1_ + ((c)[H_FC + i_] - c2_);                                                 \
+            const T d0_ = y2_ * d1_ + ((c)[H_FD + i_] - d2_);                                                 \
+            const T p0_ = y2_ * p1_ + ((c)[H_FPD + i_] - p2_);                                                \
+            const T q0_ = y2_ * q1_ + ((c)[H_FPS + i_] - q2_);                                                \
             s2_ = s1_;                                                                                      \
             s1_ = s0_;                                                                                      \
             c2_ = c1_;                                                                                      \
