@@ -1588,6 +1588,37 @@ static void steady_flow(const double w[3], const double q[4], double t, double w
     qmul(q[0], q[1], q[2], q[3], e0, e1, e2, e3, q_out);
 }
 
+/* A symmetric body (I_i = I_j, axis k the other, (i, j, k) cyclic): the flow in closed form, R(t) = R0 exp(t [L0 / A])
+ * exp(-t lam [e_k]), lam = (C - A) omega_k / A (L0 in the body frame, A = I_i, C = I_k), and omega(t) = R_k(lam t)
+ * omega0: two rotations, no elliptic functions. */
+static void symmetric_flow(const double I[3], int k, const double w[3], const double q[4], double t, double w_out[3],
+                           double q_out[4])
+{
+    const int i = (k + 1) % 3, j = (k + 2) % 3;
+    const double A = I[i];
+    const double lam = (I[k] - A) / A * w[k];
+    const double W0 = I[0] * w[0] / A, W1 = I[1] * w[1] / A, W2 = I[2] * w[2] / A;   /* L0 / A */
+    const double wn = sqrt(W0 * W0 + W1 * W1 + W2 * W2);
+    double e0 = 1.0, e1 = 0.0, e2 = 0.0, e3 = 0.0;
+    if (wn > 0.0) {
+        const double sh = sin(0.5 * wn * t) / wn;
+        e0 = cos(0.5 * wn * t);
+        e1 = sh * W0;
+        e2 = sh * W1;
+        e3 = sh * W2;
+    }
+    double a[4];
+    qmul(q[0], q[1], q[2], q[3], e0, e1, e2, e3, a);
+    const double ch = cos(0.5 * lam * t), sh = -sin(0.5 * lam * t);   /* exp(-t lam e_k / 2) */
+    double b[4] = {ch, 0.0, 0.0, 0.0};
+    b[1 + k] = sh;
+    qmul(a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3], q_out);
+    const double cl = cos(lam * t), sl = sin(lam * t);
+    w_out[i] = w[i] * cl - w[j] * sl;
+    w_out[j] = w[i] * sl + w[j] * cl;
+    w_out[k] = w[k];
+}
+
 /* atan2((k2 - k1) sn cn, k1 cn^2 + k2 sn^2): psi_ref's bounded part */
 static double psi_bounded(double sn, double cn, double k1, double k2)
 {
@@ -1601,6 +1632,10 @@ void gs_tf_flow(const double I[3], const double w[3], const double q[4], double 
     const double e2 = (I[0] - I[1]) * w[0] * w[1];
     if (e0 == 0.0 && e1 == 0.0 && e2 == 0.0) {
         steady_flow(w, q, t, w_out, q_out);
+        return;
+    }
+    if (I[0] == I[1] || I[1] == I[2] || I[0] == I[2]) {   /* symmetric (not all three equal: that is steady) */
+        symmetric_flow(I, I[0] == I[1] ? 2 : (I[1] == I[2] ? 0 : 1), w, q, t, w_out, q_out);
         return;
     }
     int order[3] = {0, 1, 2};
