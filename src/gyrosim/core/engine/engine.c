@@ -713,10 +713,13 @@ static int32_t clamp_status(int64_t k) {
 
 /* ------------------------------------------------------------------------------------------- exact */
 
-/* pw, pq (or NULL): the flow at the end of the step from the anchor in ex, computed beforehand (gs_tf_eval_lanes);
- * used where the step takes one sample from that anchor, the bits of gs_tf_eval. */
-static int32_t exact_advance_pre(double *y, const double *p, double t, double H, double *ex, int64_t *stats,
-                                 const double *pw, const double *pq) {
+/* 1 when the state an exact step ended in is not to be kept: not finite, or the health monitor's drift beyond
+ * max_drift */
+static GS_INLINE int exact_rejected(int flags, const double *y, const double *p) {
+    return !ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(flags, y, p);
+}
+
+static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
     const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
     /* sample often enough that phi and psi move less than 1 rad between unwrap points; bounded work per call */
     const double mf = ceil(wmag * H);
@@ -742,30 +745,25 @@ static int32_t exact_advance_pre(double *y, const double *p, double t, double H,
     for (int64_t k = 1; k <= m; k++) {
         /* move the reference angles before the rotation from them could pass 1 rad (|omega| is conserved) */
         if (y[9] + turn > 1.0) gs_unwrap(y);
-        if (pw && m == 1 && c == ex) {
-            memcpy(y + 4, pw, 3 * sizeof(double));
-            memcpy(y, pq, 4 * sizeof(double));
+        if (lanes && k >= b_from + b_n) {
+            double tl[GS_TF_LANES];
+            for (int l = 0; l < GS_TF_LANES; l++) {
+                const int64_t kl = k + l < m ? k + l : m;
+                tl[l] = tau0 + H * (double)kl / (double)m;
+            }
+            b_from = k;
+            b_n = gs_tf_eval_lanes(c, tl, bw, bq) ? GS_TF_LANES : 0;
+            lanes = b_n > 0;
+        }
+        if (lanes) {
+            memcpy(y + 4, bw[k - b_from], 3 * sizeof(double));
+            memcpy(y, bq[k - b_from], 4 * sizeof(double));
         } else {
-            if (lanes && k >= b_from + b_n) {
-                double tl[GS_TF_LANES];
-                for (int l = 0; l < GS_TF_LANES; l++) {
-                    const int64_t kl = k + l < m ? k + l : m;
-                    tl[l] = tau0 + H * (double)kl / (double)m;
-                }
-                b_from = k;
-                b_n = gs_tf_eval_lanes(c, tl, bw, bq) ? GS_TF_LANES : 0;
-                lanes = b_n > 0;
-            }
-            if (lanes) {
-                memcpy(y + 4, bw[k - b_from], 3 * sizeof(double));
-                memcpy(y, bq[k - b_from], 4 * sizeof(double));
-            } else {
-                gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
-            }
+            gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
         }
         y[9] += turn;
     }
-    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(0, y, p)) {   /* torque-free: flags 0 */
+    if (exact_rejected(0, y, p)) {   /* torque-free: flags 0 */
         memcpy(y, save, sizeof(save));
         return 1;
     }
@@ -774,9 +772,9 @@ static int32_t exact_advance_pre(double *y, const double *p, double t, double H,
     return 0;
 }
 
-/* exact_advance_pre's one-sample step from the anchor in ex with the flow at its end evaluated beforehand (the
- * output grid's lanes), without the general step's set-up copy and sampling: the same operations, the same bits.
- * Returns -1 (nothing done) where the step needs more than one sample (|omega| H > 1): the general step then. */
+/* exact_advance's one-sample step from the anchor in ex with the flow at its end evaluated beforehand (the output
+ * grid's lanes, gs_tf_eval_lanes), without the general step's set-up copy and sampling: the same operations, the
+ * same bits. Returns -1 (nothing done) where the step needs more than one sample (|omega| H > 1): exact_advance. */
 static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, const double *pw, const double *pq,
                                           int64_t *stats) {
     const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
@@ -788,7 +786,7 @@ static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, 
     memcpy(y + 4, pw, 3 * sizeof(double));
     memcpy(y, pq, 4 * sizeof(double));
     y[9] += turn;
-    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(0, y, p)) {   /* torque-free: flags 0 */
+    if (exact_rejected(0, y, p)) {   /* torque-free: flags 0 */
         memcpy(y, save, sizeof(save));
         return 1;
     }
@@ -796,15 +794,11 @@ static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, 
     return 0;
 }
 
-static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
-    return exact_advance_pre(y, p, t, H, ex, stats, NULL, NULL);
-}
-
 /* The Lagrange top's step once the flow at its end is in y (q, omega and the flow's own unwrapped phi, psi as the
  * reference angles): the checks and the monitor's update; y back to save on a failure. */
 static GS_INLINE int32_t exact_ht_commit(int flags, double *y, const double *p, const double *save, int64_t *stats) {
     y[9] = 0.0;
-    if (!ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(flags, y, p)) {
+    if (exact_rejected(flags, y, p)) {
         memcpy(y, save, GS_NY * sizeof(double));
         return 1;
     }
@@ -819,7 +813,7 @@ static int32_t exact_advance_ht(int flags, double *y, const double *p, double t,
                                 int64_t *stats) {
     double local[GS_EX_SIZE];
     double *c = ex;
-    if (ex[GS_EX_VALID] != 1.0 || ex[0] != 2.0) {   /* set up into a copy, as exact_advance_pre */
+    if (ex[GS_EX_VALID] != 1.0 || ex[0] != 2.0) {   /* set up into a copy, as exact_advance */
         double phi, psi;
         unwrapped(y, &phi, &psi);
         gs_ht_setup(p[0] == p[1] ? p[0] : 0.5 * (p[0] + p[1]), p[2], p[3], y + 4, y, phi, psi, local);
@@ -829,7 +823,7 @@ static int32_t exact_advance_ht(int flags, double *y, const double *p, double t,
     }
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
-    const double tau = (t - c[GS_EX_T0]) + H * 1.0 / 1.0;   /* the time exact_advance_pre samples */
+    const double tau = (t - c[GS_EX_T0]) + H * 1.0 / 1.0;   /* the time exact_advance samples */
     gs_ht_eval(c, tau, y + 4, y, y + 7);
     const int32_t st = exact_ht_commit(flags, y, p, save, stats);
     if (!st && c == local) memcpy(ex, local, sizeof(local));
@@ -1642,26 +1636,25 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
         double *eb = ex ? ex + b * GS_EX_SIZE : NULL;
         double lw[GS_TF_LANES][3], lq[GS_TF_LANES][4], la[GS_TF_LANES][2];
         int64_t lanes_from = 0, lanes_n = 0;   /* output steps k in [from, from + n) have lw, lq (and la) */
-        double lanes_t0 = 0.0;                 /* their anchor's time, and whether they are the heavy top's */
-        int lanes_ht = 0;
+        /* exact on a torque-free body or a Lagrange top (the parameters are the whole run's) */
+        const int exact_tf = method == GS_EXACT && eb && gs_torque_free(flags, pb);
+        const int exact_ht = method == GS_EXACT && eb && !exact_tf && gs_lagrange_top(flags, pb);
         for (int64_t k = 0; k < n_out; k++) {
             const double tk = t0 + (double)(k0 + k) * dt;
             int st;
-            const int tf = method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0 && gs_torque_free(flags, pb);
-            const int ht = !tf && method == GS_EXACT && eb && eb[GS_EX_VALID] == 1.0 && eb[0] == 2.0 &&
-                           gs_lagrange_top(flags, pb);
+            const int tf = exact_tf && eb[GS_EX_VALID] == 1.0;
+            const int ht = exact_ht && eb[GS_EX_VALID] == 1.0 && eb[0] == 2.0;
             if (tf || ht) {
-                /* the grid's flow GS_TF_LANES points at a time: the times exact_advance(_ht) would evaluate; a
-                 * block is kept while the anchor is (a new anchor: evaluated again) */
-                if (k >= lanes_from + lanes_n || (lanes_n && (lanes_t0 != eb[GS_EX_T0] || lanes_ht != ht))) {
+                /* the grid's flow GS_TF_LANES points at a time: the times exact_advance(_ht) would evaluate. Lanes
+                 * come only from the anchor the run then keeps: a step that sets one up has none (the anchor was
+                 * missing or of the other kind), and the next block is evaluated from the new one. */
+                if (k >= lanes_from + lanes_n) {
                     double tl[GS_TF_LANES];
                     for (int l = 0; l < GS_TF_LANES; l++) {
                         const int64_t kl = k + l < n_out ? k + l : n_out - 1;
                         tl[l] = (t0 + (double)(k0 + kl) * dt - eb[GS_EX_T0]) + dt;   /* tau0 + H*k/m, k = m = 1 */
                     }
                     lanes_from = k;
-                    lanes_t0 = eb[GS_EX_T0];
-                    lanes_ht = ht;
                     lanes_n = (ht ? gs_ht_eval_lanes(eb, tl, lw, lq, la) : gs_tf_eval_lanes(eb, tl, lw, lq))
                                   ? GS_TF_LANES : 0;
                 }
@@ -1671,7 +1664,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                     st = have ? exact_ht_grid_point(flags, yb, pb, lw[l], lq[l], la[l], sb)
                               : exact_advance_ht(flags, yb, pb, tk, dt, eb, sb);
                 else if (!have || (st = exact_grid_point(yb, pb, dt, lw[l], lq[l], sb)) < 0)
-                    st = exact_advance_pre(yb, pb, tk, dt, eb, sb, have ? lw[l] : NULL, have ? lq[l] : NULL);
+                    st = exact_advance(yb, pb, tk, dt, eb, sb);
             } else {
                 st = advance_body(method, flags, yb, pb, tk, dt, n_sub, rtol, atol, max_step, hint + b, sb, eb);
             }

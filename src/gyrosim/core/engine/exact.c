@@ -1597,18 +1597,9 @@ static void symmetric_flow(const double I[3], int k, const double w[3], const do
     const int i = (k + 1) % 3, j = (k + 2) % 3;
     const double A = I[i];
     const double lam = (I[k] - A) / A * w[k];
-    const double W0 = I[0] * w[0] / A, W1 = I[1] * w[1] / A, W2 = I[2] * w[2] / A;   /* L0 / A */
-    const double wn = sqrt(W0 * W0 + W1 * W1 + W2 * W2);
-    double e0 = 1.0, e1 = 0.0, e2 = 0.0, e3 = 0.0;
-    if (wn > 0.0) {
-        const double sh = sin(0.5 * wn * t) / wn;
-        e0 = cos(0.5 * wn * t);
-        e1 = sh * W0;
-        e2 = sh * W1;
-        e3 = sh * W2;
-    }
-    double a[4];
-    qmul(q[0], q[1], q[2], q[3], e0, e1, e2, e3, a);
+    const double W[3] = {I[0] * w[0] / A, I[1] * w[1] / A, I[2] * w[2] / A};   /* L0 / A */
+    double Wt[3], a[4];
+    steady_flow(W, q, t, Wt, a);   /* q exp(t [L0 / A]): a steady rotation at L0 / A */
     const double ch = cos(0.5 * lam * t), sh = -sin(0.5 * lam * t);   /* exp(-t lam e_k / 2) */
     double b[4] = {ch, 0.0, 0.0, 0.0};
     b[1 + k] = sh;
