@@ -427,26 +427,11 @@ static PyObject *py_pack(PyObject *self, PyObject *const *args, Py_ssize_t nargs
         }
     const double *restrict o = (const double *)b[0].view.buf;
     double *restrict r = (double *)b[2].view.buf;
-    if (k <= 4) {  /* a few columns (the usual selections): unrolled by count, the same copies */
-        const Py_ssize_t c0 = k > 0 ? col[0] : 0, c1 = k > 1 ? col[1] : 0, c2 = k > 2 ? col[2] : 0,
-                         c3 = k > 3 ? col[3] : 0;
-        for (Py_ssize_t i = 0; i < rows; i++, r += 1 + k, o += width) {
-            r[0] = t0 + (double)i * dt;
-            switch (k) {
-            case 4: r[4] = o[c3]; /* fall through */
-            case 3: r[3] = o[c2]; /* fall through */
-            case 2: r[2] = o[c1]; /* fall through */
-            case 1: r[1] = o[c0]; /* fall through */
-            default: break;
-            }
-        }
-    } else {
-        for (Py_ssize_t i = 0; i < rows; i++) {
-            double *ri = r + i * (1 + k);
-            const double *oi = o + i * width;
-            ri[0] = t0 + (double)i * dt;
-            for (Py_ssize_t j = 0; j < k; j++) ri[1 + j] = oi[col[j]];
-        }
+    for (Py_ssize_t i = 0; i < rows; i++) {
+        double *ri = r + i * (1 + k);
+        const double *oi = o + i * width;
+        ri[0] = t0 + (double)i * dt;
+        for (Py_ssize_t j = 0; j < k; j++) ri[1 + j] = oi[col[j]];
     }
     res = Py_None;
     Py_INCREF(res);
