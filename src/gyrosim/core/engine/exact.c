@@ -556,127 +556,51 @@ typedef long long vm;
 #define S1_LANE(v, i) (v)
 #define SINCOS1(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, double, long long, S1_SEL, S1_MAP, 1, S1_LANE)
 
-/* The four series at x = u_r / K in [-1, 1] (GS_VW of them), one Clenshaw recurrence each in y = 2 x^2 - 1
- * (W_{i+1} = 2y W_i - W_{i-1} for the odd ones): odd series sum a_i T_{2i+1}(x) = x sum a_i W_i(y), W_0 = 1,
- * W_1 = 2y - 1; even ones sum a_i T_i(y). (Vectors by pointer: no vector crosses a call by value.) */
-static GS_TF_INLINE void fast_sums(const double *c, const vd *xp, vd *sn, vd *cn, vd *dn, vd *p)
-{
-    const vd x = *xp;
-    const vd y2 = 2.0 * (2.0 * x * x - 1.0), y = 0.5 * y2;
-    const int nf = (int)c[C_NF];
-    vd s1 = VSPLAT(0.0), s2 = s1, c1 = s1, c2 = s1, d1 = s1, d2 = s1, p1 = s1, p2 = s1;
-    for (int i = nf - 1; i >= 1; i--) {
-        const vd s0 = y2 * s1 + (c[C_FS + i] - s2);   /* (a_i - b_i+2) off the chain through b_i+1 */
-        const vd c0 = y2 * c1 + (c[C_FC + i] - c2);
-        const vd d0 = y2 * d1 + (c[C_FD + i] - d2);
-        const vd p0 = y2 * p1 + (c[C_FP + i] - p2);
-        s2 = s1;
-        s1 = s0;
-        c2 = c1;
-        c1 = c0;
-        d2 = d1;
-        d1 = d0;
-        p2 = p1;
-        p1 = p0;
-    }
-    *sn = x * (c[C_FS] + s1 * (y2 - 1.0) - s2);
-    *p = x * (c[C_FP] + p1 * (y2 - 1.0) - p2);
-    *cn = c[C_FC] + c1 * y - c2;
-    *dn = c[C_FD] + d1 * y - d2;
-}
+/* fast_sums, reduce_arg and fast_vec on GS_VW lanes, and fast_sums1, reduce_arg1 and fast_vec1 on one double (one
+ * time: on SSE2, the only x86-64 set an FMU's compilers may assume, four lanes in pairs spilled their registers) */
+#define F_T vd
+#define F_M vm
+#define F_W GS_VW
+#define F_SPLAT VSPLAT
+#define F_SEL VSEL
+#define F_MAP VMAP
+#define F_LANE LANE
+#define F_SINCOS VSINCOS
+#define F_NAME(name) name
+#include "exact_fast.h"
+#undef F_T
+#undef F_M
+#undef F_W
+#undef F_SPLAT
+#undef F_SEL
+#undef F_MAP
+#undef F_LANE
+#undef F_SINCOS
+#undef F_NAME
+#define F_T double
+#define F_M long long
+#define F_W 1
+#define F_SPLAT(a) (a)
+#define F_SEL S1_SEL
+#define F_MAP S1_MAP
+#define F_LANE S1_LANE
+#define F_SINCOS SINCOS1
+#define F_NAME(name) name##1
+#include "exact_fast.h"
+#undef F_T
+#undef F_M
+#undef F_W
+#undef F_SPLAT
+#undef F_SEL
+#undef F_MAP
+#undef F_LANE
+#undef F_SINCOS
+#undef F_NAME
 
-/* The elliptic functions' argument u = lam t + u0 at GS_VW times, reduced by their period: u = 2 K j + u_r with
- * x = u_r / K clamped to [-1, 1] (rk = 1 / K) */
-static GS_TF_INLINE void reduce_arg(const vd *t, double lam, double u0, double K, double rk, vd *u, vd *j, vd *x)
-{
-    *u = VSPLAT(lam) * *t + u0;
-    *j = VMAP(floor, 0.5 * rk * *u + 0.5);
-    const vd xr = (*u - *j * (2.0 * K)) * rk;
-    *x = VSEL(xr < -1.0, VSPLAT(-1.0), VSEL(xr > 1.0, VSPLAT(1.0), xr));
-}
-
-/* The flow at the GS_VW times tp (relative to the anchor) with the fast series (C_NF > 0); circular (mc == 1, a
- * symmetric body) takes sn, cn from libm's sin and cos of u, whose own reduction of u is exact (2K = pi is not). */
-static GS_TF_INLINE void fast_vec(const double *c, const double *tp, int circular, double w_out[][3],
-                                  double q_out[][4])
-{
-    vd t, u, j, x;
-    memcpy(&t, tp, sizeof(t));
-    /* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
-    reduce_arg(&t, c[C_LAM], c[C_U0], c[C_K], c[C_RK], &u, &j, &x);
-    const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
-    vd sn_r, cn_r, dn, p;
-    fast_sums(c, &x, &sn_r, &cn_r, &dn, &p);
-    if (circular) {
-        for (int i = 0; i < GS_VW; i++) {
-            LANE(sn_r, i) = LANE(sg, i) * sin(LANE(u, i));
-            LANE(cn_r, i) = LANE(sg, i) * cos(LANE(u, i));
-        }
-        dn = VSPLAT(1.0);
-    }
-
-    /* omega */
-    const vd sn = sg * sn_r, cn = sg * cn_r;
-    const vd wo = c[C_AO] * cn, wb = c[C_AB] * sn, wp = c[C_AP] * dn;
-    const int io = (int)c[C_IO], ib = (int)c[C_IB], ip = (int)c[C_IP];
-    for (int i = 0; i < GS_VW; i++) {
-        w_out[i][io] = LANE(wo, i);
-        w_out[i][ib] = LANE(wb, i);
-        w_out[i][ip] = LANE(wp, i);
-    }
-    /* direction of L in the frame (o, b, p): theta from cos = lp, sin = |(lo, lb)|, its half angles without trig */
-    const vd lo = c[C_LO] * cn, lb = c[C_LB] * sn, lp = c[C_LP] * dn;
-    /* (lo, lb, lp) = L / |L| in the frame: |L| is the flow's constant, so no normalisation */
-    const vd ro2 = lo * lo + lb * lb;
-    const vd ct = lp, st = VMAP(sqrt, ro2);
-    const vm pos = ct >= 0.0;
-    const vd big = VMAP(sqrt, 0.5 * (1.0 + VSEL(pos, ct, -ct)));   /* the larger of cos and sin of theta / 2 */
-    const vd small = 0.5 * st / big;
-    const vd ch = VSEL(pos, big, small), shh = VSEL(pos, small, big);
-    /* psi = s2 h, h = sigma (j pi + am_r + A) (+ pi when sigma < 0): cos and sin from sn_r, cn_r */
-    const double kappa = c[C_KAPPA];
-    const vd X = kappa * cn_r * cn_r + sn_r * sn_r, Y = (1.0 - kappa) * sn_r * cn_r;
-    const vd ir = 1.0 / VMAP(sqrt, X * X + Y * Y);
-    const vd ca = X * ir, sa = Y * ir;
-    const vd cg = sg * (cn_r * ca - sn_r * sa), sgn_ = sg * (sn_r * ca + cn_r * sa);   /* cos, sin (j pi + H) */
-    const vd cpsi = (c[C_SIG] < 0.0 ? -1.0 : 1.0) * cg;   /* sigma < 0: h = pi - (j pi + H) */
-    const vd spsi = c[C_S2] * sgn_;
-    /* (phi + psi) / 2 */
-    const vd sp = 0.5 * (c[C_LN] * t / c[C_MO] + j * c[C_JSTEP] + p + c[C_OFF]);
-    vd csp, ssp;
-    VSINCOS(sp, csp, ssp);
-    /* q = q_L * zyz(phi, theta, psi) * conj(q_F), the ZYZ quaternion (ch cos sp, -shh sin dm, shh cos dm,
-     * ch sin sp) with dm = sp - psi */
-    const vd cdm = csp * cpsi + ssp * spsi, sdm = ssp * cpsi - csp * spsi;
-    const vd b0 = ch * csp, b1 = -shh * sdm, b2 = shh * cdm, b3 = ch * ssp;
-    const double a0 = c[C_QL], a1 = c[C_QL + 1], a2 = c[C_QL + 2], a3 = c[C_QL + 3];
-    const vd r0 = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3;
-    const vd r1 = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2;
-    const vd r2 = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1;
-    const vd r3 = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0;
-    const double f0 = c[C_QF], f1 = -c[C_QF + 1], f2 = -c[C_QF + 2], f3 = -c[C_QF + 3];
-    const vd q0 = r0 * f0 - r1 * f1 - r2 * f2 - r3 * f3;
-    const vd q1 = r0 * f1 + r1 * f0 + r2 * f3 - r3 * f2;
-    const vd q2 = r0 * f2 - r1 * f3 + r2 * f0 + r3 * f1;
-    const vd q3 = r0 * f3 + r1 * f2 - r2 * f1 + r3 * f0;
-    for (int i = 0; i < GS_VW; i++) {
-        q_out[i][0] = LANE(q0, i);
-        q_out[i][1] = LANE(q1, i);
-        q_out[i][2] = LANE(q2, i);
-        q_out[i][3] = LANE(q3, i);
-    }
-}
-
-/* The four series at one x (the set-up's anchor): lane 0 of fast_sums */
+/* The four series at one x (the set-up's anchor) */
 static void fast_series(const double *c, double x, double *sn, double *cn, double *dn, double *p)
 {
-    const vd xv = VSPLAT(x);
-    vd s, cc, d, pp;
-    fast_sums(c, &xv, &s, &cc, &d, &pp);
-    *sn = LANE(s, 0);
-    *cn = LANE(cc, 0);
-    *dn = LANE(d, 0);
-    *p = LANE(pp, 0);
+    fast_sums1(c, &x, sn, cn, dn, p);
 }
 
 /* Set up the fast evaluation (after every other constant): 40 nodes, else 64, else none. ps0 = psi at t = 0
@@ -713,15 +637,11 @@ static void fast_setup(double *c, double u0, double ps0)
 #define GS_TF_CLONES
 #endif
 
-/* gs_tf_eval with the fast series (C_NF > 0): lane 0 of fast_vec (626 ns on SSE2's pairs, where the registers
- * spill; about a fifth of that with AVX2) */
-GS_TF_CLONES static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
+/* gs_tf_eval with the fast series (C_NF > 0): fast_vec's operations on one double (lane 0 of fast_vec took 626 ns
+ * on SSE2's pairs, where the registers spilled, and about a fifth of that with AVX2) */
+static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
 {
-    double w[GS_VW][3], q[GS_VW][4], tv[GS_VW];
-    for (int i = 0; i < GS_VW; i++) tv[i] = t;
-    fast_vec(c, tv, c[C_MC] == 1.0, w, q);
-    memcpy(w_out, w[0], sizeof(w[0]));
-    memcpy(q_out, q[0], sizeof(q[0]));
+    fast_vec1(c, &t, c[C_MC] == 1.0, (double (*)[3])w_out, (double (*)[4])q_out);
 }
 
 /* fast_vec over GS_TF_LANES times (the exact integrator's output grid) */
