@@ -180,6 +180,31 @@ def test_exact_grid_gives_the_bits_of_stepping(moments, omega, kind):
         np.testing.assert_array_equal(rows[k + 1], b.outputs_array(), err_msg=f"row {k + 1} ({kind})")
 
 
+@pytest.mark.parametrize("max_drift,interval", [(1e-15, 4), (3e-15, 46)])
+def test_exact_grid_trips_the_monitor_where_stepping_does(max_drift, interval):
+    """The grid's points are checked a block of lanes at a time (ok and drifted for every lane first, then the
+    reference angles point by point): a monitor bound at the round-off of the exact flow trips inside a block (the
+    third and the fifth lane), and the trajectory fails at the interval where a loop of Model.step fails, with the
+    same rows before it and the state it started from kept."""
+    params = {"integrator": "exact", "max_drift": max_drift}
+    from gyrosim.errors import IntegrationError
+
+    a = Model("free_body", parameters=params, stop_time=1e4)
+    b = Model("free_body", parameters=params, stop_time=1e4)
+    start = a.outputs_array().copy()
+    with pytest.raises(IntegrationError, match=f"interval {interval} of 64") as e:
+        a.trajectory(0.1, 64)
+    rows = np.asarray(e.value.rows)
+    assert len(rows) == interval
+    for k in range(interval - 1):
+        b.step(0.1)
+        np.testing.assert_array_equal(rows[k + 1], b.outputs_array(), err_msg=f"row {k + 1}")
+    with pytest.raises(IntegrationError):
+        b.step(0.1)
+    np.testing.assert_array_equal(a.outputs_array(), start)
+    assert a.time == 0.0
+
+
 @pytest.mark.parametrize("moments,omega,kind", FLOWS, ids=[f"{m}-{w}" for m, w, _ in FLOWS])
 def test_exact_flow_meets_the_closed_form_at_long_times(moments, omega, kind):
     """The C flow (series or Carlson) against the plain-Python oracle (Carlson's integrals at every point) out to

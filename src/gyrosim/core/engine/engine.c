@@ -129,16 +129,16 @@ static GS_INLINE double gs_atan2(double y, double x) {
     return copysign(a, y);
 }
 
-/* The unwrapped phi, psi of the attitude y[0:4] nearest the reference angles y[7], y[8] (continuous through gimbal
- * lock); a pure function of y, so reading the outputs never changes the state. */
-static GS_INLINE void unwrapped(const double *y, double *phi, double *psi) {
-    const double w = y[0], x = y[1], yy = y[2], z = y[3];
+/* The unwrapped phi, psi of the attitude q[0:4] nearest the reference angles r[0], r[1] (continuous through gimbal
+ * lock); a pure function of them, so reading the outputs never changes the state. */
+static GS_INLINE void unwrapped_at(const double *q, const double *r, double *phi, double *psi) {
+    const double w = q[0], x = q[1], yy = q[2], z = q[3];
     /* squared: |q| = 1, so nothing overflows, and no hypot on the per-step path */
     const double a2 = w * w + z * z;
     const double b2 = x * x + yy * yy;
     const double hs = gs_atan2(z, w);
     const double hd = gs_atan2(-x, yy);
-    const double phi0 = y[7], psi0 = y[8];
+    const double phi0 = r[0], psi0 = r[1];
     *psi = psi0;
     if (b2 < 1e-24 * a2) {          /* theta = 0: only phi + psi is defined; keep psi */
         *phi = phi0 + wrap(2.0 * hs - psi0 - phi0);
@@ -148,6 +148,11 @@ static GS_INLINE void unwrapped(const double *y, double *phi, double *psi) {
         *phi = phi0 + wrap(hs + hd - phi0);
         *psi = psi0 + wrap(hs - hd - psi0);
     }
+}
+
+/* those of a state y: its q, nearest its reference angles y[7], y[8] */
+static GS_INLINE void unwrapped(const double *y, double *phi, double *psi) {
+    unwrapped_at(y, y + 7, phi, psi);
 }
 
 void gs_unwrap(double y[GS_NY]) {
@@ -284,23 +289,29 @@ double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double 
  * quantity (this runs at every output point). */
 static GS_INLINE double gmax(double a, double b) { return a > b ? a : b; }
 
-static GS_INLINE int drifted(int flags, const double *y, const double *p) {
+/* of the q, omega in s[0..6] with the monitor's values m[0..4] (a state's y[10..14]) */
+static GS_INLINE int drifted_at(int flags, const double *s, const double *m, const double *p) {
     const double bound = p[8];
     if (!(bound > 0.0) || bound == INFINITY) return 0;
     const double mgl = fabs(p[3]);
-    const double V = p[3] != 0.0 ? potential(y, p) : 0.0;
-    const double T = kinetic(y, p);
-    const double de = fabs(T + V - y[10]);
-    if (!(de <= bound * gmax(gmax(y[11], T), fabs(y[10] - V) + mgl))) return 1;   /* also NaN */
+    const double V = p[3] != 0.0 ? potential(s, p) : 0.0;
+    const double T = kinetic(s, p);
+    const double de = fabs(T + V - m[0]);
+    if (!(de <= bound * gmax(gmax(m[1], T), fabs(m[0] - V) + mgl))) return 1;   /* also NaN */
     if (!(flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE)) || gs_torque_free(flags, p)) {
-        const double ls = mgl == 0.0 ? y[12] : gmax(y[12], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
-        return !(fabs(l_norm(y, p) - y[12]) <= bound * ls);
+        const double ls = mgl == 0.0 ? m[2] : gmax(m[2], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
+        return !(fabs(l_norm(s, p) - m[2]) <= bound * ls);
     }
     if (pivoted_top(flags, p)) {
-        const double ls = gmax(y[12], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
-        return !(fabs(l_world_z(y, p) - y[13]) <= bound * ls && fabs(p[2] * y[6] - y[14]) <= bound * ls);
+        const double ls = gmax(m[2], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
+        return !(fabs(l_world_z(s, p) - m[3]) <= bound * ls && fabs(p[2] * s[6] - m[4]) <= bound * ls);
     }
     return 0;
+}
+
+/* of a state y */
+static GS_INLINE int drifted(int flags, const double *y, const double *p) {
+    return drifted_at(flags, y, y + 10, p);
 }
 
 /* ------------------------------------------------------------------------------------------- dynamics */
@@ -749,6 +760,46 @@ static int32_t clamp_status(int64_t k) {
     return (int32_t)(k > 2147483647 ? 2147483647 : (k < 1 ? 1 : k));
 }
 
+/* ------------------------------------------------------------------------------------------- outputs */
+
+void gs_outputs(size_t n, const double *y, const double *p, double *out) {
+    gs_outputs_select(n, y, p, out, GS_OUT_ANGLES | GS_OUT_MOMENTUM);
+}
+
+/* one body's output row (gs_outputs_select), inline where a trajectory writes its rows: of the q, omega in s[0..6]
+ * with the reference angles r[0..1] and the monitor's values m[0..4] (a state's y[7..8], y[10..14]) */
+static GS_INLINE void output_row_at(const double *s, const double *r, const double *m, const double *pb, double *o,
+                                    int want) {
+    const double w = s[0], x = s[1], yy = s[2], z = s[3];
+    const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
+    const double o1 = s[4], o2 = s[5], o3 = s[6];
+    for (int i = 0; i < 7; i++) o[i] = s[i];
+    if (want & GS_OUT_ANGLES) {
+        unwrapped_at(s, r, &o[7], &o[9]);
+        o[8] = 2.0 * gs_atan2(sqrt(x * x + yy * yy), sqrt(w * w + z * z));
+    } else {
+        o[7] = o[8] = o[9] = NAN;
+    }
+    if (!(want & GS_OUT_MOMENTUM)) {
+        o[10] = o[11] = o[12] = o[13] = o[14] = NAN;
+        return;
+    }
+    const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
+    o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
+    o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
+    o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
+    o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
+    o[14] = o[13] - m[0];
+}
+
+static GS_INLINE void output_row(const double *yb, const double *pb, double *o, int want) {
+    output_row_at(yb, yb + 7, yb + 10, pb, o, want);
+}
+
+void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want) {
+    for (size_t b = 0; b < n; b++) output_row(y + b * GS_NY, p + b * GS_NP, out + b * GS_NOUT, want);
+}
+
 /* ------------------------------------------------------------------------------------------- exact */
 
 /* 1 when the state an exact step ended in is not to be kept: not finite, or the health monitor's drift beyond
@@ -830,6 +881,51 @@ static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, 
     }
     stats[0] += 1;
     return 0;
+}
+
+/* exact_grid_point over the lanes from..to-1 of a block of the output grid (a torque-free body; lane l holds the flow
+ * at its point's time), each point's row written to o + (l - from) * ostride: the same operations and checks, and
+ * the same bits, without the per-point copies of the state. First, for every lane, the checks that are a lane's
+ * alone (the rotation over the step from the state before it; ok and drifted of its state, the monitor's start
+ * values a torque-free step leaves as they are), independent and overlapping; then the reference angles'
+ * bookkeeping point by point. Returns the first lane not done: to, or one that exact_grid_point or exact_advance
+ * must take (more than one sample, a state to reject), with y then the state after the lane before it. */
+static GS_INLINE int grid_block(double *y, const double *p, double H, const double (*lw)[3], const double (*lq)[4],
+                                int from, int to, int64_t *stats, double *o, size_t ostride, int want) {
+    double s[GS_TF_LANES][7], turn[GS_TF_LANES];
+    int rej[GS_TF_LANES];
+    for (int l = from; l < to; l++) {
+        memcpy(s[l], lq[l], 4 * sizeof(double));
+        memcpy(s[l] + 4, lw[l], 3 * sizeof(double));
+    }
+    for (int l = from; l < to; l++) {
+        const double *w = l > from ? lw[l - 1] : y + 4;
+        turn[l] = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * H;
+        rej[l] = !ok(s[l]) || drifted_at(0, s[l], y + 10, p);   /* exact_rejected(0, .) but y[7], y[8] */
+    }
+    int l = from;
+    for (; l < to; l++) {
+        if (!(turn[l] <= 1.0) || rej[l]) break;
+        const double r7 = y[7], r8 = y[8], r9 = y[9];
+        if (y[9] + turn[l] > 1.0) {   /* gs_unwrap of the state before the point */
+            double phi, psi;
+            unwrapped_at(l > from ? s[l - 1] : y, y + 7, &phi, &psi);
+            y[7] = phi;
+            y[8] = psi;
+            y[9] = 0.0;
+        }
+        y[9] += turn[l];
+        if (!isfinite(y[7]) || !isfinite(y[8])) {
+            y[7] = r7;
+            y[8] = r8;
+            y[9] = r9;
+            break;
+        }
+        output_row_at(s[l], y + 7, y + 10, p, o + (size_t)(l - from) * ostride, want);
+    }
+    if (l > from) memcpy(y, s[l - 1], 7 * sizeof(double));
+    stats[0] += l - from;
+    return l;
 }
 
 /* The Lagrange top's step once the flow at its end is in y (q, omega and the flow's own unwrapped phi, psi as the
@@ -1205,39 +1301,6 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
     return failed;
 }
 
-/* ------------------------------------------------------------------------------------------- outputs */
-
-void gs_outputs(size_t n, const double *y, const double *p, double *out) {
-    gs_outputs_select(n, y, p, out, GS_OUT_ANGLES | GS_OUT_MOMENTUM);
-}
-
-/* one body's output row (gs_outputs_select), inline where a trajectory writes its rows */
-static GS_INLINE void output_row(const double *yb, const double *pb, double *o, int want) {
-    const double w = yb[0], x = yb[1], yy = yb[2], z = yb[3];
-    const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
-    const double o1 = yb[4], o2 = yb[5], o3 = yb[6];
-    for (int i = 0; i < 7; i++) o[i] = yb[i];
-    if (want & GS_OUT_ANGLES) {
-        unwrapped(yb, &o[7], &o[9]);
-        o[8] = 2.0 * gs_atan2(sqrt(x * x + yy * yy), sqrt(w * w + z * z));
-    } else {
-        o[7] = o[8] = o[9] = NAN;
-    }
-    if (!(want & GS_OUT_MOMENTUM)) {
-        o[10] = o[11] = o[12] = o[13] = o[14] = NAN;
-        return;
-    }
-    const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
-    o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
-    o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
-    o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
-    o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
-    o[14] = o[13] - yb[10];
-}
-
-void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want) {
-    for (size_t b = 0; b < n; b++) output_row(y + b * GS_NY, p + b * GS_NP, out + b * GS_NOUT, want);
-}
 
 /* ---------------------------------------------------------------------------------------------------------
  * Trajectories in one call (gs_trajectory) and the higher-order adaptive method (dop853).
@@ -1701,8 +1764,19 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                 if (ht)
                     st = have ? exact_ht_grid_point(flags, yb, pb, lw[l], lq[l], la[l], sb)
                               : exact_advance_ht(flags, yb, pb, tk, dt, eb, sb);
-                else if (!have || (st = exact_grid_point(yb, pb, dt, lw[l], lq[l], sb)) < 0)
-                    st = exact_advance(yb, pb, tk, dt, eb, sb);
+                else {
+                    if (have) {   /* the block's points from this one on, then (if any is left) the one it stopped at */
+                        const int64_t left = n_out - k, to = lanes_n < l + left ? lanes_n : l + left;
+                        const int e = grid_block(yb, pb, dt, lw, lq, (int)l, (int)to, sb,
+                                                 out + ((size_t)(k + 1) * n + b) * GS_NOUT, n * GS_NOUT, want);
+                        if (e > l) {
+                            k += e - l - 1;   /* their rows written */
+                            continue;
+                        }
+                    }
+                    if (!have || (st = exact_grid_point(yb, pb, dt, lw[l], lq[l], sb)) < 0)
+                        st = exact_advance(yb, pb, tk, dt, eb, sb);
+                }
             } else {
                 st = advance_body(method, flags, yb, pb, tk, dt, n_sub, rtol, atol, max_step, hint + b, sb, eb);
             }
