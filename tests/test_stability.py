@@ -187,3 +187,20 @@ def test_huge_steps_of_splitting_stay_finite_and_keep_L():
                        r"h\*rate = 354 .*beyond splitting's stable h\*rate <= 1.15 .*max_step <= 0.00813 s, or the "
                        r"integrator 'dop853'"):
         m.step(5.0)
+
+
+@pytest.mark.parametrize("integrator,x", [("strang_exact", 8.89), ("yoshida_exact", 5.47), ("bm4_exact", 17.6),
+                                          ("bm6_exact", 17.1)])
+def test_an_exact_flow_splitting_blown_up_by_gravity_gets_the_maps_top_bound(integrator, x):
+    # the exact-flow splittings have no bound from the spin (exact on a free body at any step), but gravity's kick
+    # bounds them on a top: the stability map's minimum over its tops (in the engine's rate) gives the max_step
+    m = Model("heavy_top", parameters={"integrator": integrator, "max_step": 1.0})
+    rate = 60.0  # the heavy top's |omega| (its spin), the fastest rate in its start state
+    with pytest.raises(IntegrationError, match=rf"blew up.*\|omega\| = 60 rad/s, so h\*rate = 60 with internal steps "
+                       rf"of 1 s, beyond {integrator}'s stable h\*rate <= {x:g} under gravity .*max_step <= "
+                       rf"{0.5 * x / rate:.3g} s, or the integrator 'dop853'"):
+        m.step(1.0)
+    # the advice holds: at that max_step the run goes on
+    m.set("max_step", 0.5 * x / rate)
+    for _ in range(20):
+        m.step(1.0)

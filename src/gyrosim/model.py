@@ -756,6 +756,13 @@ class Model:
             return (f"the body was at rest before the step; check the torques and parameters, or try the integrator "
                     f"{alt!r}")
         if x_max == math.inf:  # the exact-flow splittings: the spin does not bound their step, the torque does
+            x_g = _engine.STABLE_X_GRAVITY[_METHOD_CODES[integ]]
+            h_g = 0.5 * x_g / rate
+            if self.scene.flags & _engine.GRAVITY and p[3] != 0.0 and h_g < h:  # gravity's kick: the map's tops
+                return (f"the fastest rate in the state is {what} = {rate:.4g} rad/s, so h*rate = {x:.3g} with "
+                        f"internal steps of {h:.4g} s, beyond {integ}'s stable h*rate <= {x_g:g} under gravity "
+                        f"(docs/accuracy.md, the stability map's tops): use max_step <= {h_g:.3g} s, or the "
+                        f"integrator {alt!r}")
             return (f"{integ}'s free part is exact at any step (internal steps of {h:.4g} s here); its step is bounded "
                     "by the torque's time scale: use a smaller max_step, check the torques and parameters, or try "
                     f"the integrator {alt!r}")

@@ -272,3 +272,20 @@ def test_reset_returns_to_instantiated_with_start_values(slave, v):
         s.do_step(k * 0.01, 0.01)
     assert _bits(s.outputs()) == first
     s.close()
+
+
+@pytest.mark.parametrize("v", VERSIONS)
+def test_an_exact_flow_splitting_blown_up_by_gravity_gets_the_maps_top_bound(slave, v):
+    """bm6_exact on the heavy top with 1 s steps blows up (gravity's kick): Error, and the log gives the stability
+    map's bound on tops and the max_step from it, as the library's message does."""
+    s = slave("heavy_top", v)
+    s.setup(stop=100.0)
+    s.set("integrator", "bm6_exact")
+    s.set("max_step", 1.0)
+    s.fmu.exitInitializationMode()
+    with pytest.raises(FMICallException) as e:
+        s.do_step(0.0, 1.0)
+    assert e.value.status == ERROR
+    assert any("beyond bm6_exact's stable h*rate <= 17.1 under gravity" in m and "max_step <= 0.143 s" in m
+               for m in s.log.errors()), s.log.errors()
+    s.close()

@@ -785,6 +785,9 @@ PyMODINIT_FUNC PyInit__engine(void) {
     PyObject *sx = PyTuple_New(GS_N_METHODS);
     for (int i = 0; i < GS_N_METHODS; i++) PyTuple_SET_ITEM(sx, i, PyFloat_FromDouble(gs_stable_x[i]));
     PyModule_AddObject(m, "STABLE_X", sx);
+    PyObject *sg = PyTuple_New(GS_N_METHODS);
+    for (int i = 0; i < GS_N_METHODS; i++) PyTuple_SET_ITEM(sg, i, PyFloat_FromDouble(gs_stable_x_gravity[i]));
+    PyModule_AddObject(m, "STABLE_X_GRAVITY", sg);
     PyObject *names = PyTuple_New(GS_N_METHODS);
     for (int i = 0; i < GS_N_METHODS; i++) PyTuple_SET_ITEM(names, i, PyUnicode_FromString(gs_method_names[i]));
     PyModule_AddObject(m, "METHODS", names);

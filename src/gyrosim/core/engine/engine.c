@@ -41,6 +41,8 @@ int gs_method_code(const char *name) {
 /* the study's stability map (docs/accuracy.md) */
 const double gs_stable_x[GS_N_METHODS] = {0.0, 0.445, 1.15, 1.21, INFINITY, INFINITY, INFINITY,
                                           INFINITY, INFINITY, INFINITY, INFINITY};
+const double gs_stable_x_gravity[GS_N_METHODS] = {INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY,
+                                                  INFINITY, 8.89, 5.47, 17.6, 17.1};
 
 double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]) {
     double r = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);

@@ -108,6 +108,12 @@ extern "C" {
  * sets their step, not |omega|). */
 extern const double gs_stable_x[GS_N_METHODS];
 
+/* Where gs_stable_x is infinite but gravity acts on a pivot: the largest stable h*rate of the exact-flow splittings
+ * on the stability map's tops (the minimum over its fast and slow symmetric tops, in gs_fastest_rate's rate;
+ * docs/accuracy.md). inf for the other integrators (gs_stable_x covers the tops) and where no torque bounds the
+ * step; other torques (inputs, damping) have no measured bound. */
+extern const double gs_stable_x_gravity[GS_N_METHODS];
+
 /* The fastest rate of a body's state (rad/s): |omega| and, on a pivot (mgl != 0), the nutation frequency
  * I3 |omega_3| / sqrt(I1 I2) and the pendulum frequency sqrt(|mgl| / min(I1, I2)), whichever is largest. */
 double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]);

@@ -500,6 +500,12 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         } else if (!(rate > 0.0)) {
             snprintf(advice, sizeof(advice), "the body was at rest before the step; check the torques and "
                      "parameters, or try the integrator '%s'", alt[method]);
+        } else if (!(xs < INFINITY) && (GS_FLAGS & GS_GRAVITY) && d->p[b][3] != 0.0 &&
+                   0.5 * gs_stable_x_gravity[method] / rate < hi) {   /* the exact-flow splittings under gravity */
+            snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s, so h*rate = %.3g, beyond "
+                     "%s's stable h*rate <= %g under gravity (the stability map's tops in the FMU's documentation): "
+                     "use max_step <= %.3g s, or the integrator '%s'", rate, hi * rate, gs_method_names[method],
+                     gs_stable_x_gravity[method], 0.5 * gs_stable_x_gravity[method] / rate, alt[method]);
         } else if (!(xs < INFINITY)) {   /* a splitting on the exact free flow: no stability bound, an error */
             snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s (h*rate = %.3g); %s's "
                      "error grows with the step: use a smaller max_step, or the integrator '%s'", rate, hi * rate,
