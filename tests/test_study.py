@@ -174,6 +174,12 @@ def test_peers_ladders_reach_every_target(quick_peers):
             r = [x for x in res["runs"] if x["case"] == name and x["tool"] == "CyRK"]
             assert {x["method"] for x in r} == set(peers.CYRK_METHODS)
             assert all(x["ms_python"] > 0 for x in r)
+            # the headline's ratio: both cheapest runs timed again in alternation, for every judged target
+            for target in info["judged"]:
+                pr = peers.paired_ratio(res, name, target)
+                if peers.cheapest(res["runs"], name, "gyrosim", target) and \
+                        peers.cheapest(res["runs"], name, "CyRK", target):
+                    assert pr is not None and pr["ms_gyrosim"] > 0 and pr["ms_cyrk"] > 0, (name, target)
     # every integrator the engine has is tried on every case (or refused by the model, with the reason noted)
     for name in res["cases"]:
         tried = {r["method"] for r in res["runs"] if r["case"] == name and r["tool"] == "gyrosim"}
@@ -191,6 +197,8 @@ def test_peers_tables_and_plots(quick_peers, tmp_path):
     for case in peers.PEER_CASES:
         assert case.title in text
     assert "CyRK from numba" in text and "CyRK from Python" in text
+    if quick_peers["cyrk"]:
+        assert "ms paired; ladders" in text
     choose = peers.peers_choose_table(quick_peers)
     assert choose.count("\n| ") >= 12
     assert study.peers_usable(quick_peers) and not study.peers_usable({"runs": [], "cheapest": {}})
