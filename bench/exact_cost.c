@@ -3,11 +3,14 @@
  * the Lagrange tops A (fast) and B (slow). Per case: the anchor's set-up, the flow per point on the output grid
  * (eight times at a time: gs_tf_eval_lanes, gs_ht_eval_lanes), one time at a time (gs_tf_eval, gs_ht_eval), and a
  * whole trajectory of 1000 output intervals of 0.1 s with the health monitor (gs_trajectory, only q and omega
- * wanted), each the best of 7 repeats of the thread's CPU time.
+ * wanted; and with every output, the ZYZ angles and the momentum too), each the best of 7 repeats of the thread's
+ * CPU time.
  *
  *   gcc $(cat src/gyrosim/core/engine/cflags.txt) -Isrc/gyrosim/core/engine bench/exact_cost.c \
  *       src/gyrosim/core/engine/engine.c src/gyrosim/core/engine/exact.c src/gyrosim/core/engine/rk.c -lm \
- *       -o exact_cost && ./exact_cost
+ *       -o exact_cost && taskset -c 1 ./exact_cost
+ *
+ * With -DGS_NO_CLONES: the SSE2 code alone (what the Windows and macOS FMUs and CPUs without AVX2 run).
  */
 #define _POSIX_C_SOURCE 199309L
 #include <math.h>
@@ -44,7 +47,7 @@ int main(void) {
         gs_start_state(y, cs->p);
         memcpy(y0, y, sizeof(y));
         const int top = cs->flags != 0;
-        double setup = 1e9, lanes = 1e9, one = 1e9, traj = 1e9;
+        double setup = 1e9, lanes = 1e9, one = 1e9, traj = 1e9, all = 1e9;
         for (int r = 0; r < 7; r++) {
             double t0 = now();
             for (int i = 0; i < 2000; i++) {
@@ -83,10 +86,21 @@ int main(void) {
                               &status, 1, out, 0);
             }
             traj = fmin(traj, (now() - t0) / 50);
+            t0 = now();
+            for (int i = 0; i < 50; i++) {
+                double hint = 0.0;
+                int64_t st[3] = {0, 0, 0};
+                int32_t status = 0;
+                memcpy(y, y0, sizeof(y));
+                ex[GS_EX_VALID] = 0.0;
+                gs_trajectory(GS_EXACT, cs->flags, 1, y, cs->p, 0.0, 0, 0.1, 1000, 1e-8, 1e-8, 0.1, &hint, st, ex,
+                              &status, 1, out, GS_OUT_ANGLES | GS_OUT_MOMENTUM);
+            }
+            all = fmin(all, (now() - t0) / 50);
             memcpy(y, y0, sizeof(y));
         }
-        printf("%-9s  set-up %5.1f us   lanes %5.1f ns/point   one time %6.1f ns   1000 points %6.1f us\n", cs->name,
-               setup * 1e6, lanes * 1e9, one * 1e9, traj * 1e6);
+        printf("%-9s  set-up %5.1f us   lanes %5.1f ns/point   one time %6.1f ns   1000 points %6.1f us   "
+               "with every output %6.1f us\n", cs->name, setup * 1e6, lanes * 1e9, one * 1e9, traj * 1e6, all * 1e6);
     }
     return 0;
 }

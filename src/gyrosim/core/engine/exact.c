@@ -630,11 +630,17 @@ static void fast_setup(double *c, double u0, double ps0)
     if (!isfinite(c[C_OFF])) c[C_NF] = 0.0;
 }
 
-/* the vector code compiled for AVX2 too where it helps (four lanes in one register instead of two pairs) */
+/* The grid's lanes: the vector code pays where four lanes fill a register (AVX2: 31 ns a point of the free body
+ * against 79 for one double at a time); on SSE2's pairs it spills, and one double at a time is faster (96 -> 80 ns a
+ * point; bench/exact_cost.c built with -DGS_NO_CLONES). So: GCC on x86-64 Linux picks at run time, AVX2's vectors
+ * or the scalar instantiation; other x86-64 compilers without AVX2 in their flags (the Windows and macOS FMUs)
+ * take the scalar one; other targets (aarch64's NEON pairs: not measured here) the vectors. Every choice gives the
+ * same bits (tests/core/test_engine_variants.py). */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && !defined(GS_NO_CLONES)
-#define GS_TF_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define GS_TF_CLONES
+#define GS_LANES_DISPATCH 1
+#define GS_AVX2 __attribute__((target("avx2")))
+#elif defined(__x86_64__) && !defined(__AVX2__)
+#define GS_LANES_SCALAR 1
 #endif
 
 /* gs_tf_eval with the fast series (C_NF > 0): fast_vec's operations on one double (lane 0 of fast_vec took 626 ns
@@ -647,12 +653,48 @@ static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], dou
 /* fast_vec over GS_TF_LANES times (the exact integrator's output grid) */
 _Static_assert(GS_TF_LANES % GS_VW == 0, "the lanes are whole vectors");
 
-GS_TF_CLONES static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
-                                         double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
+static GS_TF_INLINE void fast_lanes_vec(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
+                                        double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
 {
     const int circular = c[C_MC] == 1.0;
     for (int l = 0; l < GS_TF_LANES; l += GS_VW) fast_vec(c, t + l, circular, w_out + l, q_out + l);
 }
+
+static GS_TF_INLINE void fast_lanes_1(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
+                                      double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
+{
+    const int circular = c[C_MC] == 1.0;
+    for (int l = 0; l < GS_TF_LANES; l++) fast_vec1(c, t + l, circular, w_out + l, q_out + l);
+}
+
+#if defined(GS_LANES_DISPATCH)
+GS_AVX2 static void fast_eval_lanes_avx2(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
+                                         double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
+{
+    fast_lanes_vec(c, t, w_out, q_out);
+}
+
+static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
+                            double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
+{
+    if (__builtin_cpu_supports("avx2"))
+        fast_eval_lanes_avx2(c, t, w_out, q_out);
+    else
+        fast_lanes_1(c, t, w_out, q_out);
+}
+#elif defined(GS_LANES_SCALAR)
+static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
+                            double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
+{
+    fast_lanes_1(c, t, w_out, q_out);
+}
+#else
+static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
+                            double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
+{
+    fast_lanes_vec(c, t, w_out, q_out);
+}
+#endif
 
 int gs_tf_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                      double q_out[GS_TF_LANES][4])
@@ -1409,11 +1451,48 @@ static GS_TF_INLINE void ht_vec(const double *c, const double *tp, double w_out[
 }
 
 /* ht_vec over GS_TF_LANES times (the exact integrator's output grid), compiled for AVX2 too where it helps */
-GS_TF_CLONES static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
-                                       double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+/* the top's lanes as the torque-free flow's (fast_eval_lanes): AVX2's vectors, or gs_ht_eval at each time (the
+ * same operations on one double) */
+static GS_TF_INLINE void ht_lanes_vec(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                                      double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
 {
     for (int l = 0; l < GS_TF_LANES; l += GS_VW) ht_vec(c, t + l, w_out + l, q_out + l, ang + l);
 }
+
+static void ht_lanes_1(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                       double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+{
+    for (int l = 0; l < GS_TF_LANES; l++) gs_ht_eval(c, t[l], w_out[l], q_out[l], ang[l]);
+}
+
+#if defined(GS_LANES_DISPATCH)
+GS_AVX2 static void ht_eval_lanes_avx2(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                                       double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+{
+    ht_lanes_vec(c, t, w_out, q_out, ang);
+}
+
+static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                          double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+{
+    if (__builtin_cpu_supports("avx2"))
+        ht_eval_lanes_avx2(c, t, w_out, q_out, ang);
+    else
+        ht_lanes_1(c, t, w_out, q_out, ang);
+}
+#elif defined(GS_LANES_SCALAR)
+static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                          double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+{
+    ht_lanes_1(c, t, w_out, q_out, ang);
+}
+#else
+static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                          double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+{
+    ht_lanes_vec(c, t, w_out, q_out, ang);
+}
+#endif
 
 int gs_ht_eval_lanes(const double c[GS_HT_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                      double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
