@@ -180,6 +180,21 @@ def test_exact_grid_gives_the_bits_of_stepping(moments, omega, kind):
         np.testing.assert_array_equal(rows[k + 1], b.outputs_array(), err_msg=f"row {k + 1} ({kind})")
 
 
+def test_exact_grid_mixing_sampled_and_single_steps_gives_the_bits_of_stepping():
+    """|omega| of an asymmetric free body moves along its polhode (2.02 .. 2.34 rad/s here), so with steps of 0.45 s
+    |omega| h crosses 1: within one block of lanes some points take one sample (the block's path) and some several
+    (exact_advance), and the block resumes after them from the state they left. The bits of a loop of Model.step."""
+    params = {"integrator": "exact", "I1": 1.0, "I2": 2.0, "I3": 3.0, "omega_x": 0.3, "omega_y": 2.0, "omega_z": 0.2}
+    a = Model("free_body", parameters=params, stop_time=1e4)
+    b = Model("free_body", parameters=params, stop_time=1e4)
+    rows = a.trajectory(0.45, 120)
+    turn = np.linalg.norm(rows[:-1, 0, 4:7], axis=1) * 0.45
+    assert turn.min() < 1.0 < turn.max()
+    for k in range(120):
+        b.step(0.45)
+        np.testing.assert_array_equal(rows[k + 1], b.outputs_array(), err_msg=f"row {k + 1}")
+
+
 @pytest.mark.parametrize("max_drift,interval", [(1e-15, 4), (3e-15, 46)])
 def test_exact_grid_trips_the_monitor_where_stepping_does(max_drift, interval):
     """The grid's points are checked a block of lanes at a time (ok and drifted for every lane first, then the
