@@ -164,6 +164,60 @@ fail:
     return NULL;
 }
 
+/* trajectory_select(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, cols, t_row0,
+ * res, want, k0) -> failed (0 or 1): one body, res (n_out + 1, 1 + len(cols)) = (t_row0 + k dt, the outputs cols of
+ * row k) as pack() would make them from trajectory()'s rows */
+static PyObject *py_trajectory_select(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    if (nargs != 19) {
+        PyErr_SetString(PyExc_TypeError, "trajectory_select() takes 19 arguments");
+        return NULL;
+    }
+    const int method = (int)PyLong_AsLong(args[0]);
+    const int flags = (int)PyLong_AsLong(args[1]);
+    const double t0 = PyFloat_AsDouble(args[4]);
+    const double dt = PyFloat_AsDouble(args[5]);
+    const long long n_out = PyLong_AsLongLong(args[6]);
+    const double rtol = PyFloat_AsDouble(args[7]);
+    const double atol = PyFloat_AsDouble(args[8]);
+    const double max_step = PyFloat_AsDouble(args[9]);
+    const double t_row0 = PyFloat_AsDouble(args[15]);
+    const int want = (int)PyLong_AsLong(args[17]);
+    const long long k0 = PyLong_AsLongLong(args[18]);
+    if (PyErr_Occurred()) return NULL;
+    if (n_out < 0) {
+        PyErr_SetString(PyExc_ValueError, "n_out: a count >= 0 is needed");
+        return NULL;
+    }
+    Buf b[8] = {{0}};
+    static const int at[6] = {2, 3, 10, 11, 12, 13};
+    const Py_ssize_t n = get_bodies(args, at, method, b);
+    if (n < 0) goto fail;
+    if (n != 1) {
+        PyErr_SetString(PyExc_ValueError, "trajectory_select: one body");
+        goto fail;
+    }
+    if (get_buf(args[14], &b[6], "cols", 'q', -1, 0) < 0) goto fail;
+    const Py_ssize_t k = b[6].view.len / 8;
+    if (k < 1 || k > GS_NOUT || n_out + 1 > PY_SSIZE_T_MAX / (1 + k) / 8) {
+        PyErr_SetString(PyExc_ValueError, "trajectory_select: 1 to 15 columns, and rows that fit in memory");
+        goto fail;
+    }
+    if (get_buf(args[16], &b[7], "res", 'd', (Py_ssize_t)(n_out + 1) * (1 + k), 1) < 0) goto fail;
+    size_t failed;
+    Py_BEGIN_ALLOW_THREADS
+    failed = gs_trajectory_select(method, flags, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0,
+                                  (int64_t)k0, dt, (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf,
+                                  (int64_t *)b[3].view.buf, (double *)b[4].view.buf, (int32_t *)b[5].view.buf,
+                                  (const int64_t *)b[6].view.buf, (int)k, t_row0, (double *)b[7].view.buf, want);
+    Py_END_ALLOW_THREADS
+    release(b, 8);
+    return PyLong_FromSize_t(failed);
+fail:
+    release(b, 8);
+    return NULL;
+}
+
 /* outputs(y, p, out): every output per body (n, 14) */
 static PyObject *py_outputs(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
@@ -722,6 +776,9 @@ static PyMethodDef methods[] = {
     {"advance", (PyCFunction)(void (*)(void))py_advance, METH_FASTCALL,
      "advance(method, flags, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, threads) -> failed bodies"},
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
+    {"trajectory_select", (PyCFunction)(void (*)(void))py_trajectory_select, METH_FASTCALL,
+     "trajectory_select(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, cols, "
+     "t_row0, res, want, k0) -> failed: one body's rows (t_row0 + k dt, the outputs cols) into res"},
     {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
      "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out, "
      "want, k0)"},

@@ -802,6 +802,28 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
     for (size_t b = 0; b < n; b++) output_row(y + b * GS_NY, p + b * GS_NP, out + b * GS_NOUT, want);
 }
 
+/* Where a trajectory's rows go: one body's row k at base + k * stride, either whole (GS_NOUT outputs; cols NULL) or
+ * as the time t0 + k * dt and the outputs cols[0..ncols) (gs_trajectory_select: the caller's result rows, written
+ * once). A row is computed at row_begin's pointer (the row itself, or scratch) and placed by row_end. */
+typedef struct {
+    double *base;
+    size_t stride;
+    const int64_t *cols;
+    int ncols;
+    double t0, dt;
+} Sink;
+
+static GS_INLINE double *row_begin(const Sink *sk, int64_t k, double *scratch) {
+    return sk->cols ? scratch : sk->base + (size_t)k * sk->stride;
+}
+
+static GS_INLINE void row_end(const Sink *sk, int64_t k, const double *o) {
+    if (!sk->cols) return;
+    double *r = sk->base + (size_t)k * sk->stride;
+    r[0] = sk->t0 + (double)k * sk->dt;   /* Run.pack's time column, the same operations */
+    for (int j = 0; j < sk->ncols; j++) r[1 + j] = o[sk->cols[j]];
+}
+
 /* ------------------------------------------------------------------------------------------- exact */
 
 /* 1 when the state an exact step ended in is not to be kept: not finite, or the health monitor's drift beyond
@@ -886,14 +908,14 @@ static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, 
 }
 
 /* exact_grid_point over the lanes from..to-1 of a block of the output grid (a torque-free body; lane l holds the flow
- * at its point's time), each point's row written to o + (l - from) * ostride: the same operations and checks, and
- * the same bits, without the per-point copies of the state. First, for every lane, the checks that are a lane's
- * alone (the rotation over the step from the state before it; ok and drifted of its state, the monitor's start
- * values a torque-free step leaves as they are), independent and overlapping; then the reference angles'
- * bookkeeping point by point. Returns the first lane not done: to, or one that exact_grid_point or exact_advance
- * must take (more than one sample, a state to reject), with y then the state after the lane before it. */
+ * at its point's time), lane l's row written as row row0 + l - from of sk: the same operations and checks, and the
+ * same bits, without the per-point copies of the state. First, for every lane, the checks that are a lane's alone
+ * (the rotation over the step from the state before it; ok and drifted of its state, the monitor's start values a
+ * torque-free step leaves as they are), independent and overlapping; then the reference angles' bookkeeping point
+ * by point. Returns the first lane not done: to, or one that exact_grid_point or exact_advance must take (more than
+ * one sample, a state to reject), with y then the state after the lane before it. */
 static GS_INLINE int grid_block(double *y, const double *p, double H, const double (*lw)[3], const double (*lq)[4],
-                                int from, int to, int64_t *stats, double *o, size_t ostride, int want) {
+                                int from, int to, int64_t *stats, const Sink *sk, int64_t row0, int want) {
     double s[GS_TF_LANES][7], turn[GS_TF_LANES];
     int rej[GS_TF_LANES];
     for (int l = from; l < to; l++) {
@@ -923,7 +945,10 @@ static GS_INLINE int grid_block(double *y, const double *p, double H, const doub
             y[9] = r9;
             break;
         }
-        output_row_at(s[l], y + 7, y + 10, p, o + (size_t)(l - from) * ostride, want);
+        double scratch[GS_NOUT];
+        double *o = row_begin(sk, row0 + (l - from), scratch);
+        output_row_at(s[l], y + 7, y + 10, p, o, want);
+        row_end(sk, row0 + (l - from), o);
     }
     if (l > from) memcpy(y, s[l - 1], 7 * sizeof(double));
     stats[0] += l - from;
@@ -1558,11 +1583,11 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
 }
 
 /* Adaptive integration of one body over [0, T]. With n_out > 0, the outputs at k*dt (k = 1..n_out, T = n_out*dt)
- * go to out + (k-1)*ostride from the continuous extension (the run is not cut there); else the last step ends at T
+ * go to row k of sk from the continuous extension (the run is not cut there); else the last step ends at T
  * (step mode). Returns 0, or the failing step's index + 1 (y is then unchanged). */
 static int64_t erk_run(int method, double *y, const double *p, int flags, double T, double rtol, double atol,
-                       double max_step, double *hint, int64_t *stats, double dt, int64_t n_out, double *out,
-                       size_t ostride, int64_t *fail_row, int want) {
+                       double max_step, double *hint, int64_t *stats, double dt, int64_t n_out, const Sink *sk,
+                       int64_t *fail_row, int want) {
     Step s;
     s.nv = (flags & GS_WORK) ? 8 : 7;
     double yc[GS_NY];
@@ -1646,15 +1671,19 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             }
             normalize_q(yi);
             yi[9] = 0.0;
+            double scratch[GS_NOUT];
+            double *o = row_begin(sk, k_next, scratch);
             if (drifted(flags, yi, p)) {   /* the health monitor at every output point: the row shows what tripped */
-                gs_outputs_select(1, yi, p, out + (size_t)(k_next - 1) * ostride, want | GS_OUT_MOMENTUM);
+                output_row(yi, p, o, want | GS_OUT_MOMENTUM);
+                row_end(sk, k_next, o);
                 *fail_row = -k_next;
                 return nstep;
             }
-            gs_outputs_select(1, yi, p, out + (size_t)(k_next - 1) * ostride, want);
+            output_row(yi, p, o, want);
+            row_end(sk, k_next, o);
             if (want & GS_OUT_ANGLES) {   /* the reference angles follow the outputs */
-                yc[7] = out[(size_t)(k_next - 1) * ostride + 7];
-                yc[8] = out[(size_t)(k_next - 1) * ostride + 9];
+                yc[7] = o[7];
+                yc[8] = o[9];
                 yc[9] = w * (t1 - tk);
             }
             k_next += 1;
@@ -1681,20 +1710,25 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
 static int64_t erk_step_mode(int method, double *y, const double *p, int flags, double H, double rtol,
                              double atol, double max_step, double *hint, int64_t *stats) {
     int64_t row = 0;
-    return erk_run(method, y, p, flags, H, rtol, atol, max_step, hint, stats, 0.0, 0, NULL, 0, &row,
+    return erk_run(method, y, p, flags, H, rtol, atol, max_step, hint, stats, 0.0, 0, NULL, &row,
                    GS_OUT_ANGLES | GS_OUT_MOMENTUM);
 }
 
-static void nan_rows(double *out, size_t n, size_t b, int64_t from, int64_t n_out) {
+static void nan_rows(const Sink *sk, int64_t from, int64_t n_out) {
     for (int64_t k = from; k <= n_out; k++) {
-        double *o = out + ((size_t)k * n + b) * GS_NOUT;
+        double scratch[GS_NOUT];
+        double *o = row_begin(sk, k, scratch);
         for (int i = 0; i < GS_NOUT; i++) o[i] = NAN;
+        row_end(sk, k, o);
     }
 }
 
-size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, int64_t k0, double dt,
-                     int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
-                     double *ex, int32_t *status, int threads, double *out, int want) {
+/* gs_trajectory, and with sel (one body) gs_trajectory_select: the rows to sel's sink instead of out (inline in
+ * both, so that gs_trajectory's rows are written in place with no test of the sink's kind left) */
+static GS_INLINE size_t trajectory_impl(int method, int flags, size_t n, double *y, const double *p, double t0,
+                                        int64_t k0, double dt, int64_t n_out, double rtol, double atol,
+                                        double max_step, double *hint, int64_t *stats, double *ex, int32_t *status,
+                                        int threads, double *out, int want, const Sink *sel) {
     int64_t n_sub = 1;
     if (method < 0 || method >= GS_N_METHODS || !(dt > 0.0) || n_out < 0) {
         for (size_t b = 0; b < n; b++) status[b] = 1;
@@ -1707,7 +1741,6 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
             return n;
         }
     }
-    gs_outputs_select(n, y, p, out, want);   /* row 0: the start */
     size_t failed = 0;
     const long long nn = (long long)n;
 #ifdef _OPENMP
@@ -1721,15 +1754,23 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
         double *yb = y + b * GS_NY;
         const double *pb = p + b * GS_NP;
         int64_t *sb = stats + b * GS_NSTATS;
+        const Sink whole = {out + b * GS_NOUT, n * GS_NOUT, NULL, 0, 0.0, 0.0};
+        const Sink *sk = sel ? sel : &whole;
         status[b] = 0;
+        {   /* row 0: the start */
+            double scratch[GS_NOUT];
+            double *o = row_begin(sk, 0, scratch);
+            output_row(yb, pb, o, want);
+            row_end(sk, 0, o);
+        }
         if (method == GS_ADAPTIVE || method == GS_DOP853) {
             int64_t row = 0;
             const int64_t st = erk_run(method, yb, pb, flags, (double)n_out * dt, rtol, atol, max_step, hint + b, sb,
-                                       dt, n_out, out + (n + b) * GS_NOUT, n * GS_NOUT, &row, want);
+                                       dt, n_out, sk, &row, want);
             if (st) {   /* row < 0: the monitor tripped at output point -row, whose row holds that state */
                 const int64_t k = row < 0 ? -row : row;
                 status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
-                nan_rows(out, n, b, row < 0 ? k + 1 : k, n_out);
+                nan_rows(sk, row < 0 ? k + 1 : k, n_out);
                 failed += 1;
             } else {
                 monitor_commit(flags, yb, pb);
@@ -1769,8 +1810,7 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
                 else {
                     if (have) {   /* the block's points from this one on, then (if any is left) the one it stopped at */
                         const int64_t left = n_out - k, to = lanes_n < l + left ? lanes_n : l + left;
-                        const int e = grid_block(yb, pb, dt, lw, lq, (int)l, (int)to, sb,
-                                                 out + ((size_t)(k + 1) * n + b) * GS_NOUT, n * GS_NOUT, want);
+                        const int e = grid_block(yb, pb, dt, lw, lq, (int)l, (int)to, sb, sk, k + 1, want);
                         if (e > l) {
                             k += e - l - 1;   /* their rows written */
                             continue;
@@ -1784,12 +1824,36 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
             }
             if (st) {
                 status[b] = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
-                nan_rows(out, n, b, k + 1, n_out);
+                nan_rows(sk, k + 1, n_out);
                 failed += 1;
                 break;
             }
-            output_row(yb, pb, out + ((size_t)(k + 1) * n + b) * GS_NOUT, want);
+            double scratch[GS_NOUT];
+            double *o = row_begin(sk, k + 1, scratch);
+            output_row(yb, pb, o, want);
+            row_end(sk, k + 1, o);
         }
     }
     return failed;
+}
+
+size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p, double t0, int64_t k0, double dt,
+                     int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                     double *ex, int32_t *status, int threads, double *out, int want) {
+    return trajectory_impl(method, flags, n, y, p, t0, k0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status,
+                           threads, out, want, NULL);
+}
+
+size_t gs_trajectory_select(int method, int flags, double *y, const double *p, double t0, int64_t k0, double dt,
+                            int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                            double *ex, int32_t *status, const int64_t *cols, int ncols, double t_row0,
+                            double *res, int want) {
+    for (int j = 0; j < ncols; j++)
+        if (cols[j] < 0 || cols[j] >= GS_NOUT) {
+            status[0] = 1;
+            return 1;
+        }
+    const Sink sel = {res, (size_t)ncols + 1, cols, ncols, t_row0, dt};
+    return trajectory_impl(method, flags, 1, y, p, t0, k0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status,
+                           1, NULL, want, &sel);
 }
