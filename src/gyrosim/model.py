@@ -853,24 +853,30 @@ class Model:
         self._tick(t, dt, n)
         return out
 
-    def _trajectory_select(self, dt, n, cols: np.ndarray, t_row0: float, angles: bool, momentum: bool):
+    def _trajectory_select(self, dt, n, cols: np.ndarray, t_row0: float, angles: bool, momentum: bool,
+                           ready: bool = False):
         """One body's :meth:`_trajectory` straight into result rows (``_engine.trajectory_select``): ``(n + 1, 1 +
         len(cols))`` rows of the time ``t_row0 + k*dt`` and the outputs ``cols``, the bits of ``Run.pack`` of
         :meth:`_trajectory`'s rows; None where the run failed (the model is then left as the engine left it: the
-        caller, :func:`gyrosim.simulate`, drops it and runs again the whole way for the error)."""
+        caller, :func:`gyrosim.simulate`, drops it and runs again the whole way for the error).
+
+        ``ready``: also the engine call's arguments as they were before it, copied (``(head, tail)``: those before
+        and after ``res``), for :func:`gyrosim.simulate` to run the same call again on copies of them."""
         dt, n, t = self._start_run(dt, n, None, 1)
         res = np.empty((n + 1, 1 + len(cols)))
         t_base, k0 = (self._t_base, self._n) if dt == self._h else (t, 0)
-        failed = _engine.trajectory_select(_METHOD_CODES[self.integrator], self.scene.flags, self._y, self._p, t_base,
-                                           dt, n, self.tolerance, self.tolerance, self.max_step, self._hint,
-                                           self._stats, self._ex, self._status, cols, t_row0, res,
-                                           (_engine.OUT_ANGLES if angles else 0)
-                                           | (_engine.OUT_MOMENTUM if momentum else 0), k0)
+        want = (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0)
+        head = (_METHOD_CODES[self.integrator], self.scene.flags, self._y, self._p, t_base, dt, n, self.tolerance,
+                self.tolerance, self.max_step, self._hint, self._stats, self._ex, self._status, cols, t_row0)
+        args = None
+        if ready:
+            args = (tuple(a.copy() if isinstance(a, np.ndarray) else a for a in head), (want, k0))
+        failed = _engine.trajectory_select(*head, res, want, k0, True)
         if failed:
             self._status[:] = 0
-            return None
+            return None, None
         self._tick(t, dt, n)
-        return res
+        return res, args
 
     def _outputs_array(self) -> np.ndarray:
         if self._out is None:

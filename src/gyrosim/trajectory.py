@@ -129,6 +129,22 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     >>> r.dtype.names, len(r)
     (('time', 'omega_x'), 11)
     """
+    key = None
+    if (input is None and (start_values is None or (type(start_values) is dict and not start_values))
+            and (output is None or type(output) in (list, tuple))
+            and (isinstance(scene, Scene) or (type(scene) is str and scene in EMBEDDED_SCENES))):
+        sc = load_scene(scene)  # frozen, and the same object for an embedded name
+        key = (id(sc), start_time, stop_time, output_interval, integrator, max_step, relative_tolerance,
+               None if output is None else tuple(output))
+        try:
+            ready = _READY.get(key)
+        except TypeError:  # an argument that is not hashable
+            key = ready = None
+        if ready is not None and ready[0] is sc:  # the run's engine call again, on copies of its start state
+            head, tail, shape, dtype = ready[1:]
+            res = np.empty(shape)
+            if not _engine.trajectory_select(*head, res, *tail, False):
+                return np.frombuffer(res, dtype)
     args = dict(start_values=start_values, start_time=start_time, stop_time=stop_time,
                 output_interval=output_interval, integrator=integrator, max_step=max_step,
                 relative_tolerance=relative_tolerance, output=output, input=input)
@@ -139,8 +155,14 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
             out = run._advance_with_input(0, run.n)
         elif type(model) is Model:  # the model is dropped when the run fails: its state before the call not kept
             if model.n_bodies == 1:  # the result rows written once by the engine (the bits of pack below)
-                res = model._trajectory_select(run.dt, run.n, run._columns, run.t0, run.angles, run.momentum)
+                keep = key is not None and type(run.model) is Model
+                res, call = model._trajectory_select(run.dt, run.n, run._columns, run.t0, run.angles,
+                                                     run.momentum, ready=keep)
                 if res is not None:
+                    if keep:
+                        if len(_READY) > 256:
+                            _READY.clear()
+                        _READY[key] = (run.scene, *call, res.shape, run.dtype)
                     return np.frombuffer(res, run.dtype)
                 run = Run(scene, **args)  # it failed: again with whole rows, for the error and the rows before it
                 model = run.model
@@ -319,6 +341,12 @@ class Run:
             yield self.pack(block, done) if done == 0 else self.pack(block[1:], done + 1)
             done += m
 
+
+#: One-body runs of :func:`simulate` with no start values or inputs that went through, by scene and arguments:
+#: (scene, the engine call's arguments before and after its result array, copied before it ran, the result's shape
+#: and dtype). The same call again, on copies of that start state (``keep_state=False``), gives the same rows: the
+#: same scene object and arguments passed the same checks and built the same model (as :data:`_PREPARED`).
+_READY: dict = {}
 
 #: Prepared runs of the one-body engine without start values or inputs, by scene and arguments: (scene, the Run's
 #: attributes but the model, a model to replicate); a hit gives the attributes and a replica of the model (the

@@ -165,14 +165,17 @@ fail:
 }
 
 /* trajectory_select(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, cols, t_row0,
- * res, want, k0) -> failed (0 or 1): one body, res (n_out + 1, 1 + len(cols)) = (t_row0 + k dt, the outputs cols of
- * row k) as pack() would make them from trajectory()'s rows */
+ * res, want, k0, keep_state) -> failed (0 or 1): one body, res (n_out + 1, 1 + len(cols)) = (t_row0 + k dt, the
+ * outputs cols of row k) as pack() would make them from trajectory()'s rows; keep_state False: y, hint, stats, ex
+ * and status only read (the run on copies: a prepared run's arrays, gyrosim.simulate) */
 static PyObject *py_trajectory_select(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
-    if (nargs != 19) {
-        PyErr_SetString(PyExc_TypeError, "trajectory_select() takes 19 arguments");
+    if (nargs != 20) {
+        PyErr_SetString(PyExc_TypeError, "trajectory_select() takes 20 arguments");
         return NULL;
     }
+    const int keep_state = PyObject_IsTrue(args[19]);
+    if (keep_state < 0) return NULL;
     const int method = (int)PyLong_AsLong(args[0]);
     const int flags = (int)PyLong_AsLong(args[1]);
     const double t0 = PyFloat_AsDouble(args[4]);
@@ -205,10 +208,28 @@ static PyObject *py_trajectory_select(PyObject *self, PyObject *const *args, Py_
     }
     if (get_buf(args[16], &b[7], "res", 'd', (Py_ssize_t)(n_out + 1) * (1 + k), 1) < 0) goto fail;
     size_t failed;
+    /* keep_state False: the state arrays are only read; the run goes on copies of them (a prepared run's) */
+    double y[GS_NY], hint, ex[GS_EX_SIZE];
+    int64_t stats[GS_NSTATS];
+    int32_t status;
+    double *yp = (double *)b[0].view.buf, *hp = (double *)b[2].view.buf, *ep = (double *)b[4].view.buf;
+    int64_t *sp = (int64_t *)b[3].view.buf;
+    int32_t *tp = (int32_t *)b[5].view.buf;
+    if (!keep_state) {
+        memcpy(y, yp, sizeof(y));
+        hint = *hp;
+        memcpy(stats, sp, sizeof(stats));
+        if (ep) memcpy(ex, ep, sizeof(ex));
+        status = 0;
+        yp = y;
+        hp = &hint;
+        sp = stats;
+        ep = ep ? ex : NULL;
+        tp = &status;
+    }
     Py_BEGIN_ALLOW_THREADS
-    failed = gs_trajectory_select(method, flags, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0,
-                                  (int64_t)k0, dt, (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf,
-                                  (int64_t *)b[3].view.buf, (double *)b[4].view.buf, (int32_t *)b[5].view.buf,
+    failed = gs_trajectory_select(method, flags, yp, (const double *)b[1].view.buf, t0, (int64_t)k0, dt,
+                                  (int64_t)n_out, rtol, atol, max_step, hp, sp, ep, tp,
                                   (const int64_t *)b[6].view.buf, (int)k, t_row0, (double *)b[7].view.buf, want);
     Py_END_ALLOW_THREADS
     release(b, 8);
@@ -778,7 +799,8 @@ static PyMethodDef methods[] = {
     {"outputs", (PyCFunction)(void (*)(void))py_outputs, METH_FASTCALL, "outputs(y, p, out)"},
     {"trajectory_select", (PyCFunction)(void (*)(void))py_trajectory_select, METH_FASTCALL,
      "trajectory_select(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, cols, "
-     "t_row0, res, want, k0) -> failed: one body's rows (t_row0 + k dt, the outputs cols) into res"},
+     "t_row0, res, want, k0, keep_state) -> failed: one body's rows (t_row0 + k dt, the outputs cols) into res; "
+     "keep_state False: the state arrays only read"},
     {"trajectory", (PyCFunction)(void (*)(void))py_trajectory, METH_FASTCALL,
      "trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out, "
      "want, k0)"},
