@@ -123,6 +123,13 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     IntegrationError
         The run blew up (``error.rows`` holds the structured rows before the failing interval).
 
+    Notes
+    -----
+    A run without start values or inputs is prepared once per scene object and arguments and copied on the next
+    calls; a one-body such run that went through keeps its engine call, and the next call with the same scene
+    object and arguments runs it again on copies of its start state (the same rows, without the set-up's checks,
+    which it passed). A :class:`~gyrosim.scene.Scene` is frozen: another parameter is another scene object.
+
     Examples
     --------
     >>> r = simulate("free_body", stop_time=1.0, output_interval=0.1, output=["omega_x"])
