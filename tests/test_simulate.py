@@ -233,3 +233,12 @@ def test_a_kept_run_that_fails_after_a_parameter_change_is_not_the_same_run():
     c = gyrosim.simulate(s1, start_values={"I3": 2.5}, **kw)
     c2 = gyrosim.simulate(s1, start_values={"I3": 2.5}, **kw)
     assert c.tobytes() == c2.tobytes() == b1.tobytes()
+
+
+def test_an_empty_output_selection_gives_the_time_alone():
+    # no outputs asked for: the time column alone, as before (the rows written once need a column)
+    for _ in range(2):
+        r = gyrosim.simulate("free_body", stop_time=1.0, output_interval=0.1, output=[])
+        assert r.dtype.names == ("time",) and len(r) == 11
+        np.testing.assert_array_equal(r["time"], _whole_rows("free_body", stop_time=1.0, output_interval=0.1,
+                                                             output=[])["time"])

@@ -161,7 +161,7 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
         if run.input is not None:
             out = run._advance_with_input(0, run.n)
         elif type(model) is Model:  # the model is dropped when the run fails: its state before the call not kept
-            if model.n_bodies == 1:  # the result rows written once by the engine (the bits of pack below)
+            if model.n_bodies == 1 and len(run._columns):  # the result rows written once by the engine (pack's bits)
                 keep = key is not None and type(run.model) is Model
                 res, call = model._trajectory_select(run.dt, run.n, run._columns, run.t0, run.angles,
                                                      run.momentum, ready=keep)

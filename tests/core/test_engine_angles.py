@@ -93,3 +93,15 @@ def test_non_finite_attitudes_give_nan_angles():
     phi, theta, psi = _outputs([(np.nan, 0.0, 0.0, 1.0), (0.0, np.nan, 0.0, 0.0)])
     assert np.isnan(theta).all()
     assert np.isnan(phi).all() and np.isnan(psi).all()
+
+
+def test_signed_zeros_in_the_attitude_keep_atan2s_exact_values():
+    # components -0.0 and +0.0: atan2(1, -0.0) is pi/2 to the bit (the octant and the quadrant in one sum), so the
+    # angles of a quarter turn about x with a negative zero are those with a positive one
+    c = np.sqrt(0.5)
+    a = _outputs((c, c, 0.0, 0.0))
+    b = _outputs((c, c, -0.0, 0.0))
+    for u, v in zip(a, b):
+        np.testing.assert_array_equal(u, v)
+    phi, theta, psi = _outputs((0.0, 0.0, -0.0, 1.0))  # theta = 0, phi + psi = pi (wrapped to -pi)
+    assert abs(phi[0] + psi[0]) == np.pi and theta[0] == 0.0

@@ -113,6 +113,10 @@ static GS_INLINE double gs_atan2(double y, double x) {
         num = num == INFINITY ? 1.0 : 0.0;
         den = 1.0;
     }
+    if (den > 1e300) {   /* num + den below must not overflow (a power of 2: the same ratio) */
+        num *= 0.25;
+        den *= 0.25;
+    }
     /* atan(num / den) = pi/4 + atan((num - den) / (num + den)) above tan(pi/8): one division either way */
     const int big = num > 0.41421356237309504880 * den;
     double r = big ? (num - den) / (num + den) : (den > 0.0 ? num / den : 0.0);
@@ -123,11 +127,14 @@ static GS_INLINE double gs_atan2(double y, double x) {
                         - 7.500855792314704667340e1) * z - 1.228866684490136173410e2) * z - 6.485021904942025371773e1;
     const double qz = ((((z + 2.485846490142306297962e1) * z + 1.650270098316988542046e2) * z
                         + 4.328810604912902668951e2) * z + 4.853903996359136964868e2) * z + 1.945506571482613964425e2;
-    double a = base + ((r * (z * pz / qz) + more) + r);
-    /* the octant: pi/2 - a where |y| > |x| */
-    if (swap) a = (1.57079632679489661923 - a) + 6.123233995736765886130e-17;
-    /* the quadrant */
-    if (signbit(x)) a = (3.14159265358979323846 - a) + 1.2246467991473532e-16;
+    const double t = base + ((r * (z * pz / qz) + more) + r);   /* atan(min / max), in [0, pi/4] */
+    /* the octant and the quadrant, each a single sum with pi's next bits: t, pi - t, pi/2 - t, pi/2 + t */
+    double a;
+    if (!swap)
+        a = signbit(x) ? (3.14159265358979323846 - t) + 1.2246467991473532e-16 : t;
+    else
+        a = signbit(x) ? (1.57079632679489661923 + t) + 6.123233995736765886130e-17
+                       : (1.57079632679489661923 - t) + 6.123233995736765886130e-17;
     return copysign(a, y);
 }
 

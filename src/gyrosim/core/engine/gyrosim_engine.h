@@ -178,8 +178,8 @@ size_t gs_trajectory(int method, int flags, size_t n, double *y, const double *p
 /* gs_trajectory of one body with only the outputs cols[0..ncols) (indices into a row of gs_outputs) kept: row k of
  * res (ncols + 1 values) is t_row0 + k*dt, then those outputs; the same bits as gs_trajectory's rows (what
  * gyrosim.simulate returns for an output selection, written once instead of whole rows then copied). On a failure
- * (returns 1, status[0] as gs_trajectory's) the rows from the failing one on are NaN. A column outside 0..GS_NOUT-1:
- * nothing done, status[0] = 1. */
+ * (returns 1, status[0] as gs_trajectory's) the outputs of the rows from the failing one on are NaN (their time is
+ * not). A column outside 0..GS_NOUT-1: nothing done, status[0] = 1. */
 size_t gs_trajectory_select(int method, int flags, double *y, const double *p, double t0, int64_t k0, double dt,
                             int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                             double *ex, int32_t *status, const int64_t *cols, int ncols, double t_row0,
