@@ -568,15 +568,6 @@ typedef long long vm;
 #define F_SINCOS VSINCOS
 #define F_NAME(name) name
 #include "exact_fast.h"
-#undef F_T
-#undef F_M
-#undef F_W
-#undef F_SPLAT
-#undef F_SEL
-#undef F_MAP
-#undef F_LANE
-#undef F_SINCOS
-#undef F_NAME
 #define F_T double
 #define F_M long long
 #define F_W 1
@@ -587,15 +578,6 @@ typedef long long vm;
 #define F_SINCOS SINCOS1
 #define F_NAME(name) name##1
 #include "exact_fast.h"
-#undef F_T
-#undef F_M
-#undef F_W
-#undef F_SPLAT
-#undef F_SEL
-#undef F_MAP
-#undef F_LANE
-#undef F_SINCOS
-#undef F_NAME
 
 /* The four series at one x (the set-up's anchor) */
 static void fast_series(const double *c, double x, double *sn, double *cn, double *dn, double *p)
@@ -673,28 +655,23 @@ GS_AVX2 static void fast_eval_lanes_avx2(const double c[GS_TF_SIZE], const doubl
 {
     fast_lanes_vec(c, t, w_out, q_out);
 }
+#endif
 
 static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
                             double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
 {
-    if (__builtin_cpu_supports("avx2"))
+#if defined(GS_LANES_DISPATCH)
+    if (__builtin_cpu_supports("avx2")) {
         fast_eval_lanes_avx2(c, t, w_out, q_out);
-    else
-        fast_lanes_1(c, t, w_out, q_out);
-}
-#elif defined(GS_LANES_SCALAR)
-static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
-                            double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
-{
+        return;
+    }
     fast_lanes_1(c, t, w_out, q_out);
-}
+#elif defined(GS_LANES_SCALAR)
+    fast_lanes_1(c, t, w_out, q_out);
 #else
-static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
-                            double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
-{
     fast_lanes_vec(c, t, w_out, q_out);
-}
 #endif
+}
 
 int gs_tf_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                      double q_out[GS_TF_LANES][4])
@@ -1471,28 +1448,23 @@ GS_AVX2 static void ht_eval_lanes_avx2(const double *c, const double t[GS_TF_LAN
 {
     ht_lanes_vec(c, t, w_out, q_out, ang);
 }
+#endif
 
 static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                           double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
 {
-    if (__builtin_cpu_supports("avx2"))
+#if defined(GS_LANES_DISPATCH)
+    if (__builtin_cpu_supports("avx2")) {
         ht_eval_lanes_avx2(c, t, w_out, q_out, ang);
-    else
-        ht_lanes_1(c, t, w_out, q_out, ang);
-}
-#elif defined(GS_LANES_SCALAR)
-static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
-                          double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
-{
+        return;
+    }
     ht_lanes_1(c, t, w_out, q_out, ang);
-}
+#elif defined(GS_LANES_SCALAR)
+    ht_lanes_1(c, t, w_out, q_out, ang);
 #else
-static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
-                          double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
-{
     ht_lanes_vec(c, t, w_out, q_out, ang);
-}
 #endif
+}
 
 int gs_ht_eval_lanes(const double c[GS_HT_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                      double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])

@@ -8,7 +8,8 @@
  *   F_LANE, F_SINCOS           and cos, sin of every lane (VSINCOS_T's instantiations)
  *   F_NAME(name)               the functions' names (fast_vec, fast_vec1, ...)
  * Every operation is an IEEE add, multiply, divide, square root or floor element by element, with no contraction:
- * the instantiations give the same bits lane for lane (tests/core/test_engine_variants.py).
+ * the instantiations give the same bits lane for lane (tests/core/test_engine_variants.py). The file undefines
+ * its parameters at its end, for the next instantiation.
  */
 
 /* The four series at x = u_r / K in [-1, 1] (F_W of them), one Clenshaw recurrence each in y = 2 x^2 - 1
@@ -122,3 +123,13 @@ static GS_TF_INLINE void F_NAME(fast_vec)(const double *c, const double *tp, int
         q_out[i][3] = F_LANE(q3, i);
     }
 }
+
+#undef F_T
+#undef F_M
+#undef F_W
+#undef F_SPLAT
+#undef F_SEL
+#undef F_MAP
+#undef F_LANE
+#undef F_SINCOS
+#undef F_NAME
