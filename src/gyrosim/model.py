@@ -56,6 +56,11 @@ _PARAM_NAMES = frozenset(("I1", "I2", "I3", "mass", "cm_distance", "g", "damping
                           "max_drift"))
 
 
+def _want(angles: bool, momentum: bool) -> int:
+    """The engine's selection of derived outputs (OUT_ANGLES, OUT_MOMENTUM) of a trajectory."""
+    return (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0)
+
+
 def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
     """The variables (name -> :class:`Variable`) that ``scene`` carries, with the start values of ``body``."""
     b = scene.bodies[body]
@@ -826,11 +831,10 @@ class Model:
             status[:] = 0
         else:
             status = self._status  # zeros (set back after a failure)
-        # continue the clock of a run of equal steps (t_base + n*h) as step() would, for the same bits
-        t_base, k0 = (self._t_base, self._n) if dt == self._h else (t, 0)
+        t_base, k0 = self._clock(dt, t)
         failed = _engine.trajectory(method, self.scene.flags, self._y, self._p, t_base, dt, n, self.tolerance,
                                     self.tolerance, self.max_step, self._hint, self._stats, self._ex, status, 0, out,
-                                    (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0),
+                                    _want(angles, momentum),
                                     k0)
         if failed and not keep_going:
             b = int(np.flatnonzero(status)[0])
@@ -853,6 +857,11 @@ class Model:
         self._tick(t, dt, n)
         return out
 
+    def _clock(self, dt: float, t: float) -> tuple[float, int]:
+        """(t_base, k0) of a run of intervals of dt from t: the clock of a run of equal steps (t_base + n*h)
+        continued as step() would, for the same bits."""
+        return (self._t_base, self._n) if dt == self._h else (t, 0)
+
     def _trajectory_select(self, dt, n, cols: np.ndarray, t_row0: float, angles: bool, momentum: bool,
                            ready: bool = False):
         """One body's :meth:`_trajectory` straight into result rows (``_engine.trajectory_select``): ``(n + 1, 1 +
@@ -864,8 +873,8 @@ class Model:
         and after ``res``), for :func:`gyrosim.simulate` to run the same call again on copies of them."""
         dt, n, t = self._start_run(dt, n, None, 1)
         res = np.empty((n + 1, 1 + len(cols)))
-        t_base, k0 = (self._t_base, self._n) if dt == self._h else (t, 0)
-        want = (_engine.OUT_ANGLES if angles else 0) | (_engine.OUT_MOMENTUM if momentum else 0)
+        t_base, k0 = self._clock(dt, t)
+        want = _want(angles, momentum)
         head = (_METHOD_CODES[self.integrator], self.scene.flags, self._y, self._p, t_base, dt, n, self.tolerance,
                 self.tolerance, self.max_step, self._hint, self._stats, self._ex, self._status, cols, t_row0)
         args = None

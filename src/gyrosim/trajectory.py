@@ -136,22 +136,13 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
     >>> r.dtype.names, len(r)
     (('time', 'omega_x'), 11)
     """
-    key = None
-    if (input is None and (start_values is None or (type(start_values) is dict and not start_values))
-            and (output is None or type(output) in (list, tuple))
-            and (isinstance(scene, Scene) or (type(scene) is str and scene in EMBEDDED_SCENES))):
-        sc = load_scene(scene)  # frozen, and the same object for an embedded name
-        key = (id(sc), start_time, stop_time, output_interval, integrator, max_step, relative_tolerance,
-               None if output is None else tuple(output))
-        try:
-            ready = _READY.get(key)
-        except TypeError:  # an argument that is not hashable
-            key = ready = None
-        if ready is not None and ready[0] is sc:  # the run's engine call again, on copies of its start state
-            head, tail, shape, dtype = ready[1:]
-            res = np.empty(shape)
-            if not _engine.trajectory_select(*head, res, *tail, False):
-                return np.frombuffer(res, dtype)
+    key, ready = _kept(_READY, scene, start_values, start_time, stop_time, output_interval, integrator, max_step,
+                       relative_tolerance, output, input)
+    if ready is not None:  # the run's engine call again, on copies of its start state
+        head, tail, shape, dtype = ready[1:]
+        res = np.empty(shape)
+        if not _engine.trajectory_select(*head, res, *tail, False):
+            return np.frombuffer(res, dtype)
     args = dict(start_values=start_values, start_time=start_time, stop_time=stop_time,
                 output_interval=output_interval, integrator=integrator, max_step=max_step,
                 relative_tolerance=relative_tolerance, output=output, input=input)
@@ -162,7 +153,7 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
             out = run._advance_with_input(0, run.n)
         elif type(model) is Model:  # the model is dropped when the run fails: its state before the call not kept
             if model.n_bodies == 1 and len(run._columns):  # the result rows written once by the engine (pack's bits)
-                keep = key is not None and type(run.model) is Model
+                keep = key is not None
                 res, call = model._trajectory_select(run.dt, run.n, run._columns, run.t0, run.angles,
                                                      run.momentum, ready=keep)
                 if res is not None:
@@ -204,21 +195,12 @@ class Run:
 
     def __init__(self, scene=None, *, start_values=None, start_time=0.0, stop_time=None, output_interval=None,
                  integrator=None, max_step=None, relative_tolerance=None, output=None, input=None):
-        key = None
-        if ((start_values is None or (type(start_values) is dict and not start_values)) and input is None
-                and (output is None or type(output) in (list, tuple))
-                and (isinstance(scene, Scene) or (type(scene) is str and scene in EMBEDDED_SCENES))):
-            sc = load_scene(scene)  # frozen, and the same object for an embedded name
-            key = (id(sc), start_time, stop_time, output_interval, integrator, max_step, relative_tolerance,
-                   None if output is None else tuple(output))
-            try:
-                hit = _PREPARED.get(key)
-            except TypeError:  # an argument that is not hashable: prepared afresh
-                key = hit = None
-            if hit is not None and hit[0] is sc:
-                self.__dict__.update(hit[1])
-                self.model = hit[2]._replica()
-                return
+        key, hit = _kept(_PREPARED, scene, start_values, start_time, stop_time, output_interval, integrator,
+                         max_step, relative_tolerance, output, input)
+        if hit is not None:
+            self.__dict__.update(hit[1])
+            self.model = hit[2]._replica()
+            return
         self._prepare(scene, start_values, start_time, stop_time, output_interval, integrator, max_step,
                       relative_tolerance, output, input)
         if key is not None and self.model.n_bodies <= 64 and self.model._replicable():  # a few kB kept
@@ -347,6 +329,25 @@ class Run:
                 raise
             yield self.pack(block, done) if done == 0 else self.pack(block[1:], done + 1)
             done += m
+
+
+def _kept(cache: dict, scene, start_values, start_time, stop_time, output_interval, integrator, max_step,
+          relative_tolerance, output, input) -> tuple:
+    """``(key, entry)`` of a run in :data:`_PREPARED` or :data:`_READY`: the key of a run with no start values or
+    inputs of a Scene or an embedded scene (the scene object's identity and the arguments), None for any other run or
+    an argument that is not hashable; the entry kept under it for the same scene object, or None."""
+    if not (input is None and (start_values is None or (type(start_values) is dict and not start_values))
+            and (output is None or type(output) in (list, tuple))
+            and (isinstance(scene, Scene) or (type(scene) is str and scene in EMBEDDED_SCENES))):
+        return None, None
+    sc = load_scene(scene)  # frozen, and the same object for an embedded name
+    key = (id(sc), start_time, stop_time, output_interval, integrator, max_step, relative_tolerance,
+           None if output is None else tuple(output))
+    try:
+        entry = cache.get(key)
+    except TypeError:  # an argument that is not hashable: not kept
+        return None, None
+    return key, entry if entry is not None and entry[0] is sc else None
 
 
 #: One-body runs of :func:`simulate` with no start values or inputs that went through, by scene and arguments:
