@@ -116,6 +116,31 @@ fail:
     return NULL;
 }
 
+/* the arguments trajectory() and trajectory_select() share, at the same places: method, flags (0, 1), t0, dt,
+ * n_out, rtol, atol, max_step (4 .. 9); -1 with an error (n_out < 0 among them) */
+typedef struct {
+    int method, flags;
+    double t0, dt, rtol, atol, max_step;
+    long long n_out;
+} RunArgs;
+
+static int run_args(PyObject *const *args, RunArgs *r) {
+    r->method = (int)PyLong_AsLong(args[0]);
+    r->flags = (int)PyLong_AsLong(args[1]);
+    r->t0 = PyFloat_AsDouble(args[4]);
+    r->dt = PyFloat_AsDouble(args[5]);
+    r->n_out = PyLong_AsLongLong(args[6]);
+    r->rtol = PyFloat_AsDouble(args[7]);
+    r->atol = PyFloat_AsDouble(args[8]);
+    r->max_step = PyFloat_AsDouble(args[9]);
+    if (PyErr_Occurred()) return -1;
+    if (r->n_out < 0) {
+        PyErr_SetString(PyExc_ValueError, "n_out: a count >= 0 is needed");
+        return -1;
+    }
+    return 0;
+}
+
 /* trajectory(method, flags, y, p, t0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status, threads, out,
  * want, k0) -> failed bodies; out (n_out + 1, n, 14); want: OUT_ANGLES | OUT_MOMENTUM; interval k from t0+(k0+k)dt */
 static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
@@ -124,25 +149,15 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
         PyErr_SetString(PyExc_TypeError, "trajectory() takes 18 arguments");
         return NULL;
     }
-    const int method = (int)PyLong_AsLong(args[0]);
-    const int flags = (int)PyLong_AsLong(args[1]);
-    const double t0 = PyFloat_AsDouble(args[4]);
-    const double dt = PyFloat_AsDouble(args[5]);
-    const long long n_out = PyLong_AsLongLong(args[6]);
-    const long long k0 = PyLong_AsLongLong(args[17]);
-    const double rtol = PyFloat_AsDouble(args[7]);
-    const double atol = PyFloat_AsDouble(args[8]);
-    const double max_step = PyFloat_AsDouble(args[9]);
+    RunArgs r;
+    if (run_args(args, &r) < 0) return NULL;
+    const long long k0 = PyLong_AsLongLong(args[17]), n_out = r.n_out;
     const int threads = (int)PyLong_AsLong(args[14]);
     const int want = (int)PyLong_AsLong(args[16]);
     if (PyErr_Occurred()) return NULL;
-    if (n_out < 0) {
-        PyErr_SetString(PyExc_ValueError, "n_out: a count >= 0 is needed");
-        return NULL;
-    }
     Buf b[7] = {{0}};
     static const int at[6] = {2, 3, 10, 11, 12, 13};
-    const Py_ssize_t n = get_bodies(args, at, method, b);
+    const Py_ssize_t n = get_bodies(args, at, r.method, b);
     if (n < 0) goto fail;
     if (n > 0 && n_out + 1 > PY_SSIZE_T_MAX / (n * GS_NOUT)) {
         PyErr_SetString(PyExc_ValueError, "n_out: too many output points for memory");
@@ -151,9 +166,9 @@ static PyObject *py_trajectory(PyObject *self, PyObject *const *args, Py_ssize_t
     if (get_buf(args[15], &b[6], "out", 'd', (Py_ssize_t)(n_out + 1) * n * GS_NOUT, 1) < 0) goto fail;
     size_t failed;
     Py_BEGIN_ALLOW_THREADS
-    failed = gs_trajectory(method, flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf, t0,
-                           (int64_t)k0, dt,
-                           (int64_t)n_out, rtol, atol, max_step, (double *)b[2].view.buf, (int64_t *)b[3].view.buf,
+    failed = gs_trajectory(r.method, r.flags, (size_t)n, (double *)b[0].view.buf, (const double *)b[1].view.buf,
+                           r.t0, (int64_t)k0, r.dt, (int64_t)n_out, r.rtol, r.atol, r.max_step,
+                           (double *)b[2].view.buf, (int64_t *)b[3].view.buf,
                            (double *)b[4].view.buf, (int32_t *)b[5].view.buf, threads, (double *)b[6].view.buf,
                            want);
     Py_END_ALLOW_THREADS
@@ -176,25 +191,16 @@ static PyObject *py_trajectory_select(PyObject *self, PyObject *const *args, Py_
     }
     const int keep_state = PyObject_IsTrue(args[19]);
     if (keep_state < 0) return NULL;
-    const int method = (int)PyLong_AsLong(args[0]);
-    const int flags = (int)PyLong_AsLong(args[1]);
-    const double t0 = PyFloat_AsDouble(args[4]);
-    const double dt = PyFloat_AsDouble(args[5]);
-    const long long n_out = PyLong_AsLongLong(args[6]);
-    const double rtol = PyFloat_AsDouble(args[7]);
-    const double atol = PyFloat_AsDouble(args[8]);
-    const double max_step = PyFloat_AsDouble(args[9]);
+    RunArgs r;
+    if (run_args(args, &r) < 0) return NULL;
+    const long long n_out = r.n_out;
     const double t_row0 = PyFloat_AsDouble(args[15]);
     const int want = (int)PyLong_AsLong(args[17]);
     const long long k0 = PyLong_AsLongLong(args[18]);
     if (PyErr_Occurred()) return NULL;
-    if (n_out < 0) {
-        PyErr_SetString(PyExc_ValueError, "n_out: a count >= 0 is needed");
-        return NULL;
-    }
     Buf b[8] = {{0}};
     static const int at[6] = {2, 3, 10, 11, 12, 13};
-    const Py_ssize_t n = get_bodies(args, at, method, b);
+    const Py_ssize_t n = get_bodies(args, at, r.method, b);
     if (n < 0) goto fail;
     if (n != 1) {
         PyErr_SetString(PyExc_ValueError, "trajectory_select: one body");
@@ -228,8 +234,8 @@ static PyObject *py_trajectory_select(PyObject *self, PyObject *const *args, Py_
         tp = &status;
     }
     Py_BEGIN_ALLOW_THREADS
-    failed = gs_trajectory_select(method, flags, yp, (const double *)b[1].view.buf, t0, (int64_t)k0, dt,
-                                  (int64_t)n_out, rtol, atol, max_step, hp, sp, ep, tp,
+    failed = gs_trajectory_select(r.method, r.flags, yp, (const double *)b[1].view.buf, r.t0, (int64_t)k0, r.dt,
+                                  (int64_t)n_out, r.rtol, r.atol, r.max_step, hp, sp, ep, tp,
                                   (const int64_t *)b[6].view.buf, (int)k, t_row0, (double *)b[7].view.buf, want);
     Py_END_ALLOW_THREADS
     release(b, 8);
