@@ -105,3 +105,18 @@ def test_signed_zeros_in_the_attitude_keep_atan2s_exact_values():
         np.testing.assert_array_equal(u, v)
     phi, theta, psi = _outputs((0.0, 0.0, -0.0, 1.0))  # theta = 0, phi + psi = pi (wrapped to -pi)
     assert abs(phi[0] + psi[0]) == np.pi and theta[0] == 0.0
+
+
+@pytest.mark.parametrize("tilt", [1e-100, 1e-150, 1e-160, 1e-170, 1e-200, 1e-300, 5e-324])
+def test_tiny_tilts_keep_their_theta(tilt):
+    # an attitude tilted by theta from the vertical (a quarter of it about x, the rest about y, then a turn about z):
+    # the squares of its components underflow below about 1e-154, and theta is still theta to a few ulp of itself,
+    # not 0 (and the tilt at pi, upside down, is pi - theta: pi to the ulp at these sizes)
+    half = 0.5 * tilt
+    for w, z in ((1.0, 0.0), (np.sqrt(0.5), np.sqrt(0.5))):
+        q = (w, 0.6 * half * w, 0.8 * half * w, z) if z == 0.0 else (w, 0.6 * half, 0.8 * half, z)
+        phi, theta, psi = _outputs(q)
+        assert theta[0] == pytest.approx(tilt, rel=8 * np.finfo(float).eps, abs=4 * 5e-324)
+        assert np.isfinite(phi[0]) and np.isfinite(psi[0])
+    phi, theta, psi = _outputs((0.6 * half, 1.0, 0.0, 0.8 * half))
+    assert theta[0] == pytest.approx(np.pi, abs=2 * ULP_PI)

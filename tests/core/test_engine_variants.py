@@ -2,9 +2,10 @@
 
 dop853's sums on pairs of components, exact's lanes (the torque-free flow and the Lagrange top on the output grid
 and within a step) and their one-time evaluations are written with GCC/Clang vector extensions; GS_NO_VECTORS (and
-a compiler without them, MSVC) compiles the same operations on doubles, and GS_NO_CLONES drops the AVX2 clones.
+a compiler without them, MSVC) compiles the same operations on doubles, GS_NO_CLONES drops the AVX2 clones (x86-64's
+output grid then takes one double at a time) and GS_LANES_VECTORS keeps the grid's four-wide vectors without them.
 Every operation is an IEEE add, multiply, divide, square root or floor, with no contraction, so each build must give
-the same bits: a driver (engine_variants_driver.c) prints every output of such runs in hex, built three ways.
+the same bits: a driver (engine_variants_driver.c) prints every output of such runs in hex, built four ways.
 """
 
 from __future__ import annotations
@@ -33,7 +34,9 @@ def _build_and_run(tmp: Path, name: str, defines: list[str]) -> str:
 
 
 def test_vector_clone_and_scalar_builds_give_the_same_bits(tmp_path):
-    variants = {"default": [], "no_clones": ["-DGS_NO_CLONES"], "scalar": ["-DGS_NO_VECTORS", "-DGS_NO_CLONES"]}
+    variants = {"default": [], "no_clones": ["-DGS_NO_CLONES"], "scalar": ["-DGS_NO_VECTORS", "-DGS_NO_CLONES"],
+                # the four-wide lanes without AVX2 (SSE2's pairs), the code aarch64 runs on NEON's pairs
+                "vector_lanes": ["-DGS_NO_CLONES", "-DGS_LANES_VECTORS"]}
     with ThreadPoolExecutor(max_workers=2) as pool:
         outs = dict(zip(variants, pool.map(lambda kv: _build_and_run(tmp_path, *kv), variants.items())))
     ref = outs["default"].splitlines()

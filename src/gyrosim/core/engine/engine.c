@@ -775,6 +775,14 @@ void gs_outputs(size_t n, const double *y, const double *p, double *out) {
     gs_outputs_select(n, y, p, out, GS_OUT_ANGLES | GS_OUT_MOMENTUM);
 }
 
+/* |(a, b)| by the square root of the sum of squares, and by hypot where that sum is below 2^-960 (|(a, b)| below
+ * about 1e-145), where the squares lose bits to underflow: theta = 2e-170 is 2e-170, not 0 (the sum's branch only
+ * at a gimbal lock's edge, as the attitude's components are at most 1) */
+static GS_INLINE double norm2_at(double a, double b) {
+    const double s = a * a + b * b;
+    return s >= 0x1p-960 || !(s == s) ? sqrt(s) : hypot(a, b);
+}
+
 /* one body's output row (gs_outputs_select), inline where a trajectory writes its rows: of the q, omega in s[0..6]
  * with the reference angles r[0..1] and the monitor's values m[0..4] (a state's y[7..8], y[10..14]) */
 static GS_INLINE void output_row_at(const double *s, const double *r, const double *m, const double *pb, double *o,
@@ -785,7 +793,7 @@ static GS_INLINE void output_row_at(const double *s, const double *r, const doub
     for (int i = 0; i < 7; i++) o[i] = s[i];
     if (want & GS_OUT_ANGLES) {
         unwrapped_at(s, r, &o[7], &o[9]);
-        o[8] = 2.0 * gs_atan2(sqrt(x * x + yy * yy), sqrt(w * w + z * z));
+        o[8] = 2.0 * gs_atan2(norm2_at(x, yy), norm2_at(w, z));
     } else {
         o[7] = o[8] = o[9] = NAN;
     }

@@ -618,7 +618,10 @@ static void fast_setup(double *c, double u0, double ps0)
  * or the scalar instantiation; other x86-64 compilers without AVX2 in their flags (the Windows and macOS FMUs)
  * take the scalar one; other targets (aarch64's NEON pairs: not measured here) the vectors. Every choice gives the
  * same bits (tests/core/test_engine_variants.py). */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && !defined(GS_NO_CLONES)
+#if defined(GS_LANES_VECTORS)
+/* the vectors wherever they compile: tests/core/test_engine_variants.py's build of the code other targets run
+ * (SSE2's pairs here, as aarch64's NEON pairs) */
+#elif defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && !defined(GS_NO_CLONES)
 #define GS_LANES_DISPATCH 1
 #define GS_AVX2 __attribute__((target("avx2")))
 #elif defined(__x86_64__) && !defined(__AVX2__)
