@@ -479,6 +479,16 @@ static int fast_setup_n(double *c, int N, double mc, double K, double n, double 
 #define GS_TF_INLINE inline
 #endif
 
+/* floor(x), the same value and sign, without libm's call (SSE2 has no rounding instruction): VFLOOR's operations on
+ * one double */
+static GS_TF_INLINE double gs_floor1(double x)
+{
+    const double a = fabs(x);
+    if (!(a < 4503599627370496.0)) return x;   /* 2^52: an integer already; inf, NaN */
+    const double r = copysign((a + 4503599627370496.0) - 4503599627370496.0, x);
+    return r > x ? r - 1.0 : r;
+}
+
 /* The fast evaluation is written once, on vectors of GS_VW times (GCC's and Clang's vector extensions): the
  * exact integrator's output grid fills every lane, one time (gs_tf_eval) fills lane 0 and copies it. Every
  * operation is an IEEE add, multiply, divide, square root or floor, element by element, with no contraction
@@ -503,6 +513,20 @@ typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
         for (int vmi_ = 0; vmi_ < GS_VW; vmi_++) vmr_[vmi_] = f(vma_[vmi_]); \
         vmr_;                                                       \
     })
+/* floor of every lane with vector operations: |x| rounded to an integer by adding and taking away 2^52 (exact below
+ * 2^52), x's sign put back, one taken away where that rounded up; |x| >= 2^52 (an integer already), inf and NaN are
+ * x. floor's value and sign for every input (gs_floor1's operations; VMAP(floor, .) went lane by lane through
+ * memory, and the vector's load after the lanes' stores stalled) */
+#define VFLOOR(a)                                                                      \
+    __extension__({                                                                    \
+        const vd fx_ = (a);                                                            \
+        const vm sm_ = (vm)VSPLAT(-0.0);                                               \
+        const vd fa_ = (vd)((vm)fx_ & ~sm_);                                           \
+        const vd fr0_ = (fa_ + 4503599627370496.0) - 4503599627370496.0;               \
+        const vd fr_ = (vd)((vm)fr0_ | ((vm)fx_ & sm_));                               \
+        const vd ff_ = VSEL(fr_ > fx_, fr_ - 1.0, fr_);                                \
+        VSEL(fa_ < 4503599627370496.0, ff_, fx_);                                      \
+    })
 #else
 /* compilers without vector extensions (MSVC): one lane, the same operations on doubles (the same bits) */
 #define GS_VW 1
@@ -512,6 +536,7 @@ typedef long long vm;
 #define VSEL(m, a, b) ((m) ? (a) : (b))
 #define LANE(v, i) (v)
 #define VMAP(f, a) f(a)
+#define VFLOOR(a) gs_floor1(a)
 #endif
 
 /* cos and sin of GS_VW angles at once: fdlibm's reduction by pi/2 in three 33-bit parts (exact products for
@@ -522,10 +547,10 @@ typedef long long vm;
 #define GS_PIO2_1 1.57079632673412561417e+00  /* first 33 bits of pi/2 */
 #define GS_PIO2_2 6.07710050630396597660e-11  /* next 33 bits */
 #define GS_PIO2_3 2.02226624871116645580e-21  /* the next */
-#define VSINCOS_T(x, cos_out, sin_out, VT, MT, SEL, MAP, NL, LN)                                                                         \
+#define VSINCOS_T(x, cos_out, sin_out, VT, MT, SEL, FLOOR, NL, LN)                                                                           \
     do {                                                                                                          \
         const VT x_ = (x);                                                                                        \
-        const VT n_ = MAP(floor, x_ * GS_INVPIO2 + 0.5);                                                         \
+        const VT n_ = FLOOR(x_ * GS_INVPIO2 + 0.5);                                                               \
         const VT r_ = ((x_ - n_ * GS_PIO2_1) - n_ * GS_PIO2_2) - n_ * GS_PIO2_3;                                 \
         const VT z_ = r_ * r_;                                                                                    \
         const VT sr_ = r_ + (z_ * r_) * (-1.66666666666666324348e-01 +                                            \
@@ -537,7 +562,7 @@ typedef long long vm;
                        z_ * (2.08757232129817482790e-09 + z_ * -1.13596475577881948265e-11))))));                 \
         const VT hz_ = 0.5 * z_, w_ = 1.0 - hz_;                                                                  \
         const VT cr_ = w_ + (((1.0 - w_) - hz_) + cz_);                                                           \
-        const VT q_ = n_ - 4.0 * MAP(floor, 0.25 * n_);   /* the quadrant, 0 .. 3 */                             \
+        const VT q_ = n_ - 4.0 * FLOOR(0.25 * n_);         /* the quadrant, 0 .. 3 */                             \
         const MT odd_ = (q_ == 1.0) | (q_ == 3.0), negs_ = q_ >= 2.0, negc_ = (q_ == 1.0) | (q_ == 2.0);          \
         const VT s0_ = SEL(odd_, cr_, sr_), c0_ = SEL(odd_, sr_, cr_);                                          \
         sin_out = SEL(negs_, -s0_, s0_);                                                                         \
@@ -550,11 +575,11 @@ typedef long long vm;
         }                                                                                                         \
     } while (0)
 /* on GS_VW lanes, and on one double (the same operations: the same bits as a lane) */
-#define VSINCOS(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, vd, vm, VSEL, VMAP, GS_VW, LANE)
+#define VSINCOS(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, vd, vm, VSEL, VFLOOR, GS_VW, LANE)
 #define S1_SEL(m, a, b) ((m) ? (a) : (b))
 #define S1_MAP(f, a) f(a)
 #define S1_LANE(v, i) (v)
-#define SINCOS1(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, double, long long, S1_SEL, S1_MAP, 1, S1_LANE)
+#define SINCOS1(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, double, long long, S1_SEL, gs_floor1, 1, S1_LANE)
 
 /* fast_sums, reduce_arg and fast_vec on GS_VW lanes, and fast_sums1, reduce_arg1 and fast_vec1 on one double (one
  * time: on SSE2, the only x86-64 set an FMU's compilers may assume, four lanes in pairs spilled their registers) */
@@ -564,6 +589,7 @@ typedef long long vm;
 #define F_SPLAT VSPLAT
 #define F_SEL VSEL
 #define F_MAP VMAP
+#define F_FLOOR VFLOOR
 #define F_LANE LANE
 #define F_SINCOS VSINCOS
 #define F_NAME(name) name
@@ -574,6 +600,7 @@ typedef long long vm;
 #define F_SPLAT(a) (a)
 #define F_SEL S1_SEL
 #define F_MAP S1_MAP
+#define F_FLOOR gs_floor1
 #define F_LANE S1_LANE
 #define F_SINCOS SINCOS1
 #define F_NAME(name) name##1
@@ -612,9 +639,10 @@ static void fast_setup(double *c, double u0, double ps0)
     if (!isfinite(c[C_OFF])) c[C_NF] = 0.0;
 }
 
-/* The grid's lanes: the vector code pays where four lanes fill a register (AVX2: 31 ns a point of the free body
- * against 79 for one double at a time); on SSE2's pairs it spills, and one double at a time is faster (96 -> 80 ns a
- * point; bench/exact_cost.c built with -DGS_NO_CLONES). So: GCC on x86-64 Linux picks at run time, AVX2's vectors
+/* The grid's lanes: the vector code pays where four lanes fill a register (AVX2: 23 ns a point of the free body
+ * against 77 for one double at a time, with VFLOOR; 31 ns with floor lane by lane); on SSE2's pairs it spills, and
+ * one double at a time is faster (87 against 77 ns a point; bench/exact_cost.c built with -DGS_NO_CLONES, and
+ * -DGS_LANES_VECTORS for the pairs). So: GCC on x86-64 Linux picks at run time, AVX2's vectors
  * or the scalar instantiation; other x86-64 compilers without AVX2 in their flags (the Windows and macOS FMUs)
  * take the scalar one; other targets (aarch64's NEON pairs: not measured here) the vectors. Every choice gives the
  * same bits (tests/core/test_engine_variants.py). */
@@ -1396,7 +1424,7 @@ static GS_TF_INLINE void ht_vec(const double *c, const double *tp, double w_out[
     reduce_arg(&t, c[H_LAM], c[H_W0], c[H_K], c[H_RK], &w, &j, &x);
     vd sn_r, cn_r, dn, pd, ps;
     HT_SUMS_T(vd, VSPLAT, c, x, sn_r, cn_r, dn, pd, ps);
-    const vd sg = 1.0 - 2.0 * (j - 2.0 * VMAP(floor, 0.5 * j));
+    const vd sg = 1.0 - 2.0 * (j - 2.0 * VFLOOR(0.5 * j));
     const vd sn = sg * sn_r, cn = sg * cn_r;
     const double d = c[H_D];
     const int ups = c[H_UPS] != 0.0, los = c[H_LOS] != 0.0;

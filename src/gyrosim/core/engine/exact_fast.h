@@ -4,8 +4,8 @@
  * and the set-up). exact.c includes this file twice with
  *   F_T, F_M, F_W              the value type, the comparison mask's type and the lanes (vd, vm, GS_VW; double,
  *                              long long, 1)
- *   F_SPLAT, F_SEL, F_MAP,     a value in every lane, select by mask, a function lane by lane, lane i
- *   F_LANE, F_SINCOS           and cos, sin of every lane (VSINCOS_T's instantiations)
+ *   F_SPLAT, F_SEL, F_MAP,     a value in every lane, select by mask, a function lane by lane, floor of every lane
+ *   F_FLOOR, F_LANE, F_SINCOS  (VFLOOR, gs_floor1), lane i and cos, sin of every lane (VSINCOS_T's instantiations)
  *   F_NAME(name)               the functions' names (fast_vec, fast_vec1, ...)
  * Every operation is an IEEE add, multiply, divide, square root or floor element by element, with no contraction:
  * the instantiations give the same bits lane for lane (tests/core/test_engine_variants.py). The file undefines
@@ -47,7 +47,7 @@ static GS_TF_INLINE void F_NAME(reduce_arg)(const F_T *t, double lam, double u0,
                                              F_T *x)
 {
     *u = F_SPLAT(lam) * *t + u0;
-    *j = F_MAP(floor, 0.5 * rk * *u + 0.5);
+    *j = F_FLOOR(0.5 * rk * *u + 0.5);
     const F_T xr = (*u - *j * (2.0 * K)) * rk;
     *x = F_SEL(xr < -1.0, F_SPLAT(-1.0), F_SEL(xr > 1.0, F_SPLAT(1.0), xr));
 }
@@ -61,7 +61,7 @@ static GS_TF_INLINE void F_NAME(fast_vec)(const double *c, const double *tp, int
     memcpy(&t, tp, sizeof(t));
     /* u = lam t + u0; j, x = u_r / K in [-1, 1], y2 = 2 (2 x^2 - 1) and sg = (-1)^j */
     F_NAME(reduce_arg)(&t, c[C_LAM], c[C_U0], c[C_K], c[C_RK], &u, &j, &x);
-    const F_T sg = 1.0 - 2.0 * (j - 2.0 * F_MAP(floor, 0.5 * j));
+    const F_T sg = 1.0 - 2.0 * (j - 2.0 * F_FLOOR(0.5 * j));
     F_T sn_r, cn_r, dn, p;
     F_NAME(fast_sums)(c, &x, &sn_r, &cn_r, &dn, &p);
     if (circular) {
@@ -130,6 +130,7 @@ static GS_TF_INLINE void F_NAME(fast_vec)(const double *c, const double *tp, int
 #undef F_SPLAT
 #undef F_SEL
 #undef F_MAP
+#undef F_FLOOR
 #undef F_LANE
 #undef F_SINCOS
 #undef F_NAME
