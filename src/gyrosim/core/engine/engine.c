@@ -826,6 +826,7 @@ typedef struct {
     const int64_t *cols;
     int ncols;
     double t0, dt;
+    int state;   /* cols only of the state's q and omega (outputs 0..6): a row of them is copied from the state */
 } Sink;
 
 static GS_INLINE double *row_begin(const Sink *sk, int64_t k, double *scratch) {
@@ -837,6 +838,22 @@ static GS_INLINE void row_end(const Sink *sk, int64_t k, const double *o) {
     double *r = sk->base + (size_t)k * sk->stride;
     r[0] = sk->t0 + (double)k * sk->dt;   /* Run.pack's time column, the same operations */
     for (int j = 0; j < sk->ncols; j++) r[1 + j] = o[sk->cols[j]];
+}
+
+/* row k of the q, omega in s[0..6] (reference angles r[0..1], monitor's values m[0..4]): output_row_at's row, its
+ * selected columns straight from s where they are only the state's (their values: output_row_at copies them) */
+static GS_INLINE void put_row(const Sink *sk, int64_t k, const double *s, const double *r, const double *m,
+                              const double *pb, int want) {
+    if (sk->state && !want) {
+        double *row = sk->base + (size_t)k * sk->stride;
+        row[0] = sk->t0 + (double)k * sk->dt;
+        for (int j = 0; j < sk->ncols; j++) row[1 + j] = s[sk->cols[j]];
+        return;
+    }
+    double scratch[GS_NOUT];
+    double *o = row_begin(sk, k, scratch);
+    output_row_at(s, r, m, pb, o, want);
+    row_end(sk, k, o);
 }
 
 /* ------------------------------------------------------------------------------------------- exact */
@@ -960,10 +977,7 @@ static GS_INLINE int grid_block(double *y, const double *p, double H, const doub
             y[9] = r9;
             break;
         }
-        double scratch[GS_NOUT];
-        double *o = row_begin(sk, row0 + (l - from), scratch);
-        output_row_at(s[l], y + 7, y + 10, p, o, want);
-        row_end(sk, row0 + (l - from), o);
+        put_row(sk, row0 + (l - from), s[l], y + 7, y + 10, p, want);
     }
     if (l > from) memcpy(y, s[l - 1], 7 * sizeof(double));
     stats[0] += l - from;
@@ -1769,15 +1783,10 @@ static GS_INLINE size_t trajectory_impl(int method, int flags, size_t n, double 
         double *yb = y + b * GS_NY;
         const double *pb = p + b * GS_NP;
         int64_t *sb = stats + b * GS_NSTATS;
-        const Sink whole = {out + b * GS_NOUT, n * GS_NOUT, NULL, 0, 0.0, 0.0};
+        const Sink whole = {out + b * GS_NOUT, n * GS_NOUT, NULL, 0, 0.0, 0.0, 0};
         const Sink *sk = sel ? sel : &whole;
         status[b] = 0;
-        {   /* row 0: the start */
-            double scratch[GS_NOUT];
-            double *o = row_begin(sk, 0, scratch);
-            output_row(yb, pb, o, want);
-            row_end(sk, 0, o);
-        }
+        put_row(sk, 0, yb, yb + 7, yb + 10, pb, want);   /* row 0: the start */
         if (method == GS_ADAPTIVE || method == GS_DOP853) {
             int64_t row = 0;
             const int64_t st = erk_run(method, yb, pb, flags, (double)n_out * dt, rtol, atol, max_step, hint + b, sb,
@@ -1843,10 +1852,7 @@ static GS_INLINE size_t trajectory_impl(int method, int flags, size_t n, double 
                 failed += 1;
                 break;
             }
-            double scratch[GS_NOUT];
-            double *o = row_begin(sk, k + 1, scratch);
-            output_row(yb, pb, o, want);
-            row_end(sk, k + 1, o);
+            put_row(sk, k + 1, yb, yb + 7, yb + 10, pb, want);
         }
     }
     return failed;
@@ -1868,7 +1874,9 @@ size_t gs_trajectory_select(int method, int flags, double *y, const double *p, d
             status[0] = 1;
             return 1;
         }
-    const Sink sel = {res, (size_t)ncols + 1, cols, ncols, t_row0, dt};
+    int state = 1;
+    for (int j = 0; j < ncols; j++) state &= cols[j] < 7;
+    const Sink sel = {res, (size_t)ncols + 1, cols, ncols, t_row0, dt, state};
     return trajectory_impl(method, flags, 1, y, p, t0, k0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status,
                            1, NULL, want, &sel);
 }
