@@ -10,7 +10,8 @@
  *       src/gyrosim/core/engine/engine.c src/gyrosim/core/engine/exact.c src/gyrosim/core/engine/rk.c -lm \
  *       -o exact_cost && taskset -c 1 ./exact_cost
  *
- * With -DGS_NO_CLONES: the SSE2 code alone (what the Windows and macOS FMUs and CPUs without AVX2 run).
+ * With -DGS_NO_CLONES: the SSE2 code alone, the lanes in pairs (what the Windows and macOS FMUs run); with
+ * -DGS_NO_CLONES -DGS_LANES_ONE, one double at a time (what a CPU without AVX2 runs in the default build).
  */
 #define _POSIX_C_SOURCE 199309L
 #include <math.h>

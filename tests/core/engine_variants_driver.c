@@ -1,7 +1,8 @@
 /* Prints, in hex, the bits of runs that take the engine's vector paths (dop853's paired sums, exact's lanes and
  * one-time evaluations of the torque-free flow and of the Lagrange top), for tests/core/test_engine_variants.py:
- * the default build, the build without clones (-DGS_NO_CLONES) and the scalar build (-DGS_NO_VECTORS, what MSVC
- * compiles) must print the same. */
+ * the default build, the build without clones (-DGS_NO_CLONES: SSE2's pairs), the grid one double at a time
+ * (-DGS_LANES_ONE), a build for AVX2 (-mavx2) and the scalar build (-DGS_NO_VECTORS, what MSVC compiles) must print
+ * the same. */
 #include "gyrosim_engine.h"
 #include <math.h>
 #include <stdio.h>

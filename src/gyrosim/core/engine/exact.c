@@ -495,12 +495,24 @@ static GS_TF_INLINE double gs_floor1(double x)
  * (-ffp-contract=off): a lane gives the same bits whichever lanes are beside it and whatever instruction set the
  * compiler picks (SSE2 pairs or AVX2). */
 #if (defined(__GNUC__) || defined(__clang__)) && !defined(GS_NO_VECTORS)
+/* the lanes a vector holds: four where AVX2's 256-bit registers take them (a build for AVX2, or GCC's AVX2 clones
+ * on x86-64 Linux, chosen at run time: GS_LANES_DISPATCH below), else two, the 128-bit registers of SSE2 (x86-64's
+ * baseline: the Windows and macOS FMUs) and of NEON (aarch64), where four lanes in pairs spilled their registers */
+#if defined(__AVX2__) || \
+    (defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && !defined(GS_NO_CLONES))
 #define GS_VW 4
+#else
+#define GS_VW 2
+#endif
 typedef double vd __attribute__((vector_size(GS_VW * sizeof(double))));
 typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
 
 /* (macros, not functions: a vector passed by value would make GCC note an ABI change) */
+#if GS_VW == 4
 #define VSPLAT(a) ((vd){(a), (a), (a), (a)})
+#else
+#define VSPLAT(a) ((vd){(a), (a)})
+#endif
 /* a where m, else b (m from a vector comparison: all bits set or none) */
 #define VSEL(m, a, b) ((vd)(((vm)(a) & (m)) | ((vm)(b) & ~(m))))
 /* lane i of a vector */
@@ -639,25 +651,22 @@ static void fast_setup(double *c, double u0, double ps0)
     if (!isfinite(c[C_OFF])) c[C_NF] = 0.0;
 }
 
-/* The grid's lanes: the vector code pays where four lanes fill a register (AVX2: 23 ns a point of the free body
- * against 77 for one double at a time, with VFLOOR; 31 ns with floor lane by lane); on SSE2's pairs it spills, and
- * one double at a time is faster (87 against 77 ns a point; bench/exact_cost.c built with -DGS_NO_CLONES, and
- * -DGS_LANES_VECTORS for the pairs). So: GCC on x86-64 Linux picks at run time, AVX2's vectors
- * or the scalar instantiation; other x86-64 compilers without AVX2 in their flags (the Windows and macOS FMUs)
- * take the scalar one; other targets (aarch64's NEON pairs: not measured here) the vectors. Every choice gives the
- * same bits (tests/core/test_engine_variants.py). */
-#if defined(GS_LANES_VECTORS)
-/* the vectors wherever they compile: tests/core/test_engine_variants.py's build of the code other targets run
- * (SSE2's pairs here, as aarch64's NEON pairs) */
-#elif defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && !defined(GS_NO_CLONES)
+/* The grid's lanes, on the vectors GS_VW wide (AVX2's four: 23 ns a point of the free body; SSE2's pairs: 50 ns,
+ * against 77 for one double at a time and 87 for four lanes in SSE2's pairs; bench/exact_cost.c, and built with
+ * -DGS_NO_CLONES for SSE2). GCC on x86-64 Linux builds for the baseline and adds AVX2 clones of the lanes, chosen
+ * at run time (GS_LANES_DISPATCH): a CPU without AVX2 takes one double at a time there, the lanes' vectors being
+ * four wide in that build. Every choice gives the same bits (tests/core/test_engine_variants.py; GS_LANES_ONE, a
+ * test's build, takes the one-double code everywhere). */
+#if defined(GS_LANES_ONE)
+#define GS_LANES_SCALAR 1
+#elif defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__) && \
+    !defined(GS_NO_CLONES) && !defined(__AVX2__)
 #define GS_LANES_DISPATCH 1
 #define GS_AVX2 __attribute__((target("avx2")))
-#elif defined(__x86_64__) && !defined(__AVX2__)
-#define GS_LANES_SCALAR 1
 #endif
 
-/* gs_tf_eval with the fast series (C_NF > 0): fast_vec's operations on one double (lane 0 of fast_vec took 626 ns
- * on SSE2's pairs, where the registers spilled, and about a fifth of that with AVX2) */
+/* gs_tf_eval with the fast series (C_NF > 0): fast_vec's operations on one double (lane 0 of a four-wide fast_vec
+ * took 626 ns on SSE2's pairs, where the registers spilled, and about a fifth of that with AVX2) */
 static void fast_eval(const double c[GS_TF_SIZE], double t, double w_out[3], double q_out[4])
 {
     fast_vec1(c, &t, c[C_MC] == 1.0, (double (*)[3])w_out, (double (*)[4])q_out);
@@ -1467,8 +1476,8 @@ static GS_TF_INLINE void ht_lanes_vec(const double *c, const double t[GS_TF_LANE
     for (int l = 0; l < GS_TF_LANES; l += GS_VW) ht_vec(c, t + l, w_out + l, q_out + l, ang + l);
 }
 
-static void ht_lanes_1(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
-                       double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
+static GS_TF_INLINE void ht_lanes_1(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
+                                    double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
 {
     for (int l = 0; l < GS_TF_LANES; l++) gs_ht_eval(c, t[l], w_out[l], q_out[l], ang[l]);
 }
