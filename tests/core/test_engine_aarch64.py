@@ -31,7 +31,7 @@ pytestmark = pytest.mark.skipif(CROSS is None or QEMU is None or not SYSROOT.is_
 def _build_and_run(tmp: Path, name: str, cc: str, defines: list[str], emulate: bool) -> str:
     exe = tmp / name
     flags = (ENGINE / "cflags.txt").read_text().split()
-    subprocess.run([cc, *flags, "-O1", "-D_GNU_SOURCE", *defines, f"-I{ENGINE}", str(DRIVER),
+    subprocess.run([cc, *flags, "-D_GNU_SOURCE", *defines, f"-I{ENGINE}", str(DRIVER),
                     *(str(ENGINE / f) for f in ("engine.c", "exact.c", "rk.c")), "-lm", "-o", str(exe)],
                    check=True, capture_output=True, text=True)
     cmd = [QEMU, "-L", str(SYSROOT), str(exe)] if emulate else [str(exe)]

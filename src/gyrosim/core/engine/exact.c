@@ -484,7 +484,8 @@ static int fast_setup_n(double *c, int N, double mc, double K, double n, double 
 static GS_TF_INLINE double gs_floor1(double x)
 {
     const double a = fabs(x);
-    if (!(a < 4503599627370496.0)) return x;   /* 2^52: an integer already; inf, NaN */
+    if (!isless(a, 4503599627370496.0)) return x + 0.0;   /* 2^52: an integer already; inf; NaN (quieted, as
+                                                                 libm's, and no invalid flag for a quiet one) */
     const double r = copysign((a + 4503599627370496.0) - 4503599627370496.0, x);
     return r > x ? r - 1.0 : r;
 }
@@ -526,8 +527,9 @@ typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
         vmr_;                                                       \
     })
 /* floor of every lane with vector operations: |x| rounded to an integer by adding and taking away 2^52 (exact below
- * 2^52), x's sign put back, one taken away where that rounded up; |x| >= 2^52 (an integer already), inf and NaN are
- * x. floor's value and sign for every input (gs_floor1's operations; VMAP(floor, .) went lane by lane through
+ * 2^52), that with x's sign (the rounding's own sign cleared: 2^52 - 2^52 is -0 when rounding down), one taken away
+ * where it rounded up; |x| >= 2^52 (an integer already), inf and NaN (quieted) are x + 0. floor's value and sign
+ * for every input, in every rounding mode (gs_floor1's operations; VMAP(floor, .) went lane by lane through
  * memory, and the vector's load after the lanes' stores stalled) */
 #define VFLOOR(a)                                                                      \
     __extension__({                                                                    \
@@ -535,9 +537,9 @@ typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
         const vm sm_ = (vm)VSPLAT(-0.0);                                               \
         const vd fa_ = (vd)((vm)fx_ & ~sm_);                                           \
         const vd fr0_ = (fa_ + 4503599627370496.0) - 4503599627370496.0;               \
-        const vd fr_ = (vd)((vm)fr0_ | ((vm)fx_ & sm_));                               \
+        const vd fr_ = (vd)(((vm)fr0_ & ~sm_) | ((vm)fx_ & sm_));                      \
         const vd ff_ = VSEL(fr_ > fx_, fr_ - 1.0, fr_);                                \
-        VSEL(fa_ < 4503599627370496.0, ff_, fx_);                                      \
+        VSEL(fa_ < 4503599627370496.0, ff_, fx_ + 0.0);                                \
     })
 #else
 /* compilers without vector extensions (MSVC): one lane, the same operations on doubles (the same bits) */
