@@ -1,5 +1,5 @@
-/* The engine's floor without libm (exact.c: gs_floor1 on doubles, VFLOOR on vectors) against libm's floor, bit for
- * bit (a NaN's too), in each of the four rounding modes (libm's floor does not depend on the mode): special values
+/* The engine's floor without libm (gyrosim_engine.h: gs_floor on doubles; exact.c: VFLOOR on vectors) against
+ * libm's floor, bit for bit (a NaN's too), in each of the four rounding modes (libm's floor does not depend on the mode): special values
  * (zeros of either sign, halves, the edges of 2^51 and 2^52, infinities, quiet and signalling NaNs) and random
  * doubles of every exponent. Prints "<lanes of a vector> <checked> <differing>"; built (with -fno-builtin-floor:
  * libm's floor itself, not GCC's inline expansion) and run by test_engine_floor.py. */
@@ -48,10 +48,10 @@ int main(void) {
     for (int m = 0; m < 4; m++) {
         rng = 88172645463325252ULL;
         if (fesetround(modes[m]) != 0) return 2;
-        for (int i = 0; i < ns; i++, n++) bad += !same(gs_floor1(sp[i]), libm_floor(sp[i]));
+        for (int i = 0; i < ns; i++, n++) bad += !same(gs_floor(sp[i]), libm_floor(sp[i]));
         for (long i = 0; i < 2000000; i++, n++) {
             const double x = random_double(i);
-            bad += !same(gs_floor1(x), libm_floor(x));
+            bad += !same(gs_floor(x), libm_floor(x));
         }
 #if GS_VW > 1
         for (long i = 0; i < 250000; i++) {

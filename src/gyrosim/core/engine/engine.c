@@ -89,13 +89,6 @@ int gs_max_threads(void) {
 
 /* ------------------------------------------------------------------------------------------- angles */
 
-/* floor(v) without libm's call (x86-64's baseline has no rounding instruction): the same value */
-static GS_INLINE double gs_floor(double v) {
-    if (!(fabs(v) < 4503599627370496.0)) return floor(v);   /* 2^52: already an integer; also NaN, inf */
-    const double t = (double)(long long)v;   /* towards zero */
-    return t > v ? t - 1.0 : t;
-}
-
 static GS_INLINE double wrap(double a) {
     return a - GS_TWO_PI * gs_floor((a + GS_PI) / GS_TWO_PI);
 }
@@ -845,9 +838,7 @@ static GS_INLINE void row_end(const Sink *sk, int64_t k, const double *o) {
 static GS_INLINE void put_row(const Sink *sk, int64_t k, const double *s, const double *r, const double *m,
                               const double *pb, int want) {
     if (sk->state && !want) {
-        double *row = sk->base + (size_t)k * sk->stride;
-        row[0] = sk->t0 + (double)k * sk->dt;
-        for (int j = 0; j < sk->ncols; j++) row[1 + j] = s[sk->cols[j]];
+        row_end(sk, k, s);
         return;
     }
     double scratch[GS_NOUT];
@@ -1869,13 +1860,14 @@ size_t gs_trajectory_select(int method, int flags, double *y, const double *p, d
                             int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                             double *ex, int32_t *status, const int64_t *cols, int ncols, double t_row0,
                             double *res, int want) {
-    for (int j = 0; j < ncols; j++)
+    int state = 1;
+    for (int j = 0; j < ncols; j++) {
         if (cols[j] < 0 || cols[j] >= GS_NOUT) {
             status[0] = 1;
             return 1;
         }
-    int state = 1;
-    for (int j = 0; j < ncols; j++) state &= cols[j] < 7;
+        state &= cols[j] < 7;
+    }
     const Sink sel = {res, (size_t)ncols + 1, cols, ncols, t_row0, dt, state};
     return trajectory_impl(method, flags, 1, y, p, t0, k0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status,
                            1, NULL, want, &sel);

@@ -479,17 +479,6 @@ static int fast_setup_n(double *c, int N, double mc, double K, double n, double 
 #define GS_TF_INLINE inline
 #endif
 
-/* floor(x), the same value and sign, without libm's call (SSE2 has no rounding instruction): VFLOOR's operations on
- * one double */
-static GS_TF_INLINE double gs_floor1(double x)
-{
-    const double a = fabs(x);
-    if (!isless(a, 4503599627370496.0)) return x + 0.0;   /* 2^52: an integer already; inf; NaN (quieted, as
-                                                                 libm's, and no invalid flag for a quiet one) */
-    const double r = copysign((a + 4503599627370496.0) - 4503599627370496.0, x);
-    return r > x ? r - 1.0 : r;
-}
-
 /* The fast evaluation is written once, on vectors of GS_VW times (GCC's and Clang's vector extensions): the
  * exact integrator's output grid fills every lane, one time (gs_tf_eval) fills lane 0 and copies it. Every
  * operation is an IEEE add, multiply, divide, square root or floor, element by element, with no contraction
@@ -526,11 +515,11 @@ typedef long long vm __attribute__((vector_size(GS_VW * sizeof(double))));
         for (int vmi_ = 0; vmi_ < GS_VW; vmi_++) vmr_[vmi_] = f(vma_[vmi_]); \
         vmr_;                                                       \
     })
-/* floor of every lane with vector operations: |x| rounded to an integer by adding and taking away 2^52 (exact below
- * 2^52), that with x's sign (the rounding's own sign cleared: 2^52 - 2^52 is -0 when rounding down), one taken away
- * where it rounded up; |x| >= 2^52 (an integer already), inf and NaN (quieted) are x + 0. floor's value and sign
- * for every input, in every rounding mode (gs_floor1's operations; VMAP(floor, .) went lane by lane through
- * memory, and the vector's load after the lanes' stores stalled) */
+/* floor of every lane with vector operations, gs_floor's (gyrosim_engine.h): |x| rounded to an integer by adding
+ * and taking away 2^52, that with x's sign (the rounding's own sign cleared: 2^52 - 2^52 is -0 when rounding down),
+ * one taken away where it rounded up; |x| >= 2^52, inf and NaN are x + 0. floor's value and sign for every input, in
+ * every rounding mode (VMAP(floor, .) went lane by lane through memory, and the vector's load after the lanes'
+ * stores stalled) */
 #define VFLOOR(a)                                                                      \
     __extension__({                                                                    \
         const vd fx_ = (a);                                                            \
@@ -550,7 +539,7 @@ typedef long long vm;
 #define VSEL(m, a, b) ((m) ? (a) : (b))
 #define LANE(v, i) (v)
 #define VMAP(f, a) f(a)
-#define VFLOOR(a) gs_floor1(a)
+#define VFLOOR(a) gs_floor(a)
 #endif
 
 /* cos and sin of GS_VW angles at once: fdlibm's reduction by pi/2 in three 33-bit parts (exact products for
@@ -593,7 +582,7 @@ typedef long long vm;
 #define S1_SEL(m, a, b) ((m) ? (a) : (b))
 #define S1_MAP(f, a) f(a)
 #define S1_LANE(v, i) (v)
-#define SINCOS1(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, double, long long, S1_SEL, gs_floor1, 1, S1_LANE)
+#define SINCOS1(x, cos_out, sin_out) VSINCOS_T(x, cos_out, sin_out, double, long long, S1_SEL, gs_floor, 1, S1_LANE)
 
 /* fast_sums, reduce_arg and fast_vec on GS_VW lanes, and fast_sums1, reduce_arg1 and fast_vec1 on one double (one
  * time: on SSE2, the only x86-64 set an FMU's compilers may assume, four lanes in pairs spilled their registers) */
@@ -614,7 +603,7 @@ typedef long long vm;
 #define F_SPLAT(a) (a)
 #define F_SEL S1_SEL
 #define F_MAP S1_MAP
-#define F_FLOOR gs_floor1
+#define F_FLOOR gs_floor
 #define F_LANE S1_LANE
 #define F_SINCOS SINCOS1
 #define F_NAME(name) name##1
@@ -666,6 +655,21 @@ static void fast_setup(double *c, double u0, double ps0)
 #define GS_LANES_DISPATCH 1
 #define GS_AVX2 __attribute__((target("avx2")))
 #endif
+/* The one choice of the lanes' code, for the torque-free flow's and the Lagrange top's: avx2 (the AVX2 clone), one
+ * (one double at a time) or vec (the vectors), the calls; the others are not compiled */
+#if defined(GS_LANES_DISPATCH)
+#define GS_LANES_CHOOSE(avx2, one, vec) \
+    do {                                \
+        if (__builtin_cpu_supports("avx2")) \
+            avx2;                       \
+        else                            \
+            one;                        \
+    } while (0)
+#elif defined(GS_LANES_SCALAR)
+#define GS_LANES_CHOOSE(avx2, one, vec) one
+#else
+#define GS_LANES_CHOOSE(avx2, one, vec) vec
+#endif
 
 /* gs_tf_eval with the fast series (C_NF > 0): fast_vec's operations on one double (lane 0 of a four-wide fast_vec
  * took 626 ns on SSE2's pairs, where the registers spilled, and about a fifth of that with AVX2) */
@@ -702,17 +706,8 @@ GS_AVX2 static void fast_eval_lanes_avx2(const double c[GS_TF_SIZE], const doubl
 static void fast_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES],
                             double w_out[GS_TF_LANES][3], double q_out[GS_TF_LANES][4])
 {
-#if defined(GS_LANES_DISPATCH)
-    if (__builtin_cpu_supports("avx2")) {
-        fast_eval_lanes_avx2(c, t, w_out, q_out);
-        return;
-    }
-    fast_lanes_1(c, t, w_out, q_out);
-#elif defined(GS_LANES_SCALAR)
-    fast_lanes_1(c, t, w_out, q_out);
-#else
-    fast_lanes_vec(c, t, w_out, q_out);
-#endif
+    GS_LANES_CHOOSE(fast_eval_lanes_avx2(c, t, w_out, q_out), fast_lanes_1(c, t, w_out, q_out),
+                    fast_lanes_vec(c, t, w_out, q_out));
 }
 
 int gs_tf_eval_lanes(const double c[GS_TF_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
@@ -1495,17 +1490,8 @@ GS_AVX2 static void ht_eval_lanes_avx2(const double *c, const double t[GS_TF_LAN
 static void ht_eval_lanes(const double *c, const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],
                           double q_out[GS_TF_LANES][4], double ang[GS_TF_LANES][2])
 {
-#if defined(GS_LANES_DISPATCH)
-    if (__builtin_cpu_supports("avx2")) {
-        ht_eval_lanes_avx2(c, t, w_out, q_out, ang);
-        return;
-    }
-    ht_lanes_1(c, t, w_out, q_out, ang);
-#elif defined(GS_LANES_SCALAR)
-    ht_lanes_1(c, t, w_out, q_out, ang);
-#else
-    ht_lanes_vec(c, t, w_out, q_out, ang);
-#endif
+    GS_LANES_CHOOSE(ht_eval_lanes_avx2(c, t, w_out, q_out, ang), ht_lanes_1(c, t, w_out, q_out, ang),
+                    ht_lanes_vec(c, t, w_out, q_out, ang));
 }
 
 int gs_ht_eval_lanes(const double c[GS_HT_SIZE], const double t[GS_TF_LANES], double w_out[GS_TF_LANES][3],

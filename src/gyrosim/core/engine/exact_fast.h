@@ -5,7 +5,7 @@
  *   F_T, F_M, F_W              the value type, the comparison mask's type and the lanes (vd, vm, GS_VW; double,
  *                              long long, 1)
  *   F_SPLAT, F_SEL, F_MAP,     a value in every lane, select by mask, a function lane by lane, floor of every lane
- *   F_FLOOR, F_LANE, F_SINCOS  (VFLOOR, gs_floor1), lane i and cos, sin of every lane (VSINCOS_T's instantiations)
+ *   F_FLOOR, F_LANE, F_SINCOS  (VFLOOR, gs_floor), lane i and cos, sin of every lane (VSINCOS_T's instantiations)
  *   F_NAME(name)               the functions' names (fast_vec, fast_vec1, ...)
  * Every operation is an IEEE add, multiply, divide, square root or floor element by element, with no contraction:
  * the instantiations give the same bits lane for lane (tests/core/test_engine_variants.py). The file undefines

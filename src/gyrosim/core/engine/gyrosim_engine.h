@@ -45,8 +45,22 @@
 #pragma fp_contract(off)
 #endif
 
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+
+/* floor(x) without libm's call, for the engine's own use (x86-64's baseline SSE2 has no rounding instruction): |x|
+ * rounded to an integer by adding and taking away 2^52 (exact below 2^52), with x's sign, one taken away where that
+ * rounded up; |x| >= 2^52 (an integer already), inf and NaN (quieted, as libm's; isless: no invalid flag for a quiet
+ * one) are x + 0. floor's value and sign for every input, in every rounding mode (tests/core/test_engine_floor.py);
+ * exact.c's VFLOOR is the same on vectors. */
+static inline double gs_floor(double x)
+{
+    const double a = fabs(x);
+    if (!isless(a, 4503599627370496.0)) return x + 0.0;
+    const double r = copysign((a + 4503599627370496.0) - 4503599627370496.0, x);
+    return r > x ? r - 1.0 : r;
+}
 
 #ifdef __cplusplus
 extern "C" {
