@@ -78,7 +78,11 @@ def _tree_data(path: Path, scenes) -> None:
 
 def test_engine_under_asan_ubsan(cc, tmp_path):
     trees = tmp_path / "trees.txt"
-    _tree_data(trees, ["spacecraft", "gimbal_gyroscope"])
+    rotor = tmp_path / "world_rotor.toml"  # a rotor hinged to the world: the rotor shortcut has no parent slot
+    rotor.write_text('[scene]\nname = "world_rotor"\ng = 0.0\n[[body]]\nname = "r"\nparent = "world"\n'
+                     'joint = "hinge"\naxis = [0.0, 0.0, 1.0]\nmass = 1.0\n'
+                     'inertia = { principal = [0.5, 0.5, 0.1] }\nmotor_input = true\nrate = 3.0\n')
+    _tree_data(trees, ["spacecraft", "gimbal_gyroscope", str(rotor)])
     assert Model("spacecraft").n_bodies == 4
     exe = tmp_path / "driver"
     srcs = [HERE / "sanitize_driver.c", *(ENGINE / f for f in ("engine.c", "exact.c", "rk.c", "tree.c"))]
@@ -92,7 +96,7 @@ def test_engine_under_asan_ubsan(cc, tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
     out = _run([str(exe), str(trees)]).stdout
-    assert "TREES 2" in out and "DONE" in out, out
+    assert "TREES 3" in out and "DONE" in out, out
 
 
 # ------------------------------------------------------------------------------------------------ the FMU glue

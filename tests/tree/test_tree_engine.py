@@ -164,6 +164,33 @@ def test_reaction_wheel_spins_the_hub_as_the_closed_form():
     assert np.max(np.abs(r[:, 0, col["energy_error"]])) < 1e-12
 
 
+def _world_rotors(n: int) -> dict:
+    """n axisymmetric rotors, each hinged directly to the world (leaves whose parent is the world), motor-driven."""
+    return {"scene": {"name": "rotors", "g": 0.0, "integrator": "rk4"},
+            "body": [{"name": f"r{i}", "parent": "world", "joint": "hinge", "axis": [0.0, 0.0, 1.0],
+                      "position": [float(i), 0.0, 0.0], "mass": 1.0,
+                      "inertia": {"principal": [0.5, 0.5, 0.1 * (i + 1)]}, "motor_input": True}
+                     for i in range(n)]}
+
+
+@pytest.mark.parametrize("n", [2, 32])
+def test_rotors_hinged_to_the_world_spin_up_as_the_closed_form(n):
+    """A rotor hinged to the world under a motor torque u: rate = u t / J exactly (rk4 integrates a constant
+    acceleration to round-off). Such a rotor once took the rotor shortcut, which folds a leaf's inertia into its
+    parent's slot and read and wrote slot -1 for the world: with 32 bodies the accelerations were wrong by 2.4x."""
+    from gyrosim.scene import scene_from_dict
+
+    m = Model(scene_from_dict(_world_rotors(n)))
+    u = 1e-2
+    for i in range(n):
+        m.set(f"r{i}.motor_torque" if n > 1 else "motor_torque", u * (i + 1))
+    m.step(1.0)
+    for i in range(n):
+        rate = m.get(f"r{i}.rate" if n > 1 else "rate")
+        J = 0.1 * (i + 1)
+        assert rate == pytest.approx(u * (i + 1) * 1.0 / J, rel=1e-12), i
+
+
 def test_basilisk_reference_run_is_reproduced():
     """The spacecraft of the issue (hub diag(1, 2, 3) with its wheels, J = 0.01, wheel speeds (100, 0, -50), then
     1e-3 N*m on wheel 1 for 10 s) against Basilisk 2.12.1's RKF78 run at rel 1e-12 / abs 1e-14, produced by

@@ -182,11 +182,14 @@ typedef struct {
 } Kin;
 
 /* A rotor: a leaf on a hinge, axisymmetric about its axis (inertia about the centre of mass aa^T-isotropic, the
- * centre of mass on the axis) with no external torque. Its spatial inertia is the same in every frame turned about
- * the axis, so it is computed in its parent's orientation (E = 1: no rotation, no sine): a change of coordinates,
- * exact up to the round-off of the symmetry test (1e-15 of the inertia). Reaction wheels and gyroscope rotors. */
+ * centre of mass on the axis) with no external torque, hinged to a body (not the world). Its spatial inertia is
+ * the same in every frame turned about the axis, so it is computed in its parent's orientation (E = 1: no
+ * rotation, no sine): a change of coordinates, exact up to the round-off of the symmetry test (1e-15 of the
+ * inertia). Reaction wheels and gyroscope rotors. */
 static int rotor_frame(const gs_tree *t, const double *b, int i) {
-    if (t->joint[i] != GS_J_HINGE || !t->leaf[i]) return 0;
+    /* a rotor's articulated inertia is folded into its parent's: a leaf hinged to the world has no parent slot
+     * to fold into (the world does not move), so it runs the general hinge path */
+    if (t->joint[i] != GS_J_HINGE || !t->leaf[i] || t->parent[i] < 0) return 0;
     if (b[GS_TB_TAU] != 0.0 || b[GS_TB_TAU + 1] != 0.0 || b[GS_TB_TAU + 2] != 0.0) return 0;
     const double *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *J = b + GS_TB_I;
     const double M[3][3] = {{J[0], J[3], J[4]}, {J[3], J[1], J[5]}, {J[4], J[5], J[2]}};
