@@ -156,6 +156,30 @@ class Scene:
     def body_names(self) -> list[str]:
         return [b.name for b in (self.tree if self.tree is not None else self.bodies)]
 
+    def var_name(self, body: str, short: str) -> str:
+        """A body's variable under DESIGN 4's one naming rule: bare in a scene of one body, whatever its joint
+        and whichever syntax declared it (``v_x`` for a ``free`` body); ``<body>.<name>`` with several."""
+        return short if len(self.body_names) == 1 else f"{body}.{short}"
+
+    def split_name(self, name: str) -> tuple[int | None, str]:
+        """The body (its index) and short name of a tree's variable ``name``; ``(None, name)`` for a scene-wide
+        one (``energy``, ``g``, a scene parameter). The inverse of :meth:`var_name`.
+
+        Raises
+        ------
+        ValueError
+            ``<body>.<name>`` with a body that is not the scene's.
+        """
+        from .scene_tree import BODY_VARIABLES
+
+        body, _, short = name.rpartition(".")
+        names = self.body_names
+        if body:
+            return names.index(body), short
+        if len(names) == 1 and short in BODY_VARIABLES:
+            return 0, short
+        return None, short
+
     @property
     def torque_free(self) -> bool:
         """True when no term can exert a torque (gravity, damping and inputs all absent)."""
@@ -433,6 +457,11 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         raise ConfigError("name", dup, "unique body names", where=source)
+    return _one_body_scene(name, tuple(bodies), terms, integ, g, sc, where, source)
+
+
+def _one_body_scene(name, bodies, terms, integ, g, sc, where, source) -> Scene:
+    """A scene on the one-body kernel: independent bodies, each integrated by Euler's equations."""
     scene = Scene(
         name=name, bodies=tuple(bodies), gravity="gravity" in terms, damping="damping" in terms,
         torque="torque" in terms, integrator=integ,
@@ -461,14 +490,47 @@ def _is_tree(data: dict) -> bool:
 TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853")
 
 
+def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -> tuple[BodySpec, set] | None:
+    """The body and terms of the one-body kernel (Euler's equations in closed form, the exact flows, the
+    splittings) where a tree is one body that kernel describes exactly, else None (DESIGN 4b: the engine picks
+    the kernels that fit a system).
+
+    That is a root on a ``free_rotation`` or ``ball`` joint at the world's origin, with its inertia along its
+    body axes and its centre of mass on body +z given as ``cm_distance`` (the one-body meaning: I1, I2, I3 about
+    the pivot) or at the joint point; no couplings, scene parameters or orbit. The body is read by the one-body
+    parser from the same table, so its numbers are the user's to the bit, and its variables mean what a one-body
+    scene's do under the same bare names. Any other tree runs on the articulated-body algorithm."""
+    if len(bodies) != 1 or couplings or aliases or orbit is not None:
+        return None
+    b, tbl = bodies[0], data["body"][0]
+    if b.parent != -1 or b.joint not in ("free_rotation", "ball") or np.any(b.pos != 0.0):
+        return None
+    J = np.asarray(b.inertia, dtype=float)
+    if np.any(J != np.diag(np.diag(J))) or b.cm[0] != 0.0 or b.cm[1] != 0.0:
+        return None
+    if b.cm[2] != 0.0 and ("cm" in tbl or b.joint != "ball"):  # `cm`: inertia about the centre of mass
+        return None
+    try:
+        (body,), terms = _body({k: v for k, v in tbl.items() if k in _BODY_KEYS}, 0, g, source)
+    except ConfigError:  # a body the one-body kernel does not take (a flat body, a massless one)
+        return None
+    if not (np.array_equal(body.q0, b.q0) and np.array_equal(body.omega0, b.omega0)):
+        return None  # its principal axes are not its body axes
+    return body, terms
+
+
 def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
     from .scene_tree import orbit_from_dict, tree_from_dict
 
+    bodies, couplings, cnames, aliases = tree_from_dict(data, source)
+    orbit = orbit_from_dict(sc["orbit"], bodies, f"{where}.orbit") if "orbit" in sc else None
+    one = _one_body_kernel(data, bodies, couplings, aliases, orbit, g, source)
+    if one is not None:  # a tree of one body that Euler's equations describe: the one-body kernel
+        body, terms = one
+        return _one_body_scene(name, (body,), terms, integ, g, sc, where, source)
     if integ not in TREE_INTEGRATORS:
         raise ConfigError("integrator", integ, f"one of {', '.join(TREE_INTEGRATORS)}: a tree of bodies is "
                           f"integrated by the tree engine ('{integ}' solves one body)", where=where)
-    bodies, couplings, cnames, aliases = tree_from_dict(data, source)
-    orbit = orbit_from_dict(sc["orbit"], bodies, f"{where}.orbit") if "orbit" in sc else None
     return Scene(
         name=name, bodies=(), gravity=g > 0, damping=any(b.damping > 0 for b in bodies),
         torque=any(b.torque_input or b.motor_input for b in bodies), integrator=integ,

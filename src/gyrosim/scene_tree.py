@@ -49,10 +49,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .core.inertia import InertiaTensor
-from .core.tree import JOINTS, MU_EARTH, Orbit, TreeBody
+from .core.tree import BODY_OUTPUTS, JOINT_COORDS, JOINTS, MU_EARTH, ORBIT_BODY_OUTPUTS, Orbit, TreeBody
 from .errors import ConfigError
 
-__all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "TREE_KEYS"]
+__all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "BODY_VARIABLES", "TREE_KEYS"]
 
 _TREE_BODY_KEYS = ("name", "parent", "joint", "position", "axis", "mass", "cm", "cm_distance", "inertia",
                    "stiffness", "rest_angle", "joint_damping", "damping", "motor_input", "torque_input", "attitude",
@@ -80,6 +80,9 @@ HINGE_PARAMS = {
     "joint_damping": ("N.m.s/rad", "hinge viscous damping"),
 }
 BALL_PARAMS = {"damping": ("N.m.s", "viscous torque -damping*omega (relative to the parent)")}
+#: The short names of a body's own variables (a body's part of a name under Scene.var_name's rule).
+BODY_VARIABLES = frozenset({*BODY_PARAMS, *HINGE_PARAMS, *BALL_PARAMS, "motor_torque", "tau_x", "tau_y", "tau_z",
+                            *(c for cs in JOINT_COORDS.values() for c in cs), *BODY_OUTPUTS, *ORBIT_BODY_OUTPUTS})
 
 
 @dataclass(frozen=True)

@@ -63,19 +63,19 @@ def tree_output_names(scene: Scene) -> list[str]:
     """The output columns of a tree scene's engine rows: ``<body>.<coordinate>`` (and a circular orbit's
     ``orbit_anomaly``), ``<body>.q_world_*``, the scene-wide ``energy``, ``energy_error``, ``L_x``, ``L_y``,
     ``L_z``; on an orbit then ``<body>.q_orbit_*`` and ``orbit_r_*``, ``orbit_v_*``."""
-    names = scene.body_names
+    name = scene.var_name
     out = []
-    for b, body in enumerate(scene.tree):
-        out += [f"{names[b]}.{c}" for c in body.coords]
+    for body in scene.tree:
+        out += [name(body.name, c) for c in body.coords]
     orbit = getattr(scene, "orbit", None)
     if orbit is not None and orbit.circular:
         out.append(ORBIT_COORD)
-    for b in range(len(scene.tree)):
-        out += [f"{names[b]}.{c}" for c in BODY_OUTPUTS]
+    for body in scene.tree:
+        out += [name(body.name, c) for c in BODY_OUTPUTS]
     out += list(SCENE_OUTPUTS)
     if orbit is not None:
-        for b in range(len(scene.tree)):
-            out += [f"{names[b]}.{c}" for c in ORBIT_BODY_OUTPUTS]
+        for body in scene.tree:
+            out += [name(body.name, c) for c in ORBIT_BODY_OUTPUTS]
         out += list(ORBIT_OUTPUTS)
     return out
 
@@ -95,7 +95,8 @@ def _body_param_value(b, name: str) -> float:
 
 
 def tree_variables(scene: Scene) -> dict[str, Variable]:
-    """Every variable of a tree scene by its full name (``<body>.<name>``; scene-wide names bare)."""
+    """Every variable of a tree scene by its full name (``<body>.<name>``, bare in a scene of one body;
+    scene-wide names bare)."""
     from .scene import INTEGRATORS
 
     V = [Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z", float(scene.g))]
@@ -122,7 +123,7 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
                    "relative drift of the energy balance and the angular momentum beyond which a step counts as "
                    "blown up (0: off)", float(scene.max_drift))]
     for b in scene.tree:
-        pre = f"{b.name}."
+        pre = "" if len(scene.tree) == 1 else f"{b.name}."  # Scene.var_name's rule
         params = dict(BODY_PARAMS)
         if b.joint == "hinge":
             params.update(HINGE_PARAMS)
@@ -229,7 +230,7 @@ class TreeModel(Model):
             body = self.body_names[int(body)]
         if body not in self._index:
             raise ConfigError("body", body, f"one of {', '.join(self.body_names)}")
-        return f"{body}.{name}"
+        return self.scene.var_name(body, name)
 
     def _var(self, name) -> Variable:
         v = self.variables.get(name)
@@ -251,8 +252,8 @@ class TreeModel(Model):
             return [(self.layout.body_offset(bi) + _BODY_COLS[pn], f) for bi, pn, f in a.sets]
         if name in self.scene.coupling_names:
             return [(self.layout.body_offset(self.n_bodies) + self.scene.coupling_names.index(name), 1.0)]
-        bname, _, short = name.rpartition(".")
-        return [(self.layout.body_offset(self._index[bname]) + _BODY_COLS[short], 1.0)]
+        bi, short = self.scene.split_name(name)
+        return [(self.layout.body_offset(bi) + _BODY_COLS[short], 1.0)]
 
     def _check_value(self, name: str, x: np.ndarray, unit: str) -> None:
         short = name.rpartition(".")[2]
@@ -274,8 +275,7 @@ class TreeModel(Model):
             if v.start is None:
                 raise ConfigError(name, float(x[0]), "a parameter, an input or a joint's start state; "
                                   f"{name} is a derived output")
-            bname, _, short = name.rpartition(".")
-            self._y[:, self.layout.coord_slots[(self._index[bname] if bname else None, short)]] = x
+            self._y[:, self.layout.coord_slots[self.scene.split_name(name)]] = x
             self._state_dirty = True
             self._out = None
             return

@@ -50,7 +50,7 @@ def test_orbit_fmu_validates_with_the_scenes_variables(orbit_fmu, scene, v):
     by = {x.name: x for x in got}
     assert float(by["orbit_mu"].start) == 3.986004418e14 and float(by["orbit_radius"].start) == 7.0e6
     assert by["orbit_anomaly"].causality == "output" and float(by["orbit_anomaly"].start) == 0.0
-    assert "sat.q_orbit_w" in by and "orbit_v_y" in by
+    assert load_scene(scene).var_name("sat", "q_orbit_w") in by and "orbit_v_y" in by
     assert "der(orbit_anomaly)" in {x.name for x in md.modelVariables}
 
 
@@ -61,7 +61,8 @@ def test_orbit_cs_run_is_gyrosim_simulate_to_the_bit(orbit_fmu, scene, v):
     the bit, also with the orbit's radius and a start anomaly set."""
     path, _ = orbit_fmu(scene, v)
     names = tree_output_names(load_scene(scene))
-    for start in ({}, {"orbit_radius": 7.5e6, "orbit_anomaly": 0.3, "sat.omega_x": 1e-4}):
+    for start in ({}, {"orbit_radius": 7.5e6, "orbit_anomaly": 0.3,
+                                load_scene(scene).var_name("sat", "omega_x"): 1e-4}):
         r = simulate_fmu(str(path), stop_time=2000.0, output_interval=10.0, output=names, start_values=start)
         ref = gyrosim.simulate(scene, stop_time=2000.0, output_interval=10.0, start_values=start)
         assert len(r) == len(ref) == 201
@@ -77,8 +78,8 @@ def test_orbit_me_under_cvode_meets_a_tight_model_run(orbit_fmu, v):
     1e-12: the orbit-frame attitude within 1e-6 over half a pitch period."""
     path, _ = orbit_fmu("satellite", v)
     r = simulate_fmu(str(path), fmi_type="ModelExchange", stop_time=4000.0, output_interval=100.0,
-                     relative_tolerance=1e-10, output=["sat.q_orbit_w", "sat.q_orbit_y", "orbit_anomaly"])
+                     relative_tolerance=1e-10, output=["q_orbit_w", "q_orbit_y", "orbit_anomaly"])
     m = Model("satellite", tolerance=1e-12)
     ref = m.trajectory(100.0, 40)[:, 0, :]
-    for n in ("sat.q_orbit_w", "sat.q_orbit_y", "orbit_anomaly"):
+    for n in ("q_orbit_w", "q_orbit_y", "orbit_anomaly"):
         assert np.max(np.abs(r[n] - ref[:, m._out_names.index(n)])) < 1e-6, n

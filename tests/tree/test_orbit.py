@@ -39,10 +39,10 @@ def _columns(m, out, *names):
 def _start_in_orbit_frame(m, q_rel, body="sat"):
     """Body attitude q_rel relative to the orbit frame at anomaly 0, turning with the orbit frame."""
     for c, v in zip("wxyz", quat_multiply(Q_ORBIT0, q_rel)):
-        m.set(f"{body}.q_{c}", v)
+        m.set(f"q_{c}", v, body=body)
     w = quat_to_matrix(q_rel).T @ np.array([0.0, -N, 0.0])
     for c, v in zip("xyz", w):
-        m.set(f"{body}.omega_{c}", v)
+        m.set(f"omega_{c}", v, body=body)
 
 
 def _crossing_frequency(t, s):
@@ -63,7 +63,7 @@ def _two_frequencies(x, dt):
 def test_satellite_starts_in_the_orbit_frame_pitched():
     m = Model("satellite")
     o = m.outputs()
-    assert [o[f"sat.q_orbit_{c}"] for c in "wxyz"] == pytest.approx([math.cos(0.005), 0, math.sin(0.005), 0],
+    assert [o[f"q_orbit_{c}"] for c in "wxyz"] == pytest.approx([math.cos(0.005), 0, math.sin(0.005), 0],
                                                                      abs=1e-15)
     assert [o[f"orbit_r_{c}"] for c in "xyz"] == [A, 0.0, 0.0]
     assert o["orbit_v_y"] == pytest.approx(A * N, rel=1e-15)
@@ -79,7 +79,7 @@ def test_pitch_libration_frequency_with_its_amplitude_correction():
     m = Model("satellite")
     dt, n = 10.0, 40000
     out = m.trajectory(dt, n)[:, 0, :]
-    qw, qx, qy, qz = _columns(m, out, "sat.q_orbit_w", "sat.q_orbit_x", "sat.q_orbit_y", "sat.q_orbit_z")
+    qw, qx, qy, qz = _columns(m, out, "q_orbit_w", "q_orbit_x", "q_orbit_y", "q_orbit_z")
     pitch = 2 * np.arctan2(qy, qw)
     assert np.max(np.abs(qx)) < 1e-12 and np.max(np.abs(qz)) < 1e-12  # pure pitch stays pure pitch
     assert np.max(np.abs(pitch)) == pytest.approx(0.01, rel=1e-9)
@@ -99,7 +99,7 @@ def test_roll_yaw_frequencies_are_the_roots_of_the_quartic():
     _start_in_orbit_frame(m, np.array([math.cos(th / 2), math.sin(th / 2), 0.0, 0.0]))
     dt = 100.0
     out = m.trajectory(dt, 3000)[:, 0, :]
-    qx, qz = _columns(m, out, "sat.q_orbit_x", "sat.q_orbit_z")
+    qx, qz = _columns(m, out, "q_orbit_x", "q_orbit_z")
     kR, kY = (12 - 8) / 10, (12 - 10) / 8
     s2 = np.roots([1.0, 1 + 3 * kR + kR * kY, 4 * kR * kY])
     want = np.sort(np.sqrt(-s2.real)) * N
@@ -129,7 +129,7 @@ def test_every_tree_integrator_runs_the_satellite(integrator, max_step, tol):
     m = Model("satellite", parameters={"integrator": integrator, "max_step": max_step})
     for _ in range(41):
         m.step(100.0)
-    pitch = [2 * math.atan2(x.get("sat.q_orbit_y"), x.get("sat.q_orbit_w")) for x in (m, ref)]
+    pitch = [2 * math.atan2(x.get("q_orbit_y"), x.get("q_orbit_w")) for x in (m, ref)]
     assert pitch[1] == pytest.approx(-0.01, rel=1e-2)  # near the other end of the swing
     assert pitch[0] == pytest.approx(pitch[1], abs=tol)
     assert abs(m.get("energy_error")) <= 1e-6 * abs(m.get("energy"))
@@ -146,7 +146,7 @@ def test_energy_balance_counts_the_gravity_gradient_and_motor_work():
     assert np.max(np.abs(e - e0)) > 0.1 * e0
     assert np.max(np.abs(err)) < 1e-12 * np.max(np.abs(e))
     # without the motors the change is the gravity gradient's work alone
-    m = Model("satellite", parameters={"sat.omega_x": 0.003, "sat.omega_z": -0.002})
+    m = Model("satellite", parameters={"omega_x": 0.003, "omega_z": -0.002})
     e0 = m.get("energy")
     out = m.trajectory(50.0, 400)[:, 0, :]
     e, err = _columns(m, out, "energy", "energy_error")
@@ -204,7 +204,7 @@ def test_tidal_forces_on_offset_bodies_make_the_whole_trees_gravity_gradient():
         _start_in_orbit_frame(m, q)
     oa, ob = a.trajectory(50.0, 200)[:, 0, :], b.trajectory(50.0, 200)[:, 0, :]
     for c in "wxyz":
-        (x,), (y,) = _columns(a, oa, f"sat.q_orbit_{c}"), _columns(b, ob, f"sat.q_orbit_{c}")
+        (x,), (y,) = _columns(a, oa, f"sat.q_orbit_{c}"), _columns(b, ob, f"q_orbit_{c}")
         assert np.max(np.abs(x - y)) < 1e-10
     assert np.max(np.abs(x - x[0])) > 1e-3  # it did turn
 
@@ -232,7 +232,7 @@ def test_free_root_on_an_elliptic_kepler_orbit():
     out = m.trajectory(dt, int(3 * T / dt) + 2)[:, 0, :]
     r = np.column_stack(_columns(m, out, "orbit_r_x", "orbit_r_y", "orbit_r_z"))
     v = np.column_stack(_columns(m, out, "orbit_v_x", "orbit_v_y", "orbit_v_z"))
-    rb = np.column_stack(_columns(m, out, "sat.r_x", "sat.r_y", "sat.r_z"))
+    rb = np.column_stack(_columns(m, out, "r_x", "r_y", "r_z"))
     assert np.allclose(r, rb, rtol=1e-15, atol=0)  # the body's centre of mass is its origin
     rn = np.linalg.norm(r, axis=1)
     eps = 0.5 * np.sum(v * v, axis=1) - MU / rn
@@ -265,16 +265,16 @@ def test_kepler_on_a_circular_orbit_is_the_circular_orbit():
     """A free root started at (a, 0, 0) with the circular speed a n along +y moves on the circular orbit: its
     attitude in the orbit frame follows the circular-orbit satellite's to 1e-9 rad over a pitch period."""
     sat = Model("satellite")
-    q = [sat.get(f"sat.q_{c}") for c in "wxyz"]
-    w = [sat.get(f"sat.omega_{c}") for c in "xyz"]
+    q = [sat.get(f"q_{c}") for c in "wxyz"]
+    w = [sat.get(f"omega_{c}") for c in "xyz"]
     kep = _kepler((A, 0.0, 0.0), (0.0, A * N, 0.0), spin=w)
     m = Model(kep, tolerance=1e-12)
     sat = Model("satellite", tolerance=1e-12)
     for c, x in zip("wxyz", q):
-        m.set(f"sat.q_{c}", x)
+        m.set(f"q_{c}", x)
     oa, ob = sat.trajectory(100.0, 82)[:, 0, :], m.trajectory(100.0, 82)[:, 0, :]
     for c in "wxyz":
-        (x,), (y,) = _columns(sat, oa, f"sat.q_orbit_{c}"), _columns(m, ob, f"sat.q_orbit_{c}")
+        (x,), (y,) = _columns(sat, oa, f"q_orbit_{c}"), _columns(m, ob, f"q_orbit_{c}")
         assert np.max(np.abs(x - y)) < 1e-9
     (rx,), (ry,) = _columns(sat, oa, "orbit_r_x"), _columns(m, ob, "orbit_r_x")
     assert np.max(np.abs(rx - ry)) < 1e-6 * A

@@ -161,10 +161,10 @@ class _Tangent:
             for b, body in enumerate(model.scene.tree):
                 for c in body.coords:
                     slot = lay.coord_slots[(b, c)]
-                    name = f"{body.name}.{c}"
+                    name = model.scene.var_name(body.name, c)
                     if c == "q_w":
                         quat.append(slot)
-                        names += [f"{body.name}.rot_{a}" for a in "xyz"]
+                        names += [model.scene.var_name(body.name, f"rot_{a}") for a in "xyz"]
                     elif c.startswith("q_"):
                         continue
                     else:
@@ -259,8 +259,9 @@ def _period_candidates(model: Model) -> list[str]:
     tree's hinge angles, then the rates."""
     if not model.scene.is_tree:
         return ["theta", "omega_x", "omega_y", "omega_z"]
-    angles = [f"{b.name}.angle" for b in model.scene.tree if b.joint == "hinge"]
-    rates = [f"{b.name}.omega_{a}" for b in model.scene.tree if "omega_x" in b.coords for a in "xyz"]
+    name = model.scene.var_name
+    angles = [name(b.name, "angle") for b in model.scene.tree if b.joint == "hinge"]
+    rates = [name(b.name, f"omega_{a}") for b in model.scene.tree if "omega_x" in b.coords for a in "xyz"]
     return angles + rates
 
 
@@ -570,13 +571,14 @@ def default_section(scene) -> tuple[str, float, int, tuple]:
         return _SECTIONS[scene.name]
     if not scene.is_tree:
         return ("omega_x", 0.0, 1, ("theta", "omega_y"))
+    name = scene.var_name
     hinges = [b.name for b in scene.tree if b.joint == "hinge"]
     if len(hinges) >= 2:
-        return (f"{hinges[0]}.angle", 0.0, 1, (f"{hinges[1]}.angle", f"{hinges[1]}.rate"))
+        return (name(hinges[0], "angle"), 0.0, 1, (name(hinges[1], "angle"), name(hinges[1], "rate")))
     if hinges:
-        return (f"{hinges[0]}.rate", 0.0, 1, (f"{hinges[0]}.angle", "energy"))
+        return (name(hinges[0], "rate"), 0.0, 1, (name(hinges[0], "angle"), "energy"))
     b = next(b.name for b in scene.tree if "omega_x" in b.coords)
-    return (f"{b}.omega_x", 0.0, 1, (f"{b}.omega_y", f"{b}.omega_z"))
+    return (name(b, "omega_x"), 0.0, 1, (name(b, "omega_y"), name(b, "omega_z")))
 
 
 def parse_section(text: str) -> tuple[str, float]:

@@ -557,7 +557,7 @@ def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
                 q = model._y[0, model.layout.coord_slots[(i, "q_w")]:][:4]
                 w = quat_to_matrix(q / np.linalg.norm(q)).T @ np.array([0.0, 0.0, n_orb])
                 for k, c in enumerate("xyz"):
-                    model.set(f"{b.name}.omega_{c}", float(w[k]))
+                    model.set(f"omega_{c}", float(w[k]), body=b.name)
     model.initialize()
     for _ in range(iters):
         (bk,) = _blocks(model)

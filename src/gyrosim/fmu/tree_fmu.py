@@ -96,13 +96,12 @@ def tree_rows(sc: Scene) -> list[TreeRow]:
 
     lay = _layout(sc)
     p0, y0 = lay.params(float(sc.g), float(sc.max_drift)), lay.state()
-    bodies = {name: i for i, name in enumerate(sc.body_names)}
     aliases = {a.name: i for i, a in enumerate(sc.aliases)}
     couplings = {name: i for i, name in enumerate(sc.coupling_names)}
     columns = {name: i for i, name in enumerate(tree_output_names(sc))}
     rows = []
     for name, v in tree_variables(sc).items():
-        body, _, short = name.rpartition(".")
+        bi, short = sc.split_name(name)
         if name == "integrator":
             row = TreeRow(name, v, "integrator")
         elif name == "max_step":
@@ -117,12 +116,12 @@ def tree_rows(sc: Scene) -> list[TreeRow]:
             row = TreeRow(name, v, "alias", aliases[name])
         elif name in couplings:
             row = TreeRow(name, v, "param", lay.body_offset(len(sc.tree)) + couplings[name], True)
-        elif v.causality == "parameter" and body in bodies and short in _BODY_SLOTS:
-            row = TreeRow(name, v, "param", lay.body_offset(bodies[body]) + _BODY_SLOTS[short], short in _NONNEG)
-        elif v.causality == "input" and body in bodies and short in _INPUT_SLOTS:
-            row = TreeRow(name, v, "input", lay.body_offset(bodies[body]) + _INPUT_SLOTS[short])
-        elif v.causality == "output" and v.start is not None and (bodies.get(body), short) in lay.coord_slots:
-            row = TreeRow(name, v, "state", lay.coord_slots[(bodies.get(body), short)])
+        elif v.causality == "parameter" and bi is not None and short in _BODY_SLOTS:
+            row = TreeRow(name, v, "param", lay.body_offset(bi) + _BODY_SLOTS[short], short in _NONNEG)
+        elif v.causality == "input" and bi is not None and short in _INPUT_SLOTS:
+            row = TreeRow(name, v, "input", lay.body_offset(bi) + _INPUT_SLOTS[short])
+        elif v.causality == "output" and v.start is not None and (bi, short) in lay.coord_slots:
+            row = TreeRow(name, v, "state", lay.coord_slots[(bi, short)])
         elif v.causality == "output" and name in columns:
             row = TreeRow(name, v, "output", columns[name])
         else:

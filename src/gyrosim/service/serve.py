@@ -156,8 +156,8 @@ class _FileInputs:
         self.setters = []  # (variable, body argument of model.set, (body index, short name), column)
         for j, (name, var, body) in enumerate(signal.check_against(model)):
             if tree:
-                b, _, short = name.rpartition(".")
-                where = (bodies.index(b) if b in bodies else -1, short)
+                b, short = model.scene.split_name(name)
+                where = (-1 if b is None else b, short)
             elif body is None:
                 where = (0, var) if len(bodies) == 1 else (-1, var)
             else:
@@ -261,7 +261,9 @@ class Service:
             self.tree = TreeFrames(model)
             # a tree model's inputs are named <body>.<name>: each body's own, by their short names
             names = [n for n, v in model.variables.items() if v.causality == "input"]
-            self._input_names = [[(n[len(b) + 1:], n) for n in names if n.startswith(b + ".")] for b in self.bodies]
+            split = [model.scene.split_name(n) for n in names]
+            self._input_names = [[(short, n) for n, (b, short) in zip(names, split) if b == i]
+                                 for i in range(len(self.bodies))]
         else:
             self._input_names = None
         self._file = _FileInputs(inputs, model, self.bodies) if inputs is not None else None
@@ -368,10 +370,10 @@ class Service:
         ``integrator``, ``max_step``, scene parameters such as ``L1``), which have no body prefix."""
         if self._input_names is None:
             return self.model.parameters(body)
-        pre = self.bodies[body] + "."
         every = self.model.parameters()
-        out = {n: v for n, v in every.items() if "." not in n}
-        out.update({n[len(pre):]: v for n, v in every.items() if n.startswith(pre)})
+        split = {n: self.model.scene.split_name(n) for n in every}
+        out = {n: v for n, v in every.items() if split[n][0] is None}
+        out.update({split[n][1]: v for n, v in every.items() if split[n][0] == body})
         return out
 
     def params_info(self, body: int) -> dict:

@@ -128,12 +128,13 @@ class TreeFrames:
         names = list(model.body_names)
         self.bodies: list[BodyFrame] = []
         for b in tree:
-            pos = tuple(float(model.get(f"{b.name}.pos_{c}")) for c in "xyz")
+            pos = tuple(float(model.get(model.scene.var_name(b.name, f"pos_{c}"))) for c in "xyz")
             self.bodies.append(BodyFrame(
                 name=b.name, parent=WORLD_FRAME if b.parent < 0 else names[b.parent], parent_index=int(b.parent),
                 joint=b.joint, coords=tuple(b.coords), axis=tuple(float(v) for v in b.axis), pos=pos))
-        self._keys = [(tuple(f"{f.name}.{c}" for c in f.coords),
-                       tuple(f"{f.name}.q_world_{c}" for c in "wxyz")) for f in self.bodies]
+        name = model.scene.var_name
+        self._keys = [(tuple(name(f.name, c) for c in f.coords),
+                       tuple(name(f.name, f"q_world_{c}") for c in "wxyz")) for f in self.bodies]
 
     def at(self, outputs: dict) -> list[FrameState]:
         """Every body's frame from the model's outputs (``model.outputs()``, full names)."""

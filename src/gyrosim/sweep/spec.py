@@ -57,9 +57,7 @@ _TREE_STATES = _STATES + ("angle", "rate", "r_x", "r_y", "r_z", "v_x", "v_y", "v
 def column_name(name: str) -> str:
     """The Parquet column of a varied variable: ``<name>_start`` for a state start (``omega_x_start``,
     ``rotor.rate_start``)."""
-    if "." in name:
-        return f"{name}_start" if name.rpartition(".")[2] in _TREE_STATES else name
-    return f"{name}_start" if name in _STATES else name
+    return f"{name}_start" if name.rpartition(".")[2] in _TREE_STATES else name
 
 
 def _rule(name: str, unit: str) -> tuple[str, object]:
