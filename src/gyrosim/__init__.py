@@ -1,6 +1,6 @@
 """gyrosim: rigid-body and gyroscope co-simulation.
 
-The seeds' API (DESIGN.md section 3)::
+The seeds' API (docs/api.md, the seeds' API)::
 
     from gyrosim import RigidBodyDynamics, InertiaTensor, SymmetricTop, Gyroscope
 

@@ -45,7 +45,7 @@ class RecordingError(GyrosimError, OSError):
 
 
 def exit_code(exc: BaseException) -> int:
-    """The exit code every ``gyrosim`` command gives an exception (DESIGN.md section 5): 2 a user error (bad
+    """The exit code every ``gyrosim`` command gives an exception (docs/cli.md): 2 a user error (bad
     arguments, a scene, a value, a file that is not there or not what was asked for), 1 a run-time failure (a
     blow-up, a damaged recording, a lost connection, a disk that refuses a write), 130 interrupted, 141 a closed
     pipe."""

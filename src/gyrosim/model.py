@@ -1,6 +1,6 @@
 """The step-based model: Scene -> Model(parameters, inputs) -> step(h) -> outputs, with exact state save/restore.
 
-``gyrosim simulate``, the Zenoh service and the study drive this class; it maps the variable names of DESIGN.md
+``gyrosim simulate``, the Zenoh service and the study drive this class; it maps the variable names of fmu/README.md
 section 4 onto the C engine (:mod:`gyrosim.core._engine`, ``core/engine/gyrosim_engine.h``), which does every
 step. The FMUs compile the same engine, so a run here and a run of an FMU give the same bits.
 """

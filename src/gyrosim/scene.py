@@ -2,7 +2,7 @@
 
 A scene carries only what it declares: gravity only where a body has a pivot (``cm_distance``), damping only
 where a body has ``damping``, torque inputs only with ``torque_input = true``. The model built from it has only
-those terms' variables. ``load_scene(None)`` is the full model with every variable of DESIGN.md section 4.
+those terms' variables. ``load_scene(None)`` is the full model with every variable of fmu/README.md.
 
 File format (every key optional unless said)::
 
@@ -130,7 +130,7 @@ class Scene:
     g: float = G_DEFAULT
     description: str = ""
     source: str = "<embedded>"
-    #: a tree scene (DESIGN.md 4b): its bodies (core.tree.TreeBody), coupling springs (a, b, k), their names and
+    #: a tree scene (docs/trees.md): its bodies (core.tree.TreeBody), coupling springs (a, b, k), their names and
     #: the scene parameters that set body parameters (scene_tree.Alias); None for a scene of independent bodies
     tree: tuple | None = None
     couplings: tuple = ()
@@ -157,8 +157,8 @@ class Scene:
         return [b.name for b in (self.tree if self.tree is not None else self.bodies)]
 
     def var_name(self, body: str, short: str) -> str:
-        """A body's variable under DESIGN 4's one naming rule: bare in a scene of one body, whatever its joint
-        and whichever syntax declared it (``v_x`` for a ``free`` body); ``<body>.<name>`` with several."""
+        """A body's variable under the one naming rule (docs/trees.md): bare in a scene of one body, whatever its
+        joint and whichever syntax declared it (``v_x`` for a ``free`` body); ``<body>.<name>`` with several."""
         return short if len(self.body_names) == 1 else f"{body}.{short}"
 
     def split_name(self, name: str) -> tuple[int | None, str]:
@@ -492,7 +492,7 @@ TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853")
 
 def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -> tuple[BodySpec, set] | None:
     """The body and terms of the one-body kernel (Euler's equations in closed form, the exact flows, the
-    splittings) where a tree is one body that kernel describes exactly, else None (DESIGN 4b: the engine picks
+    splittings) where a tree is one body that kernel describes exactly, else None (docs/trees.md: the engine picks
     the kernels that fit a system).
 
     That is a root on a ``free_rotation`` or ``ball`` joint at the world's origin, with its inertia along its

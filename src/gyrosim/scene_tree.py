@@ -1,4 +1,4 @@
-"""Tree scenes: bodies joined by joints (DESIGN.md section 4b), parsed from the TOML structure.
+"""Tree scenes: bodies joined by joints (docs/trees.md), parsed from the TOML structure.
 
 A scene is a tree when a ``[[body]]`` has ``parent`` or ``joint``, or the scene has ``[[coupling]]`` or
 ``[parameters]``. Its format (every key optional unless said)::
@@ -61,7 +61,7 @@ _TREE_BODY_KEYS = ("name", "parent", "joint", "position", "axis", "mass", "cm", 
 #: Keys that make a scene a tree.
 TREE_KEYS = ("parent", "joint")
 
-#: The parameters every tree body has (DESIGN.md 4b) and those of its joint, with unit and meaning.
+#: The parameters every tree body has (docs/trees.md) and those of its joint, with unit and meaning.
 BODY_PARAMS = {
     "mass": ("kg", "mass"),
     "I1": ("kg.m2", "moment of inertia about body x through the centre of mass"),

@@ -1,4 +1,4 @@
-"""The step-based model of a tree scene (bodies joined by joints, DESIGN.md section 4b) on the engine's tree.
+"""The step-based model of a tree scene (bodies joined by joints, docs/trees.md) on the engine's tree.
 
 ``Model(scene)`` returns a :class:`TreeModel` when the scene is a tree, so ``gyrosim simulate``, the service and the
 FMU glue drive it as they drive a one-body model: ``set``/``get`` by variable name (``rotor.angle``, or ``angle``

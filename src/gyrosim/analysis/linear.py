@@ -105,7 +105,7 @@ class Mode:
 
 @dataclass
 class Linearization:
-    """The linearization of a model about a state. Unpacks as ``A, B, C, D, names`` (DESIGN 4b).
+    """The linearization of a model about a state. Unpacks as ``A, B, C, D, names`` (docs/trees.md).
 
     Attributes
     ----------

@@ -1,6 +1,6 @@
 """Closed-form solutions: the heavy symmetric top, the gyroscope, and the torque-free rigid body.
 
-Conventions (DESIGN.md section 2): SI units; world z up, gravity along -z; body axis 3 is the symmetry axis;
+Conventions (docs/conventions.md): SI units; world z up, gravity along -z; body axis 3 is the symmetry axis;
 ZYZ Euler angles ``R = Rz(phi) Ry(theta) Rz(psi)`` (``phi`` precession, ``theta`` nutation, ``psi`` spin);
 a pivoted body has its centre of mass at ``cm_height`` (``cm_distance``) along body +z, moments are about the
 pivot and the potential energy is ``M g l cos(theta)`` with ``cos(theta) = (R e3).z``.

@@ -24,7 +24,7 @@ __all__ = [
     "G_STANDARD",
 ]
 
-#: Default gravitational acceleration, m/s^2 (DESIGN.md section 4).
+#: Default gravitational acceleration, m/s^2 (fmu/README.md).
 G_STANDARD = 9.81
 
 

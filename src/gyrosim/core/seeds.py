@@ -1,4 +1,4 @@
-"""The seeds' API (DESIGN.md section 3): ``RigidBodyDynamics`` as the seed projects call it.
+"""The seeds' API (docs/api.md, the seeds' API): ``RigidBodyDynamics`` as the seed projects call it.
 
 Thin methods over :mod:`gyrosim.core`; every method taking ``I`` accepts an :class:`InertiaTensor` or a
 (3, 3) array.

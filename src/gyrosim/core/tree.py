@@ -1,6 +1,6 @@
 """Trees of rigid bodies: the Python face of the engine's tree (``core/engine/gyrosim_tree.h``).
 
-A :class:`TreeBody` describes one body and its joint to its parent (DESIGN.md section 4b); :class:`TreeLayout`
+A :class:`TreeBody` describes one body and its joint to its parent (docs/trees.md); :class:`TreeLayout`
 turns a tuple of them (topological order: a parent before its children) and the coupling springs into the arrays
 the engine takes: the description (int32), one system's parameter row and start state, and the names of the state
 and output columns.

@@ -609,7 +609,7 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     ----------
     scene : str, Path, Scene or None
         Embedded scene name, TOML path or :class:`~gyrosim.scene.Scene`; ``None`` is the full model
-        (``RigidBody.fmu``) with every variable of DESIGN.md section 4. Every body of the scene is exported. A tree
+        (``RigidBody.fmu``) with every variable of fmu/README.md. Every body of the scene is exported. A tree
         scene (bodies joined by joints) exports :func:`gyrosim.tree_model.tree_variables` through the generic tree
         glue (:mod:`gyrosim.fmu.tree_fmu`); its integrators are euler, rk4, adaptive and dop853.
     fmi_version : {2, 3}

@@ -1,7 +1,7 @@
 """Reference results for the FMU tests (``fmu/reference_*.csv``), from a source independent of gyrosim's engine.
 
 scipy's ``solve_ivp`` (DOP853, rtol = atol = 1e-12) integrates Euler's equations with the gravity torque
-and the quaternion kinematics written out here, in the conventions of DESIGN.md section 2 (q scalar first,
+and the quaternion kinematics written out here, in the conventions of docs/conventions.md (q scalar first,
 body -> world; the centre of mass at ``cm_distance`` along body +z from the pivot; gravity along -z)::
 
     I domega/dt = (I omega) x omega - m g l e3 x (R^T e_z)

@@ -1,4 +1,4 @@
-"""FMUs of tree scenes (bodies joined by joints, DESIGN.md section 4b): the variable table and model description.
+"""FMUs of tree scenes (bodies joined by joints, docs/trees.md): the variable table and model description.
 
 A tree FMU's binary is the engine's tree (``core/engine/tree.c``, ``rk.c``) and one generic glue,
 ``c/gyrosim_tree_model.c``, which knows no scene: this module writes what is particular to the scene into the

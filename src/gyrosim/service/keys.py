@@ -1,6 +1,6 @@
 """Zenoh key expressions of the gyrosim service: the only module that builds them.
 
-Keys (DESIGN.md section 6; the prefix defaults to ``gyrosim``)::
+Keys (docs/service.md; the prefix defaults to ``gyrosim``)::
 
     <prefix>/<scene>/<body>/state    application/json;gyrosim.BodyState
     <prefix>/<scene>/<body>/tf       application/cdr;tf2_msgs/msg/TFMessage
@@ -51,7 +51,7 @@ __all__ = [
 
 #: Default first chunk of every key.
 DEFAULT_PREFIX = "gyrosim"
-#: The per-body key kinds, in the order of DESIGN.md section 6 (``motor``: tree scenes' hinge motors).
+#: The per-body key kinds, in the order of docs/service.md (``motor``: tree scenes' hinge motors).
 BODY_KINDS = ("state", "tf", "imu", "torque", "params", "motor")
 #: The kinds the service subscribes: commands (inputs) it takes.
 COMMAND_KINDS = ("torque", "motor")

@@ -12,7 +12,7 @@ commands to a body without that input, are logged, counted and ignored), answers
 the current parameters, inputs and counters, and holds the liveliness token ``<prefix>/<scene>/alive``. Zenoh's
 callbacks only queue (``FifoChannel``); all work happens in the stepping thread.
 
-Tree scenes (bodies joined by joints, DESIGN.md section 4b): every body's ``tf`` is the transform from its
+Tree scenes (bodies joined by joints, docs/trees.md): every body's ``tf`` is the transform from its
 parent frame (``frame_id`` the parent body's name, ``world`` for a root; translation the joint point, rotation
 the joint's), its ``state`` carries its world attitude ``q``, its angular velocity, its joint variables
 (``joint``) and the scene-wide energy and angular momentum, its ``imu`` the world attitude and angular velocity

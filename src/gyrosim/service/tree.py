@@ -1,6 +1,6 @@
 """The frames of a tree scene as the service publishes them: each body's transform from its parent frame.
 
-A tree scene (DESIGN.md section 4b) publishes, for every body, the transform parent -> body (``tf``, ``frame_id``
+A tree scene (docs/trees.md) publishes, for every body, the transform parent -> body (``tf``, ``frame_id``
 the parent body's name or ``world`` for a root), the body's attitude in the world and its angular velocity
 (``state``, ``imu``). :class:`TreeFrames` reads them off a :class:`gyrosim.tree_model.TreeModel`'s outputs:
 

@@ -5,7 +5,7 @@ Modules: :mod:`~gyrosim.sweep.spec` (distributions, the ``[sweep]`` table, check
 as one many-body Model), :mod:`~gyrosim.sweep.store` (the Parquet dataset, atomic chunk files, the manifest),
 :mod:`~gyrosim.sweep.execute` (local and Dask execution, resume, progress), :mod:`~gyrosim.sweep.plot`,
 :mod:`~gyrosim.sweep.cli`, :mod:`~gyrosim.sweep.bench`. Only :mod:`~gyrosim.sweep.execute` imports dask (when a
-scheduler is given), and only this package does (DESIGN.md section 1).
+scheduler is given), and only this package does (docs/index.md).
 
 Python::
 

@@ -2,7 +2,7 @@
 every check that runs before any work starts.
 
 A sweep replicates the one body of a scene once per sample; each sample sets some variables from distributions
-(``vary``) and others to fixed values (``set``). Names are the model variables of DESIGN.md section 4 that a user may
+(``vary``) and others to fixed values (``set``). Names are the model variables of fmu/README.md that a user may
 set: parameters (``I1``, ``mass``, ``integrator``, ``max_step``, ...), inputs (``tau_x``, ...) and state starts
 (``q_*``, ``omega_*``), plus ``tolerance`` (the tolerance of ``adaptive`` and ``dop853``).
 

@@ -141,7 +141,7 @@ def _info(args: argparse.Namespace) -> int:
 
         info = mcap_info(args.file)
         print(info.format())
-        return 0 if info.complete else 1  # 1: truncated or damaged (a run-time failure, DESIGN.md section 5)
+        return 0 if info.complete else 1  # 1: truncated or damaged (a run-time failure, docs/cli.md)
 
     return run_handler("gyrosim mcap info", run, args)
 

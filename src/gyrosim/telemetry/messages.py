@@ -209,7 +209,7 @@ _INPUT_DESCRIPTIONS = {"tau_x": "body-frame torque x, N*m", "tau_y": "body-frame
                        "tau_z": "body-frame torque z, N*m",
                        "motor_torque": "hinge motor torque about the joint axis, N*m (tree scenes)"}
 
-#: The joint variables a tree body's BodyState carries in ``joint`` (DESIGN.md 4b), with unit and meaning; a body
+#: The joint variables a tree body's BodyState carries in ``joint`` (docs/trees.md), with unit and meaning; a body
 #: has those of its joint only (hinge: angle, rate; ball and free_rotation: q, omega; free: also r, v; fixed: none).
 JOINT_VARIABLES = {
     "angle": ("rad", "hinge angle (unwrapped)"),

@@ -148,7 +148,7 @@ int gs_method_code(const char *name);
  * more is refused at once (gs_substeps returns 0; adaptive and dop853 fail when their error control needs more). */
 #define GS_MAX_WORK 10000000
 
-/* Internal steps a fixed-step integrator takes over a communication step H with max_step (DESIGN.md 4): r =
+/* Internal steps a fixed-step integrator takes over a communication step H with max_step (fmu/README.md): r =
  * H / max_step rounded up, except that r within a relative 1e-9 of a whole number k >= 1 is k (a host that
  * accumulates its time, 0.1 + 0.1 + ..., takes the steps of one that does not); at least 1. 0 when that is more than
  * GS_MAX_WORK or not finite: refuse the step. The same count is the least number of steps adaptive and dop853 take

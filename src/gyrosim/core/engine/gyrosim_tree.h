@@ -5,7 +5,7 @@
  * Featherstone's articulated-body algorithm (O(n)), in each body's own frame, driven by the one Runge-Kutta
  * driver (gyrosim_ode.h).
  *
- * Conventions (DESIGN.md 4b): world z up, gravity g along -z. A body's frame has its origin at its joint point
+ * Conventions (docs/trees.md): world z up, gravity g along -z. A body's frame has its origin at its joint point
  * (the pivot, the hinge's point, a free body's reference point). Joints, the child relative to its parent:
  *   GS_J_BALL   3 rotational degrees of freedom about the joint point: q (w, x, y, z; child -> parent), omega
  *               (rad/s, the child's angular velocity relative to the parent, in the child frame). free_rotation is
