@@ -484,7 +484,7 @@ def _start_text(start) -> str:
 
 def scene_info(scene) -> str:
     """``gyrosim info SCENE``: the scene and its variables (every body's) as ``fmpy info`` prints an FMU's."""
-    from .model import Model, variables_for
+    from .model import Model
     from .scene import load_scene
 
     sweep_line = None
@@ -499,17 +499,8 @@ def scene_info(scene) -> str:
     else:
         sc = load_scene(scene)
     Model(sc).initialize()  # the checks of the first step too (a file is validated whole, nothing runs)
-    multi = len(sc.body_names) > 1
-    rows = []
-    if sc.is_tree:
-        from .tree_model import tree_variables
-
-        rows = [(var.name, var.causality, _start_text(var.start), var.unit, var.description)
-                for var in tree_variables(sc).values()]
-    for b, body in enumerate(sc.bodies):
-        for var in variables_for(sc, b).values():
-            rows.append((f"{body.name}.{var.name}" if multi else var.name, var.causality, _start_text(var.start),
-                         var.unit, var.description))
+    rows = [(name, var.causality, _start_text(var.start), var.unit, var.description)
+            for name, var in sc.variables().items()]
     width = max(18, *(len(r[0]) for r in rows))
     names = ", ".join(sc.body_names[:10]) + (", ..." if len(sc.body_names) > 10 else "")
     terms = [t for t, on in (("gravity", sc.gravity), ("damping", sc.damping), ("torque inputs", sc.torque)) if on]

@@ -366,9 +366,10 @@ class Model:
             self._p_start = None  # the parameters are no longer the scene's start values
         if v.type == "String":
             if name == "integrator":
-                if value not in INTEGRATORS:
-                    raise ConfigError("integrator", value, "one of " + ", ".join(INTEGRATORS)
-                                      + did_you_mean(value, INTEGRATORS))
+                allowed = self.scene.integrators
+                if value not in allowed:
+                    raise ConfigError("integrator", value, "one of " + ", ".join(allowed)
+                                      + did_you_mean(value, allowed))
                 if value != self.integrator:
                     self._hint[:] = 0.0
                     self._ex[:, _engine.EX_VALID] = 0.0

@@ -42,6 +42,7 @@ File format (every key optional unless said)::
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import functools
 import math
@@ -155,6 +156,51 @@ class Scene:
     @property
     def body_names(self) -> list[str]:
         return [b.name for b in (self.tree if self.tree is not None else self.bodies)]
+
+    @property
+    def integrators(self) -> tuple[str, ...]:
+        """The integrators this system takes, from the kernel picked for it at set-up (docs/trees.md): every
+        integrator on the one-body kernel (Euler's equations, its exact flows and splittings), the Runge-Kutta
+        methods on the articulated-body algorithm."""
+        return INTEGRATORS if self.tree is None else TREE_INTEGRATORS
+
+    def variables(self) -> dict:
+        """Every variable of the scene by its full name (name -> ``model.Variable``), under :meth:`var_name`'s
+        rule: the one table that the model, ``gyrosim info``, the FMU builder, the service and the sweep read."""
+        if self.tree is not None:
+            from .tree_model import tree_variables
+
+            return tree_variables(self)
+        from .model import variables_for
+
+        if len(self.bodies) == 1:
+            return variables_for(self)
+        out = {}
+        for b, body in enumerate(self.bodies):  # independent bodies: each one's whole table under its name
+            out.update({f"{body.name}.{n}": v for n, v in variables_for(self, b).items()})
+        return out
+
+    def output_names(self) -> list[str]:
+        """The columns of the engine's output rows (a trajectory's fields after ``time``), by full name."""
+        if self.tree is not None:
+            from .tree_model import tree_output_names
+
+            return tree_output_names(self)
+        from .model import OUTPUT_NAMES
+
+        if len(self.bodies) == 1:
+            return list(OUTPUT_NAMES)
+        return [f"{b.name}.{o}" for b in self.bodies for o in OUTPUT_NAMES]
+
+    def replicated(self, k: int) -> Scene:
+        """``k`` copies of this one system, stepped in one engine call (the sweeps: one copy per sample)."""
+        if self.tree is not None:
+            return dataclasses.replace(self, systems=k)
+        if len(self.bodies) != 1:
+            raise ConfigError("scene", self.name, f"one system to replicate (this scene has {len(self.bodies)} "
+                              "independent bodies)")
+        b = self.bodies[0]
+        return dataclasses.replace(self, bodies=tuple(dataclasses.replace(b, name=f"sample_{j}") for j in range(k)))
 
     def var_name(self, body: str, short: str) -> str:
         """A body's variable under the one naming rule (docs/trees.md): bare in a scene of one body, whatever its

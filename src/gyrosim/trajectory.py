@@ -13,7 +13,7 @@ import numpy as np
 
 from .core import _engine
 from .errors import ConfigError, IntegrationError
-from .model import OUTPUT_NAMES, Model
+from .model import Model
 from .scene import EMBEDDED_SCENES, Scene, did_you_mean, load_scene
 
 __all__ = ["simulate", "Run", "field_names", "output_intervals"]
@@ -25,21 +25,7 @@ _SAME_BITS_AS_STEPS = ("euler", "rk4", "splitting", "splitting4", "exact")
 
 def field_names(model: Model) -> list[str]:
     """The output names of ``model``: ``<body>.<name>`` in multi-body scenes, the bare names otherwise."""
-    return _scene_names(model.scene)
-
-
-def _scene_names(sc) -> list[str]:
-    if sc.is_tree:
-        from .tree_model import tree_output_names
-
-        return tree_output_names(sc)
-    return _names(sc.body_names)
-
-
-def _names(body_names: list) -> list[str]:
-    if len(body_names) == 1:
-        return list(OUTPUT_NAMES)
-    return [f"{b}.{o}" for b in body_names for o in OUTPUT_NAMES]
+    return model.scene.output_names()
 
 
 def output_intervals(span: float, dt: float, end: float) -> int:
@@ -371,7 +357,7 @@ def _selection(sc, output: tuple | None):
     hit = _SELECTIONS.get(key)
     if hit is not None and hit[0] is sc:
         return hit[1]
-    names = _scene_names(sc)
+    names = sc.output_names()
     if output is None:
         picked = names
     else:

@@ -301,13 +301,13 @@ class TreeModel(Model):
         name = self._full(name, body)
         v = self._var(name)
         if v.type == "String":
-            if value not in TREE_INTEGRATORS:
+            allowed = self.scene.integrators
+            if value not in allowed:
                 from .scene import INTEGRATORS
 
                 why = (f"{value!r} solves one body; a tree of bodies takes one of "
                        if value in INTEGRATORS else "one of ")
-                raise ConfigError("integrator", value, why + ", ".join(TREE_INTEGRATORS)
-                                  + did_you_mean(value, TREE_INTEGRATORS))
+                raise ConfigError("integrator", value, why + ", ".join(allowed) + did_you_mean(value, allowed))
             if value != self.integrator:
                 self._hint[:] = 0.0
             self.integrator = value

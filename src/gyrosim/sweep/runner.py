@@ -25,8 +25,6 @@ Per sample (row):
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from ..model import OUTPUT_NAMES, Model
@@ -58,11 +56,7 @@ def result_columns(spec: SweepSpec) -> list[tuple[str, str]]:
 
 
 def _output_names(scene) -> list[str]:
-    if scene.is_tree:
-        from ..tree_model import tree_output_names
-
-        return tree_output_names(scene)
-    return list(OUTPUT_NAMES)
+    return scene.output_names()
 
 
 def _replicated(scene, k: int):
@@ -73,12 +67,7 @@ def _replicated(scene, k: int):
     if hit is None or hit[0] is not scene:
         if len(_REPLICAS) > 16:
             _REPLICAS.clear()
-        if scene.is_tree:
-            hit = (scene, dataclasses.replace(scene, systems=k))
-        else:
-            b = scene.bodies[0]
-            bodies = tuple(dataclasses.replace(b, name=f"sample_{j}") for j in range(k))
-            hit = (scene, dataclasses.replace(scene, bodies=bodies))
+        hit = (scene, scene.replicated(k))
         _REPLICAS[key] = hit
     return hit[1]
 

@@ -308,13 +308,7 @@ def _positive_float(value, name: str, where: str | None = None) -> float:
 
 
 def _variables(scene: Scene) -> dict:
-    from ..model import variables_for
-
-    if scene.is_tree:
-        from ..tree_model import tree_variables
-
-        return tree_variables(scene)
-    return variables_for(scene)
+    return scene.variables()
 
 
 def _settable(scene: Scene) -> dict:
