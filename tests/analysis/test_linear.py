@@ -217,7 +217,10 @@ def test_torque_free_spin_about_principal_axes(axis, stable):
 # ------------------------------------------------------------------------------------------ trees, matrices, errors
 def test_unpacks_as_the_design_says_and_inputs_drive_b():
     m = Model("spacecraft")
-    A, B, C, D, names = m.linearize()
+    lin = m.linearize()
+    A, B, C, D, names = lin
+    assert len(lin) == 5 and lin[0] is A and lin[1] is B and lin[-1] is names and lin[2:4] == (C, D)
+    assert tuple(lin) == (A, B, C, D, names)
     assert A.shape == (len(names.states),) * 2
     assert names.inputs == ["hub.tau_x", "hub.tau_y", "hub.tau_z", "wheel_x.motor_torque", "wheel_y.motor_torque",
                             "wheel_z.motor_torque"]

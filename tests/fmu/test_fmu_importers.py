@@ -6,7 +6,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -93,12 +92,13 @@ def _run_in(py: Path, build, tmp_path):
             np.testing.assert_array_equal(np.array(res[p][n]), host[n], err_msg=f"{p} {n}")  # native: same bits
 
 
-def test_fmu_runs_in_a_venv_with_only_fmpy(build, tmp_path):
-    """A venv with nothing but fmpy (and its numpy): no gyrosim. Cached under /tmp by fmpy/Python."""
+def test_fmu_runs_in_a_venv_with_only_fmpy(build, tmp_path, request):
+    """A venv with nothing but fmpy (and its numpy): no gyrosim. Cached in this checkout's pytest cache by
+    fmpy/Python (never a fixed path shared with another checkout's run)."""
     import fmpy
 
     key = f"py{sys.version_info.major}{sys.version_info.minor}-fmpy{fmpy.__version__}"
-    root = Path(tempfile.gettempdir()) / f"gyrosim-fmu-onlyfmpy-venv-{os.getuid()}-{key}"
+    root = request.config.cache.mkdir(f"onlyfmpy-venv-{key}")
     _run_in(_venv(root), build, tmp_path)
 
 

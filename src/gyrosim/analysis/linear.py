@@ -136,8 +136,18 @@ class Linearization:
     jacobian: Jacobian = field(repr=False)
     state: np.ndarray = field(repr=False)
 
+    def _tuple(self) -> tuple:
+        return (self.A, self.B, self.C, self.D, self.names)
+
     def __iter__(self):
-        return iter((self.A, self.B, self.C, self.D, self.names))
+        return iter(self._tuple())
+
+    def __len__(self) -> int:
+        return 5
+
+    def __getitem__(self, k):
+        """The tuple ``(A, B, C, D, names)`` it stands for: ``lin[0]`` is A, ``lin[-1]`` the names, slices too."""
+        return self._tuple()[k]
 
     @property
     def eigenvalues(self) -> np.ndarray:
