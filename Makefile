@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml $(ENGINE)
 venv: $(STAMP)
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests
+	$(VENV)/bin/ruff check src tests bench
 
 test: $(STAMP) lint
 	$(PY) -m pytest -q

@@ -1,7 +1,7 @@
 """MuJoCo reference run: the gimbaled gyroscope (gyrosim's gimbal_gyroscope scene) as an MJCF model.
 
 Standalone (``pip install mujoco numpy``; measured with mujoco 4.0.0): run it with the MuJoCo venv's interpreter,
-as gyrosim.tree_bench does::
+as gyrosim_bench.tree_bench does::
 
     /tmp/mjvenv/bin/python bench/mj_gimbal.py --params params.json --dt 1e-4,5e-5 --T 100 --target 1e-6
 
@@ -10,7 +10,7 @@ outer body's x, ``rotor`` about the inner body's z, each body with its mass, cen
 (about the centre of mass, body axes) from the params file; gravity (0, 0, -g); no geoms (so no contacts),
 contacts and constraints disabled; MuJoCo's RK4 integrator (``mjINT_RK4``) at a fixed ``timestep``.
 
-The params file (JSON, written by gyrosim.tree_bench from the gyrosim scene) holds ``g``, ``bodies`` (name, mass,
+The params file (JSON, written by gyrosim_bench.tree_bench from the gyrosim scene) holds ``g``, ``bodies`` (name, mass,
 cm, inertia diagonal, axis, angle, rate) and optionally the reference rotor attitudes ``q_ref`` (w, x, y, z) at
 the times ``t_ref``. For each timestep (coarse to fine) the script runs T s in chunks of the output interval
 (``mj_step(m, d, nstep)``, then ``mj_kinematics`` so that ``xquat`` is the state at the chunk's end), keeps the

@@ -1,6 +1,6 @@
 /*
  * Hand-written plain-C RK4 of two tree scenes, and the engine (tree.c + rk.c) on the same scenes, timed in one
- * process. Built by gyrosim.tree_bench with the engine's flags (src/gyrosim/core/engine/cflags.txt):
+ * process. Built by gyrosim_bench.tree_bench with the engine's flags (src/gyrosim/core/engine/cflags.txt):
  *
  *   gcc $(cat cflags.txt) -Isrc/gyrosim/core/engine bench/tree_baseline.c \
  *       src/gyrosim/core/engine/{engine,exact,rk,tree}.c -lm -o tree_baseline

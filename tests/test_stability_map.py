@@ -1,5 +1,5 @@
-"""The stability map (gyrosim.stability, `gyrosim bench --only stability`): the quick map runs and its bounds agree
-with the closed forms they should reproduce. Every tolerance says why; nothing is timed."""
+"""The stability map (gyrosim_bench.stability, `gyrosim bench --only stability`): the quick map runs and its bounds
+agree with the closed forms they should reproduce. Every tolerance says why; nothing is timed."""
 
 import json
 import math
@@ -8,9 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from gyrosim import stability as S
 from gyrosim.cli import main as cli_main
 from gyrosim.model import Model
+from gyrosim_bench import stability as S
 
 
 def model(scene, integrator, h):
@@ -60,7 +60,7 @@ def test_quick_map_runs(quick_map, tmp_path):
     for integ in exact_splits:
         assert f"| {integ} | **>= 100** | - (stable on every case) |" in text
     assert not re.search(r"\b(nan|inf)\b", text, re.IGNORECASE)
-    from gyrosim.study import stable_steps_table
+    from gyrosim_bench.study import stable_steps_table
 
     choose = stable_steps_table(res)
     for integ in exact_splits:
@@ -91,7 +91,7 @@ def test_euler_energy_grows_as_the_closed_form(x):
     a, w3 = 0.3, 1.0
     h = x / math.hypot(a, w3)
     n = 2000
-    from gyrosim.study import free_scene
+    from gyrosim_bench.study import free_scene
 
     m = model(free_scene("euler_growth", (a, 0.0, w3), (1.0, 1.0, 2.0)), "euler", h)
     rows = m.trajectory(h, n, angles=False)[:, 0, :]

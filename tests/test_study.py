@@ -7,9 +7,9 @@ import re
 import numpy as np
 import pytest
 
-from gyrosim import study
 from gyrosim.cli import main as cli_main
 from gyrosim.errors import ConfigError
+from gyrosim_bench import study
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,7 @@ ORDER_RANGES = {"euler": (0.8, 1.3), "rk4": (3.4, 4.5), "splitting": (1.7, 2.3),
 def test_every_fixed_step_method_of_the_engine_is_in_the_study():
     # the stability map takes its integrators from the engine; the ladders, orders and recommendation from
     # study.FIXED: a method the engine gains must be in both
-    from gyrosim import stability
+    from gyrosim_bench import stability
 
     assert set(study.FIXED) == set(stability.FIXED)
     assert set(study.EXACT_SPLITS) <= set(study.FIXED) and set(study.EXPECTED_ORDER) == set(study.FIXED)
@@ -149,14 +149,14 @@ def test_attitude_error_and_only():
 # ---------------------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def quick_peers():
-    from gyrosim import peers
+    from gyrosim_bench import peers
 
     return peers.run_peers(quick=True)
 
 
 def test_peers_ladders_reach_every_target(quick_peers):
     """On a quick run gyrosim's ladders meet every judged target of every case (and CyRK's, when it is there)."""
-    from gyrosim import peers
+    from gyrosim_bench import peers
 
     res = quick_peers
     assert set(res["cases"]) == {c.name for c in peers.PEER_CASES}
@@ -191,7 +191,7 @@ def test_peers_ladders_reach_every_target(quick_peers):
 
 
 def test_peers_tables_and_plots(quick_peers, tmp_path):
-    from gyrosim import peers
+    from gyrosim_bench import peers
 
     text = peers.peers_table(quick_peers)
     for case in peers.PEER_CASES:
@@ -212,7 +212,7 @@ def test_peers_tables_and_plots(quick_peers, tmp_path):
 def test_peers_skipped_with_a_reason_without_cyrk(monkeypatch):
     import sys
 
-    from gyrosim import peers
+    from gyrosim_bench import peers
 
     monkeypatch.setitem(sys.modules, "CyRK", None)  # import CyRK raises ImportError
     peer, note = peers._load_peer()
@@ -222,8 +222,8 @@ def test_peers_skipped_with_a_reason_without_cyrk(monkeypatch):
 def test_lagrange_reference_is_converged():
     """The Lagrange top's reference: halving its quadrature panels changes it by round-off only, and it keeps the
     conserved p_phi (= L_z) and p_psi."""
-    from gyrosim import peers
     from gyrosim.core.rotations import quat_rotate
+    from gyrosim_bench import peers
 
     case = next(c for c in peers.PEER_CASES if c.name == "top_a")
     args = (case.moments[0], case.moments[2], case.mass, case.l, peers.G, case.theta0, case.spin)
@@ -241,7 +241,7 @@ def test_plain_rk4_baseline_builds_and_runs_in_one_process(tmp_path):
     time (no timing assertion: the ratio is a benchmark figure, reported by `gyrosim bench --only cost`)."""
     import shutil
 
-    from gyrosim.study import run_plain_rk4
+    from gyrosim_bench.study import run_plain_rk4
 
     if shutil.which("gcc") is None:
         pytest.skip("no gcc on PATH")
@@ -249,3 +249,35 @@ def test_plain_rk4_baseline_builds_and_runs_in_one_process(tmp_path):
     assert "reason" not in r, r.get("reason")
     assert r["plain_ns"] > 0 and r["engine_ns"] > 0 and r["ratio"] == pytest.approx(r["engine_ns"] / r["plain_ns"],
                                                                                      rel=1e-2)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The study is not in the package: it lives in the checkout's bench/ folder (bench/gyrosim_bench)
+# ---------------------------------------------------------------------------------------------------------------
+def test_the_study_is_not_in_the_package():
+    import importlib.util
+    from pathlib import Path
+
+    import gyrosim
+
+    for name in ("gyrosim.study", "gyrosim.peers", "gyrosim.stability", "gyrosim.tree_bench", "gyrosim.fmu.bench",
+                 "gyrosim.service.bench", "gyrosim.sweep.bench"):
+        assert importlib.util.find_spec(name) is None, name
+    src = Path(gyrosim.__file__).resolve().parent
+    for f in src.rglob("*.py"):
+        if f == src / "cli.py":  # `gyrosim bench` runs it from the checkout's bench/ folder, when there is one
+            continue
+        assert not re.search(r"^\s*(from|import)\s+gyrosim_bench\b", f.read_text(), re.M), f
+    assert Path(study.__file__).resolve().parent == src.parents[1] / "bench" / "gyrosim_bench"
+
+
+def test_bench_without_the_checkout_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
+    """Installed from a wheel there is no bench/ folder next to the package: one line says where the study is."""
+    import gyrosim
+
+    fake = tmp_path / "lib" / "python3.11" / "site-packages" / "gyrosim" / "__init__.py"
+    monkeypatch.setattr(gyrosim, "__file__", str(fake))
+    assert cli_main(["bench", "--quick", "--output", str(tmp_path / "out"), "--only", "startup"]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and "make bench" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()

@@ -587,10 +587,21 @@ def cmd_info(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    """The speed/accuracy study (tables to stdout, plots to a folder)."""
+    """The speed/accuracy study (tables to stdout, plots to a folder). It is not part of the package: it lives in
+    the source checkout's ``bench/`` folder (``bench/gyrosim_bench``), found next to an editable install's sources
+    (``<checkout>/src/gyrosim``); installed from a wheel there is none, and this says so (exit code 2)."""
     import os
 
-    from .study import main as study_main
+    import gyrosim
+
+    bench_dir = Path(gyrosim.__file__).resolve().parents[2] / "bench"
+    if not (bench_dir / "gyrosim_bench" / "study.py").is_file():
+        print("gyrosim bench: the study lives in the source checkout's bench/ folder: clone the repository and run "
+              "`make bench` there", file=sys.stderr)
+        return 2
+    if str(bench_dir) not in sys.path:
+        sys.path.insert(0, str(bench_dir))
+    from gyrosim_bench.study import main as study_main
 
     if verbosity(args) < 0:
         os.environ["TQDM_DISABLE"] = "1"  # tqdm >= 4.66 reads its defaults from TQDM_* variables

@@ -1,5 +1,6 @@
 """Fixtures of the sweep tests: the CLI in this process, and a real Dask cluster on 127.0.0.1 started with Dask's own
-commands (``dask scheduler``, two ``dask worker``) as subprocesses (:class:`gyrosim.sweep.bench.DaskProcesses`)."""
+commands (``dask scheduler``, two ``dask worker``) as subprocesses (:class:`gyrosim_bench.sweep_bench.DaskProcesses`,
+from the checkout's bench/ folder)."""
 
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ def cli(capsys):
 def dask_cluster(tmp_path_factory):
     """A scheduler and two one-thread workers (``w1``, ``w2``) on 127.0.0.1."""
     pytest.importorskip("distributed")
-    from gyrosim.sweep.bench import DaskProcesses
+    from gyrosim_bench.sweep_bench import DaskProcesses
 
     cluster = DaskProcesses(tmp_path_factory.mktemp("dask"), env=env())
     try:

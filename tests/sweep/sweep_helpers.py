@@ -1,5 +1,5 @@
 """Helpers of the sweep tests: subprocess commands and row comparison (the Dask processes come from
-:class:`gyrosim.sweep.bench.DaskProcesses`)."""
+:class:`gyrosim_bench.sweep_bench.DaskProcesses`)."""
 
 from __future__ import annotations
 

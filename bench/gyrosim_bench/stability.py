@@ -48,7 +48,7 @@ __all__ = ["FreeCase", "TopCase", "free_grid", "top_grid", "run", "stable_x", "r
 
 
 def _methods():
-    from .core import _engine
+    from gyrosim.core import _engine
 
     return tuple(_engine.METHODS)
 
@@ -141,7 +141,7 @@ class TopCase:
     @property
     def rate(self) -> float:
         """The rate x is measured in: the fast-top nutation frequency I3 omega_3 / I1 (rad/s)."""
-        from .core.analytic import Gyroscope
+        from gyrosim.core.analytic import Gyroscope
 
         return float(Gyroscope(self.I3, TOP_I1, TOP_MASS, TOP_L, TOP_G).nutation_frequency(self.spin))
 
@@ -155,7 +155,7 @@ class TopCase:
         return f"top I3/I1={self.i3_ratio:g} theta0={self.theta0:g} spin={self.spin:g}"
 
     def scene(self):
-        from .scene import scene_from_dict
+        from gyrosim.scene import scene_from_dict
 
         body = {"name": "top", "inertia": {"principal": [TOP_I1, TOP_I1, self.I3]}, "mass": TOP_MASS,
                 "cm_distance": TOP_L, "attitude": {"zyz": [0.0, float(self.theta0), 0.0]},
@@ -226,7 +226,7 @@ def first_exceed(d: np.ndarray, bounds=CANDIDATES, offset: int = 0) -> dict:
 def _model(scene, integrator, max_step, tol=1e-8):
     """A Model of the scene with the engine's health monitor off (max_drift = 0, where the engine has one): the
     runs here measure how far the invariants drift, the monitor must not cut them short."""
-    from .model import Model
+    from gyrosim.model import Model
 
     m = Model(scene, parameters={"integrator": integrator, "max_step": max_step}, tolerance=tol)
     if "max_drift" in m.variables:
@@ -236,7 +236,7 @@ def _model(scene, integrator, max_step, tol=1e-8):
 
 def _trajectory(m, dt, n):
     """Rows (k, 14) of ``m.trajectory(dt, n)`` (momentum and energy only) and the failing interval (or None)."""
-    from .errors import GyrosimError
+    from gyrosim.errors import GyrosimError
 
     try:
         return m.trajectory(dt, n, angles=False)[:, 0, :], None
@@ -252,7 +252,7 @@ class Monitor:
     the drifts of :func:`drift_series` stand in."""
 
     def __init__(self, m, case, row0):
-        from .core import _engine
+        from gyrosim.core import _engine
 
         self.case = case
         self.ok = hasattr(_engine, "drift") and hasattr(_engine, "NDRIFT")
@@ -349,7 +349,7 @@ def stable_x(integrator: str, case, n_steps: int = N_STEPS, bound: float = BOUND
 def engine_rate(scene) -> float | None:
     """The engine's fastest rate of the scene's start state (``_engine.fastest_rate``: |omega|, on a pivot the
     largest of |omega|, I3 |omega_3| / sqrt(I1 I2) and sqrt(M g l / I1)), or None without it."""
-    from .core import _engine
+    from gyrosim.core import _engine
 
     if not hasattr(_engine, "fastest_rate"):
         return None

@@ -1,7 +1,8 @@
 """Sweep benchmark (``gyrosim bench --only sweep``): what the sweep machinery costs, in this process and on Dask.
 
 ``run(out_dir, quick=False)`` writes ``sweep.md`` (tables) and ``sweep.json`` (every number) into ``out_dir`` and
-returns a one-line summary. Stand-alone: ``python -m gyrosim.sweep.bench [OUT_DIR] [--quick]``.
+returns a one-line summary. Stand-alone, from the checkout root:
+``PYTHONPATH=bench python -m gyrosim_bench.sweep_bench [OUT_DIR] [--quick]``.
 
 * **local**: sample-steps per second of ``gyrosim sweep`` (draws, checks, one Model per chunk, the drift
   reductions, Parquet files) against the plain many-body loop on the same scene: Models of as many bodies as a
@@ -34,6 +35,9 @@ import numpy as np
 __all__ = ["run", "DaskProcesses"]
 
 SCENE = "gyroscope"
+#: The folder that holds gyrosim_bench (the checkout's bench/): on the Dask processes' PYTHONPATH, because
+#: ``run_on_scheduler(_worker_names)`` sends the function by reference and the scheduler imports it from there
+BENCH_DIR = str(Path(__file__).resolve().parents[1])
 VARY = ["omega_z=uniform(150,250)", "mass=uniform(0.4,0.6)"]
 
 
@@ -53,8 +57,10 @@ class DaskProcesses:
         return [str(exe)] if exe.exists() else [sys.executable, "-m", "dask"]
 
     def _start(self, name: str, args: list[str]) -> subprocess.Popen:
+        env = dict(os.environ if self.env is None else self.env)
+        env["PYTHONPATH"] = BENCH_DIR + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         with open(self.work / f"{name}.log", "w") as log:
-            p = subprocess.Popen(self.command() + args, stdout=log, stderr=subprocess.STDOUT, env=self.env,
+            p = subprocess.Popen(self.command() + args, stdout=log, stderr=subprocess.STDOUT, env=env,
                                  start_new_session=True, cwd=self.work)
         self.procs[name] = p
         return p
@@ -133,9 +139,9 @@ def _worker_names(dask_scheduler=None) -> dict:
 def _plain(samples: int, stop_time: float, bodies: int, momentum: bool) -> float:
     """Seconds of the plain many-body loop over the sweep's grid: Models of ``bodies`` bodies (the scene's body
     replicated), one after another until ``samples`` bodies have run, each over the grid in the sweep's blocks."""
-    from ..model import OUTPUT_NAMES, Model
-    from ..scene import load_scene
-    from .runner import BLOCK_VALUES, _replicated
+    from gyrosim.model import OUTPUT_NAMES, Model
+    from gyrosim.scene import load_scene
+    from gyrosim.sweep.runner import BLOCK_VALUES, _replicated
 
     sc = load_scene(SCENE)
     dt = sc.output_interval
@@ -155,7 +161,7 @@ def _plain(samples: int, stop_time: float, bodies: int, momentum: bool) -> float
 
 
 def _sweep(tmp: Path, samples: int, stop_time: float, chunk: int, scheduler=None, interval=None) -> float:
-    from .execute import run_sweep
+    from gyrosim.sweep.execute import run_sweep
 
     out = Path(tempfile.mkdtemp(dir=tmp)) / "s"
     t0 = time.perf_counter()
@@ -167,8 +173,8 @@ def _sweep(tmp: Path, samples: int, stop_time: float, chunk: int, scheduler=None
 
 
 def _steps_per_sample(stop_time: float) -> int:
-    from ..core import _engine
-    from ..scene import load_scene
+    from gyrosim.core import _engine
+    from gyrosim.scene import load_scene
 
     sc = load_scene(SCENE)
     return int(round(stop_time / sc.output_interval)) * int(_engine.substeps(sc.output_interval, sc.max_step))
@@ -176,7 +182,7 @@ def _steps_per_sample(stop_time: float) -> int:
 
 def run(out_dir, quick: bool = False) -> str:
     """Run the measurements; write ``sweep.md`` and ``sweep.json`` into ``out_dir``; return a summary line."""
-    from ..core import _engine
+    from gyrosim.core import _engine
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

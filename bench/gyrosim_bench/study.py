@@ -13,12 +13,17 @@ Every error is measured against an exact solution, never against gyrosim's own o
   panels of 1/16 of a nutation period, converged to round-off), which gives the exact attitude and omega too.
 * ``long``: 1e6 steps (2e4 with ``--quick``) of the free body and of the heavy top, |L| and energy drift.
 * ``stability``: the stability map of the fixed-step integrators (largest stable h |omega| / h omega_n over inertia
-  ratios, spin axes, spins and tops) and the evidence for the engine's ``max_drift`` default (:mod:`gyrosim.stability`).
+  ratios, spin axes, spins and tops) and the evidence for the engine's ``max_drift`` default
+  (:mod:`gyrosim_bench.stability`).
 
 Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and integrator, Model.step overhead,
 10,000-body throughput, all against a C baseline compiled with ``gcc -O2`` in the same run), ``long``,
-``stability``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` (the FMU, service and sweep benches,
-when those packages provide ``bench.run(out_dir)``).
+``stability``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` / ``tree`` (the FMU, service, sweep and
+tree benches: ``run(out_dir)`` of :mod:`gyrosim_bench.fmu_bench`, ``service_bench``, ``sweep_bench`` and
+``tree_bench``, each in its own process).
+
+The study is not part of the installed package: it lives in the source checkout's ``bench/`` folder, and
+``gyrosim bench`` (or ``make bench``) puts that folder on ``sys.path`` and runs :func:`main`.
 
 ``--only`` merges into the folder's earlier results: the parts it runs replace theirs in ``results.json`` and
 ``summary.md``, the other parts' stay (a run of every part starts afresh).
@@ -92,7 +97,7 @@ FREE_I = (1.0, 2.0, 3.0)
 # ===============================================================================================================
 def free_scene(name: str, omega0, moments=FREE_I, count: int = 1, spread: dict | None = None):
     """A torque-free scene (no gravity, damping or torque terms) from a scene dict."""
-    from .scene import scene_from_dict
+    from gyrosim.scene import scene_from_dict
 
     body = {"name": "body", "inertia": {"principal": [float(m) for m in moments]},
             "rates": {"omega": [float(w) for w in omega0]}}
@@ -104,7 +109,7 @@ def free_scene(name: str, omega0, moments=FREE_I, count: int = 1, spread: dict |
 
 def top_scene(name: str, spin: float = TOP["spin"], count: int = 1, spread: dict | None = None, full=False):
     """The study's heavy symmetric top (gravity only, or every term with ``full``) from a scene dict."""
-    from .scene import scene_from_dict
+    from gyrosim.scene import scene_from_dict
 
     body = {"name": "top", "inertia": {"principal": [TOP["I1"], TOP["I1"], TOP["I3"]]}, "mass": TOP["mass"],
             "cm_distance": TOP["cm_distance"], "attitude": {"zyz": [0.0, TOP["theta0"], 0.0]},
@@ -124,7 +129,7 @@ class FreeReference:
     kind = "free"
 
     def __init__(self, moments, omega0, q0=(1.0, 0.0, 0.0, 0.0)):
-        from .core.analytic import TorqueFreeSolution
+        from gyrosim.core.analytic import TorqueFreeSolution
 
         self.moments = np.asarray(moments, dtype=float)
         self.sol = TorqueFreeSolution(*self.moments, np.asarray(omega0, float), np.asarray(q0, float))
@@ -150,8 +155,8 @@ class TopReference:
 
     def __init__(self, I1=TOP["I1"], I3=TOP["I3"], mass=TOP["mass"], l=TOP["cm_distance"], g=TOP["g"],
                  theta0=TOP["theta0"], spin=TOP["spin"]):
-        from .core.analytic import SymmetricTop
-        from .core.rotations import euler_zyz_rates_to_omega_body
+        from gyrosim.core.analytic import SymmetricTop
+        from gyrosim.core.rotations import euler_zyz_rates_to_omega_body
 
         self.I1, self.I3 = float(I1), float(I3)
         self.top = SymmetricTop(I1, I3, mass, l, g)
@@ -207,7 +212,7 @@ class TopReference:
 
     def state(self, t):
         """Exact (q (n, 4), omega (n, 3)) at sorted times t (n,) s."""
-        from .core.rotations import euler_zyz_rates_to_omega_body, euler_zyz_to_quat
+        from gyrosim.core.rotations import euler_zyz_rates_to_omega_body, euler_zyz_to_quat
 
         phi, th, psi, pd, td, sd = self.angles(t)
         return euler_zyz_to_quat(phi, th, psi), euler_zyz_rates_to_omega_body(phi, th, psi, pd, td, sd)
@@ -293,7 +298,7 @@ cpu_clock = time.thread_time
 # Part 1: accuracy ladders
 # ===============================================================================================================
 def _model(scene, integrator, max_step, tol, max_drift=None):
-    from .model import Model
+    from gyrosim.model import Model
 
     params = {"integrator": integrator, "max_step": max_step}
     if max_drift is not None:
@@ -315,8 +320,8 @@ def run_accuracy(case: Case, integrator: str, h: float | None, tol: float | None
     ``ADAPTIVE_OUTPUTS`` points only (each output point ends a step) and timed over those Model.step calls;
     ``exact`` is timed over its Model.step calls at every output point.
     """
-    from .errors import IntegrationError
-    from .model import OUTPUT_NAMES
+    from gyrosim.errors import IntegrationError
+    from gyrosim.model import OUTPUT_NAMES
 
     ref = case.reference
     dt_out = case.T / ADAPTIVE_OUTPUTS if integrator in ADAPTIVE else case.dt_out
@@ -534,7 +539,7 @@ def _find_baseline_source() -> Path | None:
 
 def _arrays(scene):
     """Engine arrays (y (n, NY), p (n, NP)) of a scene's bodies, as Model builds them."""
-    from .core import _engine
+    from gyrosim.core import _engine
 
     n = len(scene.bodies)
     y = np.zeros((n, _engine.NY))
@@ -551,7 +556,7 @@ def _arrays(scene):
 
 def cost_scenes():
     """The scenes of the cost comparison: (label, Scene, description)."""
-    from .scene import full_scene
+    from gyrosim.scene import full_scene
 
     return [("free_body", free_scene("cost_free_body", (1.0, 0.1, 0.1)), "torque-free: no gravity, damping or "
              "torque terms"),
@@ -587,7 +592,7 @@ def best_times(fns, quick: bool, min_total: float = 0.25, clock=None) -> list[fl
 def _kernel_runner(integrator, scene, h, n, bodies=1, threads=0):
     """A closure running the engine (``_engine.advance``) over n internal steps of h on the scene's first ``bodies``
     bodies, and a function returning the accepted steps per body of the last call."""
-    from .core import _engine
+    from gyrosim.core import _engine
 
     y0, p = _arrays(scene)
     y0, p = y0[:bodies].copy(), p[:bodies].copy()
@@ -678,7 +683,7 @@ def run_cost(quick: bool, cbase: CBaseline, bar) -> dict:
     nb = 2_000 if quick else 10_000
     res["many"]["bodies"] = nb
     res["many"]["nsub"] = 20 if quick else 100
-    from .core import _engine
+    from gyrosim.core import _engine
 
     res["many"]["threads"] = int(_engine.max_threads())
     calls = 3 if quick else 10
@@ -769,7 +774,7 @@ def _csv_line(res: dict) -> str:
 # Part 3: long runs
 # ===============================================================================================================
 def run_long(case_name: str, integrator: str, quick: bool) -> dict:
-    from .errors import IntegrationError
+    from gyrosim.errors import IntegrationError
 
     n_steps = 20_000 if quick else 1_000_000
     n_out = 50 if quick else 200
@@ -914,7 +919,7 @@ def choose_table(cases: dict, acc: dict, stability: dict | None = None, peers: d
     """For each case and target attitude error, the cheapest run of each integrator that reaches it; with the
     stability part's results, the largest stable step of each integrator too (:func:`stable_steps_table`); with
     the peers part's results, the cheapest integrator for a whole trajectory against CyRK
-    (:func:`gyrosim.peers.peers_choose_table`).
+    (:func:`gyrosim_bench.peers.peers_choose_table`).
 
     ``cases``: name -> :class:`Case` or name -> its time span T (s)."""
     if not acc:
@@ -964,7 +969,7 @@ def peers_usable(peers) -> bool:
 
 
 def stable_steps_table(stability: dict) -> str:
-    """The largest stable internal step of each integrator, from the stability map (gyrosim.stability)."""
+    """The largest stable internal step of each integrator, from the stability map (gyrosim_bench.stability)."""
     from .stability import FIXED as MAPPED
     from .stability import fmt_x, safe_steps
 
@@ -1244,7 +1249,7 @@ def _parse_only(only) -> list[str]:
             if not p:
                 continue
             if p not in PARTS:
-                from .errors import ConfigError
+                from gyrosim.errors import ConfigError
 
                 raise ConfigError("--only", p, "one of " + ", ".join(PARTS))
             if p not in parts:
@@ -1255,7 +1260,7 @@ def _parse_only(only) -> list[str]:
 def _environment() -> dict:
     env = {"python": platform.python_version(), "numpy": np.__version__, "platform": platform.platform(),
            "cpus": os.cpu_count(), "date": datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")}
-    from .core import _engine
+    from gyrosim.core import _engine
 
     env["engine"] = f"C engine v{_engine.ENGINE_VERSION}" + (", OpenMP" if _engine.OPENMP else "")
     try:
@@ -1279,6 +1284,7 @@ def _records_table(title: str, records: list[dict]) -> str:
 
 _EXTERNAL_RUNNER = """
 import importlib, inspect, json, sys
+sys.path.insert(0, sys.argv[5])
 mod = importlib.import_module(sys.argv[1])
 run = getattr(mod, "run", None)
 if run is None:
@@ -1296,7 +1302,7 @@ json.dump({"result": r}, open(sys.argv[4], "w"), default=str)
 
 
 def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str]:
-    """Run gyrosim.fmu.bench / gyrosim.fmu.standalone.bench / gyrosim.service.bench when present.
+    """Run the part's bench (gyrosim_bench.fmu_bench / service_bench / sweep_bench / tree_bench) when present.
 
     Each runs in its own Python process (they load FMU binaries, Zenoh and FMPy's native libraries, which should
     not share a process with each other or with the study) and in a scratch folder (they may build FMUs and hosts
@@ -1305,10 +1311,12 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
     """
     import importlib.util
 
-    mods = {"fmu": ("gyrosim.fmu.bench",), "service": ("gyrosim.service.bench",), "sweep": ("gyrosim.sweep.bench",),
-            "tree": ("gyrosim.tree_bench",)}
+    # (module, label): the label names the part's tables and files (fmu.md, tree_bench.md, ...)
+    mods = {"fmu": (("gyrosim_bench.fmu_bench", "fmu"),), "service": (("gyrosim_bench.service_bench", "service"),),
+            "sweep": (("gyrosim_bench.sweep_bench", "sweep"),), "tree": (("gyrosim_bench.tree_bench", "tree_bench"),)}
+    bench_dir = str(Path(__file__).resolve().parents[1])  # the folder that holds gyrosim_bench
     msgs = []
-    for name in mods[part]:
+    for name, label in mods[part]:
         try:
             found = importlib.util.find_spec(name) is not None
         except ModuleNotFoundError:
@@ -1316,11 +1324,10 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
         if not found:
             msgs.append(f"{part}: {name} is not available in this checkout; skipped")
             continue
-        label = name.replace("gyrosim.", "").replace(".bench", "").replace(".", "_")
         with tempfile.TemporaryDirectory(prefix=f"gyrosim-bench-{label}-") as work:
             res_file = Path(work) / "_study_result.json"
             p = subprocess.run([sys.executable, "-c", _EXTERNAL_RUNNER, name, work, "1" if quick else "0",
-                                str(res_file)], capture_output=True, text=True)
+                                str(res_file), bench_dir], capture_output=True, text=True)
             if not res_file.is_file():
                 tail = (p.stderr or p.stdout).strip().splitlines()[-3:]
                 msgs.append(f"{part}: {name}.run failed (exit {p.returncode}): {' | '.join(tail)}")
@@ -1418,7 +1425,7 @@ def _accuracy_spans(results: dict, quick_default: bool) -> dict:
 
 def asym_top_scene(name: str = "study_asym_top"):
     """The asymmetric fast heavy top (:data:`ASYM_TOP`) from a scene dict."""
-    from .scene import scene_from_dict
+    from gyrosim.scene import scene_from_dict
 
     a = ASYM_TOP
     body = {"name": "top", "inertia": {"principal": list(a["moments"])}, "mass": a["mass"],
@@ -1435,7 +1442,7 @@ def exact_splitting_wp(T: float = 20.0, dt_out: float = 0.1, targets=(1e-6, 1e-9
     ``dt_out`` s to ``T``) against dop853 at tolerance 1e-15, checked by halving its max_step (and at 1e-14); each
     run is timed with the thread's CPU time, best of ``rounds``. Returns ``{"runs": [...], "reference": {...},
     "cheapest": {(method, target): run}}``; :func:`exact_splitting_table` prints it."""
-    from . import simulate
+    from gyrosim import simulate
 
     sc = asym_top_scene()
     names = ("q_w", "q_x", "q_y", "q_z")

@@ -2,7 +2,7 @@
 
 ``run(out_dir, quick=False)`` is what ``gyrosim bench`` (``--only service``) calls; it writes
 ``service.md`` (a table) and ``service.json`` (every number) into ``out_dir`` and returns a one-line summary.
-Stand-alone: ``python -m gyrosim.service.bench [OUT_DIR] [--quick]``.
+Stand-alone, from the checkout root: ``PYTHONPATH=bench python -m gyrosim_bench.service_bench [OUT_DIR] [--quick]``.
 
 Everything runs on real Zenoh sessions over TCP on 127.0.0.1 (scouting off), each side in its own process:
 
@@ -79,7 +79,7 @@ def _finish(proc: subprocess.Popen, timeout: float) -> str:
 
 
 def _state_count(path) -> tuple[int, bool]:
-    from ..telemetry.reading import iter_messages
+    from gyrosim.telemetry.reading import iter_messages
 
     seqs = [json.loads(m.data)["seq"] for _, c, m in iter_messages(path) if c.topic.endswith("/state")]
     return len(seqs), seqs == list(range(len(seqs)))
@@ -118,7 +118,7 @@ def latency(duration: float = 5.0, rate: float = 1000.0) -> dict:
     """End-to-end latency of the state messages at ``rate`` Hz in real time (publish -> subscriber callback)."""
     import zenoh
 
-    from ..service.config import loopback_config
+    from gyrosim.service.config import loopback_config
 
     port = _free_port()
     lat: list[int] = []
@@ -155,9 +155,9 @@ def recorder_throughput(n: int = 50_000, tmp: str | None = None) -> dict:
     """Recorder alone (messages/s into MCAP) and end to end through Zenoh into a ``gyrosim record`` process."""
     import zenoh
 
-    from ..service.config import loopback_config
-    from ..telemetry import messages as msg
-    from ..telemetry.recorder import Recorder
+    from gyrosim.service.config import loopback_config
+    from gyrosim.telemetry import messages as msg
+    from gyrosim.telemetry.recorder import Recorder
 
     tmp = tmp or tempfile.mkdtemp()
     payloads = [msg.encode_state(msg.BodyState(t=i * 1e-4, seq=i, q=(1.0, 0.0, 0.0, 0.0), omega=(0.0, 0.0, 1.0),

@@ -21,7 +21,7 @@ Three measurements (each skipped with a printed reason when its peer is not ther
 
 Run from the source checkout (the C files are in ``bench/``)::
 
-    .venv/bin/python -m gyrosim.tree_bench --output /tmp/tb [--quick]
+    PYTHONPATH=bench .venv/bin/python -m gyrosim_bench.tree_bench --output /tmp/tb [--quick]
         [--basilisk-python /tmp/bskvenv/bin/python] [--mujoco-python /tmp/mjvenv/bin/python]
 
 The peers' interpreters default to ``$GYROSIM_BSK_PYTHON`` / ``$GYROSIM_MJ_PYTHON``, else ``/tmp/bskvenv`` and
@@ -102,7 +102,7 @@ def quat_angle(a, b) -> float:
 
 
 def _model(scene: str, values: dict | None = None):
-    from .model import Model
+    from gyrosim.model import Model
 
     m = Model(scene, parameters=values or {})
     m.initialize()
@@ -137,7 +137,7 @@ def _cmd_str(cmd) -> str:
 
 def _compile(work: Path) -> tuple[Path | None, str, str]:
     """(the binary or None, the command, a reason when it failed)."""
-    from . import core
+    from gyrosim import core
 
     eng = Path(core.__file__).parent / "engine"
     src = BENCH / "tree_baseline.c"
@@ -162,7 +162,7 @@ def _compile(work: Path) -> tuple[Path | None, str, str]:
 
 def _engine_python_ns(scene: str, h: float, n: int, reps: int) -> list[float]:
     """ns per rk4 step of _engine.tree_advance called from Python with n steps in one call."""
-    from .core import _engine
+    from gyrosim.core import _engine
 
     m = _model(scene)
     method = _engine.METHODS.index("rk4")
@@ -246,7 +246,7 @@ def run_basilisk(py: str | None, c_res: dict, quick: bool) -> dict:
            "bsk_ns_min": b["rk4_s_per_step_min"] * 1e9, "bsk_dt": b["dt"]}
     # the same case in gyrosim (hub total inertia diag(1, 2, 3), J = 0.01, wheels 100, 0, -50 rad/s, 1e-3 N*m on
     # wheel x, 10 s): Basilisk's RKF78 state against gyrosim's dop853
-    from .trajectory import simulate
+    from gyrosim.trajectory import simulate
 
     st = b["state"]
     r = simulate("spacecraft", start_values={"wheel_x.motor_torque": 0.001}, stop_time=10.0, output_interval=10.0,
@@ -292,7 +292,7 @@ def _rotor_q(rows, k) -> np.ndarray:
 
 
 def _gyrosim_run(T, interval, integrator, reps=1, **kw):
-    from .trajectory import Run, simulate
+    from gyrosim.trajectory import Run, simulate
 
     walls = []
     for _ in range(reps):
@@ -491,7 +491,7 @@ def main(output_dir, *, quick: bool = False, basilisk_python: str | None = None,
     """Run the three measurements, print the markdown table, write tree_bench.json and tree_bench_report.md."""
     out = Path(output_dir)
     out.mkdir(parents=True, exist_ok=True)
-    cmd = command or ("python -m gyrosim.tree_bench --output " + str(out) + (" --quick" if quick else ""))
+    cmd = command or ("python -m gyrosim_bench.tree_bench --output " + str(out) + (" --quick" if quick else ""))
     res = {"environment": _environment(cmd), "command": cmd, "quick": quick}
     t0 = time.perf_counter()
     bsk = _peer_python(basilisk_python, "GYROSIM_BSK_PYTHON", "/tmp/bskvenv/bin/python", "Basilisk")
@@ -524,13 +524,13 @@ def run(out_dir, quick: bool = False) -> list[dict]:
 
 
 def _cli(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m gyrosim.tree_bench", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m gyrosim_bench.tree_bench", description=__doc__.splitlines()[0])
     ap.add_argument("--output", "-o", default="docs/study", help="folder for tree_bench.json and tree_bench_report.md")
     ap.add_argument("--quick", action="store_true", help="short runs (T = 10 s, fewer repeats): a smoke test")
     ap.add_argument("--basilisk-python", help="the Basilisk venv's interpreter (default /tmp/bskvenv/bin/python)")
     ap.add_argument("--mujoco-python", help="the MuJoCo venv's interpreter (default /tmp/mjvenv/bin/python)")
     a = ap.parse_args(argv)
-    cmd = "python -m gyrosim.tree_bench " + " ".join(shlex.quote(x) for x in (argv if argv is not None
+    cmd = "python -m gyrosim_bench.tree_bench " + " ".join(shlex.quote(x) for x in (argv if argv is not None
                                                                                else sys.argv[1:]))
     main(a.output, quick=a.quick, basilisk_python=a.basilisk_python, mujoco_python=a.mujoco_python,
          command=cmd.strip())

@@ -84,7 +84,7 @@ class PeerCase:
         """The scene as a user writes it: the embedded ``free_body``, or a one-body scene on a pivot."""
         if self.kind == "free":
             return "free_body"
-        from .scene import scene_from_dict
+        from gyrosim.scene import scene_from_dict
 
         body = {"name": "top", "inertia": {"principal": [float(m) for m in self.moments]}, "mass": self.mass,
                 "cm_distance": self.l, "attitude": {"zyz": [0.0, self.theta0, 0.0]},
@@ -121,7 +121,7 @@ def _fsum_prefix(values: np.ndarray, idx: list[int]) -> np.ndarray:
 
 
 class LagrangeTop(TopReference):
-    """The exact Lagrange top (see :class:`gyrosim.study.TopReference`), accurate over long runs of a fast top.
+    """The exact Lagrange top (see :class:`gyrosim_bench.study.TopReference`), accurate over long runs of a fast top.
 
     ``LagrangeTop(I1, I3, mass, l, g, theta0, spin)``, started at phi = psi = 0 with the Euler rates (0, 0, spin).
     ``psi = (p_psi / I3) t - integral(phi_dot cos(theta))``: only the slowly varying part is a quadrature, and the
@@ -171,8 +171,8 @@ class LagrangeTop(TopReference):
 
 def _state0(case: PeerCase) -> np.ndarray:
     """The start state (q (4), omega (3)) as gyrosim's model has it."""
-    from .model import Model
-    from .scene import load_scene
+    from gyrosim.model import Model
+    from gyrosim.scene import load_scene
 
     m = Model(load_scene(case.scene()))
     return np.array([m.get(k) for k in Q] + [m.get(k) for k in ("omega_x", "omega_y", "omega_z")])
@@ -187,7 +187,7 @@ def attitude_error(q, q_ref) -> np.ndarray:
 
 
 def _gyrosim_q(case, T, integrator, tol, max_step=None):
-    from . import simulate
+    from gyrosim import simulate
 
     r = simulate(case.scene(), stop_time=T, output_interval=DT_OUT, integrator=integrator,
                  max_step=max_step or T, relative_tolerance=tol, output=list(Q))
@@ -203,7 +203,7 @@ def reference(case: PeerCase, T: float, quick: bool, peer=None) -> dict:
     t = np.arange(round(T / DT_OUT) + 1) * DT_OUT
     checks = {}
     if case.kind == "free":
-        from .core.analytic import TorqueFreeSolution
+        from gyrosim.core.analytic import TorqueFreeSolution
 
         y0 = _state0(case)
         q = TorqueFreeSolution(*case.moments, y0[4:], y0[:4]).attitude(t)
@@ -290,14 +290,14 @@ def _tolerances(quick: bool, lo: float = 1e-15):
 # gyrosim
 # =============================================================================================================
 def _integrators() -> list[str]:
-    from .core import _engine
+    from gyrosim.core import _engine
 
     return list(_engine.METHODS)
 
 
 def _gyrosim_runs(case: PeerCase, ref: dict, T: float, quick: bool, rounds: int, budget: float) -> tuple[list, list]:
-    from .errors import ConfigError, IntegrationError
-    from .trajectory import Run
+    from gyrosim.errors import ConfigError, IntegrationError
+    from gyrosim.trajectory import Run
 
     recs, notes = [], []
     n = round(T / DT_OUT)
@@ -306,7 +306,7 @@ def _gyrosim_runs(case: PeerCase, ref: dict, T: float, quick: bool, rounds: int,
     sc = case.scene()
 
     def one(integ, h, tol):
-        from . import simulate
+        from gyrosim import simulate
 
         kw = dict(stop_time=T, output_interval=DT_OUT, integrator=integ, max_step=h, relative_tolerance=tol,
                   output=list(Q))
@@ -510,8 +510,8 @@ def _scipy_runs(case: PeerCase, ref: dict, T: float, quick: bool):
 # =============================================================================================================
 def dop853_order() -> dict:
     """Observed order of dop853: every step accepted (tolerance 1e3), h = max_step = 20/n s, error at t = 20 s."""
-    from . import simulate
-    from .core.analytic import TorqueFreeSolution
+    from gyrosim import simulate
+    from gyrosim.core.analytic import TorqueFreeSolution
 
     sol = TorqueFreeSolution(1.0, 2.0, 3.0, (1.0, 0.1, 0.1))
     hs, errs = [], []
@@ -548,7 +548,7 @@ def _paired(peer: CyRKPeer, case: PeerCase, ref: dict, runs: list, judged: list,
     all bursts. The ladders time each tool's runs seconds apart, and this machine's speed moves in phases of
     seconds (the same call at 62 or 80 us a process, pinned or not): paired, both minima come from the same
     stretch of the run, and their ratio is the headline's."""
-    from . import simulate
+    from gyrosim import simulate
 
     t, y0 = ref["t"], _state0(case)
     addr = peer.rhs(case)

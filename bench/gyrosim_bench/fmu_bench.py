@@ -5,7 +5,7 @@
 headers FMPy ships), then times ``doStep`` with 1 and 10 internal substeps (``max_step = h`` or ``h/10``),
 interleaved so that both see the same machine load, each the best of its rounds in CPU time of the calling thread.
 ``Model.step`` alone is timed too.
-``python -m gyrosim.fmu.bench [OUT_DIR]`` prints the table.
+``PYTHONPATH=bench python -m gyrosim_bench.fmu_bench [OUT_DIR]`` (from the checkout root) prints the table.
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def _c_model_description(v: int, ident: str) -> str:
 
 def build_c_fmu(fmi_version: int, out_dir) -> Path:
     """Compile the minimal C FMU (rk4 of the heavy top) with gcc -O2 and zip it into ``out_dir``."""
-    from .build import binary_path
+    from gyrosim.fmu.build import binary_path
 
     cc = have_compiler()
     if cc is None:
@@ -290,7 +290,7 @@ def _time_dosteps(path, version: int, nsub: int, n: int, gyrosim_fmu: bool) -> f
 
 
 def _time_model(nsub: int, n: int) -> float:
-    from ..model import Model
+    from gyrosim.model import Model
 
     m = Model("heavy_top", parameters={"integrator": "rk4", "max_step": H / nsub})
     for _ in range(200):
@@ -313,7 +313,7 @@ def run(out_dir, n: int = 20000) -> list[dict]:
         One row per (FMI version, substeps): ``gyrosim_us`` and ``c_us`` per doStep (best of interleaved rounds),
         ``ratio`` (gyrosim_us / c_us) and ``model_step_us`` (Model.step alone, no FMU).
     """
-    from .build import build_fmu
+    from gyrosim.fmu.build import build_fmu
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
