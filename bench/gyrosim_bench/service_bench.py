@@ -96,7 +96,7 @@ def publish_rate(duration: float = 5.0, rate: float = 1000.0, tmp: str | None = 
         _wait_line(rec, "recording")
         t0 = time.monotonic()
         srv = _start("serve", "gyroscope", "-e", f"tcp/127.0.0.1:{port}", "--rate", rate, "--duration", duration,
-                     "--realtime-factor", 0, "--wait-subscribers", 20, "-q")
+                     "--realtime-factor", 0, "--wait-subscribers", 20)  # not -q: the summary line is read below
         out = _finish(srv, timeout=600)
         _finish(rec, timeout=120)
         wall = time.monotonic() - t0
