@@ -912,6 +912,43 @@ class Model:
                      "max_step", "max_drift", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h",
                      "_initialized", "_state_dirty", "_ex")
 
+    # ----------------------------------------------------------------------------------------------- the systems
+    # What the analyses ask of any model (tree_model.TreeModel answers the same): how many independent systems it
+    # steps (rows of its state), where each one's coordinates are in a state row, how to restart rows from new
+    # coordinates, and the fastest rate in a row.
+    @property
+    def n_systems(self) -> int:
+        """Independent systems the model steps, one state row each: the bodies of a one-body scene."""
+        return self.n_bodies
+
+    @property
+    def coordinates(self) -> list[tuple[str, str, int]]:
+        """A system's continuous coordinates: (variable name, coordinate, slot in its state row), in slot order;
+        the names are a system's own (bare: each body of a one-body scene is a system)."""
+        return [(n, n, k) for k, n in enumerate(_STATE_NAMES)]
+
+    @property
+    def n_coords(self) -> int:
+        """The state row's continuous coordinates (the slots after them are the monitor's)."""
+        return len(_STATE_NAMES)
+
+    def _restart_rows(self, rows: np.ndarray, coords: np.ndarray) -> int:
+        """Put systems ``rows`` at ``coords`` (their first n_coords slots) and start them there as a state is
+        started (quaternions normalised, the monitor restarted); the other rows untouched. The first row that is
+        not finite (an index into ``rows``), or -1."""
+        y = self._y[rows].copy()
+        y[:, :coords.shape[1]] = coords
+        bad = _engine.start_state(y, np.ascontiguousarray(self._p[rows]))
+        self._ex[rows, _engine.EX_VALID] = 0.0
+        if bad < 0:
+            self._y[rows] = y
+            self._out = None
+        return bad
+
+    def fastest_rate(self, system: int = 0) -> float:
+        """The fastest rate (rad/s) in system ``system``'s state: the step-size scale of its dynamics."""
+        return float(_engine.fastest_rate(self.scene.flags, self._y[system], self._p[system]))
+
     # ----------------------------------------------------------------------------------------------- analyses
     def jacobian(self, *, system: int = 0):
         """The engine's derivatives at the present state (A, B, C, D and names; quaternions as four numbers), by

@@ -193,14 +193,14 @@ class Scene:
         return [f"{b.name}.{o}" for b in self.bodies for o in OUTPUT_NAMES]
 
     def replicated(self, k: int) -> Scene:
-        """``k`` copies of this one system, stepped in one engine call (the sweeps: one copy per sample)."""
+        """The scene with ``k`` copies of its systems, stepped in one engine call (sweeps: a copy per sample;
+        chaos: a neighbour per reference): a tree's ``systems`` times k, a one-body scene's bodies k times (the
+        j-th copy of body ``b`` named ``b~j``, the first keeping its name)."""
         if self.tree is not None:
-            return dataclasses.replace(self, systems=k)
-        if len(self.bodies) != 1:
-            raise ConfigError("scene", self.name, f"one system to replicate (this scene has {len(self.bodies)} "
-                              "independent bodies)")
-        b = self.bodies[0]
-        return dataclasses.replace(self, bodies=tuple(dataclasses.replace(b, name=f"sample_{j}") for j in range(k)))
+            return dataclasses.replace(self, systems=self.systems * k)
+        bodies = tuple(dataclasses.replace(b, name=f"{b.name}~{j}" if j else b.name)
+                       for j in range(k) for b in self.bodies)
+        return dataclasses.replace(self, bodies=bodies)
 
     def var_name(self, body: str, short: str) -> str:
         """A body's variable under the one naming rule (docs/trees.md): bare in a scene of one body, whatever its

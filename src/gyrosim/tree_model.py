@@ -204,7 +204,7 @@ class TreeModel(Model):
         self.variables = tree_variables(sc)
         self.body_names = sc.body_names
         self.n_bodies = len(self.body_names)
-        self.n_systems = k = max(1, int(getattr(sc, "systems", 1)))
+        self._n_systems = k = max(1, int(getattr(sc, "systems", 1)))
         self._index = {b: i for i, b in enumerate(self.body_names)}
         self._out_names = tree_output_names(sc)
         self._out_index = {n: i for i, n in enumerate(self._out_names)}
@@ -419,6 +419,38 @@ class TreeModel(Model):
             self._y, self._hint = saved
             raise IntegrationError(self._blowup(b, self._y[b], t, h, k,
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
+
+    # ----------------------------------------------------------------------------------------------- the systems
+    @property
+    def n_systems(self) -> int:
+        """Copies of the tree the model steps, one state row each (the sweeps' replicas)."""
+        return self._n_systems
+
+    @property
+    def coordinates(self) -> list[tuple[str, str, int]]:
+        """A system's continuous coordinates: (variable name, coordinate, slot in its state row), in slot order
+        (a circular orbit's ``orbit_anomaly`` last)."""
+        name = self.scene.var_name
+        slots = sorted((k, c if b is None else name(self._bodies[b].name, c), c)
+                       for (b, c), k in self.layout.coord_slots.items())
+        return [(v, c, k) for k, v, c in slots]
+
+    @property
+    def n_coords(self) -> int:
+        return self.layout.nx
+
+    def _restart_rows(self, rows: np.ndarray, coords: np.ndarray) -> int:
+        y = self._y[rows].copy()
+        y[:, :coords.shape[1]] = coords
+        bad = _engine.tree_start(self.layout.desc, y, np.ascontiguousarray(self._p[rows]))
+        if bad < 0:
+            self._y[rows] = y
+            self._out = None
+        return bad
+
+    def fastest_rate(self, system: int = 0) -> float:
+        return float(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1], self._p[system:system + 1],
+                                         1))
 
     def gimbal_lock(self, y=None, system: int = 0) -> str | None:
         """A message naming gimbal lock when two hinge axes of a chain are within 0.1 rad of lining up at the state

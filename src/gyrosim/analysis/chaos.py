@@ -24,13 +24,12 @@ True
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core import _engine
+from ..core.tree import ORBIT_COORD
 from ..errors import ConfigError, IntegrationError
 from ..model import Model
 
@@ -74,16 +73,8 @@ def _names(model: Model) -> list[str]:
 def _copies(model: Model, r: int) -> Model:
     """A new model of ``r`` times ``model``'s copies (bodies of a one-body scene, systems of a tree), each block of
     them in ``model``'s state and parameters; no stop time. ``model`` is not changed."""
-    sc = model.scene
-    if sc.is_tree:
-        k = model.n_systems
-        big = dataclasses.replace(sc, systems=r * k)
-    else:
-        k = model.n_bodies
-        bodies = tuple(dataclasses.replace(b, name=f"{b.name}~{j}" if j else b.name)
-                       for j in range(r) for b in sc.bodies)
-        big = dataclasses.replace(sc, bodies=bodies)
-    out = Model(big)
+    k = model.n_systems
+    out = Model(model.scene.replicated(r))
     state = model.get_state()
     data = {}
     for key, v in state.data.items():
@@ -112,7 +103,7 @@ def _prepare(model_or_scene, start_values, integrator, max_step, tolerance) -> M
 
 
 def _n_copies(model: Model) -> int:
-    return model.n_systems if model.scene.is_tree else model.n_bodies
+    return model.n_systems
 
 
 def _grid(model: Model, time, output_interval) -> tuple[float, int]:
@@ -156,27 +147,20 @@ class _Tangent:
 
     def __init__(self, model: Model):
         lin, kind, quat, names = [], [], [], []
-        if model.scene.is_tree:
-            lay = model.layout
-            for b, body in enumerate(model.scene.tree):
-                for c in body.coords:
-                    slot = lay.coord_slots[(b, c)]
-                    name = model.scene.var_name(body.name, c)
-                    if c == "q_w":
-                        quat.append(slot)
-                        names += [model.scene.var_name(body.name, f"rot_{a}") for a in "xyz"]
-                    elif c.startswith("q_"):
-                        continue
-                    else:
-                        lin.append(slot)
-                        kind.append(0 if c == "angle" else 1 if c == "rate" or c.startswith("omega_") else
-                                    2 if c.startswith("r_") else 3)
-                        names.append(name)
-            self.ncoord = lay.nx
-        else:
-            quat, lin, kind = [0], [4, 5, 6], [1, 1, 1]
-            names = ["rot_x", "rot_y", "rot_z", "omega_x", "omega_y", "omega_z"]
-            self.ncoord = 7
+        for var, c, slot in model.coordinates:
+            if c == ORBIT_COORD:  # a circular orbit's anomaly: prescribed by the orbit, not a degree of freedom
+                continue
+            if c == "q_w":
+                quat.append(slot)
+                names += [f"{var[:-len(c)]}rot_{a}" for a in "xyz"]
+            elif c.startswith("q_"):
+                continue
+            else:
+                lin.append(slot)
+                kind.append(0 if c == "angle" else 1 if c == "rate" or c.startswith("omega_") else
+                            2 if c.startswith("r_") else 3)
+                names.append(var)
+        self.ncoord = model.n_coords
         self.lin = np.array(lin, dtype=np.intp)
         self.kind = np.array(kind, dtype=np.intp)
         self.quat = quat
@@ -227,28 +211,16 @@ class _Tangent:
 def _restart(model: Model, rows: np.ndarray, coords: np.ndarray) -> None:
     """Put copies ``rows`` of ``model`` at ``coords`` (their first ncoord state slots) and start them there as the
     model starts a state (quaternions normalised, the health monitor restarted; the other copies untouched)."""
-    y = model._y[rows].copy()
-    y[:, :coords.shape[1]] = coords
-    p = np.ascontiguousarray(model._p[rows])
-    if model.scene.is_tree:
-        bad = _engine.tree_start(model.layout.desc, y, p)
-    else:
-        bad = _engine.start_state(y, p)
-        model._ex[rows, _engine.EX_VALID] = 0.0
+    bad = model._restart_rows(rows, coords)
     if bad >= 0:
-        raise IntegrationError(f"a neighbour's state is not finite: {y[bad, :coords.shape[1]].tolist()}")
-    model._y[rows] = y
-    model._out = None
+        raise IntegrationError(f"a neighbour's state is not finite: {coords[bad].tolist()}")
 
 
 def _rate_scale(model: Model, rows) -> np.ndarray:
     """tau (s) per copy: 1 / the fastest rate in the copy's state (at least 1 rad/s)."""
     out = np.empty(len(rows))
     for i, r in enumerate(rows):
-        if model.scene.is_tree:
-            rate = float(_engine.tree_scalar(model.layout.desc, model._y[r:r + 1], model._p[r:r + 1], 1))
-        else:
-            rate = float(_engine.fastest_rate(model.scene.flags, model._y[r], model._p[r]))
+        rate = model.fastest_rate(r)
         out[i] = 1.0 / max(1.0, rate) if math.isfinite(rate) else 1.0
     return out
 
@@ -257,12 +229,10 @@ def _rate_scale(model: Model, rows) -> np.ndarray:
 def _period_candidates(model: Model) -> list[str]:
     """Variables whose oscillation period the exponent is given per: the nutation angle of one body (theta), a
     tree's hinge angles, then the rates."""
-    if not model.scene.is_tree:
-        return ["theta", "omega_x", "omega_y", "omega_z"]
-    name = model.scene.var_name
-    angles = [name(b.name, "angle") for b in model.scene.tree if b.joint == "hinge"]
-    rates = [name(b.name, f"omega_{a}") for b in model.scene.tree if "omega_x" in b.coords for a in "xyz"]
-    return angles + rates
+    coords = model.coordinates
+    nutation = ["theta"] if "theta" in model.scene.output_names() else []  # the one-body kernel's ZYZ angle
+    return (nutation + [v for v, c, _ in coords if c == "angle"]
+            + [v for v, c, _ in coords if c.startswith("omega_")])
 
 
 def oscillation_period(t: np.ndarray, x: np.ndarray) -> tuple[float, int] | None:
@@ -486,7 +456,6 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
     cand = [c for c in _period_candidates(model) if c in names] if period else []
     cols = [names.index(c) for c in cand]
     series_t, series = [], []
-    one_body = not model.scene.is_tree
     status = np.zeros(2 * k, dtype=np.int32) if keep_going else None
     alive = np.ones(k, dtype=bool)
     log_sum = np.zeros(k)
@@ -494,7 +463,7 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
     max_growth = 1.0
     done = 0
     t0 = big.time
-    kw = {"angles": bool(cols) and "theta" in cand, "momentum": False} if one_body else {}
+    kw = {"angles": bool(cols) and "theta" in cand, "momentum": False}  # derived outputs: only what is read
     while done < n:
         step = min(m, n - done)
         if status is not None:
@@ -569,7 +538,7 @@ def default_section(scene) -> tuple[str, float, int, tuple]:
 
     if scene.name in _SECTIONS and scene.name in EMBEDDED_SCENES and not str(scene.source).endswith(".toml"):
         return _SECTIONS[scene.name]
-    if not scene.is_tree:
+    if "theta" in scene.output_names():  # a body with a nutation angle (the one-body kernel's outputs)
         return ("omega_x", 0.0, 1, ("theta", "omega_y"))
     name = scene.var_name
     hinges = [b.name for b in scene.tree if b.joint == "hinge"]
@@ -719,7 +688,7 @@ def poincare(model_or_scene, *, section=None, direction="up", record=None, time,
     if record is None:
         record = list(drec) if section is None or var == dvar else [n for n in drec if n != var]
     record = list(record)
-    if not model.scene.is_tree and model.n_bodies > 1:
+    if model.n_systems > 1:
         raise ConfigError("scene", model.scene.name, "one body or a tree: a Poincare section follows one system")
     for nm in [var, *record]:
         if nm not in names:
@@ -736,9 +705,7 @@ def poincare(model_or_scene, *, section=None, direction="up", record=None, time,
     ir = [names.index(r) for r in record]
     model.initialize()
     model._check_call(dt, "output interval")
-    one_body = not model.scene.is_tree
-    ncoord = 7 if one_body else model.layout.nx
-    kw = {"angles": True, "momentum": True} if one_body else {}
+    ncoord = model.n_coords
     block = max(1, min(n, (1 << 21) // max(1, len(names))))
     found_j, found_level, found_dir, starts, coarse = [], [], [], [], []
     prev = None
@@ -746,7 +713,7 @@ def poincare(model_or_scene, *, section=None, direction="up", record=None, time,
     t0 = model.time
     while done < n:
         step = min(block, n - done)
-        traj = model.trajectory(dt, step, **kw)[:, 0]
+        traj = model.trajectory(dt, step)[:, 0]
         rows = traj if prev is None else np.concatenate([prev[None], traj[1:]])
         u = rows[:, iv] - value
         if wrap_var:
@@ -765,11 +732,6 @@ def poincare(model_or_scene, *, section=None, direction="up", record=None, time,
     level = np.concatenate(found_level)
     dirs = np.concatenate(found_dir)
     units = [model.variables[r].unit if r in model.variables else "" for r in record]
-    if one_body:
-        from ..model import variables_for
-
-        vv = variables_for(model.scene)
-        units = [vv[r].unit if r in vv else "" for r in record]
     if not len(j):
         return PoincareSection(var, value, sgn, record, np.zeros(0), np.zeros((0, len(record))), units, wrap_var,
                                model.scene.name, n * dt, model.integrator)
@@ -800,11 +762,9 @@ def _refine(model: Model, S: np.ndarray, C: np.ndarray, target: np.ndarray, dirs
     offset = C - fine.outputs_array().reshape(c, -1)
     h = dt
     t_at = np.zeros(c)
-    one_body = not model.scene.is_tree
-    kw = {"angles": True, "momentum": True} if one_body else {}
     for level in range(LEVELS):
         h /= REFINE
-        tr = fine.trajectory(h, REFINE, **kw)  # (REFINE + 1, c, nout)
+        tr = fine.trajectory(h, REFINE)  # (REFINE + 1, c, nout)
         tr = tr.reshape(REFINE + 1, c, -1) + offset[None]
         f = (tr[:, :, iv] - target[None]) * dirs[None]
         with np.errstate(invalid="ignore"):
