@@ -201,25 +201,25 @@ def test_a_fast_spin_is_an_envelope_without_a_false_beat():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from gyrosim import cli
+    from gyrosim.telemetry import series
 
     t = np.arange(1001) * 0.01
     x = np.cos(200.0 * t)
     w = 8  # windows of about two turns of raw samples: the beat is there
     raw_max = np.maximum.reduceat(x, np.arange(0, len(x), w))
     assert raw_max.min() < 0.97
-    assert cli._is_fast(x, 720) and not cli._is_fast(np.sin(0.7 * t), 720)
-    tm, lo, hi, mid = cli._envelope(t, x, 720, cli._period_samples(x))
+    assert series.is_fast(x, 720) and not series.is_fast(np.sin(0.7 * t), 720)
+    tm, lo, hi, mid = series.envelope(t, x, 720, series.period_samples(x))
     assert len(tm) > 50 and tm[0] == 0.0 and tm[-1] == t[-1]
     assert np.all(np.abs(hi - 1.0) < 5e-3) and np.all(np.abs(lo + 1.0) < 5e-3), (hi.min(), lo.max())
     assert np.all(np.abs(mid) < 5e-3)
     fig, ax = plt.subplots()
-    assert cli._draw_series(ax, t, x, "omega_x", 720, "C0") is True
+    assert series.draw_series(ax, t, x, "omega_x", 720, "C0") is True
     assert ax.lines[0].get_label() == "omega_x (band)" and len(ax.collections) == 1
     # a slow signal of many samples: a line through each pixel column's first, last, lowest and highest sample
     t2 = np.linspace(0.0, 10.0, 200_001)
     y = np.sin(0.7 * t2) + 1e-3 * np.sin(1000.0 * t2) * (t2 > 20)
-    assert cli._draw_series(ax, t2, y, "slow", 720, "C1") is False
+    assert series.draw_series(ax, t2, y, "slow", 720, "C1") is False
     line = ax.lines[-1]
     assert len(line.get_xdata()) <= 4 * 721 and line.get_ydata().max() == y.max() and line.get_ydata().min() == y.min()
     plt.close(fig)

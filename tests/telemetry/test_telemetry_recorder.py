@@ -260,3 +260,37 @@ def test_plot_reads_state_series(tmp_path):
     assert topic == f"/{KEY}/state" and s.t.shape == (50,) and s.q.shape == (50, 4)
     assert list(s.seq) == list(range(50))
     assert len(plot_recording(path)) == 4
+
+
+def test_recording_plots_do_not_alias_a_fast_nutation_or_a_wheel_spin():
+    """The gyroscope's 25 Hz nutation sampled at 100 Hz: straight lines between the samples make a sawtooth with a
+    false beat; the panel draws its min/max band (as ``simulate --show-plot``) over the full amplitude with a flat
+    middle. A wheel's world ZYZ angles (theta sweeping 0..pi at its spin) stay out of the attitude figure beside
+    its hub: its attitude is its hinge angle (the joints figure)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.collections import PolyCollection
+
+    from gyrosim.telemetry.plot import StateSeries, _attitude_series, _panel
+
+    t = np.arange(201) * 0.01
+    a = 3.25e-6
+    nut = 1.5707963 + a * (np.cos(2 * np.pi * 25.0 * t + 0.3) - 1.0)
+    s = StateSeries("/gyrosim/gyroscope/gyro/state", t=t)
+    fig, ax = plt.subplots()
+    try:
+        assert _panel(ax, {s.topic: s}, {s.topic: nut}, "theta", "rad", lambda k: "gyro") is True
+        [band] = [c for c in ax.collections if isinstance(c, PolyCollection)]
+        y = band.get_paths()[0].vertices[:, 1]
+        assert y.max() - y.min() == pytest.approx(2 * a, rel=0.02)  # the true peaks, not the samples'
+        [mid] = ax.get_lines()
+        assert np.ptp(mid.get_ydata()) < 0.05 * a  # its middle: no beat
+    finally:
+        plt.close(fig)
+    hub = StateSeries("/gyrosim/spacecraft/hub/state", t=t, parent="world", joint_type="free_rotation")
+    wheel = StateSeries("/gyrosim/spacecraft/wheel_x/state", t=t, parent="hub", joint_type="hinge")
+    assert list(_attitude_series({hub.topic: hub, wheel.topic: wheel})) == [hub.topic]
+    assert list(_attitude_series({wheel.topic: wheel})) == [wheel.topic]  # hinges only: all kept

@@ -137,18 +137,43 @@ def _barely_moves(values: list[np.ndarray]) -> bool:
     return any(np.isfinite(y).sum() >= 2 for y in values)
 
 
-def _panel(ax, series: dict, values: dict, name: str, unit: str, label) -> None:
-    """Plot one quantity of every series on ``ax``: plain values, or deviations from the initial value."""
+#: The axes' width in pixel columns at the figures' size and dpi, about (what a band is computed for).
+_COLUMNS = 720
+
+
+def _colors(topics) -> dict:
+    """A colour per body, the same in every panel and distinct within one: tab10, tab20 beyond ten bodies."""
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10" if len(topics) <= 10 else "tab20"]
+    return {t: cmap(i % cmap.N) for i, t in enumerate(topics)}
+
+
+def _panel(ax, series: dict, values: dict, name: str, unit: str, label) -> bool:
+    """Plot one quantity of every series on ``ax``: plain values, or deviations from the initial value. A fast
+    signal (the gyroscope's nutation, a wheel's spin angle) is drawn as its min/max band over the band-limited
+    signal (:func:`gyrosim.telemetry.series.draw_series`, as ``gyrosim simulate --show-plot``), the slow ones as
+    lines on top. Returns whether a band was drawn."""
     from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
+    from .series import draw_series, is_fast
+
     deviation = _barely_moves(list(values.values()))
-    firsts = []
+    colors = _colors(list(series))
+    firsts, drawn = [], []
     for topic, y in values.items():
-        t = series[topic].t
         finite = np.isfinite(y)
         y0 = y[finite][0] if finite.any() else np.nan
-        ax.plot(t, y - y0 if deviation else y, label=label(topic), **_style(len(t)))
         firsts.append((label(topic), y0))
+        drawn.append((topic, y - y0 if deviation else y))
+    banded = False
+    drawn.sort(key=lambda d: not (len(d[1]) > 60 and is_fast(d[1], _COLUMNS)))  # bands below the lines
+    for topic, y in drawn:
+        t = series[topic].t
+        if len(t) > 60 and np.isfinite(y).all():
+            banded |= draw_series(ax, t, y, label(topic), _COLUMNS, colors[topic])
+        else:  # a few points (markers), or gaps: the samples as they are
+            ax.plot(t, y, label=label(topic), color=colors[topic], **_style(len(t)))
     u = f" / {unit}" if unit else ""
     if deviation:
         ax.set_ylabel(f"{name} − {name}(0){u}")
@@ -163,6 +188,14 @@ def _panel(ax, series: dict, values: dict, name: str, unit: str, label) -> None:
     ax.yaxis.set_major_locator(MaxNLocator(nbins=5))
     ax.xaxis.set_major_locator(MaxNLocator(nbins=8))
     ax.grid(True, alpha=0.3)
+    return banded
+
+
+def _attitude_series(series: dict) -> dict:
+    """The bodies the attitude figure draws: a hinge body's attitude is its angle (the joints figure), and beside
+    other bodies its world ZYZ angles (a wheel's theta sweeping 0..pi at its spin) would only cover theirs; a scene
+    of hinges only keeps them all."""
+    return {k: s for k, s in series.items() if s.joint_type != "hinge"} or series
 
 
 def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
@@ -211,11 +244,13 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     def figure(rows: int, title: str, panels, label=label):
         """``panels``: (name, unit, {topic: values}) per row; one legend above the panels."""
         fig, axes = plt.subplots(rows, 1, sharex=True, figsize=(8.5, 2.3 * rows + 1.0), layout="constrained")
+        banded = False
         for ax, (name, unit, values) in zip(np.atleast_1d(axes), panels):
-            _panel(ax, series, values, name, unit, label)
+            banded |= _panel(ax, series, values, name, unit, label)
         axes = np.atleast_1d(axes)
         axes[-1].set_xlabel("simulation time t / s")
-        fig.suptitle(title)
+        fig.suptitle(title + ("\n(band): a fast signal, shaded from its min to its max, the line its middle"
+                              if banded else ""), fontsize="medium")
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside lower center", ncols=min(6, len(labels)), fontsize="small",
                    frameon=False, title=None if len(labels) > 1 else "body")
@@ -223,8 +258,11 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
 
     figures = []
     names = (("phi", "precession"), ("theta", "nutation"), ("psi", "spin"))
-    figures.append(("attitude", figure(3, "attitude (ZYZ Euler angles)", [
-        (f"{n}", "rad", {k: s.euler[:, i] for k, s in series.items()}) for i, (n, _) in enumerate(names)])))
+    attitude = _attitude_series(series)
+    title = "attitude (ZYZ Euler angles)" + (" of the bodies not on hinges (hinges: the joints figure)"
+                                             if len(attitude) < len(series) else "")
+    figures.append(("attitude", figure(3, title, [
+        (f"{n}", "rad", {k: s.euler[:, i] for k, s in attitude.items()}) for i, (n, _) in enumerate(names)])))
     figures.append(("rates", figure(3, "body-frame angular velocity", [
         (f"omega_{c}", "rad/s", {k: s.omega[:, i] for k, s in series.items()}) for i, c in enumerate("xyz")])))
     # energy and L of a tree scene are the whole tree's: every body carries them, draw them once per scene
@@ -254,15 +292,20 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     hinges = {k: s for k, s in series.items() if "angle" in s.joint and "rate" in s.joint}
     if hinges:  # one row per hinge, angle and rate side by side: each on its own scale
         n = len(hinges)
-        fig, axes = plt.subplots(n, 2, sharex=True, squeeze=False, figsize=(10.0, 1.9 * n + 1.0),
+        fig, axes = plt.subplots(n, 2, sharex=True, squeeze=False, figsize=(11.0, 2.1 * n + 1.0),
                                  layout="constrained")
+        banded = False
         for row, (k, s) in zip(axes, hinges.items()):
-            body = label(k)
-            _panel(row[0], series, {k: s.joint["angle"]}, f"{body}.angle", "rad", label)
-            _panel(row[1], series, {k: s.joint["rate"]}, f"{body}.rate", "rad/s", label)
+            body = label(k)  # the body on the right of each panel; the axes say the quantity (labels stay short)
+            banded |= _panel(row[0], series, {k: s.joint["angle"]}, "angle", "rad", label)
+            banded |= _panel(row[1], series, {k: s.joint["rate"]}, "rate", "rad/s", label)
+            for ax in row:
+                ax.set_title(body, loc="right", fontsize="small", fontweight="bold")
         for ax in axes[-1]:
             ax.set_xlabel("simulation time t / s")
-        fig.suptitle("hinge joints: angle and rate relative to the parent body")
+        fig.suptitle("hinge joints: angle and rate relative to the parent body" + (
+            "\n(band): a fast signal, shaded from its min to its max, the line its middle" if banded else ""),
+            fontsize="medium")
         figures.append(("joints", fig))
 
     paths = []
