@@ -430,3 +430,31 @@ def test_a_bad_input_file_is_one_line_and_nothing_is_written(tmp_path, capsys, t
     err = capsys.readouterr().err
     assert msg in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert out.read_text() == "finished\n"
+
+
+def test_show_plot_puts_the_orbit_apart_with_distinct_colours(tmp_path, monkeypatch):
+    """satellite_wheels drew 15 stacked panels (six of them the orbit's position and velocity, one a panel each)
+    with colours repeating in the attitude panel: the orbit is a figure of its own (anomaly, position, velocity),
+    the hinge bodies' q_orbit stay out (their angles say it), and no two lines of a panel share a colour."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from gyrosim import cli
+
+    figs = []
+    real = cli.show_plot
+    monkeypatch.setattr(cli, "show_plot", lambda *a, **k: figs.append(real(*a, quiet=True)))
+    out = tmp_path / "sat.csv"
+    assert main(["simulate", "satellite_wheels", "--stop-time", "600", "--output-interval", "10", "-o", str(out),
+                 "--show-plot", "-q"]) == 0
+    assert (tmp_path / "sat.png").is_file() and (tmp_path / "sat_orbit.png").is_file()
+    (fig,) = figs
+    axes = fig.get_axes()
+    labels = [a.get_ylabel() for a in axes]
+    assert len(axes) <= 9 and not any("orbit_r" in lab or "orbit_v" in lab or "orbit " in lab for lab in labels)
+    drawn = [line.get_label() for a in axes for line in a.lines]
+    assert not any(d.startswith("wheel_") and "q_orbit" in d for d in drawn)
+    for a in axes:
+        colours = [tuple(line.get_color()) if not isinstance(line.get_color(), str) else line.get_color()
+                   for line in a.lines]
+        assert len(set(colours)) == len(colours), a.get_ylabel()

@@ -224,6 +224,9 @@ _QUANTITIES = (
     ("velocity", lambda b: b in ("v_x", "v_y", "v_z")),
     ("momentum", lambda b: b.startswith("L_")),
     ("energy", lambda b: b in ("energy", "energy_error")),
+    ("orbit anomaly", lambda b: b == "orbit_anomaly"),
+    ("orbit position", lambda b: b.startswith("orbit_r_")),
+    ("orbit velocity", lambda b: b.startswith("orbit_v_")),
 )
 #: Series in one panel span at most this ratio of magnitudes; a smaller one gets a panel of its own (energy_error
 #: beside energy, a nutation angle beside the spin angle), at most :data:`_MAX_SPLIT` panels per quantity.
@@ -265,6 +268,8 @@ def _panels(result, names):
         body, _, bare = name.rpartition(".")
         if bare.startswith("q_world_") and body in bodies_with_joint_attitude:
             continue  # a tree body's world attitude where its joint's angle or quaternion says it
+        if bare.startswith("q_orbit_") and f"{body}.angle" in names:
+            continue  # a hinge body's attitude in the orbit frame: its angle says how it turns on its parent
         groups.setdefault(_quantity(bare), []).append(name)
     order = [q for q, _ in _QUANTITIES]
     panels = []
@@ -317,19 +322,48 @@ def show_plot(result, run, csv_path: Path, *, quiet: bool = False):
     whose series differ in size by more than 30 times is split (energy_error gets its own panel); tick labels carry
     no offset, and a constant is a flat line. A fast signal (fewer than 8 samples or 4 pixel columns an oscillation:
     a 200 rad/s spin sampled at 100 Hz) is drawn as its min/max envelope with its mean, never as aliased samples.
+    Colours are distinct within a panel. An orbit's anomaly, position and velocity are a figure of their own
+    (``<stem>_orbit.png``), apart from the bodies' motion.
 
-    Opens a window; with a non-interactive matplotlib backend (no display) the figure is saved next to the CSV as a
-    PNG instead (written beside it and renamed into place). Returns the figure."""
+    Opens a window per figure; with a non-interactive matplotlib backend (no display) each figure is saved next to
+    the CSV as a PNG instead (written beside it and renamed into place). Returns the bodies' figure."""
     import matplotlib
     import matplotlib.pyplot as plt
 
     from ._atomic import atomic_path
-    from .telemetry.series import draw_series
 
     width, dpi = 10.0, 100
     columns = int(width * dpi * 0.72)  # the axes' width in pixels, about
     names, hidden = _readable(result, run.names, columns)
     panels = _panels(result, names)
+    orbit = [p for p in panels if p[0].startswith("orbit ")]
+    body = [p for p in panels if not p[0].startswith("orbit ")] or orbit
+    figures = [(csv_path.with_suffix(".png"), _figure(result, run, body, hidden, width, dpi, columns))]
+    if orbit and body is not orbit:
+        figures.append((csv_path.with_name(f"{csv_path.stem}_orbit.png"),
+                        _figure(result, run, orbit, [], width, dpi, columns, what="the orbit")))
+    if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
+        for png, fig in figures:
+            with atomic_path(png) as tmp:
+                fig.savefig(tmp, dpi=100, format="png")
+        if not quiet:
+            saved = " and ".join(str(png) for png, _ in figures)
+            print(f"no interactive display (matplotlib backend {matplotlib.get_backend()}): plot saved to {saved}",
+                  file=sys.stderr)
+    else:  # pragma: no cover - needs a display
+        plt.show()
+    return figures[0][1]
+
+
+def _figure(result, run, panels, hidden, width, dpi, columns, what: str = ""):
+    """One figure of ``panels`` (``_panels``' groups), a panel a row; its title names the run and the notes."""
+    import textwrap
+
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    from .telemetry.series import draw_series
+
     n = len(panels)
     fig, axes = plt.subplots(n, 1, sharex=True, figsize=(width, 1.2 + 1.9 * n), squeeze=False, dpi=dpi,
                              layout="constrained")
@@ -338,16 +372,17 @@ def show_plot(result, run, csv_path: Path, *, quiet: bool = False):
     for ax, (quantity, names) in zip(axes[:, 0], panels):
         cut = cut or len(names) > _MAX_LINES
         names = names[:_MAX_LINES]
+        cmap = matplotlib.colormaps["tab10" if len(names) <= 10 else "tab20"]
         units = []
         for k, name in enumerate(names):
             var = run.model.variables.get(name) or run.model.variables.get(name.rsplit(".", 1)[-1])
             unit = getattr(var, "unit", "") or "1"
             if unit not in units:
                 units.append(unit)
-            enveloped |= draw_series(ax, t, result[name], name, columns, f"C{k % 10}")
+            enveloped |= draw_series(ax, t, result[name], name, columns, cmap(k % cmap.N))
         _set_limits(ax, [result[name] for name in names])
-        what = names[0].rpartition(".")[2] if len({m.rpartition(".")[2] for m in names}) == 1 else quantity
-        ax.set_ylabel(f"{what} [{', '.join(units)}]")
+        label = names[0].rpartition(".")[2] if len({m.rpartition(".")[2] for m in names}) == 1 else quantity
+        ax.set_ylabel(f"{label} [{', '.join(units)}]")
         ax.grid(True, lw=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False)
     axes[-1, 0].set_xlabel("time [s]")
@@ -358,21 +393,10 @@ def show_plot(result, run, csv_path: Path, *, quiet: bool = False):
         notes.append("(band): a fast signal, shaded from its min to its max, the line its middle")
     if cut:
         notes.append(f"the first {_MAX_LINES} series of a quantity")
-    import textwrap
-
-    lines = [f"gyrosim simulate {run.scene.name} ({run.model.integrator})"]
+    lines = [f"gyrosim simulate {run.scene.name} ({run.model.integrator})" + (f": {what}" if what else "")]
     for note in notes:
         lines += textwrap.wrap(note, 110)
     fig.suptitle("\n".join(lines), fontsize="medium")
-    if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
-        png = csv_path.with_suffix(".png")
-        with atomic_path(png) as tmp:
-            fig.savefig(tmp, dpi=100, format="png")
-        if not quiet:
-            print(f"no interactive display (matplotlib backend {matplotlib.get_backend()}): plot saved to {png}",
-                  file=sys.stderr)
-    else:  # pragma: no cover - needs a display
-        plt.show()
     return fig
 
 
