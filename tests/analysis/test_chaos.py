@@ -232,3 +232,21 @@ def test_sweep_lyapunov_column_separates_chaos(tmp_path):
     low, high = lam[e < -20.0], lam[e > 0.0]  # E from -29.4 J (hanging) to +29.4 J (inverted)
     assert low.size and high.size
     assert np.max(low) < 0.4 < 0.8 < np.median(high)
+
+
+def test_section_plot_has_a_colour_bar_and_no_offset_axis(tmp_path):
+    """The gimbal's section of a regular motion lies within 1e-8 of inner.angle = 1 rad: drawn as the deviation
+    from its first value (named in the label), never as a '1e-8+1' offset axis; the colour (time) has its bar."""
+    from gyrosim.analysis.chaos import PoincareSection, plot_chaos
+
+    t = np.linspace(0.0, 5.0, 50)
+    pts = np.column_stack([1.0 + 1e-9 * t, 2e-7 * t])
+    s = PoincareSection("inner.rate", 0.0, 1, ["inner.angle", "outer.rate"], t, pts, ["rad", "rad/s"], False,
+                        "gimbal_gyroscope", 5.0, "rk4")
+    fig = plot_chaos(tmp_path / "s.png", section=s)
+    ax, bar = fig.get_axes()
+    assert bar.get_ylabel() == "time of the crossing [s]"
+    assert ax.get_xlabel() == "inner.angle - 1 [rad]" and ax.get_ylabel() == "outer.rate [rad/s]"
+    fig.canvas.draw()
+    assert "+" not in ax.xaxis.get_offset_text().get_text()
+    assert (tmp_path / "s.png").stat().st_size > 10_000

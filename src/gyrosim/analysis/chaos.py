@@ -789,6 +789,18 @@ def _refine(model: Model, S: np.ndarray, C: np.ndarray, target: np.ndarray, dirs
 
 
 # ------------------------------------------------------------------------------------------------ the plot
+def _readable_axis(v: np.ndarray, name: str, unit: str) -> tuple[np.ndarray, str]:
+    """Values and label for an axis: a quantity that barely moves against its size (the gimbal's inner angle at
+    1 rad +- 1e-9 in a regular motion) as its deviation from its first value, named in the label, never as an
+    offset-only axis (``1e-9+1``)."""
+    u = unit or "1"
+    finite = v[np.isfinite(v)]
+    if finite.size >= 2 and np.ptp(finite) < 1e-3 * np.max(np.abs(finite)):
+        v0 = float(finite[0])
+        return v - v0, f"{name} - {v0:.10g} [{u}]"
+    return v, f"{name} [{u}]"
+
+
 def plot_chaos(path, lyap: LyapunovResult | None = None, section: PoincareSection | None = None,
                title: str | None = None):
     """A PNG of the exponent's running estimate (left: log time, with ``ln(t)/t`` for reference, the growth of a
@@ -831,15 +843,22 @@ def plot_chaos(path, lyap: LyapunovResult | None = None, section: PoincareSectio
         ax = axes[0, k]
         p = section.points
         if p.shape[1] >= 2:
-            ax.scatter(p[:, 0], p[:, 1], s=5.0, c=section.times, cmap="viridis", lw=0)
-            ax.set_xlabel(f"{section.names[0]} [{section.units[0] or '1'}]")
-            ax.set_ylabel(f"{section.names[1]} [{section.units[1] or '1'}]")
+            x, xlabel = _readable_axis(p[:, 0], section.names[0], section.units[0])
+            y, ylabel = _readable_axis(p[:, 1], section.names[1], section.units[1])
+            dots = ax.scatter(x, y, s=5.0, c=section.times, cmap="viridis", lw=0)
+            fig.colorbar(dots, ax=ax, label="time of the crossing [s]", pad=0.01)
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
+            colour = " (colour: time)"
         else:
-            ax.plot(section.times, p[:, 0], ".", ms=2.0)
+            y, ylabel = _readable_axis(p[:, 0], section.names[0], section.units[0])
+            ax.plot(section.times, y, ".", ms=2.0)
             ax.set_xlabel("time [s]")
-            ax.set_ylabel(f"{section.names[0]} [{section.units[0] or '1'}]")
-        ax.set_title(f"Poincare section: {section.text}\n{len(section)} crossings (colour: time)",
-                     fontsize="medium")
+            ax.set_ylabel(ylabel)
+            colour = ""
+        for a in (ax.xaxis, ax.yaxis):
+            a.get_major_formatter().set_useOffset(False)
+        ax.set_title(f"Poincare section: {section.text}\n{len(section)} crossings{colour}", fontsize="medium")
         ax.grid(True, lw=0.3)
         if not len(section):
             ax.text(0.5, 0.5, "no crossings", transform=ax.transAxes, ha="center", va="center")
