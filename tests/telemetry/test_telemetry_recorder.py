@@ -146,6 +146,64 @@ def test_cli_reports_an_unwritable_path_in_one_line_without_traceback(tmp_path):
     assert "cannot create recording" in p.stderr and "does not exist" in p.stderr
 
 
+def test_keep_until_message_leaves_an_existing_file_when_nothing_is_recorded(tmp_path):
+    """gyrosim record and serve --record: a recording is never replaced by nothing (issue 36)."""
+    path = tmp_path / "keep.mcap"
+    path.write_bytes(b"an earlier recording")
+    with Recorder(path, metadata=metadata_record(scene="test"), keep_until_message=True) as rec:
+        assert path.read_bytes() == b"an earlier recording"  # written beside it meanwhile
+        assert len(list(tmp_path.iterdir())) == 2
+    assert rec.summary.discarded and rec.summary.messages == 0 and "nothing recorded" in rec.summary.format()
+    with pytest.raises(KeyError):  # an error before the first message: the same
+        with Recorder(path, keep_until_message=True):
+            raise KeyError("boom")
+    assert path.read_bytes() == b"an earlier recording" and sorted(os.listdir(tmp_path)) == ["keep.mcap"]
+
+
+def test_keep_until_message_takes_the_name_at_the_first_message_on_disk(tmp_path):
+    """The first message is flushed before the file takes the name, so a kill from then on leaves a recording with
+    it; the replaced file's mode is kept, and a symlink is followed (the link stays a link)."""
+    target, link = tmp_path / "run.mcap", tmp_path / "link.mcap"
+    target.write_bytes(b"an earlier recording")
+    target.chmod(0o640)
+    link.symlink_to(target.name)
+    rec = Recorder(link, metadata=metadata_record(scene="test"), keep_until_message=True)
+    rec.write_sample(f"{KEY}/state", msg.STATE_ENCODING, _state_payload(0))
+    info = mcap_info(target)  # not finished, but the message is there under the name
+    assert not info.complete and info.messages == 1
+    for i in range(1, 10):
+        rec.write_sample(f"{KEY}/state", msg.STATE_ENCODING, _state_payload(i))
+    summary = rec.close()
+    assert not summary.discarded and summary.messages == 10 and summary.bytes_written == target.stat().st_size
+    assert mcap_info(target).complete and mcap_info(target).messages == 10
+    assert link.is_symlink() and target.stat().st_mode & 0o777 == 0o640
+    assert sorted(os.listdir(tmp_path)) == ["link.mcap", "run.mcap"]
+
+
+def test_a_fifo_is_recorded_into_in_place(tmp_path):
+    """A FIFO cannot seek: the recorder counts the bytes itself, and the reader gets a finished recording."""
+    import threading
+
+    fifo = tmp_path / "pipe.mcap"
+    os.mkfifo(fifo)
+    got = {}
+
+    def drain():
+        with open(fifo, "rb") as f:
+            got["data"] = f.read()
+
+    t = threading.Thread(target=drain, daemon=True)
+    t.start()
+    with Recorder(fifo, keep_until_message=True) as rec:
+        for i in range(5):
+            rec.write_sample(f"{KEY}/state", msg.STATE_ENCODING, _state_payload(i))
+    t.join(10)
+    import io
+
+    assert len(list(make_reader(io.BytesIO(got["data"])).iter_messages())) == 5
+    assert os.path.exists(fifo) and sorted(os.listdir(tmp_path)) == ["pipe.mcap"]
+
+
 def _truncate_copy(src, dst, size):
     with open(src, "rb") as f:
         data = f.read(size)

@@ -34,7 +34,7 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
-from .._atomic import atomic_path
+from .._atomic import atomic_open
 from ..errors import ConfigError
 from ..model import variables_for
 from ..scene import INTEGRATORS, TREE_INTEGRATORS, Scene, load_scene
@@ -750,6 +750,7 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
                 zf.write(root / binary_path(fmi_version, ident, platform), binary_path(fmi_version, ident, platform))
             for f in sorted(src_dir.iterdir()):
                 zf.write(f, f"sources/{f.name}")
-        with atomic_path(fmu_path) as part:  # a finished FMU replaces the old one, or nothing does
-            shutil.copyfile(tmp_fmu, part)
+        # a finished FMU replaces the old one, or nothing does (copied, not copyfile'd: a FIFO is written too)
+        with atomic_open(fmu_path, "wb") as fh, open(tmp_fmu, "rb") as made:
+            shutil.copyfileobj(made, fh)
     return fmu_path

@@ -65,6 +65,10 @@ def cmd_build(args) -> int:
             raise PermissionError(13, "Permission denied", str(out))
     except OSError as e:
         raise GyrosimError(_cannot_write(args.output, e)) from None
+    from .._atomic import check_writable
+    from .build import model_identifier
+
+    check_writable(out / f"{model_identifier(args.scene)}.fmu", "--output")  # e.g. a read-only FMU: before the compiler
     try:
         path = build_fmu(args.scene, args.fmi_version, args.output, fmi_type=getattr(args, "fmi_type", "both"))
     except OSError as e:  # a write that fails while the FMU is made (a full disk): a run-time failure

@@ -28,6 +28,7 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
+from .._atomic import atomic_open
 from .build import C_FLAGS, binary_path, content_token, fmi_include_dir, source_files
 
 __all__ = ["build_controller", "pd_gains", "IDENTIFIER", "PARAMETERS", "INPUTS", "OUTPUTS", "controller_variables"]
@@ -186,5 +187,6 @@ def build_controller(output_dir: str | Path, *, cc: str | None = None) -> Path:
             zf.write(so, binary_path(2, IDENTIFIER))
             for f in sorted(src_dir.iterdir()):
                 zf.write(f, f"sources/{f.name}")
-        shutil.copyfile(tmp_fmu, fmu_path)
+        with atomic_open(fmu_path, "wb") as fh, open(tmp_fmu, "rb") as made:  # the one way results are written
+            shutil.copyfileobj(made, fh)
     return fmu_path

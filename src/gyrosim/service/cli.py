@@ -3,8 +3,8 @@
 ``register(subparsers)`` adds the subcommands to the ``gyrosim`` parser; each handler returns an exit code from
 the one mapping every ``gyrosim`` command uses (:func:`gyrosim.errors.exit_code`, through
 :func:`gyrosim.telemetry.cli.run_handler`): 0 fine, 1 a run-time failure (a session that cannot start, a damaged
-recording, nothing to replay), 2 bad configuration or input, 130 interrupted twice, 141 stdout closed. Errors
-are one line on stderr, never a traceback: Zenoh's errors name the endpoint and the flag to change.
+recording, nothing to replay, nothing recorded), 2 bad configuration or input, 130 interrupted twice, 141 stdout
+closed. Errors are one line on stderr, never a traceback: Zenoh's errors name the endpoint and the flag to change.
 ``python -m gyrosim.service.cli`` runs these subcommands and the file tools (``plot``, ``mcap``) stand-alone.
 
 Durations mean the same on every command: ``--duration S`` is simulated seconds (``serve``: simulate S
@@ -95,7 +95,7 @@ def _serve(args: argparse.Namespace) -> int:
         conf = config_from_args(args, role="producer")
         stats = main(conf, args.scene, options=options, parameters=params)
         _summary(args, stats.format())
-        return 0
+        return 1 if stats.record_empty else 0  # main has warned: --record got nothing
 
     _stacks_on_sigusr1()
     return run_handler("gyrosim serve", run, args)
@@ -116,6 +116,8 @@ def _record(args: argparse.Namespace) -> int:
                                 query_params=not args.no_params)
         conf = config_from_args(args, role="consumer")
         summary = main(conf, args.key, args.output, options=options)
+        if not summary.messages:  # main has warned: the key, the endpoints, the file not written
+            return 1
         _summary(args, summary.format())
         return 0
 
@@ -193,8 +195,10 @@ def register(subparsers) -> None:
         "record", help="Record Zenoh keys into an MCAP file",
         description="Subscribe a key expression and write every sample into MCAP with its encoding and "
                     "schema (ROS 2 as ros2msg, JSON as jsonschema) and a metadata record per gyrosim body. "
-                    "Stops cleanly on SIGINT/SIGTERM. Default: a Zenoh peer connecting to "
-                    "tcp/127.0.0.1:7447, where a default `gyrosim serve` listens (no collision).")
+                    "Stops cleanly on SIGINT/SIGTERM. The file takes its name at the first message: a run that "
+                    "receives nothing leaves an existing file as it was, warns (naming the key and the endpoints) "
+                    "and exits 1. Default: a Zenoh peer connecting to tcp/127.0.0.1:7447, where a default "
+                    "`gyrosim serve` listens (no collision).")
     p.add_argument("--key", "-k", default=f"{K.DEFAULT_PREFIX}/**", metavar="EXPR",
                    help="Key expression to record (default gyrosim/**).")
     p.add_argument("--output", "-o", required=True, metavar="FILE.mcap", help="Output file.")

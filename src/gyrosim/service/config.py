@@ -37,6 +37,7 @@ __all__ = [
     "ServiceConnectionError",
     "open_session",
     "zenoh_error",
+    "describe_endpoints",
     "uses_default_endpoints",
     "add_config_arguments",
     "config_from_args",
@@ -188,6 +189,27 @@ def _endpoints(conf, path: str) -> list[str]:
     if isinstance(value, dict):  # per-mode endpoints: {"router": [...], "peer": [...]}
         value = [e for v in value.values() for e in (v or [])]
     return [str(e) for e in value or []]
+
+
+def describe_endpoints(conf) -> str:
+    """``"connecting to tcp/127.0.0.1:7447; listening on ..."``: a session's endpoints for a log line ("" if none).
+    Per-mode endpoints count for the session's mode; a listener on port 0 (any free port) is not named."""
+    try:
+        mode = json.loads(conf.get_json("mode"))
+    except Exception:  # noqa: BLE001 - an unset mode: Zenoh's default
+        mode = "peer"
+    parts = []
+    for verb, path in (("connecting to", "connect/endpoints"), ("listening on", "listen/endpoints")):
+        try:
+            value = json.loads(conf.get_json(path))
+        except Exception:  # noqa: BLE001 - an unset path
+            value = []
+        if isinstance(value, dict):
+            value = value.get(mode) or []
+        found = [str(e) for e in value or [] if not str(e).endswith(":0")]
+        if found:
+            parts.append(f"{verb} {', '.join(found)}")
+    return "; ".join(parts)
 
 
 def zenoh_error(e: Exception, conf=None) -> ZenohSessionError:

@@ -11,6 +11,10 @@ The Zenoh callback only queues samples (``FifoChannel``); this thread writes the
 and footer written) on SIGINT, SIGTERM, ``duration`` (simulated seconds, as everywhere in gyrosim: the span of
 the simulation time the payloads carry), ``wall_duration`` (wall seconds) or ``max_messages``; after a
 SIGKILL at most the last ``flush_interval`` (0.5 s) is lost and ``gyrosim mcap recover`` makes the file valid.
+
+A recording is never replaced by nothing: the file is written beside ``output`` and takes its name at the first
+message. A run that receives none leaves an existing file there as it was, removes what it wrote and logs one
+warning naming the key expression and the endpoints (``gyrosim record`` then exits 1).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from ..errors import ConfigError
 from ..telemetry import messages as msg
 from ..telemetry.recorder import Recorder, RecordingSummary, metadata_record
 from . import keys as K
-from .config import DEFAULT_ENDPOINT, open_session, zenoh_error
+from .config import DEFAULT_ENDPOINT, describe_endpoints, open_session, zenoh_error
 from .serve import install_stop_signals
 
 __all__ = ["RecordOptions", "main"]
@@ -151,6 +155,7 @@ def main(conf, key_expr: str, output, *, options: RecordOptions = RecordOptions(
     Returns
     -------
     RecordingSummary
+        ``messages == 0``: nothing was received (a warning is logged); ``discarded``: ``output`` was not written.
 
     Raises
     ------
@@ -171,30 +176,21 @@ def main(conf, key_expr: str, output, *, options: RecordOptions = RecordOptions(
         try:
             # the session first: a session that fails leaves an existing file of that name as it was
             with open_session(conf, log=log) as session:
+                # written beside `output` until the first message: nothing received replaces nothing
                 with Recorder(output, flush_interval=options.flush_interval, metadata=metadata_record(
-                        key=key_expr, source="gyrosim record")) as rec:
-                    _record(session, rec, key_expr, options, stop, ready, _peers(conf))
+                        key=key_expr, source="gyrosim record"), keep_until_message=True) as rec:
+                    t0 = time.monotonic()
+                    _record(session, rec, key_expr, options, stop, ready, describe_endpoints(conf))
         except zenoh.ZError as e:
             raise zenoh_error(e, conf) from None
+        if rec.summary.messages == 0:
+            peers = describe_endpoints(conf)
+            log.warning("nothing received on key %r%s in %.1f s: %s", key_expr, f" ({peers})" if peers else "",
+                        time.monotonic() - t0, f"{rec.path!r} not written (an existing file of that name is as it "
+                        "was)" if rec.summary.discarded else f"{rec.path!r} holds no message")
         return rec.summary
     finally:
         restore()
-
-
-def _peers(conf) -> str:
-    import json
-
-    try:
-        connect = json.loads(conf.get_json("connect/endpoints"))
-        listen = json.loads(conf.get_json("listen/endpoints"))
-    except Exception:  # noqa: BLE001 - only for a log line
-        return ""
-    parts = []
-    if connect:
-        parts.append(f"connecting to {', '.join(map(str, connect))}")
-    if listen:
-        parts.append(f"listening on {', '.join(map(str, listen))}")
-    return "; ".join(parts)
 
 
 def _record(session, rec: Recorder, key_expr: str, o: RecordOptions, stop: threading.Event, ready,
@@ -260,4 +256,5 @@ def _record(session, rec: Recorder, key_expr: str, o: RecordOptions, stop: threa
             while params.pending and time.monotonic() < deadline:
                 params.poll()
                 time.sleep(0.01)
-    log.info("recorded %d messages", n)
+    if n:  # none: main warns
+        log.info("recorded %d messages", n)

@@ -47,7 +47,7 @@ from dataclasses import asdict, dataclass
 from ..errors import ConfigError, GyrosimError, IntegrationError, StepError
 from ..telemetry import messages as msg
 from . import keys as K
-from .config import open_session, zenoh_error
+from .config import describe_endpoints, open_session, zenoh_error
 from .tree import SCENE_OUTPUTS, TreeFrames
 
 __all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals"]
@@ -130,6 +130,8 @@ class ServeStats:
     max_lag: float = 0.0
     stopped_by: str = ""
     recorded: int = 0
+    #: ``--record`` got no message (the service stopped before it published): the file was not written
+    record_empty: bool = False
 
     def format(self) -> str:
         rate = self.steps / self.wall_time if self.wall_time > 0 else float("nan")
@@ -627,8 +629,8 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
             live = LiveView(*options.foxglove, name=f"gyrosim serve {model.scene.name}",
                             bodies=[K.BodyKeys(model.scene.name, b, options.prefix) for b in model.body_names])
         with open_session(conf, log=log) as session:
-            if options.record:
-                recorder = Recorder(options.record, metadata=record_metadata)
+            if options.record:  # beside the target until the first message: a run that publishes nothing keeps it
+                recorder = Recorder(options.record, metadata=record_metadata, keep_until_message=True)
             service = Service(session, model, options, recorder, live, inputs)
             service.stats = stats
             log.info("serving scene %r (bodies: %s) on %s/%s/... at %g Hz, realtime factor %g",
@@ -650,5 +652,12 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
             live.close()
         if recorder is not None:
             summary = recorder.close()
-            log.info("recording: %s", summary.format().splitlines()[0])
+            if summary.messages:
+                log.info("recording: %s", summary.format().splitlines()[0])
+    if recorder is not None and not summary.messages:
+        stats.record_empty = True
+        peers = describe_endpoints(conf)
+        log.warning("--record: nothing published on %r%s: %s", f"{options.prefix}/{model.scene.name}/**",
+                    f" ({peers})" if peers else "", f"{recorder.path!r} not written (an existing file of that name "
+                    "is as it was)" if summary.discarded else f"{recorder.path!r} holds no message")
     return stats

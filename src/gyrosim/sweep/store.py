@@ -21,10 +21,10 @@ files.
 from __future__ import annotations
 
 import json
-import os
 import re
 from pathlib import Path
 
+from .._atomic import atomic_open, atomic_path
 from ..errors import ConfigError, GyrosimError
 
 __all__ = ["MANIFEST", "chunk_path", "schema", "write_chunk", "present_chunks", "prepare_output", "read_sweep",
@@ -72,13 +72,8 @@ def write_chunk(out: Path, k: int, columns: dict, sch) -> Path:
     pa, pq = require_pyarrow()
     table = pa.Table.from_arrays([pa.array(columns[f.name], type=f.type) for f in sch], schema=sch)
     final = chunk_path(out, k)
-    tmp = final.with_name(f".{final.name}.{os.getpid()}.tmp")
-    try:
+    with atomic_path(final) as tmp:
         pq.write_table(table, tmp, compression="zstd")
-        os.replace(tmp, final)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return final
 
 
@@ -143,9 +138,8 @@ def prepare_output(out: Path, spec, resume: bool) -> set[int]:
                                   "manifest): remove it or choose another folder")
             raise ConfigError("--output", str(out), "a new or empty folder (this one holds other files)")
         out.mkdir(parents=True, exist_ok=True)
-        tmp = out / f".{MANIFEST}.{os.getpid()}.tmp"
-        tmp.write_text(json.dumps(_manifest(spec), indent=1, sort_keys=True))
-        os.replace(tmp, out / MANIFEST)
+        with atomic_open(out / MANIFEST, "w") as fh:
+            fh.write(json.dumps(_manifest(spec), indent=1, sort_keys=True))
         return set()
     if not resume:
         raise ConfigError("--output", str(out), "a new or empty folder: this one holds a sweep already; pass "

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._atomic import atomic_path
 from ..errors import RecordingError
 from . import messages as msg
 from .reading import Scan, iter_messages
@@ -311,15 +312,10 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
     paths = []
     for name, fig in figures:
         out = os.path.join(output_dir, f"{stem}_{name}.png")
-        tmp = os.path.join(output_dir, f".{stem}_{name}.{os.getpid()}.part")
-        try:  # a plot replaces an existing one only once it is written whole
-            fig.savefig(tmp, dpi=dpi, format="png")
-            os.replace(tmp, out)
+        try:  # a plot replaces an existing one only once it is written whole (gyrosim._atomic)
+            with atomic_path(out) as tmp:
+                fig.savefig(tmp, dpi=dpi, format="png")
         except OSError as e:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
             raise RecordingError(f"cannot write plot {out!r}: {e.strerror or e}") from None
         finally:
             plt.close(fig)

@@ -10,6 +10,13 @@ Crash safety: chunks are small (64 KiB) and the open chunk is flushed to the fil
 turns such a file into a valid one. Every I/O failure (bad path, permission, disk full) is raised as
 :class:`gyrosim.errors.RecordingError` with the path and the reason.
 
+A recording is never replaced by nothing: with ``keep_until_message=True`` (``gyrosim record``, ``serve
+--record``) the file is written under a hidden temporary name beside the target (``.NAME.<pid>.tmp``; beside a
+symlink's target) and renamed onto it at the first message, once that message is flushed; closed without one,
+the temporary file is removed and an existing file of that name is left as it was (``summary.discarded``). From
+the first message on, the file is at its own name, and a kill leaves it there as above. A device or FIFO is
+written in place (:mod:`gyrosim._atomic`).
+
 Examples
 --------
 >>> import tempfile, os
@@ -95,6 +102,9 @@ class RecordingSummary:
     first_log_time: int | None = None
     last_log_time: int | None = None
     finished: bool = False
+    #: Nothing was recorded and, as asked (``keep_until_message``), nothing was written at ``path``: an
+    #: existing file there is as it was.
+    discarded: bool = False
 
     @property
     def duration(self) -> float:
@@ -105,6 +115,8 @@ class RecordingSummary:
 
     def format(self) -> str:
         """Human-readable, several lines."""
+        if self.discarded:
+            return f"{self.path}: nothing recorded; not written (an existing file of that name is as it was)"
         lines = [f"{self.path}: {self.messages} messages on {len(self.topics)} channels, "
                  f"{self.duration:.3f} s, {self.bytes_written / 1024:.1f} KiB"
                  + ("" if self.finished else " (not finished)")]
@@ -130,13 +142,35 @@ def _io_error(path: str, e: OSError, doing: str) -> RecordingError:
     return err
 
 
+class _Counted:
+    """A file that cannot seek (a FIFO, a pipe, a terminal), with the ``tell()`` the MCAP writer asks for: the
+    bytes written so far."""
+
+    def __init__(self, f):
+        self._f, self._n = f, 0
+
+    def write(self, data) -> int:
+        n = self._f.write(data)
+        self._n += len(data)
+        return n
+
+    def tell(self) -> int:
+        return self._n
+
+    def flush(self) -> None:
+        self._f.flush()
+
+    def close(self) -> None:
+        self._f.close()
+
+
 class Recorder:
     """Write an MCAP file from Zenoh samples (or any keyed payloads).
 
     Parameters
     ----------
     path : str or os.PathLike
-        Output file; created or truncated.
+        Output file; created or truncated (a symlink's target; a device or FIFO is written in place).
     metadata : dict, optional
         Written at once as the ``gyrosim`` metadata record (values that are not strings are stored as JSON).
         See :func:`metadata_record`.
@@ -146,6 +180,10 @@ class Recorder:
         Largest time between flushes of the open chunk, s (default 0.5). ``0`` flushes after every message.
     compression : {"zstd", "lz4", "none"}
         Chunk compression.
+    keep_until_message : bool
+        Leave an existing file at ``path`` as it is until the first message: write beside it and rename onto it
+        at the first message (flushed first); closed with no message, remove what was written and set
+        ``summary.discarded``. Default False: ``path`` is created or truncated at once.
 
     Raises
     ------
@@ -154,16 +192,27 @@ class Recorder:
     """
 
     def __init__(self, path, *, metadata: dict | None = None, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                 flush_interval: float = DEFAULT_FLUSH_INTERVAL, compression: str = "zstd"):
+                 flush_interval: float = DEFAULT_FLUSH_INTERVAL, compression: str = "zstd",
+                 keep_until_message: bool = False):
         from mcap.writer import CompressionType, Writer
+
+        from .._atomic import Destination
 
         self.path = os.fspath(path)
         self.flush_interval = float(flush_interval)
         comp = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
         if compression not in comp:
             raise RecordingError(f"compression {compression!r} is not one of zstd, lz4, none")
+        #: where the open file is: ``path`` itself, or (keep_until_message) a temporary name until the first message
+        self._dest = None
+        self._at = self.path
         try:
-            self._file: IO[bytes] = open(self.path, "wb")
+            if keep_until_message:
+                self._dest = Destination(self.path)
+                self._at = os.fspath(self._dest.path)
+            self._file: IO[bytes] = open(self._at, "wb")
+            if not self._file.seekable():  # a FIFO or a character device: the writer only needs the position
+                self._file = _Counted(self._file)
         except OSError as e:
             raise _io_error(self.path, e, "create") from None
         # CRCs of every chunk, of the summary and of the whole data section: readers check them all
@@ -185,15 +234,29 @@ class Recorder:
     @staticmethod
     def check_writable(path) -> None:
         """Raise the :class:`RecordingError` that creating ``path`` would raise (its folder missing, it being a
-        folder, no permission), without creating or touching anything: a command checks its output this way
-        before it opens sessions, so an existing recording is replaced only by a run that got going."""
+        folder, no permission, a read-only file), without creating or touching anything: a command checks its
+        output this way before it opens sessions, so an existing recording is replaced only by a run that got
+        going. A symlink is checked as the file it names; a device or FIFO (written in place) needs only to be
+        writable itself."""
+        import stat
+
         path = os.fspath(path)
-        folder = os.path.dirname(os.path.abspath(path))
-        if os.path.isdir(path):
+        real = os.path.realpath(path) if os.path.islink(path) else path
+        folder = os.path.dirname(os.path.abspath(real))
+        try:
+            st = os.stat(real)
+        except OSError:
+            st = None
+        if os.path.isdir(real):
             raise _io_error(path, OSError(errno.EISDIR, "Is a directory"), "create")
+        if st is not None and not stat.S_ISREG(st.st_mode):
+            if not os.access(real, os.W_OK):
+                raise _io_error(path, OSError(errno.EACCES, "Permission denied"), "create")
+            return
         if not os.path.isdir(folder):
             raise _io_error(path, OSError(errno.ENOENT, "No such file or directory"), "create")
-        if not os.access(folder, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
+        if not os.access(folder, os.W_OK) or (st is not None and not (os.access(real, os.W_OK)
+                                                                      and st.st_mode & 0o222)):
             raise _io_error(path, OSError(errno.EACCES, "Permission denied"), "create")
 
     # ----------------------------------------------------------------------------------------- plumbing
@@ -284,7 +347,11 @@ class Recorder:
         if s.first_log_time is None:
             s.first_log_time = log_time_ns
         s.last_log_time = log_time_ns
-        self.maybe_flush()
+        if self._dest is not None and not self._dest.committed:
+            self.flush()  # the first message on disk, then the file takes its name: never replaced by nothing
+            self._guard(self._commit, "write")
+        else:
+            self.maybe_flush()
 
     def write_sample(self, key: str, encoding: str, payload: bytes, *, log_time_ns: int | None = None,
                      publish_time_ns: int | None = None, sequence: int | None = None) -> None:
@@ -316,13 +383,29 @@ class Recorder:
         self._guard(self._writer.flush)
         self._last_flush = time.monotonic()
 
+    def _commit(self) -> None:
+        self._dest.commit()
+        self._at = os.fspath(self._dest.real)
+
     @property
     def closed(self) -> bool:
         return self._closed
 
     def close(self) -> RecordingSummary:
-        """Finish the file (summary, indexes, footer) and close it; idempotent. Returns the summary."""
+        """Finish the file (summary, indexes, footer) and close it; idempotent. Returns the summary.
+
+        With ``keep_until_message`` and no message written, the file is removed instead and
+        ``summary.discarded`` set: an existing file at ``path`` is as it was."""
         if self._closed:
+            return self.summary
+        if self._dest is not None and not self._dest.committed and not self._dest.in_place:
+            self._closed = True
+            try:
+                self._file.close()
+            except OSError:
+                pass  # what it holds is removed anyway
+            self._dest.discard()
+            self.summary.discarded = True
             return self.summary
         try:
             if not self._failed:
@@ -337,7 +420,7 @@ class Recorder:
                     self._failed = True
                     raise _io_error(self.path, e, "close") from None
             try:
-                self.summary.bytes_written = os.path.getsize(self.path)
+                self.summary.bytes_written = os.path.getsize(self._at)
             except OSError:
                 pass
         return self.summary

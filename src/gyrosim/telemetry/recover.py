@@ -4,8 +4,9 @@ finishing) or damaged (flipped bytes, a hole, garbage around it).
 Every record that checks out (schemas, channels, metadata, and every message of every chunk whose CRC matches;
 see :mod:`gyrosim.telemetry.reading`) is copied in order into a new, finished file with summary, indexes and
 CRCs; every chunk that does not is dropped and named in the report, with the messages lost against the source's
-Statistics record when it has an intact one. The output is written to a temporary file beside it and renamed
-into place when finished, so an existing file of that name is replaced only by a complete recovery. The MCAP
+Statistics record when it has an intact one. The output is written to a temporary file beside it (beside a
+symlink's target) and renamed into place when finished, so an existing file of that name is replaced only by a
+complete recovery; a device or FIFO is written in place (:mod:`gyrosim._atomic`). The MCAP
 command line tool is not on PyPI; this is the equivalent of its ``mcap recover``.
 
 Examples
@@ -27,6 +28,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 
+from .._atomic import atomic_path
 from ..errors import RecordingError
 from .reading import Scan, check_mcap, scan_records
 from .recorder import Recorder
@@ -99,13 +101,12 @@ def recover(source, output) -> RecoverReport:
     check_mcap(source)
     if os.path.exists(output) and os.path.samefile(source, output):
         raise RecordingError(f"output {output!r} is the input file; choose another path")
-    tmp = os.path.join(os.path.dirname(os.path.abspath(output)), f".{os.path.basename(output)}.{os.getpid()}.part")
     scan = Scan(source)
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}
     n_msg = n_meta = 0
-    try:
-        with Recorder(tmp, flush_interval=5.0) as rec:
+    try:  # written beside `output` (or into it, a device or FIFO) and renamed into place: see gyrosim._atomic
+        with atomic_path(output) as tmp, Recorder(tmp, flush_interval=5.0) as rec:
             for record in scan_records(source, scan):
                 if isinstance(record, Schema):
                     schema_ids[record.id] = rec.add_schema(record.name, record.encoding, record.data)
@@ -124,16 +125,10 @@ def recover(source, output) -> RecoverReport:
                 elif isinstance(record, Metadata):
                     rec.add_metadata(record.name, dict(record.metadata))
                     n_meta += 1
-        try:
-            os.replace(tmp, output)
-        except OSError as e:
-            raise RecordingError(f"cannot write recording {output!r}: {e.strerror or e}") from None
     except RecordingError as e:
-        _remove(tmp)
-        raise RecordingError(str(e).replace(repr(tmp), repr(output))) from None
-    except BaseException:
-        _remove(tmp)
-        raise
+        raise RecordingError(str(e).replace(repr(os.fspath(tmp)), repr(output))) from None
+    except OSError as e:  # the rename, or a read-only output
+        raise RecordingError(f"cannot write recording {output!r}: {e.strerror or e}") from None
     dropped = [c.describe() for c in scan.damaged_chunks] + [g.describe() for g in scan.gaps]
     if scan.orphans:
         dropped.append(f"{scan.orphans} messages on channels whose Channel record was lost")
@@ -141,10 +136,3 @@ def recover(source, output) -> RecoverReport:
     return RecoverReport(source, output, n_msg, len(channel_ids), len(schema_ids), n_meta, scan.complete,
                          scan.error, dropped=dropped, problems=problems, expected=scan.expected_messages,
                          lost=scan.lost, finished_input=scan.finished)
-
-
-def _remove(path: str) -> None:
-    try:
-        os.unlink(path)
-    except OSError:
-        pass
