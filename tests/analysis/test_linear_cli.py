@@ -54,3 +54,22 @@ def test_user_errors_exit_2_without_traceback(tmp_path):
         assert r.returncode == 2, (args, r.stderr)
         assert want in r.stderr and "Traceback" not in r.stderr
     assert keep.read_bytes() == b"old"
+
+
+def test_modes_png_clips_no_label(tmp_path):
+    """Every axis label and title of modes.png lies inside the figure (the right panel's x label was cut)."""
+    from gyrosim.analysis.linear_cli import plot_modes
+    from gyrosim.model import Model
+
+    lin = Model("double_pendulum").linearize(about="equilibrium")
+    fig = plot_modes(lin, tmp_path / "modes.png", title="double_pendulum")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    r = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(r)
+    box = fig.bbox
+    for ax in fig.get_axes():
+        for text in (ax.xaxis.label, ax.yaxis.label, ax.title):
+            if text.get_text():
+                e = text.get_window_extent(r)
+                assert box.x0 - 1 <= e.x0 and e.x1 <= box.x1 + 1 and box.y0 - 1 <= e.y0, text.get_text()

@@ -64,3 +64,10 @@ def test_every_plot_axis_names_its_unit(tmp_path, monkeypatch):
     import matplotlib.pyplot as plt
 
     plt.close.real("all")
+
+
+def test_the_lyapunov_column_has_its_unit():
+    """A chaos sweep's lyapunov column (the largest exponent) is in 1/s: its axis says so."""
+    from gyrosim.sweep.plot import _label
+
+    assert _label("lyapunov", {}) == "lyapunov [1/s]"

@@ -126,8 +126,9 @@ def displacements(shape: dict) -> list:
     return [n for n in shape if not n.rpartition(".")[2].startswith(rates)]
 
 
-def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4) -> None:
-    """Eigenvalues in the complex plane and the oscillating modes' shapes (real parts, largest component 1)."""
+def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4):
+    """Eigenvalues in the complex plane and the oscillating modes' shapes (real parts, largest component 1);
+    returns the figure (closed)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -138,7 +139,7 @@ def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4) -> None:
 
     osc = lin.oscillations()[:max_modes]
     n = max(1, len(osc))
-    fig, axes = plt.subplots(1, 1 + n, figsize=(4.2 * (1 + n), 4.0), squeeze=False)
+    fig, axes = plt.subplots(1, 1 + n, figsize=(4.2 * (1 + n), 4.0), squeeze=False, layout="constrained")
     ax = axes[0, 0]
     ev = np.linalg.eigvals(lin.A)
     ax.axvline(0, color="0.6", lw=0.8)
@@ -166,14 +167,14 @@ def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4) -> None:
         a.axvline(0, color="0.6", lw=0.8)
         per = f", period {mode.period:.4g} s" if math.isfinite(mode.period) else ""
         a.set_title(f"mode {k + 1}: {mode.frequency:.5g} rad/s{per}", fontsize=9)
-        a.set_xlabel("shape (displacements, largest 1; orange: size, at the phase shown)", fontsize=8)
+        a.set_xlabel("shape: displacements, the largest 1\n(orange: the size, at the phase shown)", fontsize=8)
         a.tick_params(axis="y", labelsize=8)
         a.invert_yaxis()
     if not osc:
         axes[0, 1].set_axis_off()
         axes[0, 1].text(0.5, 0.5, "no oscillating mode", ha="center", va="center")
     fig.suptitle(title)
-    fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
+    return fig

@@ -29,7 +29,8 @@ SUMMARY = ("max_energy_drift", "max_L_drift")
 
 #: Units of the columns that are not variables of the scene.
 _SWEEP_UNITS = {"max_energy_drift": "relative", "max_L_drift": "relative", "blew_up_time": "s", "blew_up": "",
-                "sample": "", "integrator": "", "max_step": "s", "max_drift": "1", "tolerance": "1"}
+                "sample": "", "integrator": "", "max_step": "s", "max_drift": "1", "tolerance": "1",
+                "lyapunov": "1/s"}  # the largest Lyapunov exponent (gyrosim.analysis.chaos)
 #: Units of the variables by their bare name (``rotor.rate`` -> ``rate``), where the scene cannot be loaded again.
 _BARE_UNITS = {"q_w": "1", "q_x": "1", "q_y": "1", "q_z": "1", "omega_x": "rad/s", "omega_y": "rad/s",
                "omega_z": "rad/s", "phi": "rad", "theta": "rad", "psi": "rad", "L_x": "kg.m2/s", "L_y": "kg.m2/s",
