@@ -72,6 +72,25 @@ def _summary(args, text: str) -> None:
         print(text)
 
 
+def _ros_domain(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a ROS domain id: an integer from 0 to 232") from None
+    if not 0 <= v <= 232:
+        raise argparse.ArgumentTypeError(f"{v} is not a ROS domain id: an integer from 0 to 232")
+    return v
+
+
+def _ros_arguments(p, help_domain: str) -> None:
+    from .ros2 import DISTROS
+
+    p.add_argument("--ros-domain", type=_ros_domain, metavar="N", help=help_domain)
+    p.add_argument("--ros-distro", choices=DISTROS, default="jazzy",
+                   help="rmw_zenoh's wire protocol (default jazzy: also kilted and rolling; humble: no type "
+                        "hashes).")
+
+
 # ------------------------------------------------------------------------------------------------- serve
 def _serve(args: argparse.Namespace) -> int:
     def run():
@@ -91,7 +110,8 @@ def _serve(args: argparse.Namespace) -> int:
         options = ServeOptions(rate=args.rate, realtime_factor=args.realtime_factor, duration=args.duration,
                                wall_duration=args.wall_duration, record=args.record, prefix=args.prefix,
                                torque_limit=args.torque_limit, wait_subscribers=args.wait_subscribers,
-                               foxglove=foxglove, input_file=args.input_file)
+                               foxglove=foxglove, input_file=args.input_file, ros_domain=args.ros_domain,
+                               ros_distro=args.ros_distro)
         conf = config_from_args(args, role="producer")
         stats = main(conf, args.scene, options=options, parameters=params)
         _summary(args, stats.format())
@@ -142,7 +162,7 @@ def _replay(args: argparse.Namespace) -> int:
         options = ReplayOptions(speed=args.speed, loop=args.loop, include_torque=args.include_torque,
                                 wait_subscribers=args.wait_subscribers, duration=args.duration,
                                 wall_duration=args.wall_duration, fallback_port=uses_default_endpoints(args),
-                                foxglove=foxglove)
+                                foxglove=foxglove, ros_domain=args.ros_domain, ros_distro=args.ros_distro)
         stats = main(config_from_args(args, role="producer"), args.file, options=options)
         _summary(args, stats.format())
         return 0
@@ -187,6 +207,11 @@ def register(subparsers) -> None:
                    help="Largest accepted |torque component| in N*m (default 100).")
     p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
                    help="Wait up to S wall seconds for a subscriber on every state key before stepping.")
+    _ros_arguments(p, "Also be a ROS 2 node (gyrosim_<scene>) in rmw_zenoh's protocol on this ROS domain "
+                      "(ROS_DOMAIN_ID, 0..232): /tf, /tf_static, /clock, /<scene>/<body>/imu, "
+                      "/<scene>/joint_states; commands from /<scene>/<body>/torque (geometry_msgs/msg/Wrench) and "
+                      "/<scene>/<body>/motor (std_msgs/msg/Float64). Connect to the ROS 2 system's router: "
+                      "-e tcp/HOST:7447 (docs/ros2.md).")
     add_verbosity(p)
     add_config_arguments(p)
     p.set_defaults(func=_serve)
@@ -232,6 +257,9 @@ def register(subparsers) -> None:
                         "connection > Foxglove WebSocket > ws://HOST:PORT.")
     p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
                    help="Wait up to S seconds for a subscriber on every key before starting.")
+    _ros_arguments(p, "Also republish the recorded frames (/tf), IMUs (/<scene>/<body>/imu) and the simulation "
+                      "clock (/clock) into ROS 2's key space in rmw_zenoh's protocol on this ROS domain "
+                      "(docs/ros2.md).")
     add_verbosity(p)
     add_config_arguments(p)
     p.set_defaults(func=_replay)

@@ -58,6 +58,11 @@ class ReplayOptions:
         of the same host instead and say which (the command line's default when no endpoint is given).
     foxglove : (str, int) or None
         Also stream the replayed channels on a Foxglove WebSocket server at (host, port) (port 0: a free one).
+    ros_domain : int or None
+        Also republish the frames, IMUs and the simulation clock into ROS 2's key space on this ROS domain
+        (:class:`gyrosim.service.ros2.Ros2Replay`); None: not.
+    ros_distro : str
+        rmw_zenoh's wire protocol: ``jazzy`` (also Kilted, Rolling) or ``humble``.
     """
 
     speed: float = 1.0
@@ -68,6 +73,8 @@ class ReplayOptions:
     wall_duration: float | None = None
     fallback_port: bool = False
     foxglove: tuple[str, int] | None = None
+    ros_domain: int | None = None
+    ros_distro: str = "jazzy"
 
     def __post_init__(self):
         if not (self.speed >= 0 and self.speed != float("inf")):
@@ -200,6 +207,11 @@ def main(conf, path, *, options: ReplayOptions = ReplayOptions(), stop: threadin
                                                               reliability=zenoh.Reliability.RELIABLE)
             except zenoh.ZError as e:
                 raise zenoh_error(e, conf) from None
+            ros = None
+            if options.ros_domain is not None:
+                from .ros2 import Ros2Replay
+
+                ros = Ros2Replay(session, options.ros_domain, distro=options.ros_distro)
             log.info("replaying %s: %d keys at speed %g%s", path, len(pubs), options.speed,
                      ", looping" if options.loop else "")
             if options.wait_subscribers > 0:
@@ -213,7 +225,7 @@ def main(conf, path, *, options: ReplayOptions = ReplayOptions(), stop: threadin
             wall0 = time.monotonic()
             wall_end = None if options.wall_duration is None else wall0 + options.wall_duration
             while not stop.is_set():
-                _one_pass(path, pubs, channels, options, stop, stats, wall_end, live)
+                _one_pass(path, pubs, channels, options, stop, stats, wall_end, live, ros)
                 stats.passes += 1
                 if not options.loop or (wall_end is not None and time.monotonic() >= wall_end):
                     break
@@ -221,6 +233,8 @@ def main(conf, path, *, options: ReplayOptions = ReplayOptions(), stop: threadin
             time.sleep(0.2)  # let queued messages leave before the session closes
             for p in pubs.values():
                 p.undeclare()
+            if ros is not None:
+                ros.close()
     finally:
         restore()
         if live is not None:
@@ -228,7 +242,7 @@ def main(conf, path, *, options: ReplayOptions = ReplayOptions(), stop: threadin
     return stats
 
 
-def _one_pass(path, pubs, channels, options: ReplayOptions, stop, stats, wall_end, live=None) -> None:
+def _one_pass(path, pubs, channels, options: ReplayOptions, stop, stats, wall_end, live=None, ros=None) -> None:
     speed = options.speed
     t0_log = t0_pub = None
     wall0 = time.monotonic()
@@ -254,3 +268,5 @@ def _one_pass(path, pubs, channels, options: ReplayOptions, stop, stats, wall_en
         stats.messages += 1
         key = channels[channel.id].key
         stats.topics[key] = stats.topics.get(key, 0) + 1
+        if ros is not None:
+            ros.put(key, m.data, m.publish_time)

@@ -48,6 +48,7 @@ from ..errors import ConfigError, GyrosimError, IntegrationError, StepError
 from ..telemetry import messages as msg
 from . import keys as K
 from .config import describe_endpoints, open_session, zenoh_error
+from .ros2 import Frame
 from .tree import SCENE_OUTPUTS, TreeFrames
 
 __all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals"]
@@ -83,6 +84,10 @@ class ServeOptions:
         Also run a Foxglove WebSocket server there (port 0: a free port).
     input_file : str or None
         CSV file of time-varying inputs in FMPy's format (see the module's notes).
+    ros_domain : int or None
+        Also be a ROS 2 node in rmw_zenoh's protocol on this ROS domain (:mod:`gyrosim.service.ros2`); None: not.
+    ros_distro : str
+        rmw_zenoh's wire protocol: ``jazzy`` (also Kilted, Rolling) or ``humble``.
     """
 
     rate: float = 100.0
@@ -96,6 +101,8 @@ class ServeOptions:
     wall_duration: float | None = None
     foxglove: tuple | None = None
     input_file: str | None = None
+    ros_domain: int | None = None
+    ros_distro: str = "jazzy"
 
     def __post_init__(self):
         if not (isinstance(self.rate, (int, float)) and math.isfinite(self.rate) and self.rate > 0):
@@ -295,6 +302,14 @@ class Service:
         if live is not None:
             for k in self.keys:
                 live.add_body(k)
+        self.ros = None
+        if options.ros_domain is not None:
+            from .ros2 import Ros2Bridge
+
+            tree = model.scene.tree or ()
+            self._hinges = [b.name for b in tree if b.joint == "hinge"]
+            self.ros = Ros2Bridge(session, options.ros_domain, self.scene, self.bodies, self._hinges,
+                                  fixed=any(b.joint == "fixed" for b in tree), distro=options.ros_distro)
 
     # --------------------------------------------------------------------------------------------- inputs
     def body_inputs(self, body: int) -> dict[str, float]:
@@ -311,10 +326,10 @@ class Service:
         if n <= 20 or n % 1000 == 0:
             log.warning("%s command on %s rejected (%d so far): %s", kind, key, n, reason)
 
-    def _apply(self, kind: str, i: int, sample) -> None:
-        """Validate one command of ``kind`` (torque, motor) for body ``i``; set the inputs or reject it."""
+    def _apply(self, kind: str, i: int, payload: bytes) -> None:
+        """Validate one command of ``kind`` (torque, motor) for body ``i`` (its JSON payload: from the Zenoh key,
+        or made from a ROS 2 message); set the inputs or reject it."""
         key = self.keys[i].key(kind)
-        payload = sample.payload.to_bytes()
         try:
             if kind == "torque":
                 cmd = msg.parse_torque(payload, self.options.torque_limit)
@@ -355,7 +370,15 @@ class Service:
         for kind, subs in (("torque", self.torque_subs), ("motor", self.motor_subs)):
             for i, sub in subs.items():
                 while (sample := sub.try_recv()) is not None:
-                    self._apply(kind, i, sample)
+                    self._apply(kind, i, sample.payload.to_bytes())
+        if self.ros is not None:  # commands from ROS 2 topics: the same checks
+            while self.ros.commands:
+                kind, i, payload, force = self.ros.commands.popleft()
+                if force is not None and any(f != 0.0 for f in force):
+                    self._reject(self.keys[i].key(kind), f"a Wrench with force {force} N: only its torque is an "
+                                 "input of a body (send force = 0)", kind)
+                    continue
+                self._apply(kind, i, payload)
         for i, q in enumerate(self.queryables):
             while (query := q.try_recv()) is not None:
                 self.stats.queries += 1
@@ -402,6 +425,7 @@ class Service:
         m = self.model
         t = m.time
         t_ns = msg.seconds_to_ns(t)
+        frames = []
         for i, body in enumerate(self.bodies):
             out = m.outputs(i)
             q = (out["q_w"], out["q_x"], out["q_y"], out["q_z"])
@@ -414,6 +438,10 @@ class Service:
                         ("imu", msg.IMU_ENCODING, msg.encode_imu(t, q, omega, frame_id=body)))
             live_tf = (msg.encode_frame_transform(t, q, child_frame_id=body) if self.live is not None else None)
             self._emit(i, payloads, wall, t_ns, live_tf)
+            if self.ros is not None:
+                frames.append(Frame(body, msg.WORLD_FRAME, q, (0.0, 0.0, 0.0), q, omega))
+        if self.ros is not None:
+            self.stats.published += self.ros.publish(t, frames)
 
     def _publish_tree(self) -> None:
         """:meth:`publish` for a tree scene: transforms from the parent frames (:mod:`gyrosim.service.tree`)."""
@@ -422,6 +450,7 @@ class Service:
         t_ns = msg.seconds_to_ns(t)
         out = m.outputs()
         scene_out = {k: out[k] for k in SCENE_OUTPUTS if k in out}
+        frames = []
         for i, (body, frame, f) in enumerate(zip(self.bodies, self.tree.bodies, self.tree.at(out))):
             wall = time.time_ns()
             state = msg.BodyState.from_tree_outputs(
@@ -437,6 +466,13 @@ class Service:
                 live_tf = msg.encode_frame_transform(t, f.rotation, child_frame_id=body,
                                                      parent_frame_id=frame.parent, translation=f.translation)
             self._emit(i, payloads, wall, t_ns, live_tf)
+            if self.ros is not None:
+                frames.append(Frame(body, frame.parent, f.rotation, f.translation, f.q_world, f.omega,
+                                    frame.joint == "fixed"))
+        if self.ros is not None:
+            name = m.scene.var_name
+            joints = ([out[name(h, "angle")] for h in self._hinges], [out[name(h, "rate")] for h in self._hinges])
+            self.stats.published += self.ros.publish(t, frames, joints)
 
     def _emit(self, i: int, payloads, wall: int, t_ns: int, live_tf: bytes | None) -> None:
         """Put one body's payloads ((kind, encoding, bytes) for state, tf, imu), record them, stream them live."""
@@ -552,6 +588,8 @@ class Service:
             s.undeclare()
         for q in self.queryables:
             q.undeclare()
+        if self.ros is not None:
+            self.ros.close()
         self.token.undeclare()
 
 

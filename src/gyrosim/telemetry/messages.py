@@ -96,6 +96,13 @@ TORQUE_SCHEMA_NAME = "gyrosim.Torque"
 MOTOR_SCHEMA_NAME = "gyrosim.MotorTorque"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 IMU_TYPE = "sensor_msgs/msg/Imu"
+#: The ROS 2 types of the ROS 2 side (``gyrosim serve --ros-domain``): the simulation clock, hinge joint states, and
+#: the commands taken from ROS 2 topics.
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
+WRENCH_TYPE = "geometry_msgs/msg/Wrench"
+WRENCH_STAMPED_TYPE = "geometry_msgs/msg/WrenchStamped"
+FLOAT64_TYPE = "std_msgs/msg/Float64"
 
 STATE_ENCODING = f"application/json;{STATE_SCHEMA_NAME}"
 TF_ENCODING = f"application/cdr;{TF_TYPE}"
@@ -184,7 +191,41 @@ float64[9] linear_acceleration_covariance
     ],
 )
 
-_MSGDEFS = {TF_TYPE: TF_MSGDEF, IMU_TYPE: IMU_MSGDEF}
+#: Full ros2msg definition of rosgraph_msgs/msg/Clock (the simulation time, for ``use_sim_time`` nodes).
+CLOCK_MSGDEF = _concat("builtin_interfaces/Time clock\n", [("builtin_interfaces/Time", _TIME)])
+
+#: Full ros2msg definition of sensor_msgs/msg/JointState.
+JOINT_STATE_MSGDEF = _concat(
+    """\
+std_msgs/Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+""",
+    [("std_msgs/Header", _HEADER), ("builtin_interfaces/Time", _TIME)],
+)
+
+#: Full ros2msg definition of geometry_msgs/msg/Wrench (a torque command: its torque part, N*m, body frame).
+WRENCH_MSGDEF = _concat("Vector3 force\nVector3 torque\n", [("geometry_msgs/Vector3", _VECTOR3)])
+
+#: Full ros2msg definition of geometry_msgs/msg/WrenchStamped.
+WRENCH_STAMPED_MSGDEF = _concat(
+    "std_msgs/Header header\nWrench wrench\n",
+    [("std_msgs/Header", _HEADER), ("builtin_interfaces/Time", _TIME),
+     ("geometry_msgs/Wrench", "Vector3 force\nVector3 torque\n"), ("geometry_msgs/Vector3", _VECTOR3)],
+)
+
+#: Full ros2msg definition of std_msgs/msg/Float64 (a motor torque command, N*m).
+FLOAT64_MSGDEF = "float64 data\n"
+
+_MSGDEFS = {TF_TYPE: TF_MSGDEF, IMU_TYPE: IMU_MSGDEF, CLOCK_TYPE: CLOCK_MSGDEF, JOINT_STATE_TYPE: JOINT_STATE_MSGDEF,
+            WRENCH_TYPE: WRENCH_MSGDEF, WRENCH_STAMPED_TYPE: WRENCH_STAMPED_MSGDEF, FLOAT64_TYPE: FLOAT64_MSGDEF}
+
+
+def msgdef(type_name: str) -> str:
+    """The full ros2msg definition this module publishes for ``type_name`` (dependencies appended)."""
+    return _MSGDEFS[type_name]
 
 # ------------------------------------------------------------------------------------------ JSON schemas
 # Foxglove's JSON-schema reader (parseJsonSchema) takes one type name per field (no ["number", "null"]) and needs
@@ -507,13 +548,32 @@ def encode_tf(t: float, q, *, child_frame_id: str, frame_id: str = WORLD_FRAME,
         Position of the body frame's origin in the parent frame, m (the pivot, or the centre of mass of a free
         body; a tree body: its joint point, plus the position ``r`` of a free joint).
     """
-    tx, ty, tz = (float(v) for v in translation)
-    msg = {"transforms": [{
-        "header": _header(t, frame_id),
-        "child_frame_id": child_frame_id,
-        "transform": {"translation": {"x": tx, "y": ty, "z": tz}, "rotation": _quat_xyzw(q)},
-    }]}
-    return bytes(_encoder(TF_TYPE)(msg))
+    return encode_tf_frames(t, [(child_frame_id, frame_id, q, translation)])
+
+
+def encode_tf_frames(t: float, frames) -> bytes:
+    """CDR ``tf2_msgs/msg/TFMessage`` with one transform per ``(child_frame_id, frame_id, q, translation)`` of
+    ``frames`` (as :func:`encode_tf`'s arguments): every body's frame in one message, as ROS 2's ``/tf`` has it."""
+    transforms = []
+    for child, parent, q, translation in frames:
+        tx, ty, tz = (float(v) for v in translation)
+        transforms.append({"header": _header(t, parent), "child_frame_id": child,
+                           "transform": {"translation": {"x": tx, "y": ty, "z": tz}, "rotation": _quat_xyzw(q)}})
+    return bytes(_encoder(TF_TYPE)({"transforms": transforms}))
+
+
+def encode_clock(t: float) -> bytes:
+    """CDR ``rosgraph_msgs/msg/Clock`` at simulation time ``t`` (s)."""
+    sec, nanosec = ns_to_stamp(seconds_to_ns(t))
+    return bytes(_encoder(CLOCK_TYPE)({"clock": {"sec": sec, "nanosec": nanosec}}))
+
+
+def encode_joint_state(t: float, names, positions, velocities) -> bytes:
+    """CDR ``sensor_msgs/msg/JointState``: the hinge joints ``names`` at their angles (rad) and rates (rad/s); no
+    effort (an empty array, as ROS allows)."""
+    return bytes(_encoder(JOINT_STATE_TYPE)({
+        "header": _header(t, ""), "name": list(names), "position": [float(v) for v in positions],
+        "velocity": [float(v) for v in velocities], "effort": []}))
 
 
 _UNKNOWN_COV = [0.0] * 9
