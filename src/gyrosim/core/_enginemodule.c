@@ -293,8 +293,10 @@ static PyObject *py_start_state(PyObject *self, PyObject *const *args, Py_ssize_
     /* checked first, changed only when every row is good: |q| within 1e-6 of 1, finite omega */
     for (Py_ssize_t i = 0; i < n; i++) {
         const double *r = y + i * GS_NY;
-        const double nq = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2] + r[3] * r[3]);
-        if (!(fabs(nq - 1.0) <= 1e-6) || !isfinite(r[4]) || !isfinite(r[5]) || !isfinite(r[6])) {
+        const double nq = sqrt(r[GS_Y_Q] * r[GS_Y_Q] + r[GS_Y_Q + 1] * r[GS_Y_Q + 1] + r[GS_Y_Q + 2] * r[GS_Y_Q + 2] +
+                               r[GS_Y_Q + 3] * r[GS_Y_Q + 3]);
+        if (!(fabs(nq - 1.0) <= 1e-6) || !isfinite(r[GS_Y_OMEGA]) || !isfinite(r[GS_Y_OMEGA + 1]) ||
+            !isfinite(r[GS_Y_OMEGA + 2])) {
             release(b, 2);
             return PyLong_FromSsize_t(i);
         }
@@ -435,12 +437,13 @@ static PyObject *py_ht_eval(PyObject *self, PyObject *const *args, Py_ssize_t na
     if (get_buf(args[4], &b[4], "q_out", 'd', 4 * k, 1) < 0) goto fail;
     if (nargs == 6 && get_buf(args[5], &b[5], "ang_out", 'd', 2 * k, 1) < 0) goto fail;
     const double *p = (const double *)b[0].view.buf, *y = (const double *)b[1].view.buf;
-    if (!(p[3] > 0.0)) {
+    if (!(p[GS_P_MGL] > 0.0)) {
         PyErr_SetString(PyExc_ValueError, "p: mass*g*cm_distance > 0 (a Lagrange top)");
         goto fail;
     }
     double c[GS_HT_SIZE];
-    gs_ht_setup(p[0] == p[1] ? p[0] : 0.5 * (p[0] + p[1]), p[2], p[3], y + 4, y, y[7], y[8], c);
+    gs_ht_setup(p[GS_P_I] == p[GS_P_I + 1] ? p[GS_P_I] : 0.5 * (p[GS_P_I] + p[GS_P_I + 1]), p[GS_P_I + 2],
+                p[GS_P_MGL], y + GS_Y_OMEGA, y, y[GS_Y_REF], y[GS_Y_REF + 1], c);
     const double *t = (const double *)b[2].view.buf;
     double *wo = (double *)b[3].view.buf, *qo = (double *)b[4].view.buf;
     double *ao = nargs == 6 ? (double *)b[5].view.buf : NULL;
@@ -849,7 +852,15 @@ PyMODINIT_FUNC PyInit__engine(void) {
             {"TB_I", GS_TB_I}, {"TB_STIFF", GS_TB_STIFF}, {"TB_REST", GS_TB_REST}, {"TB_DAMP", GS_TB_DAMP},
             {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}, {"TP_G", GS_TP_G}, {"TP_DRIFT", GS_TP_DRIFT},
             {"TP_MU", GS_TP_MU}, {"TP_ORBIT_R", GS_TP_ORBIT_R}, {"ORBIT_NONE", GS_ORBIT_NONE},
-            {"ORBIT_CIRCULAR", GS_ORBIT_CIRCULAR}, {"ORBIT_KEPLER", GS_ORBIT_KEPLER}};
+            {"ORBIT_CIRCULAR", GS_ORBIT_CIRCULAR}, {"ORBIT_KEPLER", GS_ORBIT_KEPLER},
+            /* the one-body rows' offsets (gyrosim_engine.h) */
+            {"Y_Q", GS_Y_Q}, {"Y_OMEGA", GS_Y_OMEGA}, {"Y_NQW", GS_Y_NQW}, {"Y_REF", GS_Y_REF}, {"Y_TURN", GS_Y_TURN},
+            {"Y_MON", GS_Y_MON}, {"Y_BALANCE", GS_Y_BALANCE}, {"Y_ESCALE", GS_Y_ESCALE}, {"Y_L0", GS_Y_L0},
+            {"Y_LZ0", GS_Y_LZ0}, {"Y_L30", GS_Y_L30}, {"P_I", GS_P_I}, {"P_MGL", GS_P_MGL},
+            {"P_DAMPING", GS_P_DAMPING}, {"P_TAU", GS_P_TAU}, {"P_MAX_DRIFT", GS_P_MAX_DRIFT}, {"O_Q", GS_O_Q},
+            {"O_OMEGA", GS_O_OMEGA}, {"O_PHI", GS_O_PHI}, {"O_THETA", GS_O_THETA}, {"O_PSI", GS_O_PSI},
+            {"O_L", GS_O_L}, {"O_ENERGY", GS_O_ENERGY}, {"O_ENERGY_ERROR", GS_O_ENERGY_ERROR},
+            {"DY_WORK", GS_DY_WORK}, {"NDY", GS_NDY}};
         for (size_t i = 0; i < sizeof(tc) / sizeof(tc[0]); i++) PyModule_AddIntConstant(m, tc[i].name, tc[i].value);
     }
     PyModule_AddIntConstant(m, "NY", GS_NY);

@@ -14,6 +14,19 @@
 #include <omp.h>
 #endif
 
+/* the rows' layouts (gyrosim_engine.h): their sizes as before the names, and what the code takes for granted: y
+ * and a state of GS_Y_NQW components start with q then omega (y passed where q is wanted), p with the moments (p
+ * passed where I is wanted), the output row with y's q and omega (a state-only row is copied from the state), the
+ * reference angles phi_ref, psi_ref next to each other (gs_ht_eval's ang), a derivative row's work after omega */
+_Static_assert(GS_NY == 15 && GS_NP == 9 && GS_NOUT == 15 && GS_NDY == 8, "the rows' sizes");
+_Static_assert(GS_Y_Q == 0 && GS_Y_OMEGA == GS_Y_Q + 4 && GS_Y_NQW == GS_Y_OMEGA + 3, "q, omega first in y");
+_Static_assert(GS_Y_REF == GS_Y_NQW && GS_Y_TURN == GS_Y_REF + 2 && GS_Y_MON == GS_Y_TURN + 1,
+               "then the reference angles, the turn and the monitor's block (last)");
+_Static_assert(GS_P_I == 0, "the moments first in p");
+_Static_assert(GS_O_Q == GS_Y_Q && GS_O_OMEGA == GS_Y_OMEGA, "q, omega in the output row where y has them");
+_Static_assert(GS_Y_MON + 5 == GS_NY && GS_Y_BALANCE == GS_Y_MON && GS_Y_L30 == GS_Y_MON + 4, "the monitor's block");
+_Static_assert(GS_DY_WORK == GS_Y_NQW, "a derivative row: q, omega, then the work");
+
 #if defined(__GNUC__)
 #define GS_INLINE inline __attribute__((always_inline))
 #else
@@ -45,25 +58,26 @@ const double gs_stable_x_gravity[GS_N_METHODS] = {INFINITY, INFINITY, INFINITY, 
                                                   INFINITY, 8.89, 5.47, 17.6, 17.1};
 
 double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]) {
-    double r = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
-    if ((flags & GS_GRAVITY) && p[3] != 0.0) {
-        const double nut = p[2] * fabs(y[6]) / sqrt(p[0] * p[1]);
-        const double pend = sqrt(fabs(p[3]) / fmin(p[0], p[1]));
+    double r = sqrt(y[GS_Y_OMEGA] * y[GS_Y_OMEGA] + y[GS_Y_OMEGA + 1] * y[GS_Y_OMEGA + 1] +
+                    y[GS_Y_OMEGA + 2] * y[GS_Y_OMEGA + 2]);
+    if ((flags & GS_GRAVITY) && p[GS_P_MGL] != 0.0) {
+        const double nut = p[GS_P_I + 2] * fabs(y[GS_Y_OMEGA + 2]) / sqrt(p[GS_P_I] * p[GS_P_I + 1]);
+        const double pend = sqrt(fabs(p[GS_P_MGL]) / fmin(p[GS_P_I], p[GS_P_I + 1]));
         r = fmax(r, fmax(nut, pend));
     }
     return r;
 }
 
 int gs_torque_free(int flags, const double p[GS_NP]) {
-    return !((flags & GS_GRAVITY) && p[3] != 0.0) && !((flags & GS_DAMPING) && p[4] != 0.0) &&
-           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
+    return !((flags & GS_GRAVITY) && p[GS_P_MGL] != 0.0) && !((flags & GS_DAMPING) && p[GS_P_DAMPING] != 0.0) &&
+           !((flags & GS_TORQUE) && (p[GS_P_TAU] != 0.0 || p[GS_P_TAU + 1] != 0.0 || p[GS_P_TAU + 2] != 0.0));
 }
 
 int gs_lagrange_top(int flags, const double p[GS_NP]) {
-    return (flags & GS_GRAVITY) && p[3] > 0.0 && p[3] < INFINITY &&
-           fabs(p[0] - p[1]) <= 4.0 * 2.220446049250313e-16 * fmax(p[0], p[1]) &&
-           !((flags & GS_DAMPING) && p[4] != 0.0) &&
-           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
+    return (flags & GS_GRAVITY) && p[GS_P_MGL] > 0.0 && p[GS_P_MGL] < INFINITY &&
+           fabs(p[GS_P_I] - p[GS_P_I + 1]) <= 4.0 * 2.220446049250313e-16 * fmax(p[GS_P_I], p[GS_P_I + 1]) &&
+           !((flags & GS_DAMPING) && p[GS_P_DAMPING] != 0.0) &&
+           !((flags & GS_TORQUE) && (p[GS_P_TAU] != 0.0 || p[GS_P_TAU + 1] != 0.0 || p[GS_P_TAU + 2] != 0.0));
 }
 
 int gs_exact_applies(int flags, const double p[GS_NP]) {
@@ -152,17 +166,17 @@ static GS_INLINE void unwrapped_at(const double *q, const double *r, double *phi
     }
 }
 
-/* those of a state y: its q, nearest its reference angles y[7], y[8] */
+/* those of a state y: its q, nearest its reference angles y[GS_Y_REF], y[GS_Y_REF + 1] */
 static GS_INLINE void unwrapped(const double *y, double *phi, double *psi) {
-    unwrapped_at(y, y + 7, phi, psi);
+    unwrapped_at(y, y + GS_Y_REF, phi, psi);
 }
 
 void gs_unwrap(double y[GS_NY]) {
     double phi, psi;
     unwrapped(y, &phi, &psi);
-    y[7] = phi;
-    y[8] = psi;
-    y[9] = 0.0;
+    y[GS_Y_REF] = phi;
+    y[GS_Y_REF + 1] = psi;
+    y[GS_Y_TURN] = 0.0;
 }
 
 double gs_norm4(const double q[4]) {
@@ -203,81 +217,86 @@ void gs_quat_to_euler_zyz(const double q_in[4], double *phi, double *theta, doub
 
 /* kinetic energy, potential energy and the largest moment */
 static GS_INLINE double kinetic(const double *y, const double *p) {
-    return 0.5 * (p[0] * y[4] * y[4] + p[1] * y[5] * y[5] + p[2] * y[6] * y[6]);
+    return 0.5 * (p[GS_P_I] * y[GS_Y_OMEGA] * y[GS_Y_OMEGA] + p[GS_P_I + 1] * y[GS_Y_OMEGA + 1] * y[GS_Y_OMEGA + 1] +
+                  p[GS_P_I + 2] * y[GS_Y_OMEGA + 2] * y[GS_Y_OMEGA + 2]);
 }
 
 static GS_INLINE double potential(const double *y, const double *p) {   /* mgl (R e3).z */
-    return p[3] * (1.0 - 2.0 * (y[1] * y[1] + y[2] * y[2]));
+    return p[GS_P_MGL] * (1.0 - 2.0 * (y[GS_Y_Q + 1] * y[GS_Y_Q + 1] + y[GS_Y_Q + 2] * y[GS_Y_Q + 2]));
 }
 
 /* L_z (world) of the body's L = I omega */
 static GS_INLINE double l_world_z(const double *y, const double *p) {
-    const double w = y[0], x = y[1], yy = y[2], z = y[3];
-    return 2.0 * (x * z - w * yy) * p[0] * y[4] + 2.0 * (yy * z + w * x) * p[1] * y[5] +
-           (1.0 - 2.0 * (x * x + yy * yy)) * p[2] * y[6];
+    const double w = y[GS_Y_Q], x = y[GS_Y_Q + 1], yy = y[GS_Y_Q + 2], z = y[GS_Y_Q + 3];
+    return 2.0 * (x * z - w * yy) * p[GS_P_I] * y[GS_Y_OMEGA] +
+           2.0 * (yy * z + w * x) * p[GS_P_I + 1] * y[GS_Y_OMEGA + 1] +
+           (1.0 - 2.0 * (x * x + yy * yy)) * p[GS_P_I + 2] * y[GS_Y_OMEGA + 2];
 }
 
 static GS_INLINE double l_norm(const double *y, const double *p) {
-    const double a = p[0] * y[4], b = p[1] * y[5], c = p[2] * y[6];
+    const double a = p[GS_P_I] * y[GS_Y_OMEGA], b = p[GS_P_I + 1] * y[GS_Y_OMEGA + 1],
+                 c = p[GS_P_I + 2] * y[GS_Y_OMEGA + 2];
     return sqrt(a * a + b * b + c * c);
 }
 
 /* the symmetric top on a pivot: L_z and L_3 conserved */
 static GS_INLINE int pivoted_top(int flags, const double *p) {
-    return (flags & GS_GRAVITY) && p[3] != 0.0 && p[0] == p[1] && !((flags & GS_DAMPING) && p[4] != 0.0) &&
-           !((flags & GS_TORQUE) && (p[5] != 0.0 || p[6] != 0.0 || p[7] != 0.0));
+    return (flags & GS_GRAVITY) && p[GS_P_MGL] != 0.0 && p[GS_P_I] == p[GS_P_I + 1] &&
+           !((flags & GS_DAMPING) && p[GS_P_DAMPING] != 0.0) &&
+           !((flags & GS_TORQUE) && (p[GS_P_TAU] != 0.0 || p[GS_P_TAU + 1] != 0.0 || p[GS_P_TAU + 2] != 0.0));
 }
 
 /* After a successful step: the invariants the body does not conserve now (a torque or damping acts) start again
  * from the current state, so that each is checked from the moment it is conserved (a torque switched off). */
 static GS_INLINE void monitor_commit(int flags, double *y, const double *p) {
     if (!(flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE))) return;   /* torque-free by the scene: all conserved */
-    if (!gs_torque_free(flags, p)) y[12] = l_norm(y, p);
+    if (!gs_torque_free(flags, p)) y[GS_Y_L0] = l_norm(y, p);
     if (!pivoted_top(flags, p)) {
-        y[13] = l_world_z(y, p);
-        y[14] = p[2] * y[6];
+        y[GS_Y_LZ0] = l_world_z(y, p);
+        y[GS_Y_L30] = p[GS_P_I + 2] * y[GS_Y_OMEGA + 2];
     }
 }
 
 void gs_monitor_reparam(double y[GS_NY], const double p_old[GS_NP], const double p_new[GS_NP]) {
-    y[10] += (kinetic(y, p_new) + potential(y, p_new)) - (kinetic(y, p_old) + potential(y, p_old));
-    y[11] = kinetic(y, p_new) + fabs(p_new[3]);
-    y[12] = l_norm(y, p_new);
-    y[13] = l_world_z(y, p_new);
-    y[14] = p_new[2] * y[6];
+    y[GS_Y_BALANCE] += (kinetic(y, p_new) + potential(y, p_new)) - (kinetic(y, p_old) + potential(y, p_old));
+    y[GS_Y_ESCALE] = kinetic(y, p_new) + fabs(p_new[GS_P_MGL]);
+    y[GS_Y_L0] = l_norm(y, p_new);
+    y[GS_Y_LZ0] = l_world_z(y, p_new);
+    y[GS_Y_L30] = p_new[GS_P_I + 2] * y[GS_Y_OMEGA + 2];
 }
 
 void gs_start_state(double y[GS_NY], const double p[GS_NP]) {
     const double nq = gs_norm4(y);
-    for (int i = 0; i < 4; i++) y[i] = y[i] / nq;
+    for (int i = 0; i < 4; i++) y[GS_Y_Q + i] = y[GS_Y_Q + i] / nq;
     double phi, theta, psi;
     gs_quat_to_euler_zyz(y, &phi, &theta, &psi);
-    y[7] = phi;
-    y[8] = psi;
-    y[9] = 0.0;
+    y[GS_Y_REF] = phi;
+    y[GS_Y_REF + 1] = psi;
+    y[GS_Y_TURN] = 0.0;
     const double T = kinetic(y, p);
-    y[10] = T + potential(y, p);
-    y[11] = T + fabs(p[3]);
-    y[12] = l_norm(y, p);
-    y[13] = l_world_z(y, p);
-    y[14] = p[2] * y[6];
+    y[GS_Y_BALANCE] = T + potential(y, p);
+    y[GS_Y_ESCALE] = T + fabs(p[GS_P_MGL]);
+    y[GS_Y_L0] = l_norm(y, p);
+    y[GS_Y_LZ0] = l_world_z(y, p);
+    y[GS_Y_L30] = p[GS_P_I + 2] * y[GS_Y_OMEGA + 2];
 }
 
 double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double d[GS_NDRIFT]) {
-    const double mgl = fabs(p[3]);
-    const double V = p[3] != 0.0 ? potential(y, p) : 0.0;   /* as the energy output has it */
+    const double mgl = fabs(p[GS_P_MGL]);
+    const double V = p[GS_P_MGL] != 0.0 ? potential(y, p) : 0.0;   /* as the energy output has it */
     const double T = kinetic(y, p), E = T + V;
-    const double es = fmax(fmax(y[11], T), fabs(y[10] - V) + mgl);
-    const double de = fabs(E - y[10]);
+    const double es = fmax(fmax(y[GS_Y_ESCALE], T), fabs(y[GS_Y_BALANCE] - V) + mgl);
+    const double de = fabs(E - y[GS_Y_BALANCE]);
     d[0] = de == 0.0 ? 0.0 : de / es;   /* a body at rest: 0 / 0 */
     d[1] = d[2] = d[3] = 0.0;
     /* |L0|, or for a top that starts slow the momentum its fall can give it, sqrt(2 max(I) |mgl|) */
-    const double ls = fmax(y[12], sqrt(2.0 * fmax(p[0], fmax(p[1], p[2])) * mgl));
+    const double ls = fmax(y[GS_Y_L0], sqrt(2.0 * fmax(p[GS_P_I], fmax(p[GS_P_I + 1], p[GS_P_I + 2])) * mgl));
     if (gs_torque_free(flags, p)) {
-        const double dl = fabs(l_norm(y, p) - y[12]);
+        const double dl = fabs(l_norm(y, p) - y[GS_Y_L0]);
         d[1] = dl == 0.0 ? 0.0 : dl / ls;
     } else if (pivoted_top(flags, p)) {
-        const double dz = fabs(l_world_z(y, p) - y[13]), d3 = fabs(p[2] * y[6] - y[14]);
+        const double dz = fabs(l_world_z(y, p) - y[GS_Y_LZ0]),
+                     d3 = fabs(p[GS_P_I + 2] * y[GS_Y_OMEGA + 2] - y[GS_Y_L30]);
         d[2] = dz == 0.0 ? 0.0 : dz / ls;
         d[3] = d3 == 0.0 ? 0.0 : d3 / ls;
     }
@@ -286,34 +305,41 @@ double gs_drift(int flags, const double y[GS_NY], const double p[GS_NP], double 
     return isnan(d[0]) ? d[0] : m;
 }
 
-/* the health monitor's verdict: 1 when max_drift (p[8]) is on and a drift of gs_drift is beyond it or not a
- * number. The same comparisons as gs_drift's, with the bound multiplied into each scale instead of a division per
+/* the health monitor's verdict: 1 when max_drift (p[GS_P_MAX_DRIFT]) is on and a drift of gs_drift is beyond it or
+ * not a number. The same comparisons as gs_drift's, with the bound multiplied into each scale instead of a division per
  * quantity (this runs at every output point). */
 static GS_INLINE double gmax(double a, double b) { return a > b ? a : b; }
 
+/* an index into the monitor's values m = y + GS_Y_MON of a state y */
+#define GS_M(slot) ((slot) - GS_Y_MON)
+
 /* of the q, omega in s[0..6] with the monitor's values m[0..4] (a state's y[10..14]) */
 static GS_INLINE int drifted_at(int flags, const double *s, const double *m, const double *p) {
-    const double bound = p[8];
+    const double bound = p[GS_P_MAX_DRIFT];
     if (!(bound > 0.0) || bound == INFINITY) return 0;
-    const double mgl = fabs(p[3]);
-    const double V = p[3] != 0.0 ? potential(s, p) : 0.0;
+    const double mgl = fabs(p[GS_P_MGL]);
+    const double V = p[GS_P_MGL] != 0.0 ? potential(s, p) : 0.0;
     const double T = kinetic(s, p);
-    const double de = fabs(T + V - m[0]);
-    if (!(de <= bound * gmax(gmax(m[1], T), fabs(m[0] - V) + mgl))) return 1;   /* also NaN */
+    const double de = fabs(T + V - m[GS_M(GS_Y_BALANCE)]);
+    if (!(de <= bound * gmax(gmax(m[GS_M(GS_Y_ESCALE)], T), fabs(m[GS_M(GS_Y_BALANCE)] - V) + mgl)))
+        return 1;   /* also NaN */
     if (!(flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE)) || gs_torque_free(flags, p)) {
-        const double ls = mgl == 0.0 ? m[2] : gmax(m[2], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
-        return !(fabs(l_norm(s, p) - m[2]) <= bound * ls);
+        const double ls = mgl == 0.0 ? m[GS_M(GS_Y_L0)]
+                                     : gmax(m[GS_M(GS_Y_L0)],
+                                            sqrt(2.0 * gmax(p[GS_P_I], gmax(p[GS_P_I + 1], p[GS_P_I + 2])) * mgl));
+        return !(fabs(l_norm(s, p) - m[GS_M(GS_Y_L0)]) <= bound * ls);
     }
     if (pivoted_top(flags, p)) {
-        const double ls = gmax(m[2], sqrt(2.0 * gmax(p[0], gmax(p[1], p[2])) * mgl));
-        return !(fabs(l_world_z(s, p) - m[3]) <= bound * ls && fabs(p[2] * s[6] - m[4]) <= bound * ls);
+        const double ls = gmax(m[GS_M(GS_Y_L0)], sqrt(2.0 * gmax(p[GS_P_I], gmax(p[GS_P_I + 1], p[GS_P_I + 2])) * mgl));
+        return !(fabs(l_world_z(s, p) - m[GS_M(GS_Y_LZ0)]) <= bound * ls &&
+                 fabs(p[GS_P_I + 2] * s[GS_Y_OMEGA + 2] - m[GS_M(GS_Y_L30)]) <= bound * ls);
     }
     return 0;
 }
 
 /* of a state y */
 static GS_INLINE int drifted(int flags, const double *y, const double *p) {
-    return drifted_at(flags, y, y + 10, p);
+    return drifted_at(flags, y, y + GS_Y_MON, p);
 }
 
 /* ------------------------------------------------------------------------------------------- dynamics */
@@ -324,85 +350,89 @@ static GS_INLINE int drifted(int flags, const double *y, const double *p) {
 
 /* k[0:4] = dq/dt, k[4:7] = domega/dt and, where the scene has GS_WORK terms, k[7] = their power tau.omega -
  * damping |omega|^2 (W), integrated alongside the state by the same method */
-static GS_INLINE void rhs(const double *s, const double *p, int flags, double k[8]) {
-    const double qw = s[0], qx = s[1], qy = s[2], qz = s[3], o1 = s[4], o2 = s[5], o3 = s[6];
-    const double I1 = p[0], I2 = p[1], I3 = p[2];
+static GS_INLINE void rhs(const double *s, const double *p, int flags, double k[GS_NDY]) {
+    const double qw = s[GS_Y_Q], qx = s[GS_Y_Q + 1], qy = s[GS_Y_Q + 2], qz = s[GS_Y_Q + 3], o1 = s[GS_Y_OMEGA],
+                 o2 = s[GS_Y_OMEGA + 1], o3 = s[GS_Y_OMEGA + 2];
+    const double I1 = p[GS_P_I], I2 = p[GS_P_I + 1], I3 = p[GS_P_I + 2];
     double a1 = (I2 - I3) * o2 * o3;
     double a2 = (I3 - I1) * o3 * o1;
     double a3 = (I1 - I2) * o1 * o2;
     if (flags & GS_GRAVITY) {
         const double zb0 = 2.0 * (qx * qz - qw * qy);   /* (R^T e_z)_1 */
         const double zb1 = 2.0 * (qy * qz + qw * qx);   /* (R^T e_z)_2 */
-        a1 += p[3] * zb1;
-        a2 -= p[3] * zb0;
+        a1 += p[GS_P_MGL] * zb1;
+        a2 -= p[GS_P_MGL] * zb0;
     }
     if (flags & GS_DAMPING) {
-        a1 -= p[4] * o1;
-        a2 -= p[4] * o2;
-        a3 -= p[4] * o3;
+        a1 -= p[GS_P_DAMPING] * o1;
+        a2 -= p[GS_P_DAMPING] * o2;
+        a3 -= p[GS_P_DAMPING] * o3;
     }
     if (flags & GS_TORQUE) {
-        a1 += p[5];
-        a2 += p[6];
-        a3 += p[7];
+        a1 += p[GS_P_TAU];
+        a2 += p[GS_P_TAU + 1];
+        a3 += p[GS_P_TAU + 2];
     }
-    k[0] = 0.5 * (-qx * o1 - qy * o2 - qz * o3);
-    k[1] = 0.5 * (qw * o1 + qy * o3 - qz * o2);
-    k[2] = 0.5 * (qw * o2 - qx * o3 + qz * o1);
-    k[3] = 0.5 * (qw * o3 + qx * o2 - qy * o1);
-    k[4] = a1 / I1;
-    k[5] = a2 / I2;
-    k[6] = a3 / I3;
+    k[GS_Y_Q] = 0.5 * (-qx * o1 - qy * o2 - qz * o3);
+    k[GS_Y_Q + 1] = 0.5 * (qw * o1 + qy * o3 - qz * o2);
+    k[GS_Y_Q + 2] = 0.5 * (qw * o2 - qx * o3 + qz * o1);
+    k[GS_Y_Q + 3] = 0.5 * (qw * o3 + qx * o2 - qy * o1);
+    k[GS_Y_OMEGA] = a1 / I1;
+    k[GS_Y_OMEGA + 1] = a2 / I2;
+    k[GS_Y_OMEGA + 2] = a3 / I3;
     if (flags & GS_WORK) {
         double pw = 0.0;
-        if (flags & GS_TORQUE) pw += p[5] * o1 + p[6] * o2 + p[7] * o3;
-        if (flags & GS_DAMPING) pw -= p[4] * (o1 * o1 + o2 * o2 + o3 * o3);
-        k[7] = pw;
+        if (flags & GS_TORQUE) pw += p[GS_P_TAU] * o1 + p[GS_P_TAU + 1] * o2 + p[GS_P_TAU + 2] * o3;
+        if (flags & GS_DAMPING) pw -= p[GS_P_DAMPING] * (o1 * o1 + o2 * o2 + o3 * o3);
+        k[GS_DY_WORK] = pw;
     }
 }
 
-void gs_derivatives(int flags, const double y[GS_NY], const double p[GS_NP], double dy[8]) {
+void gs_derivatives(int flags, const double y[GS_NY], const double p[GS_NP], double dy[GS_NDY]) {
     rhs(y, p, flags, dy);
-    if (!(flags & GS_WORK)) dy[7] = 0.0;
+    if (!(flags & GS_WORK)) dy[GS_DY_WORK] = 0.0;
 }
 
 /* every component finite and |omega| below the limit: a NaN or an infinity in q makes the sum non-finite (inf - inf
  * is NaN), and one in omega fails the comparison; two tests instead of seven */
 static GS_INLINE int ok(const double *y) {
-    return isfinite(y[0] + y[1] + y[2] + y[3]) && fabs(y[4]) + fabs(y[5]) + fabs(y[6]) < GS_OMEGA_LIMIT;
+    return isfinite(y[GS_Y_Q] + y[GS_Y_Q + 1] + y[GS_Y_Q + 2] + y[GS_Y_Q + 3]) &&
+           fabs(y[GS_Y_OMEGA]) + fabs(y[GS_Y_OMEGA + 1]) + fabs(y[GS_Y_OMEGA + 2]) < GS_OMEGA_LIMIT;
 }
 
 static GS_INLINE void normalize_q(double *y) {
-    const double n = sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]);
+    const double n = sqrt(y[GS_Y_Q] * y[GS_Y_Q] + y[GS_Y_Q + 1] * y[GS_Y_Q + 1] + y[GS_Y_Q + 2] * y[GS_Y_Q + 2] +
+                          y[GS_Y_Q + 3] * y[GS_Y_Q + 3]);
     if (n > 0.0) {
-        y[0] /= n;
-        y[1] /= n;
-        y[2] /= n;
-        y[3] /= n;
+        y[GS_Y_Q] /= n;
+        y[GS_Y_Q + 1] /= n;
+        y[GS_Y_Q + 2] /= n;
+        y[GS_Y_Q + 3] /= n;
     }
 }
 
 static GS_INLINE void euler_step(double *y, const double *p, int flags, double h) {
-    double k[8];
+    double k[GS_NDY];
     rhs(y, p, flags, k);
-    for (int i = 0; i < 7; i++) y[i] += h * k[i];
-    if (flags & GS_WORK) y[10] += h * k[7];
+    for (int i = 0; i < GS_Y_NQW; i++) y[i] += h * k[i];
+    if (flags & GS_WORK) y[GS_Y_BALANCE] += h * k[GS_DY_WORK];
     normalize_q(y);
 }
 
 static GS_INLINE void rk4_step(double *y, const double *p, int flags, double h) {
     const double h2 = 0.5 * h;
-    double k1[8], k2[8], k3[8], k4[8], s[7];
+    double k1[GS_NDY], k2[GS_NDY], k3[GS_NDY], k4[GS_NDY], s[GS_Y_NQW];
     rhs(y, p, flags, k1);
-    for (int i = 0; i < 7; i++) s[i] = y[i] + h2 * k1[i];
+    for (int i = 0; i < GS_Y_NQW; i++) s[i] = y[i] + h2 * k1[i];
     rhs(s, p, flags, k2);
-    for (int i = 0; i < 7; i++) s[i] = y[i] + h2 * k2[i];
+    for (int i = 0; i < GS_Y_NQW; i++) s[i] = y[i] + h2 * k2[i];
     rhs(s, p, flags, k3);
-    for (int i = 0; i < 7; i++) s[i] = y[i] + h * k3[i];
+    for (int i = 0; i < GS_Y_NQW; i++) s[i] = y[i] + h * k3[i];
     rhs(s, p, flags, k4);
     const double h6 = h / 6.0;
-    for (int i = 0; i < 7; i++) y[i] += h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
-    if (flags & GS_WORK) y[10] += h6 * (k1[7] + 2.0 * (k2[7] + k3[7]) + k4[7]);
+    for (int i = 0; i < GS_Y_NQW; i++) y[i] += h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+    if (flags & GS_WORK)
+        y[GS_Y_BALANCE] += h6 * (k1[GS_DY_WORK] + 2.0 * (k2[GS_DY_WORK] + k3[GS_DY_WORK]) + k4[GS_DY_WORK]);
     normalize_q(y);
 }
 
@@ -452,7 +482,7 @@ static void spherical_flow(const double L[3], double *q, double Ip, double h) {
 
 /* kinetic energy of L_body */
 static GS_INLINE double kinetic_l(const double L[3], const double *p) {
-    return 0.5 * (L[0] * L[0] / p[0] + L[1] * L[1] / p[1] + L[2] * L[2] / p[2]);
+    return 0.5 * (L[0] * L[0] / p[GS_P_I] + L[1] * L[1] / p[GS_P_I + 1] + L[2] * L[2] / p[GS_P_I + 2]);
 }
 
 /* the kicks; *W gains the work of the damping and torque kicks, each the exact flow of its term with q fixed, so
@@ -460,25 +490,25 @@ static GS_INLINE double kinetic_l(const double L[3], const double *p) {
 static void kick(double L[3], const double *q, const double *p, int flags, double h, int damping_first, double *W) {
     if (damping_first && (flags & GS_DAMPING)) {
         const double t0 = kinetic_l(L, p);
-        for (int i = 0; i < 3; i++) L[i] *= exp(-p[4] * h / p[i]);
+        for (int i = 0; i < 3; i++) L[i] *= exp(-p[GS_P_DAMPING] * h / p[GS_P_I + i]);
         *W += kinetic_l(L, p) - t0;
     }
     if (flags & GS_GRAVITY) {
         const double zb0 = 2.0 * (q[1] * q[3] - q[0] * q[2]);
         const double zb1 = 2.0 * (q[2] * q[3] + q[0] * q[1]);
-        L[0] += h * p[3] * zb1;
-        L[1] -= h * p[3] * zb0;
+        L[0] += h * p[GS_P_MGL] * zb1;
+        L[1] -= h * p[GS_P_MGL] * zb0;
     }
     if (flags & GS_TORQUE) {
         const double t0 = kinetic_l(L, p);
-        L[0] += h * p[5];
-        L[1] += h * p[6];
-        L[2] += h * p[7];
+        L[0] += h * p[GS_P_TAU];
+        L[1] += h * p[GS_P_TAU + 1];
+        L[2] += h * p[GS_P_TAU + 2];
         *W += kinetic_l(L, p) - t0;
     }
     if (!damping_first && (flags & GS_DAMPING)) {
         const double t0 = kinetic_l(L, p);
-        for (int i = 0; i < 3; i++) L[i] *= exp(-p[4] * h / p[i]);
+        for (int i = 0; i < 3; i++) L[i] *= exp(-p[GS_P_DAMPING] * h / p[GS_P_I + i]);
         *W += kinetic_l(L, p) - t0;
     }
 }
@@ -489,7 +519,7 @@ static void split_axes(const double *p, int *s_out, int *p_out, int *r_out) {
     for (int s = 0; s < 3; s++) {
         const int a = (s + 1) % 3;
         const int b = (s + 2) % 3;
-        const double d = fabs(1.0 / p[a] - 1.0 / p[b]);
+        const double d = fabs(1.0 / p[GS_P_I + a] - 1.0 / p[GS_P_I + b]);
         if (d < best) {
             best = d;
             s_best = s;
@@ -502,17 +532,17 @@ static void split_axes(const double *p, int *s_out, int *p_out, int *r_out) {
     *r_out = r_best;
 }
 
-/* q: the body's state y (the attitude y[0:4]; the kicks' work goes to y[10]) */
+/* q: the body's state y (the attitude y[0:4]; the kicks' work goes to y[GS_Y_BALANCE]) */
 static void strang(double L[3], double *q, const double *p, int flags, double h, int s, int pp, int r) {
     const int kicks = flags & (GS_GRAVITY | GS_DAMPING | GS_TORQUE);
-    if (kicks) kick(L, q, p, flags, 0.5 * h, 1, q + 10);
-    const double cr = 1.0 / p[r] - 1.0 / p[pp];
-    const double cs = 1.0 / p[s] - 1.0 / p[pp];
+    if (kicks) kick(L, q, p, flags, 0.5 * h, 1, q + GS_Y_BALANCE);
+    const double cr = 1.0 / p[GS_P_I + r] - 1.0 / p[GS_P_I + pp];
+    const double cs = 1.0 / p[GS_P_I + s] - 1.0 / p[GS_P_I + pp];
     if (cr != 0.0) axis_flow(L, q, r, cr, 0.5 * h);
-    spherical_flow(L, q, p[pp], h);
+    spherical_flow(L, q, p[GS_P_I + pp], h);
     if (cs != 0.0) axis_flow(L, q, s, cs, h);
     if (cr != 0.0) axis_flow(L, q, r, cr, 0.5 * h);
-    if (kicks) kick(L, q, p, flags, 0.5 * h, 0, q + 10);
+    if (kicks) kick(L, q, p, flags, 0.5 * h, 0, q + GS_Y_BALANCE);
 }
 
 /* Yoshida's triple jump: the symmetric second-order step composed into a fourth-order one */
@@ -562,11 +592,11 @@ static double phi2(double x) {
 static void kick_exact(double L[3], const double *q, const double *p, int flags, double h, double *W) {
     double tg[3] = {0.0, 0.0, 0.0}, tau[3];
     if (flags & GS_GRAVITY) {
-        tg[0] = p[3] * 2.0 * (q[2] * q[3] + q[0] * q[1]);
-        tg[1] = -p[3] * 2.0 * (q[1] * q[3] - q[0] * q[2]);
+        tg[0] = p[GS_P_MGL] * 2.0 * (q[2] * q[3] + q[0] * q[1]);
+        tg[1] = -p[GS_P_MGL] * 2.0 * (q[1] * q[3] - q[0] * q[2]);
     }
-    for (int i = 0; i < 3; i++) tau[i] = tg[i] + ((flags & GS_TORQUE) ? p[5 + i] : 0.0);
-    const double c = (flags & GS_DAMPING) ? p[4] : 0.0;
+    for (int i = 0; i < 3; i++) tau[i] = tg[i] + ((flags & GS_TORQUE) ? p[GS_P_TAU + i] : 0.0);
+    const double c = (flags & GS_DAMPING) ? p[GS_P_DAMPING] : 0.0;
     if (!(flags & GS_WORK)) {   /* gravity only: no work to integrate */
         for (int i = 0; i < 3; i++) L[i] += h * tau[i];
         return;
@@ -574,9 +604,9 @@ static void kick_exact(double L[3], const double *q, const double *p, int flags,
     const double t0 = kinetic_l(L, p);
     double wg = 0.0;   /* gravity's work: tau_g . int omega dt, int L_i dt = L_i h + (tau_i - c L_i/I_i) h^2 phi2 */
     for (int i = 0; i < 3; i++) {
-        const double x = c * h / p[i];
-        const double r = tau[i] - c * L[i] / p[i];
-        if (tg[i] != 0.0) wg += tg[i] * (L[i] * h + r * h * h * (c == 0.0 ? 0.5 : phi2(x))) / p[i];
+        const double x = c * h / p[GS_P_I + i];
+        const double r = tau[i] - c * L[i] / p[GS_P_I + i];
+        if (tg[i] != 0.0) wg += tg[i] * (L[i] * h + r * h * h * (c == 0.0 ? 0.5 : phi2(x))) / p[GS_P_I + i];
         L[i] += r * h * (c == 0.0 ? 1.0 : phi1(x));
     }
     *W += (kinetic_l(L, p) - t0) - wg;
@@ -585,11 +615,11 @@ static void kick_exact(double L[3], const double *q, const double *p, int flags,
 /* F: the exact torque-free flow of L_body, q over h; |L| kept as it was (the flow keeps it: without this its
  * rounding drifts it by a third of an ulp per step, measured) */
 static void free_flow(double L[3], double *q, const double *p, double h) {
-    const double w[3] = {L[0] / p[0], L[1] / p[1], L[2] / p[2]};
+    const double w[3] = {L[0] / p[GS_P_I], L[1] / p[GS_P_I + 1], L[2] / p[GS_P_I + 2]};
     double wo[3], qo[4];
     gs_tf_flow(p, w, q, h, wo, qo);
     const double n0 = sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2]);
-    for (int i = 0; i < 3; i++) L[i] = p[i] * wo[i];
+    for (int i = 0; i < 3; i++) L[i] = p[GS_P_I + i] * wo[i];
     const double n1 = sqrt(L[0] * L[0] + L[1] * L[1] + L[2] * L[2]);
     if (n1 > 0.0 && n1 != n0) {
         const double r = n0 / n1;
@@ -641,27 +671,27 @@ static GS_INLINE int exact_split(int method) {
     return method >= GS_STRANG_EXACT && method <= GS_BM6_EXACT;
 }
 
-/* one step of h of a composition on the state y (the kicks' work to y[10]); kicks = 0: one free flow of h */
+/* one step of h of a composition on the state y (the kicks' work to y[GS_Y_BALANCE]); kicks = 0: one free flow of h */
 static void composition_step(const Composition *c, double *y, const double *p, int flags, double h, int kicks) {
     double L[3];
-    for (int i = 0; i < 3; i++) L[i] = p[i] * y[4 + i];
+    for (int i = 0; i < 3; i++) L[i] = p[GS_P_I + i] * y[GS_Y_OMEGA + i];
     if (!kicks) {
         free_flow(L, y, p, h);
     } else {
         for (int i = 0; i < c->ns; i++) {
-            kick_exact(L, y, p, flags, c->a[i] * h, y + 10);
+            kick_exact(L, y, p, flags, c->a[i] * h, y + GS_Y_BALANCE);
             free_flow(L, y, p, c->b[i] * h);
         }
-        kick_exact(L, y, p, flags, c->a[c->ns] * h, y + 10);
+        kick_exact(L, y, p, flags, c->a[c->ns] * h, y + GS_Y_BALANCE);
     }
-    for (int i = 0; i < 3; i++) y[4 + i] = L[i] / p[i];
+    for (int i = 0; i < 3; i++) y[GS_Y_OMEGA + i] = L[i] / p[GS_P_I + i];
 }
 
 /* ------------------------------------------------------------------------------------------- fixed steps */
 
-/* Substeps between updates of the reference angles y[7], y[8] within a step: every floor(1 / (|omega| h)) substeps
- * when the step turns the body by more than 1 rad (|omega| from the state at the start of the step), else none
- * (0); the rotation since the last update is kept in y[9]. */
+/* Substeps between updates of the reference angles y[GS_Y_REF], y[GS_Y_REF + 1] within a step: every
+ * floor(1 / (|omega| h)) substeps when the step turns the body by more than 1 rad (|omega| from the state at the start
+ * of the step), else none (0); the rotation since the last update is kept in y[GS_Y_TURN]. */
 static int64_t unwrap_stride(double w, double H, double h) {
     if (!(w * H > 1.0)) return 0;   /* none within the step */
     const double s = floor(1.0 / (w * h));
@@ -695,7 +725,7 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
         double L[3];
         split_axes(p, &s, &pp, &r);
         for (int64_t k = 0; k < n_sub; k++) {
-            for (int i = 0; i < 3; i++) L[i] = p[i] * y[4 + i];
+            for (int i = 0; i < 3; i++) L[i] = p[GS_P_I + i] * y[GS_Y_OMEGA + i];
             if (method == GS_SPLITTING) {
                 strang(L, y, p, flags, h, s, pp, r);
             } else {
@@ -703,7 +733,7 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
                 strang(L, y, p, flags, GS_Y0 * h, s, pp, r);
                 strang(L, y, p, flags, GS_Y1 * h, s, pp, r);
             }
-            for (int i = 0; i < 3; i++) y[4 + i] = L[i] / p[i];
+            for (int i = 0; i < 3; i++) y[GS_Y_OMEGA + i] = L[i] / p[GS_P_I + i];
             normalize_q(y);
             if (check && !ok(y)) return k + 1;
             if (CHECKED(k, cstride, flags)) return k + 1;
@@ -780,30 +810,31 @@ static GS_INLINE double norm2_at(double a, double b) {
  * with the reference angles r[0..1] and the monitor's values m[0..4] (a state's y[7..8], y[10..14]) */
 static GS_INLINE void output_row_at(const double *s, const double *r, const double *m, const double *pb, double *o,
                                     int want) {
-    const double w = s[0], x = s[1], yy = s[2], z = s[3];
-    const double I1 = pb[0], I2 = pb[1], I3 = pb[2];
-    const double o1 = s[4], o2 = s[5], o3 = s[6];
-    for (int i = 0; i < 7; i++) o[i] = s[i];
+    const double w = s[GS_Y_Q], x = s[GS_Y_Q + 1], yy = s[GS_Y_Q + 2], z = s[GS_Y_Q + 3];
+    const double I1 = pb[GS_P_I], I2 = pb[GS_P_I + 1], I3 = pb[GS_P_I + 2];
+    const double o1 = s[GS_Y_OMEGA], o2 = s[GS_Y_OMEGA + 1], o3 = s[GS_Y_OMEGA + 2];
+    for (int i = 0; i < GS_Y_NQW; i++) o[i] = s[i];
     if (want & GS_OUT_ANGLES) {
-        unwrapped_at(s, r, &o[7], &o[9]);
-        o[8] = 2.0 * gs_atan2(norm2_at(x, yy), norm2_at(w, z));
+        unwrapped_at(s, r, &o[GS_O_PHI], &o[GS_O_PSI]);
+        o[GS_O_THETA] = 2.0 * gs_atan2(norm2_at(x, yy), norm2_at(w, z));
     } else {
-        o[7] = o[8] = o[9] = NAN;
+        o[GS_O_PHI] = o[GS_O_THETA] = o[GS_O_PSI] = NAN;
     }
     if (!(want & GS_OUT_MOMENTUM)) {
-        o[10] = o[11] = o[12] = o[13] = o[14] = NAN;
+        o[GS_O_L] = o[GS_O_L + 1] = o[GS_O_L + 2] = o[GS_O_ENERGY] = o[GS_O_ENERGY_ERROR] = NAN;
         return;
     }
     const double L1 = I1 * o1, L2 = I2 * o2, L3 = I3 * o3;
-    o[10] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
-    o[11] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
-    o[12] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
-    o[13] = 0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[3] * (1.0 - 2.0 * (x * x + yy * yy));
-    o[14] = o[13] - m[0];
+    o[GS_O_L] = (1.0 - 2.0 * (yy * yy + z * z)) * L1 + 2.0 * (x * yy - w * z) * L2 + 2.0 * (x * z + w * yy) * L3;
+    o[GS_O_L + 1] = 2.0 * (x * yy + w * z) * L1 + (1.0 - 2.0 * (x * x + z * z)) * L2 + 2.0 * (yy * z - w * x) * L3;
+    o[GS_O_L + 2] = 2.0 * (x * z - w * yy) * L1 + 2.0 * (yy * z + w * x) * L2 + (1.0 - 2.0 * (x * x + yy * yy)) * L3;
+    o[GS_O_ENERGY] =
+        0.5 * (I1 * o1 * o1 + I2 * o2 * o2 + I3 * o3 * o3) + pb[GS_P_MGL] * (1.0 - 2.0 * (x * x + yy * yy));
+    o[GS_O_ENERGY_ERROR] = o[GS_O_ENERGY] - m[GS_M(GS_Y_BALANCE)];
 }
 
 static GS_INLINE void output_row(const double *yb, const double *pb, double *o, int want) {
-    output_row_at(yb, yb + 7, yb + 10, pb, o, want);
+    output_row_at(yb, yb + GS_Y_REF, yb + GS_Y_MON, pb, o, want);
 }
 
 void gs_outputs_select(size_t n, const double *y, const double *p, double *out, int want) {
@@ -852,11 +883,12 @@ static GS_INLINE void put_row(const Sink *sk, int64_t k, const double *s, const 
 /* 1 when the state an exact step ended in is not to be kept: not finite, or the health monitor's drift beyond
  * max_drift */
 static GS_INLINE int exact_rejected(int flags, const double *y, const double *p) {
-    return !ok(y) || !isfinite(y[7]) || !isfinite(y[8]) || drifted(flags, y, p);
+    return !ok(y) || !isfinite(y[GS_Y_REF]) || !isfinite(y[GS_Y_REF + 1]) || drifted(flags, y, p);
 }
 
 static int32_t exact_advance(double *y, const double *p, double t, double H, double *ex, int64_t *stats) {
-    const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    const double wmag = sqrt(y[GS_Y_OMEGA] * y[GS_Y_OMEGA] + y[GS_Y_OMEGA + 1] * y[GS_Y_OMEGA + 1] +
+                           y[GS_Y_OMEGA + 2] * y[GS_Y_OMEGA + 2]);
     /* sample often enough that phi and psi move less than 1 rad between unwrap points; bounded work per call */
     const double mf = ceil(wmag * H);
     if (!(mf <= 1e6)) return 1;
@@ -864,7 +896,7 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
     double *c = ex;
     if (ex[GS_EX_VALID] != 1.0 || ex[0] == 2.0) {   /* set up into a copy: the anchor changes only when the step
                                                       succeeds (a heavy top's anchor: the body is torque-free now) */
-        gs_tf_setup(p, y + 4, y, local);
+        gs_tf_setup(p, y + GS_Y_OMEGA, y, local);
         local[GS_EX_T0] = t;
         local[GS_EX_VALID] = 1.0;
         c = local;
@@ -880,7 +912,7 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
     int lanes = m > 1;
     for (int64_t k = 1; k <= m; k++) {
         /* move the reference angles before the rotation from them could pass 1 rad (|omega| is conserved) */
-        if (y[9] + turn > 1.0) gs_unwrap(y);
+        if (y[GS_Y_TURN] + turn > 1.0) gs_unwrap(y);
         if (lanes && k >= b_from + b_n) {
             double tl[GS_TF_LANES];
             for (int l = 0; l < GS_TF_LANES; l++) {
@@ -892,12 +924,12 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
             lanes = b_n > 0;
         }
         if (lanes) {
-            memcpy(y + 4, bw[k - b_from], 3 * sizeof(double));
+            memcpy(y + GS_Y_OMEGA, bw[k - b_from], 3 * sizeof(double));
             memcpy(y, bq[k - b_from], 4 * sizeof(double));
         } else {
-            gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + 4, y);
+            gs_tf_eval(c, tau0 + H * (double)k / (double)m, y + GS_Y_OMEGA, y);
         }
-        y[9] += turn;
+        y[GS_Y_TURN] += turn;
     }
     if (exact_rejected(0, y, p)) {   /* torque-free: flags 0 */
         memcpy(y, save, sizeof(save));
@@ -913,15 +945,16 @@ static int32_t exact_advance(double *y, const double *p, double t, double H, dou
  * same bits. Returns -1 (nothing done) where the step needs more than one sample (|omega| H > 1): exact_advance. */
 static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, const double *pw, const double *pq,
                                           int64_t *stats) {
-    const double wmag = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    const double wmag = sqrt(y[GS_Y_OMEGA] * y[GS_Y_OMEGA] + y[GS_Y_OMEGA + 1] * y[GS_Y_OMEGA + 1] +
+                           y[GS_Y_OMEGA + 2] * y[GS_Y_OMEGA + 2]);
     const double turn = wmag * H;   /* ceil(turn) <= 1: one sample (m = 1), and the rotation per sample */
     if (!(turn <= 1.0)) return -1;
-    double save[10];
+    double save[GS_Y_MON];
     memcpy(save, y, sizeof(save));   /* y[10..14] (the monitor's start values) are not touched */
-    if (y[9] + turn > 1.0) gs_unwrap(y);
-    memcpy(y + 4, pw, 3 * sizeof(double));
+    if (y[GS_Y_TURN] + turn > 1.0) gs_unwrap(y);
+    memcpy(y + GS_Y_OMEGA, pw, 3 * sizeof(double));
     memcpy(y, pq, 4 * sizeof(double));
-    y[9] += turn;
+    y[GS_Y_TURN] += turn;
     if (exact_rejected(0, y, p)) {   /* torque-free: flags 0 */
         memcpy(y, save, sizeof(save));
         return 1;
@@ -939,38 +972,39 @@ static GS_INLINE int32_t exact_grid_point(double *y, const double *p, double H, 
  * one sample, a state to reject), with y then the state after the lane before it. */
 static GS_INLINE int grid_block(double *y, const double *p, double H, const double (*lw)[3], const double (*lq)[4],
                                 int from, int to, int64_t *stats, const Sink *sk, int64_t row0, int want) {
-    double s[GS_TF_LANES][7], turn[GS_TF_LANES];
+    double s[GS_TF_LANES][GS_Y_NQW], turn[GS_TF_LANES];
     int rej[GS_TF_LANES];
     for (int l = from; l < to; l++) {
         memcpy(s[l], lq[l], 4 * sizeof(double));
-        memcpy(s[l] + 4, lw[l], 3 * sizeof(double));
+        memcpy(s[l] + GS_Y_OMEGA, lw[l], 3 * sizeof(double));
     }
     for (int l = from; l < to; l++) {
-        const double *w = l > from ? lw[l - 1] : y + 4;
+        const double *w = l > from ? lw[l - 1] : y + GS_Y_OMEGA;
         turn[l] = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) * H;
-        rej[l] = !ok(s[l]) || drifted_at(0, s[l], y + 10, p);   /* exact_rejected(0, .) but y[7], y[8] */
+        /* exact_rejected(0, .) but y[GS_Y_REF], y[GS_Y_REF + 1] */
+        rej[l] = !ok(s[l]) || drifted_at(0, s[l], y + GS_Y_MON, p);
     }
     int l = from;
     for (; l < to; l++) {
         if (!(turn[l] <= 1.0) || rej[l]) break;
-        const double r7 = y[7], r8 = y[8], r9 = y[9];
-        if (y[9] + turn[l] > 1.0) {   /* gs_unwrap of the state before the point */
+        const double r7 = y[GS_Y_REF], r8 = y[GS_Y_REF + 1], r9 = y[GS_Y_TURN];
+        if (y[GS_Y_TURN] + turn[l] > 1.0) {   /* gs_unwrap of the state before the point */
             double phi, psi;
-            unwrapped_at(l > from ? s[l - 1] : y, y + 7, &phi, &psi);
-            y[7] = phi;
-            y[8] = psi;
-            y[9] = 0.0;
+            unwrapped_at(l > from ? s[l - 1] : y, y + GS_Y_REF, &phi, &psi);
+            y[GS_Y_REF] = phi;
+            y[GS_Y_REF + 1] = psi;
+            y[GS_Y_TURN] = 0.0;
         }
-        y[9] += turn[l];
-        if (!isfinite(y[7]) || !isfinite(y[8])) {
-            y[7] = r7;
-            y[8] = r8;
-            y[9] = r9;
+        y[GS_Y_TURN] += turn[l];
+        if (!isfinite(y[GS_Y_REF]) || !isfinite(y[GS_Y_REF + 1])) {
+            y[GS_Y_REF] = r7;
+            y[GS_Y_REF + 1] = r8;
+            y[GS_Y_TURN] = r9;
             break;
         }
-        put_row(sk, row0 + (l - from), s[l], y + 7, y + 10, p, want);
+        put_row(sk, row0 + (l - from), s[l], y + GS_Y_REF, y + GS_Y_MON, p, want);
     }
-    if (l > from) memcpy(y, s[l - 1], 7 * sizeof(double));
+    if (l > from) memcpy(y, s[l - 1], GS_Y_NQW * sizeof(double));
     stats[0] += l - from;
     return l;
 }
@@ -978,7 +1012,7 @@ static GS_INLINE int grid_block(double *y, const double *p, double H, const doub
 /* The Lagrange top's step once the flow at its end is in y (q, omega and the flow's own unwrapped phi, psi as the
  * reference angles): the checks and the monitor's update; y back to save on a failure. */
 static GS_INLINE int32_t exact_ht_commit(int flags, double *y, const double *p, const double *save, int64_t *stats) {
-    y[9] = 0.0;
+    y[GS_Y_TURN] = 0.0;
     if (exact_rejected(flags, y, p)) {
         memcpy(y, save, GS_NY * sizeof(double));
         return 1;
@@ -989,7 +1023,8 @@ static GS_INLINE int32_t exact_ht_commit(int flags, double *y, const double *p, 
 }
 
 /* The Lagrange top (gs_lagrange_top): the flow from the anchor at the end of the step, one evaluation; the
- * reference angles y[7], y[8] are the flow's own unwrapped phi, psi there (no sampling within the step). */
+ * reference angles y[GS_Y_REF], y[GS_Y_REF + 1] are the flow's own unwrapped phi, psi there (no sampling within the
+ * step). */
 static int32_t exact_advance_ht(int flags, double *y, const double *p, double t, double H, double *ex,
                                 int64_t *stats) {
     double local[GS_EX_SIZE];
@@ -997,7 +1032,8 @@ static int32_t exact_advance_ht(int flags, double *y, const double *p, double t,
     if (ex[GS_EX_VALID] != 1.0 || ex[0] != 2.0) {   /* set up into a copy, as exact_advance */
         double phi, psi;
         unwrapped(y, &phi, &psi);
-        gs_ht_setup(p[0] == p[1] ? p[0] : 0.5 * (p[0] + p[1]), p[2], p[3], y + 4, y, phi, psi, local);
+        gs_ht_setup(p[GS_P_I] == p[GS_P_I + 1] ? p[GS_P_I] : 0.5 * (p[GS_P_I] + p[GS_P_I + 1]), p[GS_P_I + 2],
+                    p[GS_P_MGL], y + GS_Y_OMEGA, y, phi, psi, local);
         local[GS_EX_T0] = t;
         local[GS_EX_VALID] = 1.0;
         c = local;
@@ -1005,7 +1041,7 @@ static int32_t exact_advance_ht(int flags, double *y, const double *p, double t,
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
     const double tau = (t - c[GS_EX_T0]) + H * 1.0 / 1.0;   /* the time exact_advance samples */
-    gs_ht_eval(c, tau, y + 4, y, y + 7);
+    gs_ht_eval(c, tau, y + GS_Y_OMEGA, y, y + GS_Y_REF);
     const int32_t st = exact_ht_commit(flags, y, p, save, stats);
     if (!st && c == local) memcpy(ex, local, sizeof(local));
     return st;
@@ -1017,18 +1053,18 @@ static GS_INLINE int32_t exact_ht_grid_point(int flags, double *y, const double 
                                              const double *pq, const double *pa, int64_t *stats) {
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
-    memcpy(y + 4, pw, 3 * sizeof(double));
+    memcpy(y + GS_Y_OMEGA, pw, 3 * sizeof(double));
     memcpy(y, pq, 4 * sizeof(double));
-    memcpy(y + 7, pa, 2 * sizeof(double));
+    memcpy(y + GS_Y_REF, pa, 2 * sizeof(double));
     return exact_ht_commit(flags, y, p, save, stats);
 }
 
 /* ------------------------------------------------------------------------------------------- the loop */
 
-/* Before a step: when the rotation since the reference angles were last updated (y[9], rad) and the step's together
- * could reach 1 rad, update them first, so that the outputs' unwrapping from them stays unambiguous. */
+/* Before a step: when the rotation since the reference angles were last updated (y[GS_Y_TURN], rad) and the step's
+ * together could reach 1 rad, update them first, so that the outputs' unwrapping from them stays unambiguous. */
 static inline void rebase(double *y, double w, double H) {
-    if (y[9] + w * H > 1.0) gs_unwrap(y);
+    if (y[GS_Y_TURN] + w * H > 1.0) gs_unwrap(y);
 }
 
 static GS_INLINE int32_t advance_body(int method, int flags, double *y, const double *p, double t, double H,
@@ -1040,7 +1076,8 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
     }
     double save[GS_NY];
     memcpy(save, y, sizeof(save));
-    const double w = sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]);
+    const double w = sqrt(y[GS_Y_OMEGA] * y[GS_Y_OMEGA] + y[GS_Y_OMEGA + 1] * y[GS_Y_OMEGA + 1] +
+                        y[GS_Y_OMEGA + 2] * y[GS_Y_OMEGA + 2]);
     rebase(y, w, H);
     if (method == GS_ADAPTIVE || method == GS_DOP853) {   /* they move the reference angles themselves */
         const double hint0 = *hint;
@@ -1057,8 +1094,8 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
      * from the saved state with a check after each, to name the failing step */
     const double h = H / (double)n_sub;
     const int64_t stride = unwrap_stride(w, H, h);
-    const double acc0 = y[9];
-    const int64_t cstride = p[8] > 0.0 && p[8] != INFINITY ? monitor_stride(n_sub) : 0;
+    const double acc0 = y[GS_Y_TURN];
+    const int64_t cstride = p[GS_P_MAX_DRIFT] > 0.0 && p[GS_P_MAX_DRIFT] != INFINITY ? monitor_stride(n_sub) : 0;
     const int64_t trip = fixed_steps(method, y, p, flags, h, n_sub, stride, 0, cstride);
     if (trip || !ok(y)) {
         memcpy(y, save, sizeof(save));
@@ -1067,7 +1104,7 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
         memcpy(y, save, sizeof(save));
         return clamp_status(k);
     }
-    y[9] = after_steps(acc0, w, H, h, n_sub, stride);
+    y[GS_Y_TURN] = after_steps(acc0, w, H, h, n_sub, stride);
     if (drifted(flags, y, p)) {   /* the health monitor, once per communication step */
         memcpy(y, save, sizeof(save));
         return clamp_status(n_sub);
@@ -1098,80 +1135,83 @@ static GS_INLINE void rhs_block(const Lanes *S, const Lanes *P, int flags, Lanes
 #pragma GCC ivdep
 #endif
     for (int j = 0; j < GS_BLOCK; j++) {
-        const double qw = S[0][j], qx = S[1][j], qy = S[2][j], qz = S[3][j], o1 = S[4][j], o2 = S[5][j],
-                     o3 = S[6][j];
-        const double I1 = P[0][j], I2 = P[1][j], I3 = P[2][j];
+        const double qw = S[GS_Y_Q][j], qx = S[GS_Y_Q + 1][j], qy = S[GS_Y_Q + 2][j], qz = S[GS_Y_Q + 3][j],
+                     o1 = S[GS_Y_OMEGA][j], o2 = S[GS_Y_OMEGA + 1][j], o3 = S[GS_Y_OMEGA + 2][j];
+        const double I1 = P[GS_P_I][j], I2 = P[GS_P_I + 1][j], I3 = P[GS_P_I + 2][j];
         double a1 = (I2 - I3) * o2 * o3;
         double a2 = (I3 - I1) * o3 * o1;
         double a3 = (I1 - I2) * o1 * o2;
         if (flags & GS_GRAVITY) {
             const double zb0 = 2.0 * (qx * qz - qw * qy);
             const double zb1 = 2.0 * (qy * qz + qw * qx);
-            a1 += P[3][j] * zb1;
-            a2 -= P[3][j] * zb0;
+            a1 += P[GS_P_MGL][j] * zb1;
+            a2 -= P[GS_P_MGL][j] * zb0;
         }
         if (flags & GS_DAMPING) {
-            a1 -= P[4][j] * o1;
-            a2 -= P[4][j] * o2;
-            a3 -= P[4][j] * o3;
+            a1 -= P[GS_P_DAMPING][j] * o1;
+            a2 -= P[GS_P_DAMPING][j] * o2;
+            a3 -= P[GS_P_DAMPING][j] * o3;
         }
         if (flags & GS_TORQUE) {
-            a1 += P[5][j];
-            a2 += P[6][j];
-            a3 += P[7][j];
+            a1 += P[GS_P_TAU][j];
+            a2 += P[GS_P_TAU + 1][j];
+            a3 += P[GS_P_TAU + 2][j];
         }
-        K[0][j] = 0.5 * (-qx * o1 - qy * o2 - qz * o3);
-        K[1][j] = 0.5 * (qw * o1 + qy * o3 - qz * o2);
-        K[2][j] = 0.5 * (qw * o2 - qx * o3 + qz * o1);
-        K[3][j] = 0.5 * (qw * o3 + qx * o2 - qy * o1);
-        K[4][j] = a1 / I1;
-        K[5][j] = a2 / I2;
-        K[6][j] = a3 / I3;
-        if (flags & GS_WORK) {   /* rhs's k[7], the same operations */
+        K[GS_Y_Q][j] = 0.5 * (-qx * o1 - qy * o2 - qz * o3);
+        K[GS_Y_Q + 1][j] = 0.5 * (qw * o1 + qy * o3 - qz * o2);
+        K[GS_Y_Q + 2][j] = 0.5 * (qw * o2 - qx * o3 + qz * o1);
+        K[GS_Y_Q + 3][j] = 0.5 * (qw * o3 + qx * o2 - qy * o1);
+        K[GS_Y_OMEGA][j] = a1 / I1;
+        K[GS_Y_OMEGA + 1][j] = a2 / I2;
+        K[GS_Y_OMEGA + 2][j] = a3 / I3;
+        if (flags & GS_WORK) {   /* rhs's k[GS_DY_WORK], the same operations */
             double pw = 0.0;
-            if (flags & GS_TORQUE) pw += P[5][j] * o1 + P[6][j] * o2 + P[7][j] * o3;
-            if (flags & GS_DAMPING) pw -= P[4][j] * (o1 * o1 + o2 * o2 + o3 * o3);
-            K[7][j] = pw;
+            if (flags & GS_TORQUE) pw += P[GS_P_TAU][j] * o1 + P[GS_P_TAU + 1][j] * o2 + P[GS_P_TAU + 2][j] * o3;
+            if (flags & GS_DAMPING) pw -= P[GS_P_DAMPING][j] * (o1 * o1 + o2 * o2 + o3 * o3);
+            K[GS_DY_WORK][j] = pw;
         }
     }
 }
 
 static GS_INLINE void normalize_block(Lanes *Y) {
     for (int j = 0; j < GS_BLOCK; j++) {
-        const double n = sqrt(Y[0][j] * Y[0][j] + Y[1][j] * Y[1][j] + Y[2][j] * Y[2][j] + Y[3][j] * Y[3][j]);
+        const double n = sqrt(Y[GS_Y_Q][j] * Y[GS_Y_Q][j] + Y[GS_Y_Q + 1][j] * Y[GS_Y_Q + 1][j] +
+                              Y[GS_Y_Q + 2][j] * Y[GS_Y_Q + 2][j] + Y[GS_Y_Q + 3][j] * Y[GS_Y_Q + 3][j]);
         const double d = n > 0.0 ? n : 1.0;   /* x / 1.0 == x: the one-body path's "leave q alone" */
-        Y[0][j] /= d;
-        Y[1][j] /= d;
-        Y[2][j] /= d;
-        Y[3][j] /= d;
+        Y[GS_Y_Q][j] /= d;
+        Y[GS_Y_Q + 1][j] /= d;
+        Y[GS_Y_Q + 2][j] /= d;
+        Y[GS_Y_Q + 3][j] /= d;
     }
 }
 
 static GS_INLINE void steps_block(int method, Lanes *Y, const Lanes *P, int flags, double h, int64_t n_sub) {
-    Lanes K1[8], K2[8], K3[8], K4[8], S[7];
+    Lanes K1[GS_NDY], K2[GS_NDY], K3[GS_NDY], K4[GS_NDY], S[GS_Y_NQW];
     const double h2 = 0.5 * h;
     const double h6 = h / 6.0;
     for (int64_t k = 0; k < n_sub; k++) {
         rhs_block((const Lanes *)Y, P, flags, K1);
         if (method == GS_EULER) {
-            for (int i = 0; i < 7; i++)
+            for (int i = 0; i < GS_Y_NQW; i++)
                 for (int j = 0; j < GS_BLOCK; j++) Y[i][j] += h * K1[i][j];
             if (flags & GS_WORK)
-                for (int j = 0; j < GS_BLOCK; j++) Y[7][j] += h * K1[7][j];
+                for (int j = 0; j < GS_BLOCK; j++) Y[GS_DY_WORK][j] += h * K1[GS_DY_WORK][j];
         } else {
-            for (int i = 0; i < 7; i++)
+            for (int i = 0; i < GS_Y_NQW; i++)
                 for (int j = 0; j < GS_BLOCK; j++) S[i][j] = Y[i][j] + h2 * K1[i][j];
             rhs_block((const Lanes *)S, P, flags, K2);
-            for (int i = 0; i < 7; i++)
+            for (int i = 0; i < GS_Y_NQW; i++)
                 for (int j = 0; j < GS_BLOCK; j++) S[i][j] = Y[i][j] + h2 * K2[i][j];
             rhs_block((const Lanes *)S, P, flags, K3);
-            for (int i = 0; i < 7; i++)
+            for (int i = 0; i < GS_Y_NQW; i++)
                 for (int j = 0; j < GS_BLOCK; j++) S[i][j] = Y[i][j] + h * K3[i][j];
             rhs_block((const Lanes *)S, P, flags, K4);
-            for (int i = 0; i < 7; i++)
+            for (int i = 0; i < GS_Y_NQW; i++)
                 for (int j = 0; j < GS_BLOCK; j++) Y[i][j] += h6 * (K1[i][j] + 2.0 * (K2[i][j] + K3[i][j]) + K4[i][j]);
             if (flags & GS_WORK)
-                for (int j = 0; j < GS_BLOCK; j++) Y[7][j] += h6 * (K1[7][j] + 2.0 * (K2[7][j] + K3[7][j]) + K4[7][j]);
+                for (int j = 0; j < GS_BLOCK; j++)
+                    Y[GS_DY_WORK][j] +=
+                        h6 * (K1[GS_DY_WORK][j] + 2.0 * (K2[GS_DY_WORK][j] + K3[GS_DY_WORK][j]) + K4[GS_DY_WORK][j]);
         }
         normalize_block(Y);
     }
@@ -1194,7 +1234,7 @@ static void run_block(int method, Lanes *Y, const Lanes *P, int flags, double h,
 static size_t advance_block(int method, int flags, size_t b0, double *y, const double *p, double t, double H,
                             int64_t n_sub, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                             double *ex, int32_t *status) {
-    Lanes Y[8], P[GS_NP];   /* Y[7]: y[10], the energy the balance expects */
+    Lanes Y[GS_NDY], P[GS_NP];   /* Y[GS_DY_WORK]: y[GS_Y_BALANCE], the energy the balance expects */
     double ang[GS_BLOCK][3], w[GS_BLOCK];
     int64_t stride[GS_BLOCK];
     const double h = H / (double)n_sub;
@@ -1202,22 +1242,24 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
         const double *yb = y + (b0 + j) * GS_NY, *pb = p + (b0 + j) * GS_NP;
         double yr[GS_NY];
         memcpy(yr, yb, sizeof(yr));
-        w[j] = sqrt(yr[4] * yr[4] + yr[5] * yr[5] + yr[6] * yr[6]);
+        w[j] = sqrt(yr[GS_Y_OMEGA] * yr[GS_Y_OMEGA] + yr[GS_Y_OMEGA + 1] * yr[GS_Y_OMEGA + 1] +
+                    yr[GS_Y_OMEGA + 2] * yr[GS_Y_OMEGA + 2]);
         rebase(yr, w[j], H);
-        for (int i = 0; i < 7; i++) Y[i][j] = yr[i];
-        Y[7][j] = yr[10];
+        for (int i = 0; i < GS_Y_NQW; i++) Y[i][j] = yr[i];
+        Y[GS_DY_WORK][j] = yr[GS_Y_BALANCE];
         for (int i = 0; i < GS_NP; i++) P[i][j] = pb[i];
-        ang[j][0] = yr[7];
-        ang[j][1] = yr[8];
-        ang[j][2] = yr[9];
+        ang[j][0] = yr[GS_Y_REF];
+        ang[j][1] = yr[GS_Y_REF + 1];
+        ang[j][2] = yr[GS_Y_TURN];
         stride[j] = unwrap_stride(w[j], H, h);
     }
-    /* the health monitor's checkpoints within the call, as advance_body has them (the bodies share p[8]) */
-    const double bound = p[b0 * GS_NP + 8];
+    /* the health monitor's checkpoints within the call, as advance_body has them (the bodies share
+     * p[GS_P_MAX_DRIFT]) */
+    const double bound = p[b0 * GS_NP + GS_P_MAX_DRIFT];
     const int64_t cstride = bound > 0.0 && bound != INFINITY ? monitor_stride(n_sub) : 0;
     int tripped = 0;
     for (int j = 1; j < GS_BLOCK; j++)   /* bodies with bounds of their own: each alone (below) */
-        if (!(p[(b0 + j) * GS_NP + 8] == bound)) tripped = 1;
+        if (!(p[(b0 + j) * GS_NP + GS_P_MAX_DRIFT] == bound)) tripped = 1;
     for (int64_t k = 0; k < n_sub && !tripped;) {
         /* run to the next substep after which some lane updates its reference angles, or the monitor looks */
         int64_t next = n_sub;
@@ -1237,8 +1279,8 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
                 const double *pb = p + (b0 + j) * GS_NP;
                 double yn[GS_NY];
                 memcpy(yn, y + (b0 + j) * GS_NY, sizeof(yn));
-                for (int i = 0; i < 7; i++) yn[i] = Y[i][j];
-                yn[10] = Y[7][j];
+                for (int i = 0; i < GS_Y_NQW; i++) yn[i] = Y[i][j];
+                yn[GS_Y_BALANCE] = Y[GS_DY_WORK][j];
                 tripped = drifted(flags, yn, pb);
             }
             if (tripped) break;
@@ -1246,12 +1288,12 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
         for (int j = 0; j < GS_BLOCK; j++) {
             if (stride[j] && k % stride[j] == 0) {
                 double yn[GS_NY];
-                for (int i = 0; i < 7; i++) yn[i] = Y[i][j];
-                yn[7] = ang[j][0];
-                yn[8] = ang[j][1];
+                for (int i = 0; i < GS_Y_NQW; i++) yn[i] = Y[i][j];
+                yn[GS_Y_REF] = ang[j][0];
+                yn[GS_Y_REF + 1] = ang[j][1];
                 gs_unwrap(yn);
-                ang[j][0] = yn[7];
-                ang[j][1] = yn[8];
+                ang[j][0] = yn[GS_Y_REF];
+                ang[j][1] = yn[GS_Y_REF + 1];
             }
         }
     }
@@ -1270,11 +1312,11 @@ static size_t advance_block(int method, int flags, size_t b0, double *y, const d
         double *yb = y + b * GS_NY;
         double yn[GS_NY];
         memcpy(yn, yb, sizeof(yn));
-        for (int i = 0; i < 7; i++) yn[i] = Y[i][j];
-        yn[7] = ang[j][0];
-        yn[8] = ang[j][1];
-        yn[9] = after_steps(ang[j][2], w[j], H, h, n_sub, stride[j]);
-        yn[10] = Y[7][j];
+        for (int i = 0; i < GS_Y_NQW; i++) yn[i] = Y[i][j];
+        yn[GS_Y_REF] = ang[j][0];
+        yn[GS_Y_REF + 1] = ang[j][1];
+        yn[GS_Y_TURN] = after_steps(ang[j][2], w[j], H, h, n_sub, stride[j]);
+        yn[GS_Y_BALANCE] = Y[GS_DY_WORK][j];
         if (!ok(yn) || drifted(flags, yn, p + b * GS_NP)) {   /* replay this body alone: it names the failing step
                                                                   and keeps the state */
             status[b] = advance_body(method, flags, yb, p + b * GS_NP, t, H, n_sub, rtol, atol, max_step, hint + b,
@@ -1362,24 +1404,24 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
 
 
 typedef struct {
-    double K[16][8];   /* stages (dop853 uses 13 + 3 for dense output; dopri5 7) */
-    double y0[8];      /* state at the start of the step: q, omega and, with GS_WORK terms, y[10] */
-    double y1[8];      /* state at the end (before the quaternion's renormalisation) */
+    double K[16][GS_NDY];   /* stages (dop853 uses 13 + 3 for dense output; dopri5 7) */
+    double y0[GS_NDY];      /* state at the start of the step: q, omega and, with GS_WORK terms, y[GS_Y_BALANCE] */
+    double y1[GS_NDY];      /* state at the end (before the quaternion's renormalisation) */
     double h;
     int nv;            /* components integrated: 7, or 8 with the energy the balance expects (GS_WORK terms) */
     int dense_ready;   /* dop853's extra stages computed for this step */
-    double F[7][8];    /* dop853's interpolation polynomial */
+    double F[7][GS_NDY];    /* dop853's interpolation polynomial */
 } Step;
 
 /* a state y (GS_NY) into a step's components and back */
 static GS_INLINE void to_step(const double *y, double *v) {
-    memcpy(v, y, 7 * sizeof(double));
-    v[7] = y[10];
+    memcpy(v, y, GS_Y_NQW * sizeof(double));
+    v[GS_DY_WORK] = y[GS_Y_BALANCE];
 }
 
 static GS_INLINE void from_step(const double *v, int nv, double *y) {
-    memcpy(y, v, 7 * sizeof(double));
-    if (nv == 8) y[10] = v[7];
+    memcpy(y, v, GS_Y_NQW * sizeof(double));
+    if (nv == GS_NDY) y[GS_Y_BALANCE] = v[GS_DY_WORK];
 }
 
 /* dop853's sums on pairs of components (GCC and Clang vector extensions: SSE2 on x86-64, NEON on aarch64; a lane
@@ -1402,17 +1444,17 @@ static GS_INLINE void v2_store(double *p, gs_v2 v) { memcpy(p, &v, sizeof(v)); }
 /* a stage's derivatives into a row of Step.K (8 components) */
 static GS_INLINE void rhs_row(const double *y, const double *p, int flags, double *K) {
 #ifdef GS_PAIRS
-    double k[8];
+    double k[GS_NDY];
     rhs(y, p, flags, k);
     const gs_v2 k01 = {k[0], k[1]}, k23 = {k[2], k[3]}, k45 = {k[4], k[5]};
-    const gs_v2 k67 = {k[6], (flags & GS_WORK) ? k[7] : 0.0};
+    const gs_v2 k67 = {k[6], (flags & GS_WORK) ? k[GS_DY_WORK] : 0.0};
     v2_store(K, k01);
     v2_store(K + 2, k23);
     v2_store(K + 4, k45);
     v2_store(K + 6, k67);
 #else
     rhs(y, p, flags, K);
-    if (!(flags & GS_WORK)) K[7] = 0.0;
+    if (!(flags & GS_WORK)) K[GS_DY_WORK] = 0.0;
 #endif
 }
 
@@ -1459,7 +1501,7 @@ static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double
         c4 += a * k[4];
         c5 += a * k[5];
         c6 += a * k[6];
-        if (nv == 8) c7 += a * k[7];
+        if (nv == GS_NDY) c7 += a * k[7];
     }
     if (y0) {
         out[0] = y0[0] + h * c0;
@@ -1496,7 +1538,7 @@ static GS_INLINE double gmin(double a, double b) { return b < a ? b : a; }
 /* One step of h from s.y0 with s.K[0] = f(y0): s.y1, s.K[last] = f(y1); returns the scaled error norm. */
 static double erk_step(int method, Step *s, const double *p, int flags, double h, double rtol, double atol,
                        int64_t *stats) {
-    double yt[8];
+    double yt[GS_NDY];
     const int nv = s->nv;
     if (method == GS_ADAPTIVE) {
         for (int st = 1; st < 7; st++) {
@@ -1510,7 +1552,7 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
         }
         stats[2] += 6;
         double err = 0.0;
-        for (int i = 0; i < 7; i++) {
+        for (int i = 0; i < GS_Y_NQW; i++) {
             double e = 0.0;
             for (int j = 0; j < 7; j++) e += D5_E[j] * s->K[j][i];
             e *= h;
@@ -1528,13 +1570,13 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     rhs_row(s->y1, p, flags, s->K[12]);
     stats[2] += 12;
     double e5 = 0.0, e3 = 0.0;
-    double a5v[8], a3v[8];
+    double a5v[GS_NDY], a3v[GS_NDY];
     /* E5 and E3 have the same zeros: the terms of a loop that skipped the stages where both are zero */
-    erk_combine(s, D8_E5, 13, 0.0, 7, NULL, a5v);
-    erk_combine(s, D8_E3, 13, 0.0, 7, NULL, a3v);
+    erk_combine(s, D8_E5, 13, 0.0, GS_Y_NQW, NULL, a5v);
+    erk_combine(s, D8_E3, 13, 0.0, GS_Y_NQW, NULL, a3v);
 #ifdef GS_PAIRS
     gs_v2 e = {0.0, 0.0};   /* (e5, e3): one division per component for both (on the chain to the next step) */
-    for (int i = 0; i < 7; i++) {
+    for (int i = 0; i < GS_Y_NQW; i++) {
         const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
         const gs_v2 a = {a5v[i], a3v[i]}, scv = {sc, sc};
         const gs_v2 q = a / scv;
@@ -1543,7 +1585,7 @@ static double erk_step(int method, Step *s, const double *p, int flags, double h
     e5 = e[0];
     e3 = e[1];
 #else
-    for (int i = 0; i < 7; i++) {
+    for (int i = 0; i < GS_Y_NQW; i++) {
         const double a5 = a5v[i], a3 = a3v[i];
         const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
         e5 += (a5 / sc) * (a5 / sc);
@@ -1570,7 +1612,7 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
         return;
     }
     if (!s->dense_ready) {
-        double yt[8];
+        double yt[GS_NDY];
         for (int st = 13; st < 16; st++) {
             erk_combine(s, D8_A[st], st, h, nv, s->y0, yt);
             rhs_row(yt, p, flags, s->K[st]);
@@ -1583,7 +1625,7 @@ static void erk_dense(int method, Step *s, const double *p, int flags, double x,
             s->F[2][i] = 2.0 * dy - h * (s->K[12][i] + s->K[0][i]);
         }
         for (int r = 0; r < 4; r++) {   /* the sums of the loop over the stages that skipped D's zeros */
-            double acc[8];
+            double acc[GS_NDY];
             erk_combine(s, D8_D[r], 16, 0.0, nv, NULL, acc);
             for (int i = 0; i < nv; i++) s->F[3 + r][i] = h * acc[i];
         }
@@ -1609,7 +1651,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
                        double max_step, double *hint, int64_t *stats, double dt, int64_t n_out, const Sink *sk,
                        int64_t *fail_row, int want) {
     Step s;
-    s.nv = (flags & GS_WORK) ? 8 : 7;
+    s.nv = (flags & GS_WORK) ? GS_NDY : GS_Y_NQW;
     double yc[GS_NY];
     memcpy(yc, y, sizeof(yc));
     const double expo = method == GS_ADAPTIVE ? -0.2 : -0.125;
@@ -1623,7 +1665,7 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
     stats[2] += 1;
     if (!(h > 0.0)) {
         double d0 = 0.0, d1 = 0.0;
-        for (int i = 0; i < 7; i++) {
+        for (int i = 0; i < GS_Y_NQW; i++) {
             const double sc = atol + rtol * fabs(yc[i]);
             d0 += (yc[i] / sc) * (yc[i] / sc);
             d1 += (s.K[0][i] / sc) * (s.K[0][i] / sc);
@@ -1676,7 +1718,8 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             return nstep;
         }
         const double t1 = clipped ? T : t + h;
-        const double w = sqrt(yc[4] * yc[4] + yc[5] * yc[5] + yc[6] * yc[6]);
+        const double w = sqrt(yc[GS_Y_OMEGA] * yc[GS_Y_OMEGA] + yc[GS_Y_OMEGA + 1] * yc[GS_Y_OMEGA + 1] +
+                            yc[GS_Y_OMEGA + 2] * yc[GS_Y_OMEGA + 2]);
         /* output points in (t, t1] */
         while (n_out > 0 && k_next <= n_out && (double)k_next * dt <= t1 * (1.0 + 1e-15)) {
             const double tk = k_next == n_out ? T : (double)k_next * dt;
@@ -1685,12 +1728,12 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             if (k_next == n_out && clipped) {
                 from_step(s.y1, s.nv, yi);
             } else {
-                double v[8];
+                double v[GS_NDY];
                 erk_dense(method, &s, p, flags, (tk - t) / h, v, stats);
                 from_step(v, s.nv, yi);
             }
             normalize_q(yi);
-            yi[9] = 0.0;
+            yi[GS_Y_TURN] = 0.0;
             double scratch[GS_NOUT];
             double *o = row_begin(sk, k_next, scratch);
             if (drifted(flags, yi, p)) {   /* the health monitor at every output point: the row shows what tripped */
@@ -1702,9 +1745,9 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
             output_row(yi, p, o, want);
             row_end(sk, k_next, o);
             if (want & GS_OUT_ANGLES) {   /* the reference angles follow the outputs */
-                yc[7] = o[7];
-                yc[8] = o[9];
-                yc[9] = w * (t1 - tk);
+                yc[GS_Y_REF] = o[GS_O_PHI];
+                yc[GS_Y_REF + 1] = o[GS_O_PSI];
+                yc[GS_Y_TURN] = w * (t1 - tk);
             }
             k_next += 1;
         }
@@ -1712,8 +1755,8 @@ static int64_t erk_run(int method, double *y, const double *p, int flags, double
         normalize_q(yc);
         memcpy(s.K[0], method == GS_ADAPTIVE ? s.K[6] : s.K[12], sizeof(s.K[0]));
         stats[0] += 1;
-        yc[9] += w * h;
-        if (yc[9] > 1.0) gs_unwrap(yc);
+        yc[GS_Y_TURN] += w * h;
+        if (yc[GS_Y_TURN] > 1.0) gs_unwrap(yc);
         t = t1;
         /* fmin and fmax inline: err is finite and positive here, pow's result too */
         const double fac = err == 0.0 ? fmax_grow : gmin(fmax_grow, gmax(0.2, 0.9 * pow(err, expo)));
@@ -1777,7 +1820,7 @@ static GS_INLINE size_t trajectory_impl(int method, int flags, size_t n, double 
         const Sink whole = {out + b * GS_NOUT, n * GS_NOUT, NULL, 0, 0.0, 0.0, 0};
         const Sink *sk = sel ? sel : &whole;
         status[b] = 0;
-        put_row(sk, 0, yb, yb + 7, yb + 10, pb, want);   /* row 0: the start */
+        put_row(sk, 0, yb, yb + GS_Y_REF, yb + GS_Y_MON, pb, want);   /* row 0: the start */
         if (method == GS_ADAPTIVE || method == GS_DOP853) {
             int64_t row = 0;
             const int64_t st = erk_run(method, yb, pb, flags, (double)n_out * dt, rtol, atol, max_step, hint + b, sb,
@@ -1843,7 +1886,7 @@ static GS_INLINE size_t trajectory_impl(int method, int flags, size_t n, double 
                 failed += 1;
                 break;
             }
-            put_row(sk, k + 1, yb, yb + 7, yb + 10, pb, want);
+            put_row(sk, k + 1, yb, yb + GS_Y_REF, yb + GS_Y_MON, pb, want);
         }
     }
     return failed;
@@ -1866,7 +1909,7 @@ size_t gs_trajectory_select(int method, int flags, double *y, const double *p, d
             status[0] = 1;
             return 1;
         }
-        state &= cols[j] < 7;
+        state &= cols[j] < GS_Y_NQW;
     }
     const Sink sel = {res, (size_t)ncols + 1, cols, ncols, t_row0, dt, state};
     return trajectory_impl(method, flags, 1, y, p, t0, k0, dt, n_out, rtol, atol, max_step, hint, stats, ex, status,

@@ -89,10 +89,47 @@ extern "C" {
 #define GS_BM6_EXACT 10
 #define GS_N_METHODS 11
 
-#define GS_NY 15
-#define GS_NP 9
+/* Offsets in one body's state row y (GS_NY doubles; the head of this file tells more). "n: " = n slots from there */
+#define GS_Y_Q 0         /* 4: the attitude q_w, q_x, q_y, q_z (unit quaternion, body to world) */
+#define GS_Y_OMEGA 4     /* 3: omega_1, omega_2, omega_3 (rad/s, body frame) */
+#define GS_Y_NQW 7       /* (a count) q and omega: y[0..GS_Y_NQW), what the equations of motion move */
+#define GS_Y_REF 7       /* 2: the reference angles phi_ref, psi_ref (rad) the outputs phi, psi are unwrapped from */
+#define GS_Y_TURN 9      /* the rotation since the reference angles were set (rad) */
+#define GS_Y_MON 10      /* 5: the health monitor's values, GS_Y_BALANCE .. GS_Y_L30 (gs_start_state sets them) */
+#define GS_Y_BALANCE 10  /* E0 + W, the energy the work-energy balance expects (J; W: the input torque's work minus
+                          * the damping's dissipation, integrated alongside the state) */
+#define GS_Y_ESCALE 11   /* the energy scale S0 = T0 + |mgl| at the start (J) */
+#define GS_Y_L0 12       /* |L0| at the start (kg*m^2/s) */
+#define GS_Y_LZ0 13      /* L_z0, world, at the start (kg*m^2/s) */
+#define GS_Y_L30 14      /* L_3,0, body, at the start (kg*m^2/s) */
+#define GS_NY (GS_Y_L30 + 1)
+
+/* Offsets in one body's parameter row p (GS_NP doubles) */
+#define GS_P_I 0          /* 3: the principal moments I1, I2, I3 about the reference point (kg*m^2) */
+#define GS_P_MGL 3        /* mass * g * cm_distance (N*m): the gravity torque's scale */
+#define GS_P_DAMPING 4    /* the viscous damping c (N*m*s) */
+#define GS_P_TAU 5        /* 3: the input torque tau_1, tau_2, tau_3 (N*m, body frame, held over the step) */
+#define GS_P_MAX_DRIFT 8  /* the health monitor's bound (gs_drift; 0 or inf: off) */
+#define GS_NP (GS_P_MAX_DRIFT + 1)
+
 #define GS_NSTATS 3
-#define GS_NOUT 15
+
+/* Offsets in one body's output row (GS_NOUT doubles, gs_outputs) */
+#define GS_O_Q 0              /* 4: q_w, q_x, q_y, q_z (as y's) */
+#define GS_O_OMEGA 4          /* 3: omega_x, omega_y, omega_z (rad/s, body frame; as y's) */
+#define GS_O_PHI 7            /* ZYZ angles, unwrapped: phi (rad) */
+#define GS_O_THETA 8          /* theta (rad, in [0, pi]) */
+#define GS_O_PSI 9            /* psi (rad, unwrapped) */
+#define GS_O_L 10             /* 3: L_x, L_y, L_z (world, kg*m^2/s) */
+#define GS_O_ENERGY 13        /* the energy T + V (J) */
+#define GS_O_ENERGY_ERROR 14  /* energy - y[GS_Y_BALANCE] (J) */
+#define GS_NOUT (GS_O_ENERGY_ERROR + 1)
+
+/* A derivative row (gs_derivatives' dy, GS_NDY doubles) and an integrator's vector of components: q and omega at y's
+ * offsets GS_Y_Q, GS_Y_OMEGA, then the work term: its power tau.omega - damping |omega|^2 (W) in a derivative, the
+ * balance y[GS_Y_BALANCE] (J) in a state */
+#define GS_DY_WORK 7
+#define GS_NDY (GS_DY_WORK + 1)
 
 /* the torque-free flow's constants (gs_tf_setup: 40, then 12 constants and the four Chebyshev series of the fast
  * evaluation, GS_TF_NFAST terms each), the heavy symmetric top's (gs_ht_setup: 40, then five series) and, after the
@@ -209,7 +246,7 @@ int32_t gs_advance_one(int method, int flags, double *y, const double *p, double
  * dy[4:7] = domega/dt from y[0:7] and p (the input torque p[5:8] where flags has GS_TORQUE), and dy[7] = the power
  * of the input torque minus the damping's dissipation, tau.omega - damping |omega|^2 (W; 0 where the flags carry
  * neither). q is used as given (not normalised): dq/dt = q * (0, omega) / 2 keeps |q| constant. */
-void gs_derivatives(int flags, const double y[GS_NY], const double p[GS_NP], double dy[8]);
+void gs_derivatives(int flags, const double y[GS_NY], const double p[GS_NP], double dy[GS_NDY]);
 
 /* Every output per body into out[b*GS_NOUT + .], in the order q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z,
  * phi, theta, psi (rad), L_x, L_y, L_z (world, kg*m^2/s), energy (J), energy_error (J: energy - y[10], the

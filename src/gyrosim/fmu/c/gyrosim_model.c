@@ -43,7 +43,7 @@ static const char *const KIND_UNIT[GS_V_COUNT] = {
 /* ------------------------------------------------------------------------------------------ helpers */
 
 #define GS_MAGIC 0x32535947u  /* "GYS2" */
-#define GS_DD_COLUMN (7 + GS_NOUT)   /* a directional derivative's column: one body's dx[7], then its outputs */
+#define GS_DD_COLUMN (GS_Y_NQW + GS_NOUT)   /* a directional derivative's column: one body's dx[7], then its outputs */
 #include "gyrosim_glue_common.h"
 
 /* a body as a one-body tree: n = 1, no couplings, the root a ball joint (directional derivatives) */
@@ -155,15 +155,15 @@ int gs_initialize(GsInstance *m) {
         }
         for (int b = 0; b < GS_N_BODIES; b++) {
             double *p = d->p[b];
-            p[0] = d->moments[b][0];
-            p[1] = d->moments[b][1];
-            p[2] = d->moments[b][2];
-            p[3] = d->mass[b] * d->g[b] * d->cm_distance[b];   /* Model._params */
-            p[4] = d->damping[b];
-            p[5] = d->tau[b][0];
-            p[6] = d->tau[b][1];
-            p[7] = d->tau[b][2];
-            p[8] = d->max_drift;
+            p[GS_P_I] = d->moments[b][0];
+            p[GS_P_I + 1] = d->moments[b][1];
+            p[GS_P_I + 2] = d->moments[b][2];
+            p[GS_P_MGL] = d->mass[b] * d->g[b] * d->cm_distance[b];   /* Model._params */
+            p[GS_P_DAMPING] = d->damping[b];
+            p[GS_P_TAU] = d->tau[b][0];
+            p[GS_P_TAU + 1] = d->tau[b][1];
+            p[GS_P_TAU + 2] = d->tau[b][2];
+            p[GS_P_MAX_DRIFT] = d->max_drift;
         }
         d->initialized = 1;
     }
@@ -173,15 +173,15 @@ int gs_initialize(GsInstance *m) {
             if (!(fabs(nq - 1.0) <= 1e-6)) {
                 gs_log_error(m, "q%s%s = [%s, %s, %s, %s] is not allowed: a unit quaternion (q_w, q_x, q_y, q_z) "
                              "with |q| = 1 within 1e-6; its norm is %.9g", GS_N_BODIES > 1 ? " of body " : "",
-                             where(b), num(d->y[b][0]).s, num(d->y[b][1]).s, num(d->y[b][2]).s, num(d->y[b][3]).s,
-                             nq);
+                             where(b), num(d->y[b][GS_Y_Q]).s, num(d->y[b][GS_Y_Q + 1]).s,
+                             num(d->y[b][GS_Y_Q + 2]).s, num(d->y[b][GS_Y_Q + 3]).s, nq);
                 return GS_ERROR;
             }
-            for (int i = 4; i < 7; i++) {
+            for (int i = GS_Y_OMEGA; i < GS_Y_OMEGA + 3; i++) {
                 if (!isfinite(d->y[b][i])) {
                     gs_log_error(m, "omega%s%s = [%s, %s, %s] is not allowed: finite rates in rad/s",
-                                 GS_N_BODIES > 1 ? " of body " : "", where(b), num(d->y[b][4]).s,
-                                 num(d->y[b][5]).s, num(d->y[b][6]).s);
+                                 GS_N_BODIES > 1 ? " of body " : "", where(b), num(d->y[b][GS_Y_OMEGA]).s,
+                                 num(d->y[b][GS_Y_OMEGA + 1]).s, num(d->y[b][GS_Y_OMEGA + 2]).s);
                     return GS_ERROR;
                 }
             }
@@ -203,11 +203,11 @@ static int outputs(GsInstance *m) {
             memcpy(y, m->d.y, sizeof(y));
             for (int b = 0; b < GS_N_BODIES; b++) {
                 const double nq = gs_norm4(y[b]);
-                if (nq > 0.0) for (int i = 0; i < 4; i++) y[b][i] /= nq;
+                if (nq > 0.0) for (int i = 0; i < 4; i++) y[b][GS_Y_Q + i] /= nq;
             }
             gs_outputs(GS_N_BODIES, &y[0][0], &m->d.p[0][0], &m->outputs[0][0]);
             for (int b = 0; b < GS_N_BODIES; b++) {
-                for (int i = 0; i < 4; i++) m->outputs[b][i] = m->d.y[b][i];
+                for (int i = 0; i < 4; i++) m->outputs[b][GS_O_Q + i] = m->d.y[b][GS_Y_Q + i];
             }
         } else {
             gs_outputs(GS_N_BODIES, &m->d.y[0][0], &m->d.p[0][0], &m->outputs[0][0]);
@@ -220,25 +220,25 @@ static int outputs(GsInstance *m) {
 /* the input torque into the engine's parameters (CS: at each doStep; ME: at each evaluation) */
 static void me_inputs(GsData *d) {
     for (int b = 0; b < GS_N_BODIES; b++) {
-        d->p[b][5] = d->tau[b][0];
-        d->p[b][6] = d->tau[b][1];
-        d->p[b][7] = d->tau[b][2];
+        d->p[b][GS_P_TAU] = d->tau[b][0];
+        d->p[b][GS_P_TAU + 1] = d->tau[b][1];
+        d->p[b][GS_P_TAU + 2] = d->tau[b][2];
     }
 }
 
 /* Model exchange: the derivatives of body b's states (p current). dq/dt = q * (0, omega) / 2 of the state q as it
  * is (it keeps |q|: a first integral), domega/dt of the attitude q / |q| (the gravity torque): |q| is then a gauge
  * that does not act on the motion, and its drift (the host solver's error) changes nothing but |q|. */
-static void me_rhs(const GsData *d, int b, double dy[8]) {
+static void me_rhs(const GsData *d, int b, double dy[GS_NDY]) {
     gs_derivatives(GS_FLAGS, d->y[b], d->p[b], dy);
 #if GS_FLAGS & GS_GRAVITY
     const double nq = gs_norm4(d->y[b]);
     if (nq != 1.0 && nq > 0.0 && isfinite(nq)) {
-        double y[GS_NY], dn[8];
+        double y[GS_NY], dn[GS_NDY];
         memcpy(y, d->y[b], sizeof(y));
-        for (int i = 0; i < 4; i++) y[i] /= nq;
+        for (int i = 0; i < 4; i++) y[GS_Y_Q + i] /= nq;
         gs_derivatives(GS_FLAGS, y, d->p[b], dn);
-        for (int i = 4; i < 8; i++) dy[i] = dn[i];
+        for (int i = GS_Y_OMEGA; i < GS_NDY; i++) dy[i] = dn[i];
     }
 #endif
 }
@@ -268,18 +268,19 @@ int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
         case GS_V_ENERGY_ERROR: {
             if (outputs(m) != GS_OK) return GS_ERROR;
             static const int SLOT[GS_V_COUNT] = {
-                [GS_V_QW] = 0, [GS_V_QX] = 1, [GS_V_QY] = 2, [GS_V_QZ] = 3, [GS_V_OX] = 4, [GS_V_OY] = 5,
-                [GS_V_OZ] = 6, [GS_V_PHI] = 7, [GS_V_THETA] = 8, [GS_V_PSI] = 9, [GS_V_LX] = 10, [GS_V_LY] = 11,
-                [GS_V_LZ] = 12, [GS_V_ENERGY] = 13, [GS_V_ENERGY_ERROR] = 14};
+                [GS_V_QW] = GS_O_Q, [GS_V_QX] = GS_O_Q + 1, [GS_V_QY] = GS_O_Q + 2, [GS_V_QZ] = GS_O_Q + 3,
+                [GS_V_OX] = GS_O_OMEGA, [GS_V_OY] = GS_O_OMEGA + 1, [GS_V_OZ] = GS_O_OMEGA + 2, [GS_V_PHI] = GS_O_PHI,
+                [GS_V_THETA] = GS_O_THETA, [GS_V_PSI] = GS_O_PSI, [GS_V_LX] = GS_O_L, [GS_V_LY] = GS_O_L + 1,
+                [GS_V_LZ] = GS_O_L + 2, [GS_V_ENERGY] = GS_O_ENERGY, [GS_V_ENERGY_ERROR] = GS_O_ENERGY_ERROR};
             *value = m->outputs[b][SLOT[k]];
             return GS_OK;
         }
         case GS_V_DQW: case GS_V_DQX: case GS_V_DQY: case GS_V_DQZ: case GS_V_DOX: case GS_V_DOY: case GS_V_DOZ: {
             if (gs_initialize(m) != GS_OK) return GS_ERROR;
-            double dy[8];
+            double dy[GS_NDY];
             me_inputs(d);
             me_rhs(d, b, dy);
-            *value = dy[k - GS_V_DQW];
+            *value = dy[GS_Y_Q + (k - GS_V_DQW)];
             return GS_OK;
         }
         default:
@@ -354,13 +355,13 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
                 return GS_ERROR;
             }
             d->max_drift = x;
-            for (int i = 0; i < GS_N_BODIES; i++) d->p[i][8] = x;
+            for (int i = 0; i < GS_N_BODIES; i++) d->p[i][GS_P_MAX_DRIFT] = x;
             break;
         case GS_V_TX: case GS_V_TY: case GS_V_TZ:
             d->tau[b][k - GS_V_TX] = x;
             break;
         default:  /* q_*, omega_* */
-            d->y[b][k - GS_V_QW] = x;
+            d->y[b][GS_Y_Q + (k - GS_V_QW)] = x;
             d->state_dirty = 1;
             d->ex[b][GS_EX_VALID] = 0.0;
             break;
@@ -419,15 +420,15 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         return GS_ERROR;
     }
     for (int b = 0; b < GS_N_BODIES; b++) {
-        d->p[b][5] = d->tau[b][0];
-        d->p[b][6] = d->tau[b][1];
-        d->p[b][7] = d->tau[b][2];
+        d->p[b][GS_P_TAU] = d->tau[b][0];
+        d->p[b][GS_P_TAU + 1] = d->tau[b][1];
+        d->p[b][GS_P_TAU + 2] = d->tau[b][2];
         if (method == GS_EXACT && !gs_exact_applies(GS_FLAGS, d->p[b])) {
             gs_log_error(m, "integrator 'exact' solves a torque-free body only, or a Lagrange top (I1 = I2, gravity "
                          "the only torque), and %s%s%s has mass*g*cm_distance = "
                          "%s N*m, damping = %s N*m*s/rad, torque = (%s, %s, %s) N*m; set them to 0 or choose another "
                          "integrator ('adaptive', 'dop853', 'rk4', 'splitting')", GS_N_BODIES > 1 ? "body '" : "the body",
-                         where(b), GS_N_BODIES > 1 ? "'" : "", num(d->p[b][3]).s, num(d->p[b][4]).s,
+                         where(b), GS_N_BODIES > 1 ? "'" : "", num(d->p[b][GS_P_MGL]).s, num(d->p[b][GS_P_DAMPING]).s,
                          num(d->tau[b][0]).s, num(d->tau[b][1]).s, num(d->tau[b][2]).s);
             return GS_ERROR;
         }
@@ -459,7 +460,7 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         int64_t st[GS_NSTATS] = {0, 0, 0};
         memcpy(y, d->y[b], sizeof(y));
         memcpy(pp, d->p[b], sizeof(pp));
-        pp[8] = 0.0;
+        pp[GS_P_MAX_DRIFT] = 0.0;
         const double rate = gs_fastest_rate(GS_FLAGS, y, pp);
         /* the monitor looks within long steps: a fixed-step method stopped at internal step k is rerun to it */
         const int fixed = method == GS_EULER || method == GS_RK4 || method == GS_SPLITTING || method == GS_SPLITTING4 ||
@@ -474,7 +475,9 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         if (again && (method == GS_ADAPTIVE || method == GS_DOP853)) {
             snprintf(cause, sizeof(cause), "the adaptive step size fell below its minimum, or the step needed more "
                      "than %d internal steps (the solution may truly blow up)", GS_MAX_WORK);
-        } else if (again && method == GS_EXACT && !(sqrt(y[4] * y[4] + y[5] * y[5] + y[6] * y[6]) * h <= 1e6)) {
+        } else if (again && method == GS_EXACT &&
+                   !(sqrt(y[GS_Y_OMEGA] * y[GS_Y_OMEGA] + y[GS_Y_OMEGA + 1] * y[GS_Y_OMEGA + 1] +
+                          y[GS_Y_OMEGA + 2] * y[GS_Y_OMEGA + 2]) * h <= 1e6)) {
             snprintf(cause, sizeof(cause), "the body turns by more than 1e6 rad in the step, more than one doStep "
                      "may sample; take shorter steps");
         } else if (again) {
@@ -500,7 +503,7 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
         } else if (!(rate > 0.0)) {
             snprintf(advice, sizeof(advice), "the body was at rest before the step; check the torques and "
                      "parameters, or try the integrator '%s'", alt[method]);
-        } else if (!(xs < INFINITY) && (GS_FLAGS & GS_GRAVITY) && d->p[b][3] != 0.0 &&
+        } else if (!(xs < INFINITY) && (GS_FLAGS & GS_GRAVITY) && d->p[b][GS_P_MGL] != 0.0 &&
                    0.5 * gs_stable_x_gravity[method] / rate < hi) {   /* the exact-flow splittings under gravity */
             snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s, so h*rate = %.3g, beyond "
                      "%s's stable h*rate <= %g under gravity (the stability map's tops in the FMU's documentation): "
@@ -560,15 +563,15 @@ static int check_nx(GsInstance *m, const void *x, size_t nx, const char *what) {
 
 /* the work terms' power of every body now, into d->power */
 static void me_power(GsData *d) {
-    double dy[8];
+    double dy[GS_NDY];
     me_inputs(d);
     for (int b = 0; b < GS_N_BODIES; b++) {
         me_rhs(d, b, dy);
-        d->power[b] = dy[7];
+        d->power[b] = dy[GS_DY_WORK];
     }
 }
 
-/* The work since t_work by the trapezoidal rule into the energy balance y[b][10]; the reference angles to the
+/* The work since t_work by the trapezoidal rule into the energy balance y[b][GS_Y_BALANCE]; the reference angles to the
  * state. Called at each completed integrator step and at each event. */
 static void me_commit(GsData *d) {
     const double t = gs_time_data(d);
@@ -576,7 +579,7 @@ static void me_commit(GsData *d) {
     double p0[GS_N_BODIES];
     memcpy(p0, d->power, sizeof(p0));
     me_power(d);
-    for (int b = 0; b < GS_N_BODIES; b++) d->y[b][10] += 0.5 * (p0[b] + d->power[b]) * (t - d->t_work);
+    for (int b = 0; b < GS_N_BODIES; b++) d->y[b][GS_Y_BALANCE] += 0.5 * (p0[b] + d->power[b]) * (t - d->t_work);
 #endif
     d->t_work = t;
     for (int b = 0; b < GS_N_BODIES; b++) gs_unwrap(d->y[b]);
@@ -592,7 +595,7 @@ int gs_me_get_states(GsInstance *m, double x[], size_t nx) {
     if (!check_nx(m, x, nx, "x[]")) return GS_ERROR;
     if (gs_initialize(m) != GS_OK) return GS_ERROR;
     for (int b = 0; b < GS_N_BODIES; b++) {
-        for (int i = 0; i < 7; i++) x[7 * b + i] = m->d.y[b][i];
+        for (int i = 0; i < GS_Y_NQW; i++) x[GS_Y_NQW * b + i] = m->d.y[b][i];
     }
     return GS_OK;
 }
@@ -600,7 +603,7 @@ int gs_me_get_states(GsInstance *m, double x[], size_t nx) {
 int gs_me_set_states(GsInstance *m, const double x[], size_t nx) {
     if (!check_nx(m, x, nx, "x[]")) return GS_ERROR;
     for (int b = 0; b < GS_N_BODIES; b++) {
-        for (int i = 0; i < 7; i++) m->d.y[b][i] = x[7 * b + i];
+        for (int i = 0; i < GS_Y_NQW; i++) m->d.y[b][i] = x[GS_Y_NQW * b + i];
     }
     m->outputs_valid = 0;
     return GS_OK;
@@ -609,11 +612,11 @@ int gs_me_set_states(GsInstance *m, const double x[], size_t nx) {
 int gs_me_derivatives(GsInstance *m, double dx[], size_t nx) {
     if (!check_nx(m, dx, nx, "derivatives[]")) return GS_ERROR;
     if (gs_initialize(m) != GS_OK) return GS_ERROR;
-    double dy[8];
+    double dy[GS_NDY];
     me_inputs(&m->d);
     for (int b = 0; b < GS_N_BODIES; b++) {
         me_rhs(&m->d, b, dy);
-        for (int i = 0; i < 7; i++) dx[7 * b + i] = dy[i];
+        for (int i = 0; i < GS_Y_NQW; i++) dx[GS_Y_NQW * b + i] = dy[i];
     }
     return GS_OK;
 }
@@ -621,8 +624,8 @@ int gs_me_derivatives(GsInstance *m, double dx[], size_t nx) {
 int gs_me_nominals(GsInstance *m, double x[], size_t nx) {
     if (!check_nx(m, x, nx, "x_nominal[]")) return GS_ERROR;
     for (int b = 0; b < GS_N_BODIES; b++) {
-        for (int i = 0; i < 4; i++) x[7 * b + i] = 1.0;
-        for (int i = 4; i < 7; i++) x[7 * b + i] = OMEGA_NOMINAL[b];
+        for (int i = GS_Y_Q; i < GS_Y_Q + 4; i++) x[GS_Y_NQW * b + i] = 1.0;
+        for (int i = GS_Y_OMEGA; i < GS_Y_OMEGA + 3; i++) x[GS_Y_NQW * b + i] = OMEGA_NOMINAL[b];
     }
     return GS_OK;
 }
@@ -638,13 +641,15 @@ int gs_me_completed_step(GsInstance *m, int *enter_event_mode, int *terminate) {
     for (int b = 0; b < GS_N_BODIES; b++) {
         const double *y = d->y[b];
         int finite = 1;
-        for (int i = 0; i < 7; i++) finite &= isfinite(y[i]) != 0;
-        if (!finite || !(fabs(y[4]) + fabs(y[5]) + fabs(y[6]) < GS_OMEGA_LIMIT) || !(gs_norm4(y) > 0.5)) {
+        for (int i = 0; i < GS_Y_NQW; i++) finite &= isfinite(y[i]) != 0;
+        if (!finite || !(fabs(y[GS_Y_OMEGA]) + fabs(y[GS_Y_OMEGA + 1]) + fabs(y[GS_Y_OMEGA + 2]) < GS_OMEGA_LIMIT) ||
+            !(gs_norm4(y) > 0.5)) {
             gs_log_error(m, "the state%s%s at t = %s s is not allowed: q = [%s, %s, %s, %s], omega = [%s, %s, %s] "
                          "rad/s (non-finite, |omega| > 1e+100 rad/s or |q| < 0.5: the host's solver blew up; "
                          "tighten its tolerance or shorten its step)", GS_N_BODIES > 1 ? " of body " : "",
-                         where(b), num(gs_time(m)).s, num(y[0]).s, num(y[1]).s, num(y[2]).s, num(y[3]).s,
-                         num(y[4]).s, num(y[5]).s, num(y[6]).s);
+                         where(b), num(gs_time(m)).s, num(y[GS_Y_Q]).s, num(y[GS_Y_Q + 1]).s,
+                         num(y[GS_Y_Q + 2]).s, num(y[GS_Y_Q + 3]).s, num(y[GS_Y_OMEGA]).s, num(y[GS_Y_OMEGA + 1]).s,
+                         num(y[GS_Y_OMEGA + 2]).s);
             *terminate = 1;
             return GS_ERROR;
         }
@@ -671,7 +676,7 @@ int gs_me_update(GsInstance *m, int *values_changed) {
                          where(b), num(nq).s);
             return GS_ERROR;
         }
-        for (int i = 0; i < 4; i++) d->y[b][i] /= nq;
+        for (int i = 0; i < 4; i++) d->y[b][GS_Y_Q + i] /= nq;
         d->norm_events += 1;
         *values_changed = 1;
         gs_log_event(m, "t = %s s: q%s%s renormalised (|q| - 1 = %.3g, beyond %g); renormalisation %d",
@@ -791,7 +796,7 @@ static void dd_column(GsInstance *m, uint32_t known, double col[GS_DD_COLUMN]) {
     double y[GS_ODE_MAX + GS_TREE_NMON], yn[GS_ODE_MAX + GS_TREE_NMON], p[GS_TREE_NPMAX];
     double vy[7] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, vn[7], vp[GS_TREE_NPMAX];
     double ddy[GS_ODE_MAX + 1], out[GS_TREE_NOUTMAX], ddn[GS_ODE_MAX + 1], outn[GS_TREE_NOUTMAX];
-    double *dx = col, *o = col + 7;
+    double *dx = col, *o = col + GS_Y_NQW;
     memset(vp, 0, sizeof(vp));
     if (is_input_kind(k)) {
         vp[GS_TP_HEAD + GS_TB_TAU + (k - GS_V_TX)] = 1.0;
@@ -800,7 +805,7 @@ static void dd_column(GsInstance *m, uint32_t known, double col[GS_DD_COLUMN]) {
     }
     one_body_tree(d, b, d->y[b], y, p, t->ny, t->np);
     /* the attitude the derived outputs (and domega/dt with gravity) see: q normalised in model exchange */
-    double qn[4] = {d->y[b][0], d->y[b][1], d->y[b][2], d->y[b][3]};
+    double qn[4] = {d->y[b][GS_Y_Q], d->y[b][GS_Y_Q + 1], d->y[b][GS_Y_Q + 2], d->y[b][GS_Y_Q + 3]};
     const double nq = gs_norm4(qn);
     memcpy(vn, vy, sizeof(vn));
     int raw = 1;   /* the raw rows need an evaluation of their own */
@@ -832,13 +837,13 @@ static void dd_column(GsInstance *m, uint32_t known, double col[GS_DD_COLUMN]) {
     double q_unit[4];
     const double nqa = gs_norm4(qa);
     for (int i = 0; i < 4; i++) q_unit[i] = nqa > 0.0 ? qa[i] / nqa : qa[i];
-    euler_rates(q_unit, on + t->nx, o + 7);
+    euler_rates(q_unit, on + t->nx, o + GS_O_PHI);
     const int e = t->nx + 4 * t->n;
-    o[10] = on[e + 2];
-    o[11] = on[e + 3];
-    o[12] = on[e + 4];
-    o[13] = on[e];
-    o[14] = on[e + 1];
+    o[GS_O_L] = on[e + 2];
+    o[GS_O_L + 1] = on[e + 3];
+    o[GS_O_L + 2] = on[e + 4];
+    o[GS_O_ENERGY] = on[e];
+    o[GS_O_ENERGY_ERROR] = on[e + 1];
 }
 
 static double dd_pick(const GsInstance *m, const double col[GS_DD_COLUMN], uint32_t known, uint32_t unknown) {
@@ -848,10 +853,11 @@ static double dd_pick(const GsInstance *m, const double col[GS_DD_COLUMN], uint3
     const int k = vr_kind(unknown, &bu);
     if (bk != bu) return 0.0;   /* the bodies are independent */
     static const int SLOT[GS_V_COUNT] = {
-        [GS_V_QW] = 0, [GS_V_QX] = 1, [GS_V_QY] = 2, [GS_V_QZ] = 3, [GS_V_OX] = 4, [GS_V_OY] = 5, [GS_V_OZ] = 6,
-        [GS_V_PHI] = 7, [GS_V_THETA] = 8, [GS_V_PSI] = 9, [GS_V_LX] = 10, [GS_V_LY] = 11, [GS_V_LZ] = 12,
-        [GS_V_ENERGY] = 13, [GS_V_ENERGY_ERROR] = 14};
-    return k >= GS_V_DQW ? col[k - GS_V_DQW] : col[7 + SLOT[k]];
+        [GS_V_QW] = GS_O_Q, [GS_V_QX] = GS_O_Q + 1, [GS_V_QY] = GS_O_Q + 2, [GS_V_QZ] = GS_O_Q + 3,
+        [GS_V_OX] = GS_O_OMEGA, [GS_V_OY] = GS_O_OMEGA + 1, [GS_V_OZ] = GS_O_OMEGA + 2, [GS_V_PHI] = GS_O_PHI,
+        [GS_V_THETA] = GS_O_THETA, [GS_V_PSI] = GS_O_PSI, [GS_V_LX] = GS_O_L, [GS_V_LY] = GS_O_L + 1,
+        [GS_V_LZ] = GS_O_L + 2, [GS_V_ENERGY] = GS_O_ENERGY, [GS_V_ENERGY_ERROR] = GS_O_ENERGY_ERROR};
+    return k >= GS_V_DQW ? col[k - GS_V_DQW] : col[GS_Y_NQW + SLOT[k]];
 }
 
 /* ------------------------------------------------------------------------------------------ state */

@@ -42,7 +42,7 @@ enum { GS_INSTANTIATED = 1, GS_INIT = 2, GS_STEP = 4, GS_TERMINATED = 8, GS_EVEN
 
 /* Model Exchange: continuous states (q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z per body) and the norm drift
  * | |q| - 1 | beyond which fmi*CompletedIntegratorStep asks for a step event, at which q is renormalised. */
-#define GS_NX (7 * GS_N_BODIES)
+#define GS_NX (GS_Y_NQW * GS_N_BODIES)
 #define GS_ME_NORM_TOL 1e-3
 
 enum { GS_OK = 0, GS_WARNING = 1, GS_DISCARD = 2, GS_ERROR = 3, GS_FATAL = 4 };
@@ -57,7 +57,7 @@ typedef struct {
     int32_t stop_defined;
     int32_t tolerance_defined;
     double max_step;          /* s */
-    double max_drift;         /* the health monitor's bound (engine p[8]; 0: off) */
+    double max_drift;         /* the health monitor's bound (engine p[GS_P_MAX_DRIFT]; 0: off) */
     double tolerance;         /* relative and absolute tolerance of adaptive (the FMI tolerance) */
     double start_time, stop_time;      /* s */
     double t_base, h;         /* time = t_base + n*h (Model.time) */
@@ -73,7 +73,7 @@ typedef struct {
     /* Model Exchange */
     int32_t me;               /* 1: a Model Exchange instance (after initialisation: event / continuous-time mode) */
     int32_t norm_events;      /* renormalisations of q so far */
-    double t_work;            /* s: the time up to which the work in y[b][10] is accumulated */
+    double t_work;            /* s: the time up to which the work in y[b][GS_Y_BALANCE] is accumulated */
     double power[GS_N_BODIES];  /* W: the power of the work terms at t_work (trapezoidal rule) */
 } GsData;
 
