@@ -4,7 +4,7 @@ Jazzy type store into a local folder (the SDK would otherwise clone them from th
 decoder. It imports nothing from gyrosim.
 
 Usage: ros2_peer.py PORT DOMAIN SECONDS SPEC.json -> one JSON line on stdout:
-  SPEC: {"subscribe": {"/tf": "tf2_msgs/msg/TFMessage", ...},
+  SPEC: {"subscribe": {"/tf": "tf2_msgs/msg/TFMessage", ...}, "qos": {"/tf_static": ":1:,1:,:,:,,"},
          "publish": [[after_s, topic, type, {fields}], ...],  # e.g. a Wrench after 0.5 s
          "msgdir": "/tmp/..."}
   out: {"received": {topic: count}, "first": {topic: summary}, "last": {topic: summary},
@@ -97,7 +97,9 @@ def main() -> None:
         return cb
 
     common = dict(domain_id=domain, router_ip="127.0.0.1", router_port=port)
-    subs = [ROS2Subscriber(topic=topic, msg_type=t, callback=on(topic), node_name="probe", **common)
+    qos = spec.get("qos", {})  # topic -> rmw_zenoh's QoS string (e.g. transient local for /tf_static)
+    subs = [ROS2Subscriber(topic=topic, msg_type=t, callback=on(topic), node_name="probe",
+                           **({"qos": qos[topic]} if topic in qos else {}), **common)
             for topic, t in spec.get("subscribe", {}).items()]
     pubs = []
     t0 = time.monotonic()

@@ -91,6 +91,9 @@ def test_ros2_side_receives_frames_imu_clock_and_sees_the_node(tmp_path):
     assert imu["frame_id"] == "gyro" and imu["omega"][2] == pytest.approx(200.0, rel=1e-9)
     assert out["last"]["/clock"]["t"] > out["first"]["/clock"]["t"] > 0.0
     assert out["last"]["/tf"]["stamp"] == pytest.approx(out["last"]["/clock"]["t"], abs=0.05)
+    # every message from the first received on (reliable /tf at 100 Hz): none lost between them
+    span = out["last"]["/tf"]["stamp"] - out["first"]["/tf"]["stamp"]
+    assert got["/tf"] == round(span / 0.01) + 1, (got["/tf"], span)
     topics = dict((n, t) for n, t in out["topics"])
     assert topics["/tf"] == [msg.TF_TYPE] and topics["/clock"] == [msg.CLOCK_TYPE]
     assert topics["/gyroscope/gyro/imu"] == [msg.IMU_TYPE]
@@ -140,3 +143,25 @@ def test_replay_republishes_a_recording_into_ros2(tmp_path):
     assert min(got.get(t, 0) for t in ("/tf", "/clock", "/gyroscope/gyro/imu")) > 50, got
     assert out["last"]["/tf"]["frames"][0][:2] == ["world", "gyro"]
     assert 0.0 <= out["last"]["/clock"]["t"] <= 2.0 + 1e-9  # the recording's simulation time
+
+
+def test_a_late_subscriber_gets_the_fixed_frames_on_tf_static(tmp_path):
+    """A fixed joint's frame goes once on /tf_static (transient local: rmw_zenoh's advanced publisher with a cache
+    of 1): a ROS 2 subscriber that starts seconds later still gets it; /tf carries only the moving frames."""
+    scene = tmp_path / "panelsat.toml"
+    scene.write_text('[scene]\nname = "panelsat"\ng = 0.0\n'
+                     '[[body]]\nname = "hub"\njoint = "free_rotation"\nmass = 10.0\n'
+                     'inertia = { principal = [1.0, 2.0, 3.0] }\nrates = { omega = [0.1, 0.0, 0.2] }\n'
+                     '[[body]]\nname = "panel"\nparent = "hub"\njoint = "fixed"\nposition = [1.0, 0.0, 0.0]\n'
+                     'mass = 1.0\ninertia = { principal = [0.1, 0.1, 0.1] }\n')
+    port, domain = free_port(), 14
+    srv = start("serve", str(scene), "--ros-domain", str(domain), "-l", endpoint(port), "--duration", "8",
+                "--no-multicast-scouting")
+    wait_for_line(srv, "stepping")
+    out = _peer(tmp_path, port, domain, 2.0, {"subscribe": {"/tf_static": msg.TF_TYPE, "/tf": msg.TF_TYPE},
+                                              "qos": {"/tf_static": ros2.TF_STATIC_QOS.keyexpr()}})
+    finish(srv, timeout=60)
+    assert out["received"]["/tf_static"] == 1
+    [static] = out["first"]["/tf_static"]["frames"]
+    assert static == ["hub", "panel", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0] and out["first"]["/tf_static"]["stamp"] == 0
+    assert [f[:2] for f in out["last"]["/tf"]["frames"]] == [["world", "hub"]]

@@ -666,6 +666,8 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
 
             live = LiveView(*options.foxglove, name=f"gyrosim serve {model.scene.name}",
                             bodies=[K.BodyKeys(model.scene.name, b, options.prefix) for b in model.body_names])
+        if options.ros_domain is not None:  # /tf_static's advanced publisher stamps its samples (as rmw_zenoh)
+            conf.insert_json5("timestamping/enabled", "true")
         with open_session(conf, log=log) as session:
             if options.record:  # beside the target until the first message: a run that publishes nothing keeps it
                 recorder = Recorder(options.record, metadata=record_metadata, keep_until_message=True)
