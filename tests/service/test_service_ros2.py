@@ -62,6 +62,27 @@ def test_keys_tokens_qos_and_attachment_follow_rmw_zenoh():
     assert a == z_serialize((Int64(7), Int64(1_700_000_000_123_456_789), gid)).to_bytes()  # zenoh-ext's layout
 
 
+def test_liveliness_tokens_follow_rmw_zenoh():
+    """The node's and a publisher's liveliness keys in rmw_zenoh's layout (liveliness_utils.cpp), on a real
+    session: '/' inside a chunk as '%', the root namespace and default enclave '%', the QoS chunk last."""
+    import zenoh
+
+    conf = zenoh.Config()
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("listen/endpoints", "[]")
+    with zenoh.open(conf) as session:
+        node = ros2.Ros2Node(session, 5, "gyrosim_gyroscope")
+        zid = str(session.zid())
+        pub = node.publisher("/gyroscope/gyro/imu", msg.IMU_TYPE, ros2.SENSOR_QOS)
+        tokens = [str(r.ok.key_expr) for r in session.liveliness().get("@ros2_lv/5/**", timeout=2.0)
+                  if r.ok is not None]
+        assert f"@ros2_lv/5/{zid}/0/0/NN/%/%/gyrosim_gyroscope" in tokens
+        assert (f"@ros2_lv/5/{zid}/0/1/MP/%/%/gyrosim_gyroscope/%gyroscope%gyro%imu/"
+                f"sensor_msgs::msg::dds_::Imu_/{PUBLISHED[msg.IMU_TYPE]}/2::,5:,:,:,,") in tokens
+        assert pub.key == f"5/gyroscope/gyro/imu/sensor_msgs::msg::dds_::Imu_/{PUBLISHED[msg.IMU_TYPE]}"
+        node.close()
+
+
 def _peer(tmp_path, port: int, domain: int, seconds: float, spec: dict) -> dict:
     spec = {**spec, "msgdir": str(tmp_path / "msgs")}
     f = tmp_path / "spec.json"
@@ -120,6 +141,7 @@ def test_ros2_commands_turn_a_wheel_and_the_hub(tmp_path):
     first, last = out["first"]["/spacecraft/joint_states"], out["last"]["/spacecraft/joint_states"]
     assert last["name"] == ["wheel_x", "wheel_y", "wheel_z"]
     assert last["velocity"][0] > first["velocity"][0] + 1.0  # 0.05 N*m on J = 0.01 for seconds: >> 1 rad/s
+    assert out["last"]["/spacecraft/hub/imu"]["omega"][2] > 2e-3  # 0.01 N*m about z on I_z = 3 for ~2.5 s
     assert "torque commands: 1 accepted, 1 rejected" in stdout, stdout
     assert "only its torque is an input" in stderr
 
