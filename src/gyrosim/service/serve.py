@@ -49,7 +49,7 @@ from ..telemetry import messages as msg
 from . import keys as K
 from .config import describe_endpoints, open_session, zenoh_error
 from .ros2 import Frame
-from .tree import SCENE_OUTPUTS, TreeFrames
+from .tree import SCENE_OUTPUTS, FrameState, TreeFrames
 
 __all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals"]
 
@@ -418,61 +418,58 @@ class Service:
 
     # ------------------------------------------------------------------------------------------- stepping
     def publish(self) -> None:
-        """Publish (and record) every body's state, tf and imu at the model's current time."""
-        if self.tree is not None:
-            self._publish_tree()
-            return
+        """Publish (and record) every body's state, tf and imu at the model's current time, one way for every
+        scene: each body's frame from its parent's (:meth:`_frames`), then the same messages for each."""
         m = self.model
         t = m.time
         t_ns = msg.seconds_to_ns(t)
-        frames = []
+        ros_frames = []
+        for i, (body, parent, joint, f, state) in enumerate(self._frames(t)):
+            wall = time.time_ns()
+            payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state(wall))),
+                        ("tf", msg.TF_ENCODING, msg.encode_tf(t, f.rotation, child_frame_id=body, frame_id=parent,
+                                                              translation=f.translation)),
+                        ("imu", msg.IMU_ENCODING, msg.encode_imu(t, f.q_world, f.omega, frame_id=body)))
+            live_tf = None
+            if self.live is not None:
+                live_tf = msg.encode_frame_transform(t, f.rotation, child_frame_id=body, parent_frame_id=parent,
+                                                     translation=f.translation)
+            self._emit(i, payloads, wall, t_ns, live_tf)
+            if self.ros is not None:
+                ros_frames.append(Frame(body, parent, f.rotation, f.translation, f.q_world, f.omega,
+                                        joint == "fixed"))
+        if self.ros is not None:
+            joints = None
+            if self._hinges:
+                out, name = m.outputs(), m.scene.var_name
+                joints = ([out[name(h, "angle")] for h in self._hinges], [out[name(h, "rate")] for h in self._hinges])
+            self.stats.published += self.ros.publish(t, ros_frames, joints)
+
+    def _frames(self, t: float):
+        """``(body, parent frame, joint, FrameState, state(wall_ns) -> BodyState)`` for every body at time ``t``:
+        a tree's from :class:`TreeFrames` (each body from its parent's frame), a one-body scene's bodies from the
+        world (their attitude, no translation; the state message with their ZYZ angles, momentum and energy)."""
+        m = self.model
+        if self.tree is not None:
+            out = m.outputs()
+            scene_out = {k: out[k] for k in SCENE_OUTPUTS if k in out}
+            for i, (body, frame, f) in enumerate(zip(self.bodies, self.tree.bodies, self.tree.at(out))):
+                def state(wall, i=i, body=body, frame=frame, f=f):
+                    return msg.BodyState.from_tree_outputs(
+                        t, self._seq[i], q_world=f.q_world, omega=f.omega, parent=frame.parent,
+                        joint_type=frame.joint, joint=f.joint, scene_outputs=scene_out, inputs=self.body_inputs(i),
+                        scene=self.scene, body=body, wall_ns=wall)
+                yield body, frame.parent, frame.joint, f, state
+            return
         for i, body in enumerate(self.bodies):
             out = m.outputs(i)
             q = (out["q_w"], out["q_x"], out["q_y"], out["q_z"])
             omega = (out["omega_x"], out["omega_y"], out["omega_z"])
-            wall = time.time_ns()
-            state = msg.BodyState.from_outputs(t, self._seq[i], out, m.inputs(i), scene=self.scene, body=body,
-                                               wall_ns=wall)
-            payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state)),
-                        ("tf", msg.TF_ENCODING, msg.encode_tf(t, q, child_frame_id=body)),
-                        ("imu", msg.IMU_ENCODING, msg.encode_imu(t, q, omega, frame_id=body)))
-            live_tf = (msg.encode_frame_transform(t, q, child_frame_id=body) if self.live is not None else None)
-            self._emit(i, payloads, wall, t_ns, live_tf)
-            if self.ros is not None:
-                frames.append(Frame(body, msg.WORLD_FRAME, q, (0.0, 0.0, 0.0), q, omega))
-        if self.ros is not None:
-            self.stats.published += self.ros.publish(t, frames)
 
-    def _publish_tree(self) -> None:
-        """:meth:`publish` for a tree scene: transforms from the parent frames (:mod:`gyrosim.service.tree`)."""
-        m = self.model
-        t = m.time
-        t_ns = msg.seconds_to_ns(t)
-        out = m.outputs()
-        scene_out = {k: out[k] for k in SCENE_OUTPUTS if k in out}
-        frames = []
-        for i, (body, frame, f) in enumerate(zip(self.bodies, self.tree.bodies, self.tree.at(out))):
-            wall = time.time_ns()
-            state = msg.BodyState.from_tree_outputs(
-                t, self._seq[i], q_world=f.q_world, omega=f.omega, parent=frame.parent, joint_type=frame.joint,
-                joint=f.joint, scene_outputs=scene_out, inputs=self.body_inputs(i), scene=self.scene, body=body,
-                wall_ns=wall)
-            payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state)),
-                        ("tf", msg.TF_ENCODING, msg.encode_tf(t, f.rotation, child_frame_id=body,
-                                                              frame_id=frame.parent, translation=f.translation)),
-                        ("imu", msg.IMU_ENCODING, msg.encode_imu(t, f.q_world, f.omega, frame_id=body)))
-            live_tf = None
-            if self.live is not None:
-                live_tf = msg.encode_frame_transform(t, f.rotation, child_frame_id=body,
-                                                     parent_frame_id=frame.parent, translation=f.translation)
-            self._emit(i, payloads, wall, t_ns, live_tf)
-            if self.ros is not None:
-                frames.append(Frame(body, frame.parent, f.rotation, f.translation, f.q_world, f.omega,
-                                    frame.joint == "fixed"))
-        if self.ros is not None:
-            name = m.scene.var_name
-            joints = ([out[name(h, "angle")] for h in self._hinges], [out[name(h, "rate")] for h in self._hinges])
-            self.stats.published += self.ros.publish(t, frames, joints)
+            def state(wall, i=i, body=body, out=out):
+                return msg.BodyState.from_outputs(t, self._seq[i], out, m.inputs(i), scene=self.scene, body=body,
+                                                  wall_ns=wall)
+            yield body, msg.WORLD_FRAME, "free_rotation", FrameState((0.0, 0.0, 0.0), q, q, omega, {}), state
 
     def _emit(self, i: int, payloads, wall: int, t_ns: int, live_tf: bytes | None) -> None:
         """Put one body's payloads ((kind, encoding, bytes) for state, tf, imu), record them, stream them live."""
