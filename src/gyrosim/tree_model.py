@@ -16,8 +16,9 @@ from .core import _engine
 from .core.tree import BODY_OUTPUTS, ORBIT_BODY_OUTPUTS, ORBIT_COORD, ORBIT_OUTPUTS, SCENE_OUTPUTS, TreeLayout
 from .errors import ConfigError, IntegrationError
 from .model import Model, Variable
+from .ranges import ANY, NONNEGATIVE, POSITIVE
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean, load_scene
-from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS
+from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS, NONNEGATIVE_PARAMS
 
 __all__ = ["TreeModel", "tree_variables", "tree_output_names"]
 
@@ -99,29 +100,34 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     scene-wide names bare)."""
     from .scene import INTEGRATORS
 
-    V = [Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z", float(scene.g))]
+    V = [Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z", float(scene.g),
+                  **NONNEGATIVE.fields())]
     orbit = scene.orbit
     if orbit is not None:
         V.append(Variable("orbit_mu", "parameter", "fixed", "Real", "m3/s2",
                           "gravitational parameter of the central body (gravity gradient" +
-                          (", tidal forces)" if orbit.circular else ", central force)"), float(orbit.mu)))
+                          (", tidal forces)" if orbit.circular else ", central force)"), float(orbit.mu),
+                          **POSITIVE.fields()))
         if orbit.circular:
             V.append(Variable("orbit_radius", "parameter", "fixed", "Real", "m",
-                              "radius of the circular orbit of the tree's reference point", float(orbit.radius)))
+                              "radius of the circular orbit of the tree's reference point", float(orbit.radius),
+                              **POSITIVE.fields()))
     for a in scene.aliases:
-        V.append(Variable(a.name, "parameter", "fixed", "Real", a.unit, a.description, float(a.value)))
+        V.append(Variable(a.name, "parameter", "fixed", "Real", a.unit, a.description, float(a.value),
+                          **a.range.fields()))
     for name, (_, _, k) in zip(scene.coupling_names, scene.couplings):
         V.append(Variable(name, "parameter", "fixed", "Real", "N.m/rad", "torsion spring between two hinges",
-                          float(k)))
+                          float(k), **NONNEGATIVE.fields()))
     V += [Variable("integrator", "parameter", "fixed", "String", "",
                    "integrator: " + ", ".join(TREE_INTEGRATORS) + " (a tree; " +
                    ", ".join(i for i in INTEGRATORS if i not in TREE_INTEGRATORS) + " solve one body)",
                    scene.integrator),
           Variable("max_step", "parameter", "fixed", "Real", "s",
-                   "largest internal step; euler and rk4 take h/max_step substeps rounded up", float(scene.max_step)),
+                   "largest internal step; euler and rk4 take h/max_step substeps rounded up", float(scene.max_step),
+                   **POSITIVE.fields()),
           Variable("max_drift", "parameter", "fixed", "Real", "1",
                    "relative drift of the energy balance and the angular momentum beyond which a step counts as "
-                   "blown up (0: off)", float(scene.max_drift))]
+                   "blown up (0: off)", float(scene.max_drift), **NONNEGATIVE.fields())]
     for b in scene.tree:
         pre = "" if len(scene.tree) == 1 else f"{b.name}."  # Scene.var_name's rule
         params = dict(BODY_PARAMS)
@@ -130,7 +136,8 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
         elif b.joint in ("ball", "free_rotation", "free"):
             params.update(BALL_PARAMS)
         for n, (unit, desc) in params.items():
-            V.append(Variable(pre + n, "parameter", "fixed", "Real", unit, desc, _body_param_value(b, n)))
+            V.append(Variable(pre + n, "parameter", "fixed", "Real", unit, desc, _body_param_value(b, n),
+                              **(NONNEGATIVE if n in NONNEGATIVE_PARAMS else ANY).fields()))
         if b.motor_input:
             V.append(Variable(pre + "motor_torque", "input", "continuous", "Real", "N.m",
                               "motor torque about the hinge axis (on this body; its reaction on the parent)", 0.0))
@@ -173,7 +180,6 @@ _BODY_COLS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 
               "stiffness": _engine.TB_STIFF, "rest_angle": _engine.TB_REST, "joint_damping": _engine.TB_DAMP,
               "damping": _engine.TB_DAMP, "motor_torque": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU,
               "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
-_NON_NEGATIVE = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
 
 
 class TreeModel(Model):
@@ -255,22 +261,21 @@ class TreeModel(Model):
         bi, short = self.scene.split_name(name)
         return [(self.layout.body_offset(bi) + _BODY_COLS[short], 1.0)]
 
-    def _check_value(self, name: str, x: np.ndarray, unit: str) -> None:
-        short = name.rpartition(".")[2]
-        bad = ~np.isfinite(x)
-        if short in _NON_NEGATIVE or name == "g" or name in self.scene.coupling_names:
-            bad |= ~(x >= 0)
-        positive = name in ("orbit_mu", "orbit_radius")
-        if positive:
-            bad |= ~(x > 0)
+    def _check_value(self, name: str, v: Variable, x: np.ndarray) -> None:
+        """Every value of ``x`` finite and within the variable's range (a scene parameter's: its scene file's
+        min/max narrowed by its targets' rules), or a ConfigError naming the variable, the value and the range."""
+        bad = ~v.range.contains(x)
         if bad.any():
-            v = float(x[np.flatnonzero(bad)[0]])
-            rule = "a finite number" if not np.isfinite(v) else "a number > 0" if positive else "a number >= 0"
-            raise ConfigError(name, v, f"{rule} in {unit or '1'}")
+            raise ConfigError(name, float(x[np.flatnonzero(bad)[0]]), self._rule(name, v))
+
+    def _rule(self, name: str, v: Variable) -> str:
+        """What a value of variable ``name`` must be, as the messages say it."""
+        return v.range.text(v.unit) + (f" (the range of scene parameter {name})" if name in self._alias_names
+                                       else "")
 
     def _assign(self, name: str, v: Variable, x: np.ndarray) -> None:
         """Set parameter/input/start ``name`` to ``x`` (one value per system)."""
-        self._check_value(name, x, v.unit)
+        self._check_value(name, v, x)
         if v.causality == "output":
             if v.start is None:
                 raise ConfigError(name, float(x[0]), "a parameter, an input or a joint's start state; "
@@ -317,7 +322,7 @@ class TreeModel(Model):
         except (TypeError, ValueError):
             raise ConfigError(name, value, f"a real number in {v.unit or '1'}") from None
         if not math.isfinite(x):
-            raise ConfigError(name, value, f"a finite number in {v.unit or '1'}")
+            raise ConfigError(name, value, self._rule(name, v))
         if name == "max_step":
             self._check_positive(name, x)
             self.max_step = x
