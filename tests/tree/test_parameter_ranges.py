@@ -1,7 +1,7 @@
 """Every scene parameter has a range (issue 36): a ``[parameters.X]`` table's ``min``/``max``/``exclusive_min``/
 ``exclusive_max`` narrowed by its targets' rules, checked at load and at every set (Model.set/set_many, --set, the
 sweep's draws) before any work and before any file is touched, one line naming the parameter, the value and the
-range; the embedded double pendulum's m1, m2, L1, L2 > 0."""
+range; the embedded double pendulum's m1, m2, L1, L2 > 0; singular equations named by linearize."""
 
 from __future__ import annotations
 
@@ -161,6 +161,36 @@ def test_simulate_refuses_a_parameter_out_of_range_and_keeps_the_file(tmp_path, 
         assert w in err, err
     assert keep.read_text() == "an earlier result\n"
     assert [p.name for p in tmp_path.iterdir()] == ["keep.csv"]
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--set", "m2=0"], ["m2 = 0.0 is not allowed: a finite number > 0 in kg"]),
+    (["--set", "lower.mass=0"], ["lower.mass = 0.0 is not allowed", "'lower' has neither mass nor inertia",
+                                 "derivatives of upper.rate, lower.rate are not finite"]),
+    (["--set", "lower.mass=0", "--about", "equilibrium"], ["lower.mass = 0.0 is not allowed"]),
+    (["--set", "upper.mass=0"], ["upper.mass = 0.0", "singular where the bodies below it line up with its joint"]),
+    (["--set", "lower.cm_z=0"], ["lower.cm_z = 0.0 is not allowed", "no moment of inertia about its hinge axis"]),
+])
+def test_linearize_names_what_makes_the_system_singular(tmp_path, capsys, args, words):
+    out = tmp_path / "lin.npz"
+    assert main(["linearize", "double_pendulum", *args, "-o", str(out)]) == 2
+    err = one_line(capsys)
+    assert "SVD" not in err and "NaN" not in err
+    for w in words:
+        assert w in err, err
+    assert not out.exists()
+
+
+def test_a_linear_algebra_failure_is_one_line_exit_1(monkeypatch, capsys):
+    import gyrosim.analysis.linear as lin
+
+    def fail(*a, **k):
+        raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+
+    monkeypatch.setattr(lin, "modes_of", fail)
+    assert main(["linearize", "double_pendulum"]) == 1
+    err = one_line(capsys)
+    assert "gyrosim linearize: error: the linear algebra of the linearization failed: SVD did not converge" in err
 
 
 # ------------------------------------------------------------------------------------------------ sweeps
