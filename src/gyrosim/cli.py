@@ -106,14 +106,14 @@ def _write_rows(fh, block) -> None:
 def _read_input_file(path):
     """``--input-file FILE.csv``: FMPy's input format, read before anything runs or is written."""
     try:
-        from .inputs import read_input_csv
+        from .inputs import read_input_file
     except ModuleNotFoundError as e:  # pragma: no cover - gyrosim.inputs is part of the package
         raise GyrosimError(f"--input-file needs gyrosim.inputs ({e})") from None
     p = Path(path)
     if not p.is_file():
         raise GyrosimError(f"--input-file {str(p)!r} {'is a folder' if p.is_dir() else 'not found'}")
     try:
-        return read_input_csv(p)
+        return read_input_file(p)
     except OSError as e:
         raise GyrosimError(f"--input-file {str(p)!r} cannot be read: {e.strerror or e}") from None
 
