@@ -219,3 +219,26 @@ def test_a_sweep_checks_every_draw_of_a_coupling_not_only_the_first():
     with pytest.raises(ConfigError) as e:
         build_spec("coupled_pendula", samples=200, vary=["coupling=normal(0.5,1)"], stop_time=0.1)
     assert "--vary coupling" in str(e.value) and "a finite number >= 0 in N.m/rad" in str(e.value)
+
+
+@pytest.mark.parametrize("name", ["full", "heavy_top", "gyroscope", "double_pendulum", "coupled_pendula",
+                                  "satellite", "gimbal_gyroscope"])
+def test_every_bounded_variable_is_refused_just_beyond_its_range_and_taken_at_its_edge(name):
+    """The variables' ranges say what Model.set does (the one-body model checks its rules in code of its own)."""
+    checked = 0
+    for n, v in Model(name).variables.items():
+        rng = v.range
+        if v.type != "Real" or not rng.bounded:
+            continue
+        for edge, beyond in ((rng.fmi_min, rng.min - 1.0 if not rng.exclusive_min else rng.min),
+                             (rng.fmi_max, rng.max + 1.0 if not rng.exclusive_max else rng.max)):
+            if edge is None:
+                continue
+            m = Model(name)
+            with pytest.raises(ConfigError):
+                m.set(n, beyond)
+            m.set(n, edge)
+            assert m.get(n) == edge
+            checked += 1
+    assert checked >= 5
+
