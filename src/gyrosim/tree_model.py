@@ -425,6 +425,55 @@ class TreeModel(Model):
             raise IntegrationError(self._blowup(b, self._y[b], t, h, k,
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
 
+    def inert_bodies(self, system: int = 0) -> list:
+        """The bodies that carry no inertia at their joint (the parameters of copy ``system`` as set; a fixed joint
+        has no coordinate and is never one): neither mass nor inertia, or a hinge body whose mass sits on its axis
+        with no moment about it. Those with nothing below them first (their joint then carries nothing at all: the
+        equations of motion are singular everywhere), then the others (singular where the bodies below line up with
+        the joint).
+
+        Returns
+        -------
+        list of (parameter, value, what it is, alone, advice)
+            The parameter to name (``lower.mass``; ``lower.cm_z`` for a mass on the axis) and its value, a
+            sentence saying what is wrong, whether nothing below carries inertia, and what to do.
+        """
+        sc, tree = self.scene, self.scene.tree
+
+        def get(b, n):
+            return self.get(sc.var_name(b.name, n), system=system)
+
+        below = {i: [] for i in range(len(tree))}
+        for i, b in enumerate(tree):
+            j = b.parent
+            while j >= 0:
+                below[j].append(i)
+                j = tree[j].parent
+        massless = {i for i, b in enumerate(tree) if all(get(b, n) == 0.0 for n in ("mass", "I1", "I2", "I3"))}
+        out = []
+        for i, b in enumerate(tree):
+            alone = all(c in massless for c in below[i])
+            if b.joint == "fixed":  # no coordinate of its own: a massless fixed body (a sensor's frame) is fine
+                continue
+            if i in massless:
+                out.append((sc.var_name(b.name, "mass"), 0.0, f"body {b.name!r} has neither mass nor inertia "
+                            "(mass and I1, I2, I3 all 0)", alone, "give it mass or inertia"))
+            elif b.joint == "hinge":
+                m = get(b, "mass")
+                cm = np.array([get(b, f"cm_{c}") for c in "xyz"])
+                axis = np.asarray(b.axis, dtype=float)
+                J = np.asarray(b.inertia, dtype=float).copy()
+                J[np.diag_indices(3)] = [get(b, n) for n in ("I1", "I2", "I3")]
+                if float(axis @ J @ axis) + m * float(cm @ cm - (cm @ axis) ** 2) == 0.0:
+                    across = [c for k, c in enumerate("xyz") if abs(axis[k]) < 1.0]
+                    pick = next((c for c in across if float(b.cm["xyz".index(c)]) != 0.0), across[0])
+                    name = sc.var_name(b.name, f"cm_{pick}")
+                    out.append((name, get(b, f"cm_{pick}"), f"body {b.name!r} has no moment of inertia about its "
+                                f"hinge axis (its mass {m:g} kg on the axis, cm = [{', '.join(f'{x:g}' for x in cm)}]"
+                                " m, and no moment of its own about it)", alone,
+                                "move its centre of mass off the axis or give it a moment of inertia about it"))
+        return sorted(out, key=lambda e: not e[3])
+
     def gimbal_lock(self, y=None, system: int = 0) -> str | None:
         """A message naming gimbal lock when two hinge axes of a chain are within 0.1 rad of lining up at the state
         ``y`` (default: now) of copy ``system``, else None."""
@@ -477,7 +526,12 @@ class TreeModel(Model):
             i = int(np.argmax(d[0]))
             cause = (f"{('the energy balance', 'the angular momentum')[i]} drifted by {d[0, i]:.3g} of its scale{at} "
                      f"(max_drift = {self.max_drift:g}, the health monitor's bound)")
-        if lock:
+        inert = [e for e in self.inert_bodies(b) if e[3]]
+        if inert:  # a joint that carries nothing: singular everywhere (not the configuration, not the step)
+            name, value, what, _, todo = inert[0]
+            advice = (f"{what}, so nothing resists its joint's acceleration and the equations of motion are singular "
+                      f"({name} = {value:g}); {todo}")
+        elif lock:
             advice = lock
         elif self.integrator in ("adaptive", "dop853"):
             advice = "tighten or loosen the tolerance, check the parameters, or try the integrator 'rk4'"

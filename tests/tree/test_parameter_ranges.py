@@ -242,3 +242,18 @@ def test_every_bounded_variable_is_refused_just_beyond_its_range_and_taken_at_it
             checked += 1
     assert checked >= 5
 
+
+@pytest.mark.parametrize("param,words", [
+    ("lower.mass=0", ["body 'lower' has neither mass nor inertia", "(lower.mass = 0); give it mass or inertia"]),
+    ("lower.cm_z=0", ["body 'lower' has no moment of inertia about its hinge axis", "(lower.cm_z = 0)"]),
+])
+def test_a_blow_up_of_a_joint_that_carries_nothing_says_so_not_gimbal_lock(tmp_path, capsys, param, words):
+    """Two parallel hinges are no gimbal lock: the blow-up names the body with no inertia at its joint."""
+    assert main(["simulate", "double_pendulum", "--set", param, "-o", str(tmp_path / "x.csv")]) == 1
+    err = one_line(capsys)
+    assert "gimbal lock" not in err and "nothing resists its joint's acceleration" in err, err
+    for w in words:
+        assert w in err, err
+    fixed = {**PENDULUM, "body": PENDULUM["body"] + [{"name": "tag", "parent": "bob", "joint": "fixed",
+                                                      "inertia": {"principal": [0.0, 0.0, 0.0]}}]}
+    assert Model(scene_from_dict(fixed, "f.toml")).inert_bodies() == []  # a massless fixed body is fine

@@ -540,52 +540,11 @@ def steady_precession(model, *, theta: float | None = None, spin: float | None =
 
 
 def _inert_bodies(model) -> list:
-    """The tree bodies of ``model`` (its parameters as set) that carry no inertia at their joint: neither mass nor
-    inertia, or a hinge body whose mass sits on its axis with no moment about it. Those with nothing below them
-    first (their joint then carries nothing at all: singular everywhere), then the others (singular where the
-    bodies below line up with the joint). ``[(parameter, value, what it is, alone, advice)]``."""
+    """The tree bodies of ``model`` with no inertia at their joint (:meth:`TreeModel.inert_bodies`); none for a
+    one-body model."""
     from ..tree_model import TreeModel
 
-    if not isinstance(model, TreeModel):
-        return []
-    sc = model.scene
-    tree = sc.tree
-
-    def get(b, n):
-        return model.get(sc.var_name(b.name, n))
-
-    below = {i: [] for i in range(len(tree))}
-    for i, b in enumerate(tree):
-        j = b.parent
-        while j >= 0:
-            below[j].append(i)
-            j = tree[j].parent
-    massless = set()
-    for i, b in enumerate(tree):
-        if all(get(b, n) == 0.0 for n in ("mass", "I1", "I2", "I3")):
-            massless.add(i)
-    out = []
-    for i, b in enumerate(tree):
-        alone = all(c in massless for c in below[i])
-        if i in massless:
-            out.append((sc.var_name(b.name, "mass"), 0.0, f"body {b.name!r} has neither mass nor inertia "
-                        "(mass and I1, I2, I3 all 0)", alone, "give it mass or inertia"))
-        elif b.joint == "hinge":
-            m = get(b, "mass")
-            cm = np.array([get(b, f"cm_{c}") for c in "xyz"])
-            axis = np.asarray(b.axis, dtype=float)
-            J = np.asarray(b.inertia, dtype=float).copy()
-            J[np.diag_indices(3)] = [get(b, n) for n in ("I1", "I2", "I3")]
-            arm2 = float(cm @ cm - (cm @ axis) ** 2)
-            if float(axis @ J @ axis) + m * arm2 == 0.0:
-                across = [c for k, c in enumerate("xyz") if abs(axis[k]) < 1.0]
-                pick = next((c for c in across if float(tree[i].cm["xyz".index(c)]) != 0.0), across[0])
-                name = sc.var_name(b.name, f"cm_{pick}")
-                out.append((name, model.get(name), f"body {b.name!r} has no moment of inertia about its hinge axis "
-                            f"(its mass {m:g} kg on the axis, cm = [{', '.join(f'{x:g}' for x in cm)}] m, and no "
-                            "moment of its own about it)", alone,
-                            "move its centre of mass off the axis or give it a moment of inertia about it"))
-    return sorted(out, key=lambda e: not e[3])
+    return model.inert_bodies() if isinstance(model, TreeModel) else []
 
 
 def _check_finite(model, blocks, A=None) -> None:
