@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import gyrosim
+from gyrosim.cli import main
 from gyrosim.errors import ConfigError, IntegrationError
-from gyrosim.inputs import InputSignal, input_names, read_input_csv
+from gyrosim.inputs import MAX_INPUT, InputSignal, input_names, read_input_csv, read_input_file
 from gyrosim.model import Model
 from gyrosim.trajectory import Run
 
@@ -114,6 +115,10 @@ def test_read_csv_as_fmpy_reads_it(tmp_path):
     ("time,tau_x\n0,1\n1,inf\n", "line 3, column 2", ["'inf'"]),
     ("time,tau_x\n0,1\n,2\n", "line 3, column 1", ["time = ''", "finite number in s"]),
     ("time,tau_x\n0,1\n2,2\n1.5,3\n", "line 4, column 1", ["time = '1.5'", ">= 2.0 s", "line 3", "must not decrease"]),
+    # an absurd magnitude: refused with its place, the value and the range (MAX_INPUT = 1e12, in N*m)
+    ("time,tau_x,tau_y\n0,1,0\n1,2,1e300\n", "line 3, column 3",
+     ["tau_y = '1e300'", "a finite number from -1e+12 to 1e+12 in the input's unit (N*m for torques)"]),
+    ("time,tau_x\n0,-1.5e12\n", "line 2, column 2", ["tau_x = '-1.5e12'", "from -1e+12 to 1e+12"]),
 ])
 def test_read_csv_errors(tmp_path, text, where, words):
     f = tmp_path / "bad.csv"
@@ -126,6 +131,39 @@ def test_read_csv_errors(tmp_path, text, where, words):
         assert f"{f}, {where}:" in msg
     for w in words:
         assert w in msg, msg
+
+
+def test_the_magnitude_bound_is_inclusive_and_not_on_time(tmp_path):
+    f = tmp_path / "u.csv"
+    f.write_text("time,tau_x\n0,1e12\n1e15,-1e12\n")
+    assert read_input_csv(f)["tau_x"].tolist() == [MAX_INPUT, -MAX_INPUT]
+
+
+def test_an_unknown_column_is_named_with_the_file_and_its_place(tmp_path, capsys):
+    """read_input_file remembers where each column is: a name that is not an input of the scene is one line with
+    the file, the header's line and the column's number (simulate and serve read files this way)."""
+    f = tmp_path / "u.csv"
+    f.write_text("\n time, gimbal.motor_torque ,wheel_q.motor_torque\n0,0,0\n1,0.1,1\n")
+    sig = read_input_file(f)
+    assert sig.origin == {"gimbal.motor_torque": f"{f}, line 2, column 2",
+                          "wheel_q.motor_torque": f"{f}, line 2, column 3"}
+    with pytest.raises(ConfigError) as e:
+        sig.check_against(Model("cmg_spacecraft"))
+    assert str(e.value).startswith(f"{f}, line 2, column 3: input = 'wheel_q.motor_torque' is not allowed: an input "
+                                   "of scene 'cmg_spacecraft' (did you mean ")
+    out = tmp_path / "keep.csv"
+    out.write_text("an earlier result\n")
+    assert main(["simulate", "cmg_spacecraft", "--input-file", str(f), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"gyrosim simulate: error: {f}, line 2, column 3: input = 'wheel_q.motor_torque'")
+    assert len(err.strip().splitlines()) == 1 and out.read_text() == "an earlier result\n"
+    # 1e300 N*m: refused before the run (it was accepted and blew up with advice about max_step)
+    f.write_text("time,wheel_x.motor_torque\n0,0\n1,1e300\n")
+    assert main(["simulate", "satellite_wheels", "--input-file", str(f), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == (f"gyrosim simulate: error: {f}, line 3, column 2: wheel_x.motor_torque = '1e300' is not "
+                           "allowed: a finite number from -1e+12 to 1e+12 in the input's unit (N*m for torques)")
+    assert out.read_text() == "an earlier result\n"
 
 
 def test_read_csv_file_errors(tmp_path):
@@ -196,6 +234,8 @@ def test_one_row_and_table():
     (signal([(0.0, 1.0), (math.nan, 1.0)], "tau_x"), ["input row 1", "time = nan"]),
     (signal([(0.0, 1.0), (1.0, math.inf)], "tau_x"), ["input row 1 (time 1.0 s)", "tau_x = inf"]),
     (signal([(0.0, 1.0), (1.0, 1.0), (0.5, 0.0)], "tau_x"), ["input row 2", "time = 0.5", ">= 1.0 s"]),
+    (signal([(0.0, 1.0), (1.0, -2e12)], "tau_x"), ["input row 1 (time 1.0 s)", "tau_x = -2000000000000.0",
+                                                   "from -1e+12 to 1e+12"]),
 ])
 def test_signal_errors(arr, words):
     with pytest.raises(ConfigError) as e:

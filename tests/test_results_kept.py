@@ -125,7 +125,7 @@ def test_sweep_plot_checks_every_column_before_it_writes(tmp_path, capsys):
     scatter.write_bytes(b"old scatter")
     for argv, msg in ((["--y", "max_l_drift"], "did you mean 'max_L_drift'"),
                       (["--x", "omega_q_start"], "column = 'omega_q_start' is not allowed"),
-                      (["-o", str(hist)], "--output-dir = '" + str(hist) + "' is not allowed: a folder")):
+                      (["-o", str(hist)], f"--output-dir '{hist}' cannot be used: it is a file, not a folder")):
         assert main(["sweep-plot", str(out), *argv]) == 2
         err = capsys.readouterr().err
         assert msg in err and len(err.strip().splitlines()) == 1, err

@@ -64,7 +64,7 @@ def test_every_key_the_parser_knows_is_documented():
     assert set(scene._BODY_KEYS) <= tables["`[[body]]` of independent bodies"]
     assert set(scene_tree._TREE_BODY_KEYS) <= tables["`[[body]]` of a tree"]
     assert {"name", "bodies", "stiffness"} <= tables["`[[coupling]]`"]
-    assert {"value", "unit", "description", "sets"} <= tables["`[parameters.NAME]`"]
+    assert set(scene_tree._PARAMETER_KEYS) <= tables["`[parameters.NAME]`"]
     assert set(SWEEP_KEYS) <= tables["`[sweep]`"]
     assert {"mu", "radius", "anomaly"} <= tables["`[scene.orbit]`"]
 

@@ -75,6 +75,9 @@ def _start_values(args) -> dict:
 MIN_TOLERANCE = 1e-15
 
 
+#: Where ``gyrosim bench`` writes without --output (made with its parents).
+BENCH_OUTPUT = "docs/study"
+
 #: The most rows ``gyrosim simulate`` writes (at about 25 us and 300 bytes a row: 7 hours, 300 GB).
 MAX_ROWS = 10 ** 9
 
@@ -106,14 +109,14 @@ def _write_rows(fh, block) -> None:
 def _read_input_file(path):
     """``--input-file FILE.csv``: FMPy's input format, read before anything runs or is written."""
     try:
-        from .inputs import read_input_csv
+        from .inputs import read_input_file
     except ModuleNotFoundError as e:  # pragma: no cover - gyrosim.inputs is part of the package
         raise GyrosimError(f"--input-file needs gyrosim.inputs ({e})") from None
     p = Path(path)
     if not p.is_file():
         raise GyrosimError(f"--input-file {str(p)!r} {'is a folder' if p.is_dir() else 'not found'}")
     try:
-        return read_input_csv(p)
+        return read_input_file(p)
     except OSError as e:
         raise GyrosimError(f"--input-file {str(p)!r} cannot be read: {e.strerror or e}") from None
 
@@ -530,6 +533,9 @@ def cmd_bench(args) -> int:
         print("gyrosim bench: the study lives in the source checkout's bench/ folder: clone the repository and run "
               "`make bench` there", file=sys.stderr)
         return 2
+    from ._outputs import output_folder
+
+    output_folder(args.output, "--output", default=args.output == BENCH_OUTPUT)
     if str(bench_dir) not in sys.path:
         sys.path.insert(0, str(bench_dir))
     from gyrosim_bench.study import main as study_main
@@ -752,7 +758,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_verbosity(i)
     i.set_defaults(func=cmd_info)
     b = sub.add_parser("bench", help="the speed/accuracy study: tables to stdout, plots to a folder")
-    b.add_argument("--output", "-o", default="docs/study", help="folder for plots and tables (default: docs/study)")
+    b.add_argument("--output", "-o", default=BENCH_OUTPUT, help="folder for plots and tables, existing or new inside "
+                   "an existing folder (default: docs/study, made with its parents)")
     b.add_argument("--quick", action="store_true", help="a short ladder (seconds, for a smoke test)")
     b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, "
                    "startup, peers, fmu, service, sweep, tree), merged into the folder's earlier results")

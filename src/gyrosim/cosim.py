@@ -541,8 +541,7 @@ def check_cosim_args(args) -> tuple[list[str], Experiment]:
             raise ConfigError("SYSTEM.ssp", str(args.ssp), "a path ending in .ssp (--build writes the system there)")
         if args.ssp.is_dir():
             raise GyrosimError(f"SYSTEM.ssp {str(args.ssp)!r} cannot be written: it is a folder")
-        if args.ssp.parent.exists():
-            check_writable(args.ssp, "SYSTEM.ssp")
+        check_writable(args.ssp, "SYSTEM.ssp")  # its folder must exist (docs/cli.md, "Output paths")
         exp = Experiment(DEFAULTS["stop_time"], DEFAULTS["step"], {})
     else:
         if not args.ssp.exists():

@@ -7,7 +7,8 @@ written or read.
 
 from __future__ import annotations
 
-__all__ = ["GyrosimError", "ConfigError", "IntegrationError", "RecordingError", "StepError", "exit_code", "one_line"]
+__all__ = ["GyrosimError", "ConfigError", "IntegrationError", "LinearAlgebraError", "RecordingError", "StepError",
+           "exit_code", "one_line"]
 
 
 class GyrosimError(Exception):
@@ -40,6 +41,12 @@ class IntegrationError(GyrosimError, ArithmeticError):
     """
 
 
+class LinearAlgebraError(GyrosimError, ArithmeticError):
+    """A linear-algebra routine failed on finite, regular equations (an eigenvalue or least-squares solver that did
+    not converge): a run-time failure. Singular equations due to the parameters or the state are a
+    :class:`ConfigError` naming the parameter."""
+
+
 class RecordingError(GyrosimError, OSError):
     """A recording could not be written or read."""
 
@@ -53,7 +60,7 @@ def exit_code(exc: BaseException) -> int:
         return 141
     if isinstance(exc, KeyboardInterrupt):
         return 130
-    if isinstance(exc, (IntegrationError, RecordingError)):
+    if isinstance(exc, (IntegrationError, LinearAlgebraError, RecordingError)):
         return 1
     if isinstance(exc, (ConfigError, StepError, ValueError, FileNotFoundError, IsADirectoryError,
                         NotADirectoryError)):

@@ -21,6 +21,13 @@ a co-simulation FMU (set the inputs, ``doStep``). FMPy also splits a step at a s
 it (for FMUs that accept a variable communication step) and records an extra row there; gyrosim keeps its output
 grid and applies such a step from the next output point on: put steps of an input on the output grid.
 
+Every value must be finite and at most :data:`MAX_INPUT` = 1e12 in size, in the input's unit (every input of
+gyrosim is a torque in N*m). The largest torques machines produce are about 1e7 N*m (a large ship's propeller
+shaft, a wind turbine's main shaft); 1e12 leaves five orders of magnitude beyond that for any scene in SI units,
+while a value such as 1e300 N*m only overflows the state and the work integral at the first step (a blow-up whose
+advice would be about max_step). A file's value beyond it is refused with the file, the line, the column, the
+value and the range.
+
 Examples
 --------
 >>> import numpy as np
@@ -40,9 +47,13 @@ import numpy as np
 
 from .errors import ConfigError
 
-__all__ = ["read_input_csv", "InputSignal", "input_names"]
+__all__ = ["read_input_csv", "read_input_file", "InputSignal", "input_names", "MAX_INPUT"]
 
 _FORMAT = "FMPy's input format: a header row 'time,<input>,...' then one row per time, comma-separated"
+
+#: The largest size of an input value, in the input's unit (N*m: every input is a torque); see the module's notes.
+MAX_INPUT = 1e12
+_INPUT_RANGE = f"a finite number from {-MAX_INPUT:g} to {MAX_INPUT:g} in the input's unit (N*m for torques)"
 
 
 def _isclose(a: float, b: float) -> bool:
@@ -70,9 +81,9 @@ def read_input_csv(path, names=None) -> np.ndarray:
     ------
     ConfigError
         The file missing or unreadable, a header without ``time`` first, a missing, empty or repeated name, a row
-        with the wrong number of columns, a value that is not a finite number, time going backwards, no data rows,
-        or a name of ``names`` the file does not have. The message names the file, the line and column, the value
-        and what is allowed.
+        with the wrong number of columns, a value that is not a finite number (or an input's beyond
+        :data:`MAX_INPUT` in size), time going backwards, no data rows, or a name of ``names`` the file does not
+        have. The message names the file, the line and column, the value and what is allowed.
 
     Examples
     --------
@@ -141,6 +152,8 @@ def read_input_csv(path, names=None) -> np.ndarray:
                 unit = "s" if j == 0 else "the input's unit (N*m for torques)"
                 raise ConfigError(header[j], literal, f"a finite number in {unit}",
                                   where=f"{where}, line {i + 1}, column {j + 1}")
+            if j and abs(x) > MAX_INPUT:
+                raise ConfigError(header[j], literal, _INPUT_RANGE, where=f"{where}, line {i + 1}, column {j + 1}")
             row.append(x)
         if rows and row[0] < rows[-1][0]:
             raise ConfigError("time", cell_text(lines[i]), f"a time >= {rows[-1][0]!r} s, the time of line "
@@ -161,6 +174,19 @@ def read_input_csv(path, names=None) -> np.ndarray:
                                   + ", ".join(header[1:]))
         arr = _select(arr, names)
     return arr
+
+
+def read_input_file(path, names=None) -> InputSignal:
+    """:func:`read_input_csv`, as an :class:`InputSignal` that remembers where each column came from: a name that
+    is not an input of the model (:meth:`InputSignal.check_against`) is then named with the file, the header's line
+    and the column's number."""
+    arr = read_input_csv(path, names)
+    lines = Path(path).read_bytes().decode("utf-8-sig").splitlines()
+    hline = next(i for i, line in enumerate(lines) if line.strip()) + 1
+    header = [c.strip().strip('"').strip("'").strip() for c in lines[hline - 1].split(",")]
+    sig = InputSignal(arr)
+    sig.origin = {n: f"{path}, line {hline}, column {header.index(n) + 1}" for n in sig.names}
+    return sig
 
 
 def cell_text(line: str) -> str:
@@ -264,8 +290,14 @@ class InputSignal:
             if bad.size:
                 i = int(bad[0])
                 raise ConfigError(n, float(v[i]), "a finite number", where=f"input row {i} (time {float(t[i])!r} s)")
+            big = np.flatnonzero(np.abs(v) > MAX_INPUT)
+            if big.size:
+                i = int(big[0])
+                raise ConfigError(n, float(v[i]), _INPUT_RANGE, where=f"input row {i} (time {float(t[i])!r} s)")
             values[:, j] = v
         self.array = array
+        #: where each input came from (:func:`read_input_file`: "FILE, line L, column C"), for messages
+        self.origin: dict[str, str] = {}
         self.names = names
         self.interpolate = bool(interpolate)
         self.time = t
@@ -345,7 +377,8 @@ class InputSignal:
                 if not allowed:
                     how = ("give a body motor_input = true or torque_input = true" if sc.is_tree
                            else "give a [[body]] torque_input = true to add the inputs tau_x, tau_y, tau_z")
-                    raise ConfigError("input", n, f"an input of scene {sc.name!r}, which has none ({how})")
+                    raise ConfigError("input", n, f"an input of scene {sc.name!r}, which has none ({how})",
+                                      where=self.origin.get(n))
                 bare = n.rpartition(".")[2]
                 var = model.variables.get(n) or model.variables.get(bare)
                 what = ""
@@ -353,7 +386,8 @@ class InputSignal:
                     role = "a parameter: set it with start_values" if var.causality == "parameter" else "an output"
                     what = f"; {n} is {role}"
                 raise ConfigError("input", n, f"an input of scene {sc.name!r}{did_you_mean(n, allowed)}: "
-                                  + ", ".join(allowed[:24]) + (", ..." if len(allowed) > 24 else "") + what)
+                                  + ", ".join(allowed[:24]) + (", ..." if len(allowed) > 24 else "") + what,
+                                  where=self.origin.get(n))
             if sc.is_tree or model.n_bodies == 1:
                 setters.append((n, n, None))
             else:

@@ -18,6 +18,7 @@ from .core import _engine
 from .core.inertia import TRIANGLE_RTOL, check_principal_moments
 from .core.rotations import quat_to_euler_zyz
 from .errors import ConfigError, IntegrationError, StepError
+from .ranges import NONNEGATIVE, POSITIVE, Range
 from .scene import INTEGRATORS, Scene, did_you_mean, load_scene
 
 __all__ = ["Model", "Variable", "ModelState", "variables_for", "OUTPUT_NAMES"]
@@ -34,6 +35,10 @@ class Variable:
     type : {"Real", "String"}
     start : float or str or None
         Start value (outputs with a start are settable before the first step).
+    min, max : float or None
+        The range of a Real parameter (None: no bound): the values :meth:`Model.set`, the command line, a sweep
+        and the FMU accept; inclusive as FMI's ``min``/``max``, or exclusive (``x > min``) where
+        ``exclusive_min`` / ``exclusive_max`` is true. :attr:`range` as a :class:`gyrosim.ranges.Range`.
     """
 
     name: str
@@ -43,6 +48,16 @@ class Variable:
     unit: str
     description: str
     start: float | str | None = None
+    min: float | None = None
+    max: float | None = None
+    exclusive_min: bool = False
+    exclusive_max: bool = False
+
+    @property
+    def range(self) -> Range:
+        """The values allowed (every value must also be finite)."""
+        return Range(-math.inf if self.min is None else self.min, math.inf if self.max is None else self.max,
+                     self.exclusive_min, self.exclusive_max)
 
 
 _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
@@ -68,16 +83,18 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
     for i, n in enumerate(("I1", "I2", "I3")):
         V.append(Variable(n, "parameter", "fixed", "Real", "kg.m2",
                           f"principal moment of inertia {i + 1}" + (" about the pivot" if scene.gravity else ""),
-                          float(b.moments[i])))
+                          float(b.moments[i]), **POSITIVE.fields()))
     if scene.gravity:
-        V += [Variable("mass", "parameter", "fixed", "Real", "kg", "mass of the body", float(b.mass)),
+        V += [Variable("mass", "parameter", "fixed", "Real", "kg", "mass of the body", float(b.mass),
+                       **POSITIVE.fields()),
               Variable("cm_distance", "parameter", "fixed", "Real", "m",
-                       "distance from the pivot to the centre of mass along body +z", float(b.cm_distance)),
+                       "distance from the pivot to the centre of mass along body +z", float(b.cm_distance),
+                       **NONNEGATIVE.fields()),
               Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z",
-                       float(scene.g))]
+                       float(scene.g), **NONNEGATIVE.fields())]
     if scene.damping:
         V.append(Variable("damping", "parameter", "fixed", "Real", "N.m.s", "viscous torque -damping*omega",
-                          float(b.damping)))
+                          float(b.damping), **NONNEGATIVE.fields()))
     V += [Variable("integrator", "parameter", "fixed", "String", "",
                    "integrator: " + ", ".join(INTEGRATORS) + (
                        "" if scene.torque_free else " (exact: while the body is torque-free or a Lagrange top)"),
@@ -85,10 +102,10 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
           Variable("max_step", "parameter", "fixed", "Real", "s",
                    "largest internal step; fixed-step integrators take h/max_step substeps rounded up (a ratio within "
                    f"1e-9 of a whole number takes it), at most {_engine.MAX_WORK:,} per step",
-                   float(scene.max_step)),
+                   float(scene.max_step), **POSITIVE.fields()),
           Variable("max_drift", "parameter", "fixed", "Real", "1",
                    "relative drift of the energy balance and the invariants beyond which a step counts as blown up "
-                   "(0: off)", float(scene.max_drift))]
+                   "(0: off)", float(scene.max_drift), **NONNEGATIVE.fields())]
     for n, v, d in zip(("q_w", "q_x", "q_y", "q_z"), b.q0, ("scalar", "x", "y", "z")):
         V.append(Variable(n, "output", "continuous", "Real", "1",
                           f"attitude quaternion, {d} part (body to world)", float(v)))

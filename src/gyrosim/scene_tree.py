@@ -39,6 +39,9 @@ A scene is a tree when a ``[[body]]`` has ``parent`` or ``joint``, or the scene 
     unit = "m"
     description = "length of the upper rod"
     sets = { "upper.cm_z" = -1.0, "lower.pos_z" = -1.0 }
+    exclusive_min = 0.0              # its range: min / exclusive_min (x >= min / x > exclusive_min) and max /
+                                     # exclusive_max, in its unit; narrowed by its targets' rules (a factor onto a
+                                     # mass: >= 0). Checked at load and at every set (docs/scenes.md)
 """
 
 from __future__ import annotations
@@ -51,12 +54,18 @@ import numpy as np
 from .core.inertia import InertiaTensor
 from .core.tree import BODY_OUTPUTS, JOINT_COORDS, JOINTS, MU_EARTH, ORBIT_BODY_OUTPUTS, Orbit, TreeBody
 from .errors import ConfigError
+from .ranges import NONNEGATIVE, Range
 
-__all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "BODY_VARIABLES", "TREE_KEYS"]
+__all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "BODY_VARIABLES", "TREE_KEYS",
+           "NONNEGATIVE_PARAMS"]
 
 _TREE_BODY_KEYS = ("name", "parent", "joint", "position", "axis", "mass", "cm", "cm_distance", "inertia",
                    "stiffness", "rest_angle", "joint_damping", "damping", "motor_input", "torque_input", "attitude",
                    "rates", "angle", "rate", "r", "v")
+
+#: The keys of a [parameters.NAME] table: its range's bounds after the rest.
+_RANGE_KEYS = ("min", "max", "exclusive_min", "exclusive_max")
+_PARAMETER_KEYS = ("value", "unit", "description", "sets") + _RANGE_KEYS
 
 #: Keys that make a scene a tree.
 TREE_KEYS = ("parent", "joint")
@@ -80,6 +89,8 @@ HINGE_PARAMS = {
     "joint_damping": ("N.m.s/rad", "hinge viscous damping"),
 }
 BALL_PARAMS = {"damping": ("N.m.s", "viscous torque -damping*omega (relative to the parent)")}
+#: The body parameters that must be >= 0 (point masses and massless gimbals are allowed: a tree body may have 0).
+NONNEGATIVE_PARAMS = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
 #: The short names of a body's own variables (a body's part of a name under Scene.var_name's rule).
 BODY_VARIABLES = frozenset({*BODY_PARAMS, *HINGE_PARAMS, *BALL_PARAMS, "motor_torque", "tau_x", "tau_y", "tau_z",
                             *(c for cs in JOINT_COORDS.values() for c in cs), *BODY_OUTPUTS, *ORBIT_BODY_OUTPUTS})
@@ -87,13 +98,17 @@ BODY_VARIABLES = frozenset({*BODY_PARAMS, *HINGE_PARAMS, *BALL_PARAMS, "motor_to
 
 @dataclass(frozen=True)
 class Alias:
-    """A scene parameter that sets body parameters: ``target = factor * value`` for each target."""
+    """A scene parameter that sets body parameters: ``target = factor * value`` for each target.
+
+    ``range`` is the values it may take: the scene file's ``min``/``max`` (``exclusive_min``/``exclusive_max``)
+    narrowed by its targets' rules (a positive factor onto a mass: >= 0)."""
 
     name: str
     value: float
     unit: str
     description: str
     sets: tuple  # ((body index, parameter, factor), ...)
+    range: Range = Range()
 
 
 def _h():  # the helpers of scene.py (imported late: scene.py imports this module)
@@ -302,8 +317,10 @@ def tree_from_dict(data: dict, source: str):
         w = f"{source} [parameters.{an}]"
         if not isinstance(spec, dict):
             raise ConfigError(an, spec, "a table with value, unit, description and sets", where=w)
-        s._check_keys(spec, ("value", "unit", "description", "sets"), w)
+        s._check_keys(spec, _PARAMETER_KEYS, w)
         value = s._num(spec, "value", w, required=True)
+        unit = str(spec.get("unit", ""))
+        declared = _declared_range(spec, w, unit)
         sets = spec.get("sets")
         if not isinstance(sets, dict) or not sets:
             raise ConfigError("sets", sets, "a table {\"<body>.<parameter>\" = factor, ...}", where=w)
@@ -316,11 +333,46 @@ def tree_from_dict(data: dict, source: str):
             if isinstance(f, bool) or not isinstance(f, (int, float)) or not math.isfinite(f):
                 raise ConfigError(str(tgt), f, "a finite factor", where=w)
             targets.append((names.index(bn), pn, float(f)))
-        aliases.append(Alias(an, value, str(spec.get("unit", "")), str(spec.get("description", "")),
-                             tuple(targets)))
+        rng = declared
+        for _, pn, f in targets:  # a target that must be >= 0: the parameter on the side its factor allows
+            if pn in NONNEGATIVE_PARAMS and f != 0.0:
+                rng = rng.intersect(NONNEGATIVE if f > 0 else Range(max=0.0))
+        if rng.empty:
+            rules = ", ".join(f"{names[bi]}.{pn} >= 0" for bi, pn, _ in targets if pn in NONNEGATIVE_PARAMS)
+            raise ConfigError("sets", sets, f"targets that a value {declared.text(unit)} keeps within their rules "
+                              f"({rules})", where=w)
+        if value not in declared:
+            raise ConfigError("value", value, f"{declared.text(unit)} (the range its min/max give)", where=w)
+        if value not in rng:
+            bad = next(f"{names[bi]}.{pn} = {f!r} * value" for bi, pn, f in targets
+                       if pn in NONNEGATIVE_PARAMS and not f * value >= 0)
+            raise ConfigError("value", value, f"{rng.text(unit)}: it sets {bad}, which must be >= 0", where=w)
+        aliases.append(Alias(an, value, unit, str(spec.get("description", "")), tuple(targets), rng))
         for bi, pn, f in targets:
             bodies[bi] = body_with(bodies[bi], pn, f * value)
     return tuple(bodies), tuple(couplings), tuple(cnames), tuple(aliases)
+
+
+def _declared_range(spec: dict, where: str, unit: str) -> Range:
+    """The range a ``[parameters.X]`` table gives: ``min`` (x >= min) or ``exclusive_min`` (x > it), ``max`` or
+    ``exclusive_max``; finite numbers in the parameter's unit, one lower and one upper bound at most, a range that
+    holds a number."""
+    s = _h()
+    b = {k: s._num(spec, k, where) for k in _RANGE_KEYS if k in spec}
+    for side in ("min", "max"):
+        if side in b and f"exclusive_{side}" in b:
+            raise ConfigError(f"exclusive_{side}", b[f"exclusive_{side}"], f"left out where {side} is given (one "
+                              f"{'lower' if side == 'min' else 'upper'} bound: {side} = x for "
+                              f"{'>=' if side == 'min' else '<='} x, exclusive_{side} = x for "
+                              f"{'>' if side == 'min' else '<'} x)", where=where)
+    lo_key = "exclusive_min" if "exclusive_min" in b else "min"
+    hi_key = "exclusive_max" if "exclusive_max" in b else "max"
+    r = Range(b.get(lo_key, -math.inf), b.get(hi_key, math.inf), lo_key in b and lo_key != "min",
+              hi_key in b and hi_key != "max")
+    if r.empty:
+        raise ConfigError(hi_key, b[hi_key], f"an upper bound above the lower one ({lo_key} = {b[lo_key]!r} "
+                          f"{unit or '1'})", where=where)
+    return r
 
 
 def orbit_from_dict(tbl, bodies, where: str) -> Orbit:

@@ -16,8 +16,9 @@ from .core import _engine
 from .core.tree import BODY_OUTPUTS, ORBIT_BODY_OUTPUTS, ORBIT_COORD, ORBIT_OUTPUTS, SCENE_OUTPUTS, TreeLayout
 from .errors import ConfigError, IntegrationError
 from .model import Model, Variable
+from .ranges import ANY, NONNEGATIVE, POSITIVE
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean, load_scene
-from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS
+from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS, NONNEGATIVE_PARAMS
 
 __all__ = ["TreeModel", "tree_variables", "tree_output_names"]
 
@@ -99,29 +100,34 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     scene-wide names bare)."""
     from .scene import INTEGRATORS
 
-    V = [Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z", float(scene.g))]
+    V = [Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z", float(scene.g),
+                  **NONNEGATIVE.fields())]
     orbit = scene.orbit
     if orbit is not None:
         V.append(Variable("orbit_mu", "parameter", "fixed", "Real", "m3/s2",
                           "gravitational parameter of the central body (gravity gradient" +
-                          (", tidal forces)" if orbit.circular else ", central force)"), float(orbit.mu)))
+                          (", tidal forces)" if orbit.circular else ", central force)"), float(orbit.mu),
+                          **POSITIVE.fields()))
         if orbit.circular:
             V.append(Variable("orbit_radius", "parameter", "fixed", "Real", "m",
-                              "radius of the circular orbit of the tree's reference point", float(orbit.radius)))
+                              "radius of the circular orbit of the tree's reference point", float(orbit.radius),
+                              **POSITIVE.fields()))
     for a in scene.aliases:
-        V.append(Variable(a.name, "parameter", "fixed", "Real", a.unit, a.description, float(a.value)))
+        V.append(Variable(a.name, "parameter", "fixed", "Real", a.unit, a.description, float(a.value),
+                          **a.range.fields()))
     for name, (_, _, k) in zip(scene.coupling_names, scene.couplings):
         V.append(Variable(name, "parameter", "fixed", "Real", "N.m/rad", "torsion spring between two hinges",
-                          float(k)))
+                          float(k), **NONNEGATIVE.fields()))
     V += [Variable("integrator", "parameter", "fixed", "String", "",
                    "integrator: " + ", ".join(TREE_INTEGRATORS) + " (a tree; " +
                    ", ".join(i for i in INTEGRATORS if i not in TREE_INTEGRATORS) + " solve one body)",
                    scene.integrator),
           Variable("max_step", "parameter", "fixed", "Real", "s",
-                   "largest internal step; euler and rk4 take h/max_step substeps rounded up", float(scene.max_step)),
+                   "largest internal step; euler and rk4 take h/max_step substeps rounded up", float(scene.max_step),
+                   **POSITIVE.fields()),
           Variable("max_drift", "parameter", "fixed", "Real", "1",
                    "relative drift of the energy balance and the angular momentum beyond which a step counts as "
-                   "blown up (0: off)", float(scene.max_drift))]
+                   "blown up (0: off)", float(scene.max_drift), **NONNEGATIVE.fields())]
     for b in scene.tree:
         pre = "" if len(scene.tree) == 1 else f"{b.name}."  # Scene.var_name's rule
         params = dict(BODY_PARAMS)
@@ -130,7 +136,8 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
         elif b.joint in ("ball", "free_rotation", "free"):
             params.update(BALL_PARAMS)
         for n, (unit, desc) in params.items():
-            V.append(Variable(pre + n, "parameter", "fixed", "Real", unit, desc, _body_param_value(b, n)))
+            V.append(Variable(pre + n, "parameter", "fixed", "Real", unit, desc, _body_param_value(b, n),
+                              **(NONNEGATIVE if n in NONNEGATIVE_PARAMS else ANY).fields()))
         if b.motor_input:
             V.append(Variable(pre + "motor_torque", "input", "continuous", "Real", "N.m",
                               "motor torque about the hinge axis (on this body; its reaction on the parent)", 0.0))
@@ -173,7 +180,6 @@ _BODY_COLS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 
               "stiffness": _engine.TB_STIFF, "rest_angle": _engine.TB_REST, "joint_damping": _engine.TB_DAMP,
               "damping": _engine.TB_DAMP, "motor_torque": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU,
               "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
-_NON_NEGATIVE = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
 
 
 class TreeModel(Model):
@@ -255,22 +261,21 @@ class TreeModel(Model):
         bi, short = self.scene.split_name(name)
         return [(self.layout.body_offset(bi) + _BODY_COLS[short], 1.0)]
 
-    def _check_value(self, name: str, x: np.ndarray, unit: str) -> None:
-        short = name.rpartition(".")[2]
-        bad = ~np.isfinite(x)
-        if short in _NON_NEGATIVE or name == "g" or name in self.scene.coupling_names:
-            bad |= ~(x >= 0)
-        positive = name in ("orbit_mu", "orbit_radius")
-        if positive:
-            bad |= ~(x > 0)
+    def _check_value(self, name: str, v: Variable, x: np.ndarray) -> None:
+        """Every value of ``x`` finite and within the variable's range (a scene parameter's: its scene file's
+        min/max narrowed by its targets' rules), or a ConfigError naming the variable, the value and the range."""
+        bad = ~v.range.contains(x)
         if bad.any():
-            v = float(x[np.flatnonzero(bad)[0]])
-            rule = "a finite number" if not np.isfinite(v) else "a number > 0" if positive else "a number >= 0"
-            raise ConfigError(name, v, f"{rule} in {unit or '1'}")
+            raise ConfigError(name, float(x[np.flatnonzero(bad)[0]]), self._rule(name, v))
+
+    def _rule(self, name: str, v: Variable) -> str:
+        """What a value of variable ``name`` must be, as the messages say it."""
+        return v.range.text(v.unit) + (f" (the range of scene parameter {name})" if name in self._alias_names
+                                       else "")
 
     def _assign(self, name: str, v: Variable, x: np.ndarray) -> None:
         """Set parameter/input/start ``name`` to ``x`` (one value per system)."""
-        self._check_value(name, x, v.unit)
+        self._check_value(name, v, x)
         if v.causality == "output":
             if v.start is None:
                 raise ConfigError(name, float(x[0]), "a parameter, an input or a joint's start state; "
@@ -317,7 +322,7 @@ class TreeModel(Model):
         except (TypeError, ValueError):
             raise ConfigError(name, value, f"a real number in {v.unit or '1'}") from None
         if not math.isfinite(x):
-            raise ConfigError(name, value, f"a finite number in {v.unit or '1'}")
+            raise ConfigError(name, value, self._rule(name, v))
         if name == "max_step":
             self._check_positive(name, x)
             self.max_step = x
@@ -452,6 +457,55 @@ class TreeModel(Model):
         return float(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1], self._p[system:system + 1],
                                          1))
 
+    def inert_bodies(self, system: int = 0) -> list:
+        """The bodies that carry no inertia at their joint (the parameters of copy ``system`` as set; a fixed joint
+        has no coordinate and is never one): neither mass nor inertia, or a hinge body whose mass sits on its axis
+        with no moment about it. Those with nothing below them first (their joint then carries nothing at all: the
+        equations of motion are singular everywhere), then the others (singular where the bodies below line up with
+        the joint).
+
+        Returns
+        -------
+        list of (parameter, value, what it is, alone, advice)
+            The parameter to name (``lower.mass``; ``lower.cm_z`` for a mass on the axis) and its value, a
+            sentence saying what is wrong, whether nothing below carries inertia, and what to do.
+        """
+        sc, tree = self.scene, self.scene.tree
+
+        def get(b, n):
+            return self.get(sc.var_name(b.name, n), system=system)
+
+        below = {i: [] for i in range(len(tree))}
+        for i, b in enumerate(tree):
+            j = b.parent
+            while j >= 0:
+                below[j].append(i)
+                j = tree[j].parent
+        massless = {i for i, b in enumerate(tree) if all(get(b, n) == 0.0 for n in ("mass", "I1", "I2", "I3"))}
+        out = []
+        for i, b in enumerate(tree):
+            alone = all(c in massless for c in below[i])
+            if b.joint == "fixed":  # no coordinate of its own: a massless fixed body (a sensor's frame) is fine
+                continue
+            if i in massless:
+                out.append((sc.var_name(b.name, "mass"), 0.0, f"body {b.name!r} has neither mass nor inertia "
+                            "(mass and I1, I2, I3 all 0)", alone, "give it mass or inertia"))
+            elif b.joint == "hinge":
+                m = get(b, "mass")
+                cm = np.array([get(b, f"cm_{c}") for c in "xyz"])
+                axis = np.asarray(b.axis, dtype=float)
+                J = np.asarray(b.inertia, dtype=float).copy()
+                J[np.diag_indices(3)] = [get(b, n) for n in ("I1", "I2", "I3")]
+                if float(axis @ J @ axis) + m * float(cm @ cm - (cm @ axis) ** 2) == 0.0:
+                    across = [c for k, c in enumerate("xyz") if abs(axis[k]) < 1.0]
+                    pick = next((c for c in across if float(b.cm["xyz".index(c)]) != 0.0), across[0])
+                    name = sc.var_name(b.name, f"cm_{pick}")
+                    out.append((name, get(b, f"cm_{pick}"), f"body {b.name!r} has no moment of inertia about its "
+                                f"hinge axis (its mass {m:g} kg on the axis, cm = [{', '.join(f'{x:g}' for x in cm)}]"
+                                " m, and no moment of its own about it)", alone,
+                                "move its centre of mass off the axis or give it a moment of inertia about it"))
+        return sorted(out, key=lambda e: not e[3])
+
     def gimbal_lock(self, y=None, system: int = 0) -> str | None:
         """A message naming gimbal lock when two hinge axes of a chain are within 0.1 rad of lining up at the state
         ``y`` (default: now) of copy ``system``, else None."""
@@ -504,7 +558,12 @@ class TreeModel(Model):
             i = int(np.argmax(d[0]))
             cause = (f"{('the energy balance', 'the angular momentum')[i]} drifted by {d[0, i]:.3g} of its scale{at} "
                      f"(max_drift = {self.max_drift:g}, the health monitor's bound)")
-        if lock:
+        inert = [e for e in self.inert_bodies(b) if e[3]]
+        if inert:  # a joint that carries nothing: singular everywhere (not the configuration, not the step)
+            name, value, what, _, todo = inert[0]
+            advice = (f"{what}, so nothing resists its joint's acceleration and the equations of motion are singular "
+                      f"({name} = {value:g}); {todo}")
+        elif lock:
             advice = lock
         elif self.integrator in ("adaptive", "dop853"):
             advice = "tighten or loosen the tolerance, check the parameters, or try the integrator 'rk4'"

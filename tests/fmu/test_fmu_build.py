@@ -45,6 +45,13 @@ def test_model_description_maps_model_variables_one_to_one(build, scene, v):
             assert float(x.start) == start  # exact round trip of the start value
         if var.causality == "output" and not derived:
             assert x.initial == "exact"
+        # the range as FMI's inclusive min/max (an exclusive bound: the next double beyond it)
+        rng = var.range
+        assert (x.min, x.max) == (None if rng.fmi_min is None else repr(rng.fmi_min),
+                                  None if rng.fmi_max is None else repr(rng.fmi_max)), name
+    assert got["I1"].min == "5e-324" and got["max_drift"].min == "0.0"
+    if scene is not None and scene != "free_body":
+        assert got["mass"].min == "5e-324" and got["cm_distance"].min == "0.0"
     cs = md.coSimulation
     assert cs.modelIdentifier == model_identifier(scene)
     assert cs.canHandleVariableCommunicationStepSize

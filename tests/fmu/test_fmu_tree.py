@@ -27,7 +27,7 @@ import gyrosim
 from fmi_log import expect_error
 from fmi_slave import FmiSlave
 from gyrosim.core.tree import TreeLayout
-from gyrosim.errors import IntegrationError
+from gyrosim.errors import ConfigError, IntegrationError
 from gyrosim.fmu import build_fmu, model_identifier
 from gyrosim.fmu.build import binary_path, fmi_include_dir, windows_compiler
 from gyrosim.fmu.tree_fmu import WORK_STATE
@@ -493,7 +493,8 @@ def test_errors_return_error_with_a_message(tree_slave, v):
     expect_error(lambda: s.set("integrator", "splitting"), s.log, "one body", "euler, rk4, adaptive, dop853")
     expect_error(lambda: s.set("integrator", "rk5"), s.log, "rk5", "euler, rk4, adaptive, dop853")
     expect_error(lambda: s.set("upper.mass", -1.0), s.log, "upper.mass", ">= 0")
-    expect_error(lambda: s.set("m1", -2.0), s.log, "m1", "upper.mass")
+    expect_error(lambda: s.set("m1", -2.0), s.log, "m1 = -2 is not allowed: a finite number > 0 in kg (the range of "
+                 "scene parameter m1)")
     expect_error(lambda: s.set("energy", 1.0), s.log, "derived output")
     expect_error(lambda: s.set("max_step", 0.0), s.log, "max_step")
     s.set("integrator", "rk4")
@@ -503,6 +504,35 @@ def test_errors_return_error_with_a_message(tree_slave, v):
     expect_error(lambda: s.do_step(0.0, -0.01), s.log, "communication step")
     s.do_step(0.0, 0.01)   # still usable
     assert s.get("upper.angle")[0] != 1.0
+
+
+@pytest.mark.parametrize("v", VERSIONS)
+def test_ranges_are_in_the_model_description_and_refused_as_the_model_refuses(tree_fmu, tree_slave, v):
+    """Every parameter's range is its variable's min/max (an exclusive bound as the next double beyond it); the
+    glue refuses a value outside it with Error, the model's message (variable, value, range) and the parameter kept;
+    a value inside it is taken."""
+    md = read_model_description(str(tree_fmu("double_pendulum", v)[0]))
+    mv = {x.name: x for x in md.modelVariables}
+    m = Model("double_pendulum")
+    for name in ("m1", "m2", "L1", "L2"):
+        assert (mv[name].min, mv[name].max) == ("5e-324", None), name
+    for name in ("g", "upper.mass", "lower.I3", "upper.stiffness", "lower.joint_damping"):
+        assert float(mv[name].min) == 0.0 and mv[name].max is None, name
+    assert mv["upper.cm_z"].min is None and mv["upper.angle"].min is None
+    s = tree_slave("double_pendulum", v)
+    s.setup()
+    for name, bad in (("m1", 0.0), ("m2", -1.0), ("L1", -1.0), ("L2", 0.0), ("upper.mass", -0.5), ("g", -9.81)):
+        with pytest.raises(ConfigError) as e:
+            m.set(name, bad)
+        expect_error(lambda name=name, bad=bad: s.set(name, bad), s.log,
+                     f": {str(e.value).replace(repr(bad), f'{bad:g}')}")
+    assert s.get("m1", "L2", "upper.mass") == [1.0, 1.0, 1.0]
+    s.set("L2", 0.5)
+    assert s.get("lower.cm_z") == [-0.5]
+    c = tree_slave("coupled_pendula", v)
+    c.setup()
+    expect_error(lambda: c.set("coupling", -0.1), c.log, "coupling = -0.1 is not allowed: a finite number >= 0 in "
+                 "N.m/rad")
 
 
 @pytest.mark.parametrize("v", VERSIONS)

@@ -120,8 +120,13 @@ def test_a_bad_input_file_is_one_line_exit_2_and_nothing_is_created(tmp_path):
     bad_name.write_text("time,tau_q\n0,1\n")
     bad_row = tmp_path / "r.csv"
     bad_row.write_text("time,tau_z\n0,1\n1,nan\n")
-    cases = [(("free_body", good), "has none"), (("gyroscope", bad_name), "tau_q"),
-             (("gyroscope", bad_row), "line 3"), (("gyroscope", tmp_path / "missing.csv"), "not found")]
+    big = tmp_path / "b.csv"
+    big.write_text("time,tau_z\n0,1\n1,1e300\n")
+    cases = [(("free_body", good), f"{good}, line 1, column 2: input = 'tau_z'"),
+             (("gyroscope", bad_name), f"{bad_name}, line 1, column 2: input = 'tau_q'"),
+             (("gyroscope", bad_row), "line 3"), (("gyroscope", tmp_path / "missing.csv"), "not found"),
+             (("gyroscope", big), f"{big}, line 3, column 2: tau_z = '1e300' is not allowed: a finite number from "
+                                  "-1e+12 to 1e+12")]
     for (scene, f), words in cases:
         p = run("serve", scene, "--input-file", f, "--duration", "1", "-l", endpoint(free_port()),
                 "--record", tmp_path / "out.mcap")

@@ -141,9 +141,9 @@ def test_cli_reports_an_unwritable_path_in_one_line_without_traceback(tmp_path):
     p = subprocess.run([sys.executable, "-m", "gyrosim.service.cli", "record", "-o",
                         str(tmp_path / "nope" / "x.mcap"), "-e", "tcp/127.0.0.1:9"], env=env,
                        capture_output=True, text=True, timeout=60)
-    assert p.returncode == 1
-    assert "Traceback" not in p.stderr
-    assert "cannot create recording" in p.stderr and "does not exist" in p.stderr
+    assert p.returncode == 2  # a missing folder is a usage error, as for every output file (docs/cli.md)
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert f"--output '{tmp_path / 'nope' / 'x.mcap'}' cannot be written" in p.stderr and "does not exist" in p.stderr
 
 
 def test_keep_until_message_leaves_an_existing_file_when_nothing_is_recorded(tmp_path):

@@ -34,7 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core import _engine
-from ..errors import ConfigError
+from ..errors import ConfigError, LinearAlgebraError
 
 __all__ = ["Jacobian", "Linearization", "Mode", "NormalModes", "jacobian", "linearize", "normal_modes",
            "modes_of", "one_body_tree", "steady_precession"]
@@ -539,6 +539,39 @@ def steady_precession(model, *, theta: float | None = None, spin: float | None =
     return {"phi_dot": pd, "psi_dot": w3 - pd * c}
 
 
+def _inert_bodies(model) -> list:
+    """The tree bodies of ``model`` with no inertia at their joint (:meth:`TreeModel.inert_bodies`); none for a
+    one-body model."""
+    from ..tree_model import TreeModel
+
+    return model.inert_bodies() if isinstance(model, TreeModel) else []
+
+
+def _check_finite(model, blocks, A=None) -> None:
+    """Refuse a state where the equations of motion are singular (their derivatives, or their Jacobian ``A``, not
+    finite) with one line that names the cause: a body with no inertia at its joint (the parameter and its value),
+    else the state (exit code 2: the parameters and the state are the user's)."""
+    bad = []
+    for bk in blocks:
+        f = _derivs(bk)
+        bad += [bk.states[k] for k in np.flatnonzero(~np.isfinite(f))]
+    if not bad and A is not None:
+        rows = ~np.all(np.isfinite(A), axis=1)
+        names = [s for bk in blocks for s in bk.states]
+        bad = [names[k] for k in np.flatnonzero(rows)]
+    if not bad:
+        return
+    where = (f"the derivatives of {', '.join(bad[:6])}{', ...' if len(bad) > 6 else ''} are not finite at this "
+             "state")
+    for name, value, what, alone, advice in _inert_bodies(model):
+        how = ("nothing resists its joint's acceleration: the equations of motion are singular" if alone else
+               "the equations of motion are singular where the bodies below it line up with its joint, as here")
+        raise ConfigError(name, value, f"a body with inertia at its joint: {what}, so {how} ({where}); {advice}")
+    raise ConfigError("state", "the start state", f"a state where the equations of motion are regular: {where} (a "
+                      "singular configuration, such as gimbal lock between massless gimbals); start elsewhere or "
+                      "give the bodies inertia")
+
+
 def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
     """Newton on f(x) = 0 from the present state, velocities set to 0 first (a tree or a one-body model)."""
     from ..tree_model import TreeModel
@@ -569,6 +602,7 @@ def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
                 for k, c in enumerate("xyz"):
                     model.set(f"omega_{c}", float(w[k]), body=b.name)
     model.initialize()
+    _check_finite(model, _blocks(model))
     for _ in range(iters):
         (bk,) = _blocks(model)
         x = bk.y[0, :len(bk.states)]
@@ -579,7 +613,13 @@ def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
             f = f - n_orb * xi
             A = A - n_orb * Dw
         T, P, _ = _reduction(bk, x)
-        dz = np.linalg.lstsq(A @ T, -f, rcond=None)[0]
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(f))):
+            _check_finite(model, [bk], A)
+        try:
+            dz = np.linalg.lstsq(A @ T, -f, rcond=None)[0]
+        except np.linalg.LinAlgError as e:
+            raise LinearAlgebraError(f"Newton's step toward the equilibrium failed: {e} (a {A.shape[0]}x"
+                                     f"{A.shape[1]} Jacobian); linearize about='state' instead") from None
         dx = T @ dz
         y = model._y[0].copy()
         y[:len(bk.states)] += dx
@@ -622,7 +662,19 @@ def linearize(model, *, about=None, system: int = 0) -> Linearization:
                           "or None")
     _state_from(model, about)
     blocks = _blocks(model, system)
+    _check_finite(model, blocks)
     J = _jacobian_of(blocks)
+    _check_finite(model, blocks, J.A)
+    try:
+        return _linearize(model, about, blocks, J)
+    except np.linalg.LinAlgError as e:
+        raise LinearAlgebraError(f"the linear algebra of the linearization failed: {e} (a {J.A.shape[0]}x"
+                                 f"{J.A.shape[1]} Jacobian at the state {about or 'as it is'}); the equations are "
+                                 "too badly scaled there, or nearly singular") from None
+
+
+def _linearize(model, about, blocks, J) -> Linearization:
+    """:func:`linearize` past the checks: the symmetries taken out, the reduction, the modes and the verdict."""
     Ts, Ps, names, rates, A_rel = [], [], [], {}, []
     kind = "equilibrium"
     at = 0

@@ -172,6 +172,18 @@ def _fmt(x) -> str:
     return repr(float(x))
 
 
+def range_attributes(attrs: dict, v) -> dict:
+    """Add the ``min``/``max`` attributes of a Real variable's range (``v``: a :class:`~gyrosim.model.Variable`) to
+    ``attrs``: inclusive as FMI has them; an exclusive bound as the next double beyond it (``> 0``:
+    ``min="5e-324"``), so that ``[min, max]`` is exactly what the FMU accepts."""
+    rng = v.range
+    if rng.fmi_min is not None:
+        attrs["min"] = _fmt(rng.fmi_min)
+    if rng.fmi_max is not None:
+        attrs["max"] = _fmt(rng.fmi_max)
+    return attrs
+
+
 def _c_string(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
@@ -408,6 +420,8 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
                 t.set("start", start if isinstance(start, str) else _fmt(start))
             if v.type == "Real" and v.unit:
                 t.set("unit", v.unit)
+            if v.type == "Real":
+                range_attributes(t.attrib, v)
             if nominal is not None:
                 t.set("nominal", nominal)
         else:
@@ -416,6 +430,7 @@ def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, s
                     attrs["start"] = _fmt(start)
                 if v.unit:
                     attrs["unit"] = v.unit
+                range_attributes(attrs, v)
                 if nominal is not None:
                     attrs["nominal"] = nominal
                 ET.SubElement(mv, "Float64", attrs)

@@ -9,7 +9,10 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-__all__ = ["register", "cmd_build"]
+__all__ = ["register", "cmd_build", "DEFAULT_OUTPUT"]
+
+#: Where ``fmu build`` writes without --output (made with its parents: docs/cli.md, "Output paths").
+DEFAULT_OUTPUT = Path("fmu") / "dist"
 
 
 def register(subparsers) -> None:
@@ -29,8 +32,9 @@ def register(subparsers) -> None:
     b.add_argument("--fmi-type", choices=("cs", "me", "both"), default="both",
                    help="interfaces: co-simulation (the engine's integrators), model exchange (the host's solver "
                         "integrates q and omega, 7 continuous states per body) or both in one FMU (default: both)")
-    b.add_argument("--output", "-o", type=Path, default=Path("fmu") / "dist", metavar="DIR",
-                   help="output folder, created if missing (default: fmu/dist)")
+    b.add_argument("--output", "-o", type=Path, default=DEFAULT_OUTPUT, metavar="DIR",
+                   help="output folder: an existing one, or a new one inside an existing folder (default: fmu/dist, "
+                        "made with its parents)")
     b.add_argument("--standalone", action="store_true",
                    help="accepted for compatibility: every FMU is native (the C engine, no Python on the host)")
     add_verbosity(b)
@@ -48,27 +52,23 @@ def cmd_build(args) -> int:
     """Handler of ``gyrosim fmu build``: print the path written (not with -q; -v adds what is in it on stderr).
     Errors go to :func:`gyrosim.cli.main`'s one mapping (a bad scene or version: 2, the compiler: 1); a folder that
     cannot be written is named here with the flag."""
+    from .._outputs import output_folder
     from ..cli import verbosity
     from ..errors import GyrosimError, exit_code
 
     v = verbosity(args)
-    import os
 
     from ..scene import load_scene
     from .build import build_fmu
 
     load_scene(args.scene)  # a bad scene costs nothing, not even the output folder
-    out = Path(args.output)
-    try:  # a folder that cannot be made or written is a bad --output (exit code 2), found before the compiler runs
-        out.mkdir(parents=True, exist_ok=True)
-        if not os.access(out, os.W_OK | os.X_OK):
-            raise PermissionError(13, "Permission denied", str(out))
-    except OSError as e:
-        raise GyrosimError(_cannot_write(args.output, e)) from None
+    # an existing folder, or a new one inside an existing folder (the default with its parents), made now: a folder
+    # that cannot be made or written is a bad --output (exit code 2), found before the compiler runs
+    output_folder(args.output, "--output", default=Path(args.output) == DEFAULT_OUTPUT, make=True)
     from .._atomic import check_writable
     from .build import model_identifier
 
-    check_writable(out / f"{model_identifier(args.scene)}.fmu", "--output")  # e.g. a read-only FMU: before the compiler
+    check_writable(Path(args.output) / f"{model_identifier(args.scene)}.fmu", "--output")  # a read-only FMU: now
     try:
         path = build_fmu(args.scene, args.fmi_version, args.output, fmi_type=getattr(args, "fmi_type", "both"))
     except OSError as e:  # a write that fails while the FMU is made (a full disk): a run-time failure

@@ -6,11 +6,13 @@ generated ``gyrosim_config.h`` as data,
 
 - the tree's description (``gs_tree_init``'s int32 array), the start parameter row and state (hexadecimal
   floating literals: the bits of :class:`~gyrosim.tree_model.TreeModel`'s),
-- a table from value reference to ``{kind, index, flags, name, unit}``: a slot of the parameter row
+- a table from value reference to ``{kind, index, flags, name, unit, range}``: a slot of the parameter row
   (``GS_K_PARAM``: g, body parameters, couplings; ``GS_K_INPUT``; ``GS_K_MAX_DRIFT``), a scene parameter
   (``GS_K_ALIAS``, with its targets and factors in ``GS_ALIAS_TARGETS``), a joint coordinate of the state
   (``GS_K_STATE``), a column of the engine's output row (``GS_K_OUTPUT``), ``integrator``, ``max_step``, and for
-  model exchange the work integral (``GS_K_WORK``) and the state derivatives (``GS_K_DER``),
+  model exchange the work integral (``GS_K_WORK``) and the state derivatives (``GS_K_DER``); ``range`` a row of
+  ``GS_RANGES``, the range of a parameter (:attr:`gyrosim.model.Variable.range`; a scene parameter's from its scene
+  file), which the glue checks at every set, as the model description's ``min``/``max`` state it,
 - the integrator, max_step and tolerance start values, the quaternions' slots, the states' nominal values.
 
 The variables are exactly :func:`~gyrosim.tree_model.tree_variables` (names, causality, variability, units, start
@@ -22,6 +24,7 @@ continuous state (the joints' coordinates, then ``energy_expected``).
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -30,7 +33,7 @@ from ..core.tree import TreeLayout
 from ..errors import ConfigError
 from ..scene import TREE_INTEGRATORS, Scene
 from . import build as _build
-from .build import ME_NORM_TOL, _hexf, _platforms_note, description_head, model_structure
+from .build import ME_NORM_TOL, _hexf, _platforms_note, description_head, model_structure, range_attributes
 
 __all__ = ["TreeRow", "tree_rows", "tree_me_rows", "tree_config_header", "tree_model_description", "tree_dependencies",
            "TREE_ENGINE", "TREE_GLUE", "WORK_STATE", "DER_UNITS"]
@@ -176,16 +179,41 @@ def _unit_of(sc_rows: list[TreeRow], row: TreeRow) -> str:
     return row.var.unit
 
 
+def range_text(row: TreeRow) -> str:
+    """What a value of the parameter of ``row`` must be, as TreeModel's message says it."""
+    v = row.var
+    return v.range.text(v.unit) + (f" (the range of scene parameter {row.name})" if row.kind == "alias" else "")
+
+
+def _ranges(rows: list[TreeRow]) -> tuple[list[str], dict[int, int]]:
+    """The GS_RANGES rows and, by position in ``rows``, the row of each parameter with a bounded range."""
+    table, where = [], {}
+    for i, r in enumerate(rows):
+        if r.kind not in ("param", "alias") or r.var is None or r.var.type != "Real" or not r.var.range.bounded:
+            continue
+        rng = r.var.range
+        kinds = []
+        for bound, open_ in ((rng.min, rng.exclusive_min), (rng.max, rng.exclusive_max)):
+            kinds.append(("GS_BOUND_EXCLUSIVE" if open_ else "GS_BOUND_INCLUSIVE") if math.isfinite(bound)
+                         else "GS_BOUND_NONE")
+        lo = _hexf(rng.min) if math.isfinite(rng.min) else "0.0"
+        hi = _hexf(rng.max) if math.isfinite(rng.max) else "0.0"
+        where[i] = len(table)
+        table.append(f"{{{lo}, {hi}, {kinds[0]}, {kinds[1]}, {_c_string(range_text(r))}}}")
+    return table, where
+
+
 def tree_config_header(sc: Scene, rows: list[TreeRow], me_rows: list[TreeRow], ident: str, token: str,
                        fmi_version: int, integrator: str, fmi_type: str) -> str:
     """The generated ``gyrosim_config.h`` of a tree FMU (see the module's docstring)."""
     lay = _layout(sc)
     p0, y0 = lay.params(float(sc.g), float(sc.max_drift)), lay.state()
     has_me = fmi_type in ("me", "both")
-    table = ['{GS_K_TIME, 0, 0, "time", "s"}' if fmi_version == 3 else '{GS_K_NONE, 0, 0, "", ""}']
-    for r in rows + (me_rows if has_me else []):
+    table = ['{GS_K_TIME, 0, 0, "time", "s", -1}' if fmi_version == 3 else '{GS_K_NONE, 0, 0, "", "", -1}']
+    ranges, range_of = _ranges(rows)
+    for i, r in enumerate(rows + (me_rows if has_me else [])):
         table.append(f"{{{_KIND_C[r.kind]}, {r.index}, {int(r.nonneg)}, {_c_string(r.name)}, "
-                     f"{_c_string(_unit_of(rows, r) or '')}}}")
+                     f"{_c_string(_unit_of(rows, r) or '')}, {range_of.get(i, -1)}}}")
     targets = []
     for ai, a in enumerate(sc.aliases):
         for bi, pn, f in a.sets:
@@ -224,12 +252,16 @@ def tree_config_header(sc: Scene, rows: list[TreeRow], me_rows: list[TreeRow], i
         f"#define GS_N_ALIASES {len(sc.aliases)}",
         "#define GS_START_ALIASES " + arr([a.value for a in sc.aliases]),
         "#define GS_ALIAS_TARGETS {" + (", ".join(targets) if targets else '{-1, 0, 0.0, 0, ""}') + "}", "",
+        "/* the parameters' ranges: {lo, hi, lower bound, upper bound, what the message says} (GS_RANGES row of "
+        "each GS_TREE_VARS row) */",
+        "#define GS_RANGES {" + (", ".join(ranges) if ranges else
+                                 '{0.0, 0.0, GS_BOUND_NONE, GS_BOUND_NONE, "a finite number"}') + "}", "",
         "/* ball and free joints: the slot of q_w in the state and the body's name (-1: none) */",
         "#define GS_QUAT_SLOTS " + arr([k for k, _ in quats], str, "-1"),
         "#define GS_QUAT_BODIES " + arr([n for _, n in quats], _c_string, '""'),
         "/* model exchange: the continuous states' nominal values */",
         "#define GS_NOMINALS " + arr(_nominals(sc, rows)), "",
-        "/* value reference -> {kind, index, flags (1: >= 0), name, unit} */",
+        "/* value reference -> {kind, index, flags (1: >= 0), name, unit, range (GS_RANGES row, -1: none)} */",
         "#define GS_TREE_VARS { \\\n    " + ", \\\n    ".join(table) + "}",
         "", "#endif", "",
     ]
@@ -406,6 +438,8 @@ def tree_model_description(sc: Scene, rows: list[TreeRow], me_rows: list[TreeRow
                 t.set("start", start if isinstance(start, str) else _fmt(start))
             if vtype == "Real" and unit:
                 t.set("unit", unit)
+            if vtype == "Real" and v is not None:
+                range_attributes(t.attrib, v)
             if nominal is not None:
                 t.set("nominal", nominal)
         elif vtype == "Real":
@@ -413,6 +447,8 @@ def tree_model_description(sc: Scene, rows: list[TreeRow], me_rows: list[TreeRow
                 attrs["start"] = _fmt(start)
             if unit:
                 attrs["unit"] = unit
+            if v is not None:
+                range_attributes(attrs, v)
             if nominal is not None:
                 attrs["nominal"] = nominal
             if derivative is not None:

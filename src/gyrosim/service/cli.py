@@ -97,6 +97,10 @@ def _serve(args: argparse.Namespace) -> int:
         from .serve import ServeOptions, main
 
         _check_scene(args.scene)
+        if args.record:  # the folder must exist (docs/cli.md, "Output paths"): a usage error, exit code 2
+            from .._outputs import output_file
+
+            output_file(args.record, "--record")
         foxglove = None
         if args.foxglove is not None:
             from .live import parse_host_port
@@ -131,6 +135,9 @@ def _record(args: argparse.Namespace) -> int:
         for flag, v in (("--duration", args.duration), ("--wall-duration", args.wall_duration)):
             if v is not None and not v > 0:
                 raise ConfigError(flag, v, "seconds > 0")
+        from .._outputs import output_file
+
+        output_file(args.output, "--output")  # its folder must exist: a usage error, exit code 2
         options = RecordOptions(duration=args.duration, wall_duration=args.wall_duration,
                                 max_messages=args.max_messages, flush_interval=args.flush_interval,
                                 query_params=not args.no_params)

@@ -629,9 +629,9 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
         model = build_model(scene, parameters)
     inputs = None
     if options.input_file is not None:  # read and checked against the scene before anything starts
-        from ..inputs import InputSignal, read_input_csv
+        from ..inputs import read_input_file
 
-        inputs = InputSignal(read_input_csv(options.input_file))
+        inputs = read_input_file(options.input_file)
         inputs.check_against(model)
         log.info("inputs from %s: %s (%d rows, t = %g .. %g s)", options.input_file, ", ".join(inputs.names),
                  len(inputs.time), inputs.time[0], inputs.time[-1])

@@ -32,7 +32,8 @@ def register(subparsers) -> None:
     p.add_argument("--output-interval", type=float, metavar="H",
                    help="grid of the drift checks in s (default: the scene's)")
     p.add_argument("--seed", type=int, metavar="S", help="seed of the draws (default: 0)")
-    p.add_argument("--output", "-o", required=True, metavar="DIR", help="folder of the Parquet dataset")
+    p.add_argument("--output", "-o", required=True, metavar="DIR",
+                   help="folder of the Parquet dataset: a new or empty one inside an existing folder")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the chunks on the dask.distributed cluster at ADDRESS, e.g. tcp://127.0.0.1:8786")
     p.add_argument("--chunk-size", type=int, metavar="K", help="samples per chunk: per file and per task "
@@ -50,7 +51,8 @@ def register(subparsers) -> None:
                     "<DIR>_scatter.png (one column against a varied parameter, blown-up samples marked); every "
                     "axis with its unit. Each PNG replaces an older one only when it is complete.")
     q.add_argument("dir", metavar="DIR", help="the folder written by gyrosim sweep --output")
-    q.add_argument("--output-dir", "-o", metavar="OUT", help="folder for the PNGs (default: the folder holding DIR)")
+    q.add_argument("--output-dir", "-o", metavar="OUT", help="folder for the PNGs, existing or new inside an existing "
+                   "folder (default: the folder holding DIR)")
     q.add_argument("--x", help="column on the x axis of the scatter (default: the first varied number)")
     q.add_argument("--y", default="max_energy_drift", help="column on the y axis of the scatter "
                    "(default: max_energy_drift)")
@@ -64,10 +66,12 @@ def cmd_sweep(args) -> int:
     """Handler of ``gyrosim sweep``: 0 done, 1 every sample computed blew up (a warning says so; the rows are
     written), 2 a bad spec or folder (nothing run), 130 interrupted. -q: no progress bar or summary; -v: the log of
     the run (and of dask's client) on stderr."""
+    from .._outputs import output_folder
     from ..cli import verbosity
     from .execute import run_sweep
 
     v = verbosity(args)
+    output_folder(args.output, "--output")  # an existing folder or a new one inside one (made by the run)
 
     try:
         res = run_sweep(args.scene, samples=args.samples, vary=args.vary, set=args.set, integrator=args.integrator,
@@ -90,10 +94,13 @@ def cmd_sweep(args) -> int:
 
 def cmd_plot(args) -> int:
     """Handler of ``gyrosim sweep-plot``: prints the PNG paths (not with -q)."""
+    from .._outputs import output_folder
     from ..cli import verbosity
     from .plot import plot_sweep
 
     v = verbosity(args)
+    if args.output_dir is not None:
+        output_folder(args.output_dir, "--output-dir")
     for path in plot_sweep(args.dir, args.output_dir, x=args.x, y=args.y, columns=args.columns):
         if v >= 0:
             print(path)

@@ -33,6 +33,7 @@ import numpy as np
 from ..core import _engine
 from ..core.inertia import check_principal_moments
 from ..errors import ConfigError
+from ..ranges import POSITIVE
 from ..scene import INTEGRATORS, Scene, did_you_mean, load_scene, scene_from_dict
 
 __all__ = ["Dist", "SweepSpec", "parse_dist", "build_spec", "load_sweep_scene", "DISTRIBUTIONS",
@@ -60,17 +61,11 @@ def column_name(name: str) -> str:
     return f"{name}_start" if name.rpartition(".")[2] in _TREE_STATES else name
 
 
-def _rule(name: str, unit: str) -> tuple[str, object]:
-    """What a value of ``name`` must be: (text, vectorised predicate on a float array)."""
-    if "." in name:  # a tree body's parameter: point masses and massless gimbals are allowed
-        if name.rpartition(".")[2] in ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping"):
-            return f"a finite number >= 0 in {unit}", lambda x: np.isfinite(x) & (x >= 0)
-        return f"a finite number in {unit}", np.isfinite
-    if name in ("I1", "I2", "I3", "mass", "max_step", "tolerance"):
-        return f"a finite number > 0 in {unit}", lambda x: np.isfinite(x) & (x > 0)
-    if name in ("cm_distance", "g", "damping", "max_drift"):
-        return f"a finite number >= 0 in {unit}", lambda x: np.isfinite(x) & (x >= 0)
-    return f"a finite number in {unit}", np.isfinite
+def _rule(var) -> tuple[str, object]:
+    """What a value of the variable ``var`` (a :class:`gyrosim.model.Variable`) must be: its range (the model's,
+    a scene parameter's from its scene file): (text, vectorised predicate on a float array)."""
+    rng = var.range
+    return rng.text(var.unit or "1"), rng.contains
 
 
 @dataclass(frozen=True)
@@ -318,7 +313,8 @@ def _settable(scene: Scene) -> dict:
     v = {n: var for n, var in _variables(scene).items() if var.causality in ("parameter", "input")
          or n in _STATES or (scene.is_tree and var.causality == "output" and var.start is not None)}
     v["tolerance"] = Variable("tolerance", "parameter", "fixed", "Real", "1",
-                              "relative and absolute tolerance of adaptive and dop853", scene.tolerance)
+                              "relative and absolute tolerance of adaptive and dop853", scene.tolerance,
+                              **POSITIVE.fields())
     return v
 
 
@@ -351,7 +347,7 @@ def _coerce_fixed(name: str, value, var, flag: str):
         x = float(value)
     except (TypeError, ValueError):
         raise ConfigError(flag, value, f"a real number in {var.unit or '1'}") from None
-    text, ok = _rule(name, var.unit or "1")
+    text, ok = _rule(var)
     if not ok(np.array([x]))[0]:
         raise ConfigError(flag, value, text)
     return x
@@ -530,7 +526,7 @@ def check_block(spec: SweepSpec, a: int, draws: dict) -> None:
         var = settable[name]
         if var.type == "String":
             continue
-        text, ok = _rule(name, var.unit or "1")
+        text, ok = _rule(var)
         mask = ~ok(np.asarray(values, dtype=float))
         if mask.any():
             fail(mask, [name], text, "narrow the distribution" + (", e.g. lognormal(mean,sigma) for a quantity > 0"

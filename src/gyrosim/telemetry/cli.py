@@ -128,6 +128,10 @@ def _plot(args: argparse.Namespace) -> int:
     def run():
         from .plot import plot_recording
 
+        if args.output_dir is not None:
+            from .._outputs import output_folder
+
+            output_folder(args.output_dir, "--output-dir")
         for path in plot_recording(args.file, args.output_dir):
             _out(args, path)
         return 0
@@ -148,8 +152,14 @@ def _info(args: argparse.Namespace) -> int:
 
 def _recover(args: argparse.Namespace) -> int:
     def run():
+        from .._outputs import output_file
         from .recover import recover
 
+        # usage errors (exit code 2) before any work: the copy over its own source, a path that cannot be written
+        if os.path.exists(args.input) and os.path.exists(args.output) and os.path.samefile(args.input, args.output):
+            raise GyrosimError(f"FIXED.mcap {args.output!r} is the input file BROKEN.mcap {args.input!r}: the copy "
+                               "goes to a new path")
+        output_file(args.output, "FIXED.mcap")
         report = recover(args.input, args.output)
         _out(args, report.format())
         if report.lossy:  # the report is on stdout (and gone with -q): say on stderr that something was dropped
@@ -174,7 +184,7 @@ def register(subparsers) -> None:
                     "damaged file is plotted from what is intact, with one warning giving the counts.")
     p.add_argument("file", metavar="FILE.mcap")
     p.add_argument("--output-dir", "-o", metavar="DIR",
-                   help="Folder for the PNGs (default: next to the file).")
+                   help="Folder for the PNGs, existing or new inside an existing folder (default: next to the file).")
     add_verbosity(p)
     p.set_defaults(func=_plot)
 

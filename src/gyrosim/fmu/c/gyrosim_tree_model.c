@@ -1,9 +1,12 @@
 /*
  * gyrosim FMU glue for tree scenes: gyrosim.tree_model.TreeModel in C, generic over the scene's variable table.
  *
- * The variables are rows of the generated table GS_TREE_VARS (value reference -> kind, index, flags, name, unit;
- * see gyrosim_tree_model.h): setting and getting a variable, its checks and its messages are the same code for
- * every scene. The rules follow src/gyrosim/tree_model.py:
+ * The variables are rows of the generated table GS_TREE_VARS (value reference -> kind, index, flags, name, unit,
+ * range; see gyrosim_tree_model.h): setting and getting a variable, its checks and its messages are the same code
+ * for every scene. The rules follow src/gyrosim/tree_model.py:
+ *   - a parameter (g, a body parameter, a coupling, a scene parameter) outside its range (GS_RANGES: the
+ *     variable's range, a scene parameter's from its scene file) is refused with Error and a message naming the
+ *     variable, the value and the range, as TreeModel._check_value;
  *   - parameters (g, body parameters, couplings, scene parameters) go into the parameter row `par` and make the
  *     engine's row `p` stale (initialized = 0); inputs and max_drift go into both rows at once;
  *   - a start state (a joint coordinate) marks the state dirty: the next initialisation normalises the
@@ -33,6 +36,7 @@ static const double START_P[GS_SYS_NP] = GS_START_P;
 static const double START_Y[GS_SYS_NY] = GS_START_Y;
 static const double START_ALIAS[GS_N_ALIAS_ROWS] = GS_START_ALIASES;
 static const GsAliasTarget ALIAS_TARGETS[] = GS_ALIAS_TARGETS;   /* a row {-1, ...} when there are none */
+static const GsRange RANGES[] = GS_RANGES;   /* a row of no bounds when no variable has one */
 #define N_ALIAS_TARGETS (sizeof(ALIAS_TARGETS) / sizeof(ALIAS_TARGETS[0]))
 static const double NOMINALS[GS_NX] = GS_NOMINALS;
 /* the ball and free joints' quaternions: their slot in y and their body's name */
@@ -225,6 +229,16 @@ int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
     }
 }
 
+/* x within the range of v (a finite x: checked before), or Error's message naming v, x and the range */
+static int in_range(GsInstance *m, const GsTreeVar *v, double x) {
+    if (v->range < 0) return 1;
+    const GsRange *r = &RANGES[v->range];
+    const int ok = (r->lo_kind == GS_BOUND_NONE || (r->lo_kind == GS_BOUND_EXCLUSIVE ? x > r->lo : x >= r->lo)) &&
+                   (r->hi_kind == GS_BOUND_NONE || (r->hi_kind == GS_BOUND_EXCLUSIVE ? x < r->hi : x <= r->hi));
+    if (!ok) gs_log_error(m, "%s = %s is not allowed: %s", v->name, num(x).s, r->text);
+    return ok;
+}
+
 static int not_negative(GsInstance *m, const char *name, const char *unit, double x, const char *via) {
     if (x < 0.0) {
         if (via) {
@@ -265,6 +279,7 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
     }
     switch (v->kind) {
         case GS_K_PARAM:
+            if (!in_range(m, v, x)) return GS_ERROR;
             if ((v->flags & GS_F_NONNEG) && !not_negative(m, v->name, v->unit, x, NULL)) return GS_ERROR;
             d->par[v->index] = x;
             d->initialized = 0;
@@ -283,6 +298,7 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
             if (d->p_valid) d->p[v->index] = x;
             break;
         case GS_K_ALIAS:
+            if (!in_range(m, v, x)) return GS_ERROR;
             for (size_t i = 0; i < N_ALIAS_TARGETS; i++) {
                 const GsAliasTarget *a = &ALIAS_TARGETS[i];
                 if (a->alias == v->index && (a->flags & GS_F_NONNEG) &&

@@ -21,7 +21,7 @@
 
 #include "gyrosim_config.h"   /* generated: the tree, the variable table, the start values */
 
-/* What a value reference is (GS_TREE_VARS rows: {kind, index, flags, name, unit}). */
+/* What a value reference is (GS_TREE_VARS rows: {kind, index, flags, name, unit, range}). */
 enum {
     GS_K_NONE = 0,
     GS_K_TIME,        /* FMI 3.0's independent variable (value reference 0) */
@@ -44,7 +44,16 @@ typedef struct {
     int flags;
     const char *name;
     const char *unit;
+    int range;        /* row in GS_RANGES: the values a parameter may take (-1: any finite number) */
 } GsTreeVar;
+
+/* A parameter's range (gyrosim.ranges.Range): each bound absent, inclusive (x >= lo) or exclusive (x > lo). */
+enum { GS_BOUND_NONE = 0, GS_BOUND_INCLUSIVE = 1, GS_BOUND_EXCLUSIVE = 2 };
+typedef struct {
+    double lo, hi;
+    int lo_kind, hi_kind;   /* GS_BOUND_* */
+    const char *text;       /* what the messages say: "a finite number > 0 in kg" */
+} GsRange;
 
 typedef struct {
     int alias;        /* row in the aliases */
