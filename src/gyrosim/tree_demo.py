@@ -107,7 +107,7 @@ def slew_tour(out: Path, angle: float = math.radians(60.0), stop_time: float = 6
     from .core.rotations import quat_conjugate, quat_multiply
     from .model import Model
 
-    m = Model("spacecraft")
+    m = Model("spacecraft", parameters={"hub.omega_y": 0.0})  # a slew from rest
     q_goal = np.array([math.cos(angle / 2), 0.0, 0.0, math.sin(angle / 2)])
     I = np.array([1.0, 2.0, 3.0])
     wn, zeta = 0.4, 0.9  # rad/s, the closed loop's natural frequency and damping ratio about each axis

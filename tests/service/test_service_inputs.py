@@ -20,9 +20,10 @@ from gyrosim.telemetry import messages as msg
 class Served:
     """`gyrosim serve` in a thread plus a client session; use as a context manager."""
 
-    def __init__(self, scene, **options):
+    def __init__(self, scene, parameters=None, **options):
         self.port = free_port()
         self.scene = scene
+        self.parameters = parameters
         self.options = ServeOptions(**options)
         self.stop = threading.Event()
         self.ready = threading.Event()
@@ -31,7 +32,7 @@ class Served:
     def _run(self):
         try:
             self.result["stats"] = main(loopback_config("producer", endpoint(self.port)), self.scene,
-                                        options=self.options, stop=self.stop,
+                                        options=self.options, stop=self.stop, parameters=self.parameters,
                                         ready=lambda s: (self.result.__setitem__("service", s), self.ready.set()))
         except BaseException as e:  # reported by the test
             self.result["error"] = e

@@ -318,7 +318,7 @@ def _state(sub) -> dict | None:
 
 def test_a_motor_command_spins_the_spacecrafts_wheel_and_a_torque_command_sets_the_hubs(tmp_path):
     torque, J = 0.05, 0.01  # N*m on wheel_x, its spin inertia kg*m^2
-    with Served("spacecraft", rate=200.0, record=str(tmp_path / "sc.mcap")) as s:
+    with Served("spacecraft", {"hub.omega_y": 0.0}, rate=200.0, record=str(tmp_path / "sc.mcap")) as s:  # at rest
         keys = {b: K.BodyKeys("spacecraft", b) for b in ("hub", "wheel_x")}
         wheel = s.session.declare_subscriber(keys["wheel_x"].state, zenoh.handlers.FifoChannel(100_000))
         hub = s.session.declare_subscriber(keys["hub"].state, zenoh.handlers.FifoChannel(100_000))

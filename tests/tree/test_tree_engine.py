@@ -150,7 +150,7 @@ def test_reaction_wheel_spins_the_hub_as_the_closed_form():
     """u on wheel x of a resting hub: omega_x = -u t / (I_x - J), Omega = -I_x omega_x / J relative to the hub
     (I_x the whole craft's); total angular momentum kept to round-off. rk4 is exact here (the rates are linear in
     t and the hub turns about one axis), so the tolerance is round-off."""
-    m = Model("spacecraft", parameters={"wheel_x.rate": 0.0, "wheel_z.rate": 0.0})
+    m = Model("spacecraft", parameters={"wheel_x.rate": 0.0, "wheel_z.rate": 0.0, "hub.omega_y": 0.0})  # at rest
     Ix, J, u, T = 1.0, 0.01, 1e-3, 10.0
     m.set("wheel_x.motor_torque", u)
     r = m.trajectory(0.1, int(T / 0.1))
@@ -199,7 +199,8 @@ def test_basilisk_reference_run_is_reproduced():
     hub_w = np.array([-0.0052507839563235206, 0.00025287883317413635, 0.003251257679941103])
     wheels = np.array([101.00525078395614, -0.00025287883317413635, -50.003251257679899])
     r = gyrosim.simulate("spacecraft", stop_time=10.0, output_interval=10.0, integrator="dop853",
-                         relative_tolerance=1e-13, max_step=0.1, start_values={"wheel_x.motor_torque": 1e-3},
+                         relative_tolerance=1e-13, max_step=0.1,
+                         start_values={"wheel_x.motor_torque": 1e-3, "hub.omega_y": 0.0},  # the hub at rest
                          output=["hub.omega_x", "hub.omega_y", "hub.omega_z", "wheel_x.rate", "wheel_y.rate",
                                  "wheel_z.rate"])
     w = np.array([r["hub.omega_x"][-1], r["hub.omega_y"][-1], r["hub.omega_z"][-1]])
