@@ -249,7 +249,7 @@ def test_check_against(spin, two):
         return InputSignal(signal([(0.0, 0.0)], name)).check_against(Model(scene))
 
     assert check(spin, "tau_z") == [("tau_z", "tau_z", None)]
-    assert check(two, "b.tau_x") == [("b.tau_x", "tau_x", "b")]
+    assert check(two, "b.tau_x") == [("b.tau_x", "b.tau_x", None)]  # the full name: the model finds the body
     assert check("spacecraft", "wheel_x.motor_torque") == [("wheel_x.motor_torque", "wheel_x.motor_torque", None)]
     assert input_names(Model("spacecraft")) == ["hub.tau_x", "hub.tau_y", "hub.tau_z", "wheel_x.motor_torque",
                                                 "wheel_y.motor_torque", "wheel_z.motor_torque"]

@@ -204,12 +204,7 @@ def _select(arr: np.ndarray, names: list[str]) -> np.ndarray:
 def input_names(model) -> list[str]:
     """The input variables of ``model`` as an input array names them: ``tau_x..tau_z`` for one body,
     ``<body>.tau_x..`` in a scene of several bodies, ``<body>.motor_torque`` and ``<body>.tau_*`` in a tree."""
-    if getattr(model.scene, "is_tree", False):
-        return [n for n, v in model.variables.items() if v.causality == "input"]
-    bare = [n for n, v in model.variables.items() if v.causality == "input"]
-    if model.n_bodies == 1:
-        return bare
-    return [f"{b}.{n}" for b in model.body_names for n in bare]
+    return model.input_names
 
 
 class InputSignal:
@@ -375,8 +370,8 @@ class InputSignal:
         for n in self.names:
             if n not in allowed:
                 if not allowed:
-                    how = ("give a body motor_input = true or torque_input = true" if sc.is_tree
-                           else "give a [[body]] torque_input = true to add the inputs tau_x, tau_y, tau_z")
+                    how = ("give a [[body]] torque_input = true (the inputs tau_x, tau_y, tau_z) or a hinge "
+                           "motor_input = true (motor_torque)")
                     raise ConfigError("input", n, f"an input of scene {sc.name!r}, which has none ({how})",
                                       where=self.origin.get(n))
                 bare = n.rpartition(".")[2]
@@ -388,9 +383,5 @@ class InputSignal:
                 raise ConfigError("input", n, f"an input of scene {sc.name!r}{did_you_mean(n, allowed)}: "
                                   + ", ".join(allowed[:24]) + (", ..." if len(allowed) > 24 else "") + what,
                                   where=self.origin.get(n))
-            if sc.is_tree or model.n_bodies == 1:
-                setters.append((n, n, None))
-            else:
-                b, _, var = n.partition(".")
-                setters.append((n, var, b))
+            setters.append((n, n, None))  # the full name: the model finds the body
         return setters

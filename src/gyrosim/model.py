@@ -356,6 +356,17 @@ class Model:
             return int(body)
         raise ConfigError("body", body, f"a body index in [0, {self.n_bodies}) or a body name")
 
+    def _named(self, name, body):
+        """``(name, body)`` of a variable given by its full name: ``<body>.<name>`` in a scene of several bodies
+        (the naming of FMUs, CSV columns and ``gyrosim.simulate``'s fields), or ``name`` with ``body`` as given."""
+        if isinstance(name, str) and "." in name and self.n_bodies > 1:
+            b, _, short = name.partition(".")
+            if b not in self._index:
+                raise ConfigError("variable", name, "a variable name, or <body>.<name> with a body of the scene "
+                                  f"({', '.join(self.body_names[:10])})")
+            return short, b
+        return name, body
+
     def _var(self, name) -> Variable:
         v = self.variables.get(name)
         if v is None:
@@ -377,6 +388,7 @@ class Model:
         ConfigError
             Unknown name, an output that is not a state, or a value that is not allowed (named with the rule).
         """
+        name, body = self._named(name, body)
         v = self._var(name)
         i = self._body(body)
         if name in _PARAM_NAMES:
@@ -493,7 +505,8 @@ class Model:
         self.tolerance = float(tolerance)
 
     def get(self, name: str, body=0):
-        """Value of a variable (float, or str for ``integrator``) of one body."""
+        """Value of a variable (float, or str for ``integrator``) of one body (``<body>.<name>``: that body's)."""
+        name, body = self._named(name, body)
         slot = self._slots.get(name)
         if slot is None:
             self._var(name)  # raises with the names this scene has
@@ -928,6 +941,12 @@ class Model:
     _STATE_FIELDS = ("_moments", "_mass", "_cm", "_g", "_damping", "_tau", "_y", "_hint", "_stats", "integrator",
                      "max_step", "max_drift", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h",
                      "_initialized", "_state_dirty", "_ex")
+
+    @property
+    def input_names(self) -> list[str]:
+        """The inputs by full name (``tau_x``; ``<body>.tau_x`` in a scene of several bodies)."""
+        bare = [n for n, v in self.variables.items() if v.causality == "input"]
+        return bare if self.n_bodies == 1 else [f"{b}.{n}" for b in self.body_names for n in bare]
 
     # ----------------------------------------------------------------------------------------------- the systems
     # What the analyses ask of any model (tree_model.TreeModel answers the same): how many independent systems it

@@ -39,21 +39,14 @@ def output_intervals(span: float, dt: float, end: float) -> int:
 
 def _apply_start_values(model: Model, start_values: dict) -> None:
     for name, value in start_values.items():
-        body = None
-        key = str(name)
-        if model.n_bodies > 1 and "." in key and not model.scene.is_tree:
-            b, key = key.split(".", 1)
-            if b not in model.body_names:
-                raise ConfigError("start_values", name, "a variable name, or <body>.<name> with a body of the scene "
-                                  f"({', '.join(model.body_names[:10])})")
-            body = b
-        var = model.variables.get(key)
+        key = str(name)  # a full name: <body>.<name> in a scene of several bodies, whichever kernel runs it
+        var = model.variables.get(key) or model.variables.get(key.partition(".")[2])
         if var is not None and var.type == "Real" and isinstance(value, str):
             try:
                 value = float(value)
             except ValueError:
                 raise ConfigError(str(name), value, f"a real number in {var.unit or '1'}") from None
-        model.set(key, value, body=body)
+        model.set(key, value)
 
 
 def apply_overrides(model, start_values=None, integrator=None, max_step=None) -> None:

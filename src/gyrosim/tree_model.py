@@ -425,6 +425,11 @@ class TreeModel(Model):
             raise IntegrationError(self._blowup(b, self._y[b], t, h, k,
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
 
+    @property
+    def input_names(self) -> list[str]:
+        """The inputs by full name (``<body>.motor_torque``, ``<body>.tau_x``; bare in a scene of one body)."""
+        return [n for n, v in self.variables.items() if v.causality == "input"]
+
     # ----------------------------------------------------------------------------------------------- the systems
     @property
     def n_systems(self) -> int:

@@ -161,16 +161,10 @@ class _FileInputs:
     def __init__(self, signal, model, bodies: list[str]):
         self.signal = signal
         self.model = model
-        tree = getattr(model.scene, "is_tree", False)
         self.setters = []  # (variable, body argument of model.set, (body index, short name), column)
         for j, (name, var, body) in enumerate(signal.check_against(model)):
-            if tree:
-                b, short = model.scene.split_name(name)
-                where = (-1 if b is None else b, short)
-            elif body is None:
-                where = (0, var) if len(bodies) == 1 else (-1, var)
-            else:
-                where = (bodies.index(body), var)
+            b, short = model.scene.split_name(name)  # -1: an input every body of a one-body scene takes
+            where = (-1 if b is None else b, short)
             self.setters.append((var, body, where, j))
         self.times = [float(x) for x in signal.time]
         self.overrides: dict[tuple[int, str], int] = {}  # (body, input) -> the file row when the command came
