@@ -942,6 +942,16 @@ class Model:
                      "max_step", "max_drift", "tolerance", "start_time", "stop_time", "_t_base", "_n", "_h",
                      "_initialized", "_state_dirty", "_ex")
 
+    #: One-body integrators whose trajectory call gives the bits of a loop of :meth:`step` (adaptive and dop853 span
+    #: the output points of a whole call with their own steps: with inputs they step per interval, as an FMU does).
+    _SAME_BITS_AS_STEPS = ("euler", "rk4", "splitting", "splitting4", "exact")
+
+    @property
+    def trajectory_is_steps(self) -> bool:
+        """Whether :meth:`trajectory` over several output intervals gives the bits of a loop of :meth:`step` with
+        the integrator set (inputs held over intervals may then be applied a block of intervals at a time)."""
+        return self.integrator in self._SAME_BITS_AS_STEPS
+
     @property
     def input_names(self) -> list[str]:
         """The inputs by full name (``tau_x``; ``<body>.tau_x`` in a scene of several bodies)."""

@@ -18,11 +18,6 @@ from .scene import EMBEDDED_SCENES, Scene, did_you_mean, load_scene
 
 __all__ = ["simulate", "Run", "field_names", "output_intervals"]
 
-#: One-body integrators whose trajectory call gives the bits of a loop of ``Model.step`` (adaptive and dop853 span
-#: the output points of a whole call with their own steps: with inputs they step per interval, as an FMU does).
-_SAME_BITS_AS_STEPS = ("euler", "rk4", "splitting", "splitting4", "exact")
-
-
 def field_names(model: Model) -> list[str]:
     """The output names of ``model``: ``<body>.<name>`` in multi-body scenes, the bare names otherwise."""
     return model.scene.output_names()
@@ -237,7 +232,7 @@ class Run:
             return model.outputs_array()[None]
         apply(table[0])
         rows = None
-        grouped = self.scene.is_tree or model.integrator in _SAME_BITS_AS_STEPS
+        grouped = model.trajectory_is_steps
         k = 0
         try:
             if grouped:

@@ -426,6 +426,11 @@ class TreeModel(Model):
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
 
     @property
+    def trajectory_is_steps(self) -> bool:
+        """Always: the tree engine's trajectory steps each output interval as :meth:`step` does."""
+        return True
+
+    @property
     def input_names(self) -> list[str]:
         """The inputs by full name (``<body>.motor_torque``, ``<body>.tau_x``; bare in a scene of one body)."""
         return [n for n, v in self.variables.items() if v.causality == "input"]
