@@ -83,10 +83,8 @@ def _ros_domain(text: str) -> int:
 
 
 def _ros_arguments(p, help_domain: str) -> None:
-    from .ros2 import DISTROS
-
     p.add_argument("--ros-domain", type=_ros_domain, metavar="N", help=help_domain)
-    p.add_argument("--ros-distro", choices=DISTROS, default="jazzy",
+    p.add_argument("--ros-distro", choices=K.ROS_DISTROS, default="jazzy",
                    help="rmw_zenoh's wire protocol (default jazzy: also kilted and rolling; humble: no type "
                         "hashes).")
 

@@ -51,6 +51,11 @@ __all__ = [
 
 #: Default first chunk of every key.
 DEFAULT_PREFIX = "gyrosim"
+
+#: ROS 2 over Zenoh (:mod:`gyrosim.service.ros2`): rmw_zenoh's wire protocols, ``jazzy`` (also Kilted and Rolling:
+#: the same keys, type hashes and attachment) and ``humble`` (no type hashes: its keys carry
+#: ``TypeHashNotSupported``).
+ROS_DISTROS = ("jazzy", "humble")
 #: The per-body key kinds, in the order of docs/service.md (``motor``: tree scenes' hinge motors).
 BODY_KINDS = ("state", "tf", "imu", "torque", "params", "motor")
 #: The kinds the service subscribes: commands (inputs) it takes.

@@ -36,15 +36,15 @@ from dataclasses import dataclass
 from ..errors import ConfigError
 from ..telemetry import messages as msg
 from ..telemetry.typehash import type_hash
+from . import keys as K
 
 __all__ = ["DISTROS", "Qos", "Ros2Node", "Ros2Publisher", "data_key", "dds_type_name", "attachment",
            "TF_QOS", "TF_STATIC_QOS", "SENSOR_QOS", "CLOCK_QOS", "COMMAND_QOS"]
 
 log = logging.getLogger("gyrosim.ros2")
 
-#: Wire protocols: ``jazzy`` (also Kilted and Rolling: the same keys, hashes and attachment) and ``humble`` (no
-#: type hashes: its keys and tokens carry ``TypeHashNotSupported``).
-DISTROS = ("jazzy", "humble")
+#: Wire protocols (the ROS 2 distributions whose rmw_zenoh this speaks): :data:`gyrosim.service.keys.ROS_DISTROS`.
+DISTROS = K.ROS_DISTROS
 _NO_HASH = "TypeHashNotSupported"
 
 
