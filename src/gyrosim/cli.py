@@ -436,17 +436,7 @@ def scene_info(scene) -> str:
     rows = [(name, var.causality, _start_text(var.start), var.unit, var.description)
             for name, var in sc.variables().items()]
     width = max(18, *(len(r[0]) for r in rows))
-    names = ", ".join(sc.body_names[:10]) + (", ..." if len(sc.body_names) > 10 else "")
-    terms = [t for t, on in (("gravity", sc.gravity), ("damping", sc.damping), ("torque inputs", sc.torque)) if on]
-    if sc.is_tree:
-        names = ", ".join(f"{b.name} ({b.joint} on {sc.tree[b.parent].name if b.parent >= 0 else 'world'})"
-                          for b in sc.tree)
-        terms = [t for t, on in (("gravity", sc.g > 0), ("joint damping", sc.damping),
-                                 ("motor and torque inputs", sc.torque), ("springs", bool(sc.couplings) or any(
-                                     b.stiffness > 0 for b in sc.tree)),
-                                 ("gravity gradient on a circular orbit" if getattr(sc.orbit, "circular", False)
-                                  else "gravity gradient and central force on Kepler orbits", sc.orbit is not None))
-                 if on]
+    names, terms = sc.describe()
     lines = ["", "Model Info", "",
              f"  Scene              {sc.name}",
              f"  Description        {sc.description}",

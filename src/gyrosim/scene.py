@@ -202,6 +202,42 @@ class Scene:
                        for j in range(k) for b in self.bodies)
         return dataclasses.replace(self, bodies=bodies)
 
+    def describe(self) -> tuple[str, list[str]]:
+        """What ``gyrosim info`` says of the system: its bodies (with their joints in a tree) and its terms."""
+        if self.tree is None:
+            names = ", ".join(self.body_names[:10]) + (", ..." if len(self.body_names) > 10 else "")
+            return names, [t for t, on in (("gravity", self.gravity), ("damping", self.damping),
+                                           ("torque inputs", self.torque)) if on]
+        names = ", ".join(f"{b.name} ({b.joint} on {self.tree[b.parent].name if b.parent >= 0 else 'world'})"
+                          for b in self.tree)
+        orbit = ("gravity gradient on a circular orbit" if getattr(self.orbit, "circular", False)
+                 else "gravity gradient and central force on Kepler orbits")
+        return names, [t for t, on in (("gravity", self.g > 0), ("joint damping", self.damping),
+                                       ("motor and torque inputs", self.torque),
+                                       ("springs", bool(self.couplings) or any(b.stiffness > 0 for b in self.tree)),
+                                       (orbit, self.orbit is not None)) if on]
+
+    def to_dict(self) -> dict:
+        """The system as JSON-able data (a sweep's Parquet metadata ``gyrosim.scene``): its settings and bodies."""
+        head = {"name": self.name, "source": self.source, "description": self.description}
+        if self.tree is not None:
+            return {**head, "integrator": self.integrator, "max_step": self.max_step, "max_drift": self.max_drift,
+                    "tolerance": self.tolerance, "output_interval": self.output_interval,
+                    "stop_time": self.stop_time, "g": self.g,
+                    "tree": [{"name": b.name, "parent": b.parent, "joint": b.joint,
+                              "pos": [float(x) for x in b.pos], "axis": [float(x) for x in b.axis],
+                              "mass": float(b.mass), "cm": [float(x) for x in b.cm],
+                              "inertia": [float(x) for x in np.asarray(b.inertia).ravel()]} for b in self.tree],
+                    "couplings": [list(c) for c in self.couplings]}
+        b = self.bodies[0]
+        return {**head, "gravity": self.gravity, "damping": self.damping, "torque": self.torque,
+                "integrator": self.integrator, "max_step": self.max_step, "max_drift": self.max_drift,
+                "tolerance": self.tolerance, "output_interval": self.output_interval, "stop_time": self.stop_time,
+                "g": self.g,
+                "body": {"name": b.name, "moments": [float(x) for x in b.moments], "mass": float(b.mass),
+                         "cm_distance": float(b.cm_distance), "damping": float(b.damping),
+                         "q0": [float(x) for x in b.q0], "omega0": [float(x) for x in b.omega0]}}
+
     def var_name(self, body: str, short: str) -> str:
         """A body's variable under the one naming rule (docs/trees.md): bare in a scene of one body, whatever its
         joint and whichever syntax declared it (``v_x`` for a ``free`` body); ``<body>.<name>`` with several."""

@@ -222,24 +222,7 @@ class SweepSpec:
 
     def scene_dict(self) -> dict:
         """The scene as JSON-able data (Parquet metadata ``gyrosim.scene``)."""
-        sc = self.scene
-        if sc.is_tree:
-            return {"name": sc.name, "source": sc.source, "description": sc.description, "integrator": sc.integrator,
-                    "max_step": sc.max_step, "max_drift": sc.max_drift, "tolerance": sc.tolerance,
-                    "output_interval": sc.output_interval, "stop_time": sc.stop_time, "g": sc.g,
-                    "tree": [{"name": b.name, "parent": b.parent, "joint": b.joint,
-                              "pos": [float(x) for x in b.pos], "axis": [float(x) for x in b.axis],
-                              "mass": float(b.mass), "cm": [float(x) for x in b.cm],
-                              "inertia": [float(x) for x in np.asarray(b.inertia).ravel()]} for b in sc.tree],
-                    "couplings": [list(c) for c in sc.couplings]}
-        b = sc.bodies[0]
-        return {"name": sc.name, "source": sc.source, "description": sc.description, "gravity": sc.gravity,
-                "damping": sc.damping, "torque": sc.torque, "integrator": sc.integrator, "max_step": sc.max_step,
-                "max_drift": sc.max_drift, "tolerance": sc.tolerance, "output_interval": sc.output_interval,
-                "stop_time": sc.stop_time, "g": sc.g,
-                "body": {"name": b.name, "moments": [float(x) for x in b.moments], "mass": float(b.mass),
-                         "cm_distance": float(b.cm_distance), "damping": float(b.damping),
-                         "q0": [float(x) for x in b.q0], "omega0": [float(x) for x in b.omega0]}}
+        return self.scene.to_dict()
 
     def token(self) -> str:
         """A short hash of the scene and spec (Dask task keys)."""
