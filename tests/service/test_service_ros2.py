@@ -187,3 +187,14 @@ def test_a_late_subscriber_gets_the_fixed_frames_on_tf_static(tmp_path):
     [static] = out["first"]["/tf_static"]["frames"]
     assert static == ["hub", "panel", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0] and out["first"]["/tf_static"]["stamp"] == 0
     assert [f[:2] for f in out["last"]["/tf"]["frames"]] == [["world", "hub"]]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--ros-domain", "300"], "300 is not a ROS domain id: an integer from 0 to 232"),
+    (["--ros-domain", "x"], "'x' is not a ROS domain id"),
+    (["--ros-domain", "0", "--ros-distro", "iron"], "invalid choice: 'iron'"),
+])
+def test_bad_ros_arguments_are_one_line_and_exit_2(args, words):
+    r = subprocess.run([sys.executable, "-m", "gyrosim.cli", "serve", "gyroscope", *args, "--duration", "1"],
+                       capture_output=True, text=True, timeout=60, env=env())
+    assert r.returncode == 2 and words in r.stderr and "Traceback" not in r.stderr, r.stderr
