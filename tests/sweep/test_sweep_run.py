@@ -176,6 +176,51 @@ def test_resume_after_sigint_computes_only_the_missing_chunks(tmp_path, cli):
     assert rc == 2 and "seed: 0 there, 1 now" in err
 
 
+#: An audit hook that interrupts the process itself with SIGINT as the first chunk file is renamed into place,
+#: so that Python's SIGINT handler runs at a moment where a KeyboardInterrupt it raised used to be lost or
+#: misreported: in a finalizer (as in importlib's module-lock callbacks or a Dask future's __del__), or in code run
+#: by exec (as dataclasses' methods, made while a module is imported)
+_INTERRUPT_AT_FIRST_CHUNK = """
+import gc
+class _Garbage:
+    def __init__(self):
+        self.cycle = self
+    def __del__(self):
+        signal.raise_signal(signal.SIGINT)  # Python's handler runs here, inside the finalizer
+_fired = []
+def _hook(event, args):
+    if event == "os.rename" and not _fired and str(args[1]).endswith(".parquet"):
+        _fired.append(1)
+        if WHERE == "finalizer":
+            _Garbage()
+            gc.collect()
+        else:
+            exec("import signal; signal.raise_signal(signal.SIGINT)")
+sys.addaudithook(_hook)
+"""
+
+
+@pytest.mark.parametrize("where", ["finalizer", "exec"])
+def test_sigint_at_an_awkward_moment_is_acted_on(tmp_path, where):
+    """A SIGINT whose handler runs inside a finalizer (its KeyboardInterrupt was printed as "Exception ignored"
+    and dropped: the sweep ran on to the end and exited 0) or inside code run by exec (CPython marked the
+    interrupt unhandled although the sweep caught it: exit by SIGINT, -2, instead of 130) gives exit 130, the
+    message and the chunks written so far. Deterministic: the process interrupts itself (an audit hook) as the
+    first chunk file is renamed into place."""
+    out = tmp_path / "r"
+    prelude = f"WHERE = {where!r}\n" + _INTERRUPT_AT_FIRST_CHUNK
+    r = subprocess.run(gyrosim_cmd("sweep", "gyroscope", "--samples", "1000", "--vary", "omega_z=uniform(150,250)",
+                                   "--stop-time", "1", "--chunk-size", "100", "--output", out, "--quiet"),
+                       env=interruptible_env(tmp_path / "site", prelude), capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 130, r.stderr
+    assert "interrupted" in r.stderr and "--resume" in r.stderr, r.stderr
+    assert "Traceback" not in r.stderr and "Exception ignored" not in r.stderr, r.stderr
+    chunks = sorted(f.name for f in out.glob("chunk-*.parquet"))
+    assert chunks == ["chunk-000000.parquet"]  # acted on after the chunk under way: its file is complete
+    assert not [f for f in out.iterdir() if f.name.startswith(".")]
+
+
 def test_output_folder_rules(cli, tmp_path):
     f = tmp_path / "file"
     f.write_text("x")
