@@ -167,6 +167,54 @@ def test_poincare_crossings_on_the_trajectory():
             assert np.allclose(at, s.points[:, col], atol=1e-6)
 
 
+@pytest.mark.parametrize("wrap", [None, False])
+def test_poincare_direction_on_a_known_sinusoid(wrap):
+    """A pendulum (m = 0.8 kg, centre of mass 0.3 m below its hinge, I_c = 0.01 kg*m^2) swung by a = 1e-4 rad is
+    the sinusoid angle = a cos(w t), w = sqrt(m g l / (I_c + m l^2)). The section angle = a/2 is crossed downward
+    at w t = pi/3 + 2 pi n with rate -a w sin(pi/3), upward at w t = 5 pi/3 + 2 pi n with rate +a w sin(pi/3);
+    "both" is the two merged in time; the angle taken modulo 2 pi (the default) or not (wrap=False: the crossing
+    test of any other variable). A section crossed the wrong way is a third of a period (0.39 s) off, its rate
+    of the other sign. Tolerances: times 1e-7 s, rates 1e-6 a w: the pendulum's nonlinearity (a^2/16 relative in
+    w, 3e-8 rad of phase over the 10 s), dop853 at 1e-12 and the refinement's 1e-10 of the scale."""
+    import tomllib
+
+    from gyrosim.scene import scene_from_dict
+
+    m, l, Ic, a, T = 0.8, 0.3, 0.01, 1e-4, 10.0
+    sc = scene_from_dict(tomllib.loads(f"""
+[scene]
+name = "pendulum"
+g = 9.81
+[[body]]
+name = "arm"
+joint = "hinge"
+axis = [0, 1, 0]
+mass = {m}
+cm = [0, 0, -{l}]
+inertia = {{ principal = [{Ic}, {Ic}, {Ic}] }}
+angle = {a}
+"""), "<test>")
+    w = math.sqrt(m * 9.81 * l / (Ic + m * l * l))
+    kw = dict(section=("angle", a / 2), record=["rate"], time=T, output_interval=0.05, integrator="dop853",
+              tolerance=1e-12, max_step=0.05, wrap=wrap)
+    expected = {}
+    for direction, phase, sign in (("down", math.pi / 3, -1.0), ("up", 5 * math.pi / 3, 1.0)):
+        t = (phase + 2 * math.pi * np.arange(20)) / w
+        t = t[t < T]
+        s = poincare(sc, direction=direction, **kw)
+        assert s.direction == sign and len(s) == len(t) >= 8, (direction, s.times)
+        np.testing.assert_allclose(s.times, t, rtol=0, atol=1e-7, err_msg=direction)
+        np.testing.assert_allclose(s["rate"], sign * a * w * math.sin(math.pi / 3), rtol=0, atol=1e-6 * a * w,
+                                   err_msg=direction)
+        expected[direction] = (t, s["rate"])
+    both = poincare(sc, direction="both", **kw)
+    order = np.argsort(np.concatenate([expected["down"][0], expected["up"][0]]))
+    np.testing.assert_allclose(both.times, np.concatenate([expected["down"][0], expected["up"][0]])[order],
+                               rtol=0, atol=1e-7)
+    np.testing.assert_allclose(both["rate"], np.concatenate([expected["down"][1], expected["up"][1]])[order],
+                               rtol=0, atol=1e-6 * a * w)
+
+
 def test_poincare_errors():
     from gyrosim.errors import ConfigError
 

@@ -248,6 +248,38 @@ def test_coupled_pendula_normal_modes():
         np.testing.assert_allclose(r["right.angle"], sign * a0 * np.cos(w * r["time"]), rtol=0, atol=1e-7 * a0)
 
 
+@pytest.mark.parametrize("g, rest", [(G, 0.0), (0.0, 0.7)])
+def test_hinge_spring_small_oscillation_frequency(g, rest):
+    """A hinged body (m = 0.8 kg, centre of mass l = 0.3 m from the hinge, I_c = 0.01 kg*m^2 about it) on a spring
+    k = 2 N*m/rad, released at rest_angle + a: under gravity with rest_angle 0 it swings as a cos(w t),
+    w = sqrt((k + m g l) / I) with I = I_c + m l^2 (7.29 rad/s); without gravity it swings about rest_angle = 0.7 at
+    w = sqrt(k / I) (4.94 rad/s). A slipped spring sign gives sqrt((m g l - k) / I) = 2.08 rad/s, or a run-away
+    without gravity. Tolerance 1e-6 a with a = 1e-4 rad: the pendulum's nonlinearity shifts w by a^2/16 relative
+    (6e-10, a phase of 5e-8 over the 10 s), dop853 at 1e-12."""
+    import tomllib
+
+    m, l, Ic, k, a = 0.8, 0.3, 0.01, 2.0, 1e-4
+    sc = scene_from_dict(tomllib.loads(f"""
+[scene]
+name = "sprung_hinge"
+g = {g}
+[[body]]
+name = "arm"
+joint = "hinge"
+axis = [0, 1, 0]
+mass = {m}
+cm = [0, 0, -{l}]
+inertia = {{ principal = [{Ic}, {Ic}, {Ic}] }}
+stiffness = {k}
+rest_angle = {rest}
+angle = {rest + a}
+"""), "<test>")
+    r = gyrosim.simulate(sc, stop_time=10.0, output_interval=0.01, integrator="dop853", relative_tolerance=1e-12,
+                         max_step=0.01, output=["angle"])
+    w = math.sqrt((k + m * g * l) / (Ic + m * l * l))
+    np.testing.assert_allclose(r["angle"] - rest, a * np.cos(w * r["time"]), rtol=0, atol=1e-6 * a)
+
+
 def _massless_gimbals(**start):
     sv = {"outer.mass": 0.0, "outer.I1": 0.0, "outer.I2": 0.0, "outer.I3": 0.0,
           "inner.mass": 0.0, "inner.I1": 0.0, "inner.I2": 0.0, "inner.I3": 0.0}
@@ -451,6 +483,63 @@ def test_a_one_body_tree_on_the_articulated_body_algorithm_is_the_same_top():
         np.testing.assert_allclose(a[n], b[n], rtol=0, atol=1e-9 * max(1.0, np.max(np.abs(b[n]))))
     np.testing.assert_allclose(a["energy"], b["energy"], rtol=1e-12)
     np.testing.assert_allclose(a["L_z"], b["L_z"], rtol=1e-10)
+
+
+def test_a_tree_top_given_with_cm_distance_is_the_same_top():
+    """heavy_top in the tree syntax with ``cm_distance`` (inertia about the pivot, the one-body meaning, which the
+    scene turns into the inertia about the centre of mass: I - m d^2 about x and y) and its pivot 1 m above the
+    world's origin, which keeps it on the articulated-body algorithm: the same rotation as the embedded heavy_top
+    on the one-body kernel (a pivot's place does not matter under uniform gravity), and the same as that tree
+    with ``cm`` and the moments shifted by hand. That shift slipped (+ m d^2 instead of -) changes the attitude by
+    order 1 within the 2 s. Tolerance as the test above: dop853 at 1e-12 over 2 s, 1e-9."""
+    import tomllib
+
+    d, m = 0.05, 0.5
+    up = _TOP_TREE + "position = [0.0, 0.0, 1.0]\n"
+    given = scene_from_dict(tomllib.loads(up + f"cm_distance = {d!r}\ninertia = {{ principal = [1.75e-3, 1.75e-3, "
+                                               f"1.0e-3] }}\n"), "<test>")
+    by_hand = scene_from_dict(tomllib.loads(up + f"cm = [0.0, 0.0, {d!r}]\ninertia = {{ principal = ["
+                                                 f"{1.75e-3 - m * d * d!r}, {1.75e-3 - m * d * d!r}, 1.0e-3] }}\n"),
+                              "<test>")
+    assert given.is_tree and by_hand.is_tree
+    kw = dict(stop_time=2.0, output_interval=0.1, integrator="dop853", relative_tolerance=1e-12, max_step=0.1)
+    names = ["q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z"]
+    ref = gyrosim.simulate("heavy_top", output=names, **kw)
+    for sc in (given, by_hand):
+        r = gyrosim.simulate(sc, output=names, **kw)
+        for n in names:
+            np.testing.assert_allclose(r[n], ref[n], rtol=0, atol=1e-9 * max(1.0, np.max(np.abs(ref[n]))), err_msg=n)
+
+
+def test_physical_pendulum_with_its_centre_of_mass_off_the_axes():
+    """A hinge about y, the centre of mass at c = (0, 0.2, -0.3) m (off the axis, and along it), the inertia
+    about it a full tensor: swung by a = 1e-4 rad it oscillates as a cos(w t) with w = sqrt(m g |c_z| / I), I the
+    moment about the hinge's axis by the parallel-axis theorem: I_c,yy + m (|c|^2 - c_y^2) = I_c,yy + m c_z^2.
+    The engine's shift (the body's spatial inertia about its joint point) enters through both its terms: a
+    slipped sign of m c c^T moves w by 25 %, leaving it out by 15 %. Tolerance 1e-6 a: the nonlinearity's a^2/16
+    (6e-10 relative; 4e-8 in phase over 10 s), dop853 at 1e-12."""
+    import tomllib
+
+    m, c, a = 0.8, (0.0, 0.2, -0.3), 1e-4
+    Jc = np.array([[0.010, 0.002, -0.001], [0.002, 0.012, 0.003], [-0.001, 0.003, 0.008]])
+    rows = ", ".join("[" + ", ".join(repr(float(x)) for x in row) + "]" for row in Jc)
+    sc = scene_from_dict(tomllib.loads(f"""
+[scene]
+name = "physical_pendulum"
+g = {G}
+[[body]]
+name = "arm"
+joint = "hinge"
+axis = [0, 1, 0]
+mass = {m}
+cm = [{c[0]}, {c[1]}, {c[2]}]
+inertia = {{ tensor = [{rows}] }}
+angle = {a}
+"""), "<test>")
+    r = gyrosim.simulate(sc, stop_time=10.0, output_interval=0.01, integrator="dop853", relative_tolerance=1e-12,
+                         max_step=0.01, output=["angle"])
+    w = math.sqrt(m * G * abs(c[2]) / (Jc[1, 1] + m * c[2] ** 2))
+    np.testing.assert_allclose(r["angle"], a * np.cos(w * r["time"]), rtol=0, atol=1e-6 * a)
 
 
 @pytest.mark.parametrize("integ", _engine.METHODS)
