@@ -106,15 +106,66 @@ def test_integrator_independent_long_run():
     assert all(abs(v - mean) < 0.1 * mean for v in vals), vals
 
 
+def _late_growth(r) -> float:
+    """ln(d/d0) gained by the neighbour over the second half of the run (renormalisations summed)."""
+    return float(r.log_growth[-1] - np.interp(0.5 * r.times[-1], r.times, r.log_growth))
+
+
+def _section_closed_form(scene):
+    """(time, the section's crossing times or None, its points) in closed form where the scene's default start
+    makes them simple (dop853 at 1e-12 runs them), else None."""
+    if scene == "free_body":  # omega_y = 0 upward: one point of the closed polhode, from 2E and |L|^2
+        I, w0 = np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.1, 0.1])
+        E2, L2 = I @ w0**2, (I * I) @ w0**2
+        wx = math.sqrt((L2 - I[2] * E2) / (I[0] * (I[0] - I[2])))
+        wz = math.sqrt((L2 - I[0] * E2) / (I[2] * (I[2] - I[0])))
+        return 40.0, None, (wx, wz)  # omega_x > 0 (the spin), omega_z > 0 (omega_y' = (I3 - I1) wz wx / I2 > 0)
+    if scene == "gyroscope":  # steady precession at theta = pi/2: omega_x = -phid cos(psi) crosses upward at
+        # psi = pi/2 + 2 pi k, psi = 200 t, where (theta, omega_y) = (pi/2, phid)
+        return 2.0, (math.pi / 2 + 2 * math.pi * np.arange(64)) / 200.0, (math.pi / 2, 0.24525)
+    if scene == "gimbal_gyroscope":  # released at rest: every inner.rate = 0 upward is the cusp it started at,
+        # inner.angle = 1 rad with outer.rate = 0 (energy and p_outer conserved: an integrable top)
+        return 2.0, None, (1.0, 0.0)
+    return None
+
+
 @pytest.mark.parametrize("scene", EMBEDDED_SCENES)
 def test_every_embedded_scene(scene):
+    """Every embedded scene's default start is a regular motion: integrable (the torque-free body; the Lagrange
+    tops heavy_top and gyroscope, and the top in axisymmetric gimbals with its two cyclic angles; spacecraft, a
+    gyrostat with free wheels), or near a stable equilibrium or steady motion (cmg_spacecraft, coupled_pendula at
+    0.1 rad, the satellites' 0.01 rad librations), or on a regular torus (the double pendulum from 1 rad: its log
+    growth 3.2 at 100 s, 4.5 at 400 s). There the neighbour separates linearly (the shear of the torus's
+    frequencies) and its exponent falls as ln(c t) / t: over the second half of 200 output points the log growth
+    gains about ln 2 (seen 0.04-0.72), asserted below ln 4 (quadratic growth). A chaotic motion gains lambda T / 2:
+    the double pendulum from (pi/2, pi/2) gains 9.4 over the second half of 20 s, asserted above 5, with an
+    exponent above 0.5 1/s (as test_double_pendulum_chaotic): the counter-case, run with that scene.
+    The default Poincare section: times increasing in (0, T], finite points; where the start makes it simple,
+    at its closed form (dop853 at 1e-12): the free body's one point of its polhode (1e-9), the gyroscope's
+    steady precession (one point, at psi = pi/2 + 2 pi k: 1e-8), the gimbals' cusp (inner.angle 1 rad, outer.rate
+    0: 1e-8)."""
     from gyrosim.scene import load_scene
 
     T = 200 * load_scene(scene).output_interval  # 200 output points (2 s; the satellites' 2000 s)
     r = lyapunov(scene, time=T)
     assert np.isfinite(r.exponent) and len(r.history) == len(r.times) > 0
+    assert _late_growth(r) < math.log(4.0), "the neighbour separates faster than quadratically: chaos?"
+    if scene == "double_pendulum":
+        c = lyapunov(scene, time=20.0, start_values=DP_CHAOTIC)
+        assert c.exponent > 0.5 and _late_growth(c) > 5.0
     s = poincare(scene, time=T)
     assert s.points.shape == (len(s.times), len(s.names)) and np.all(np.isfinite(s.points))
+    assert np.all(np.diff(s.times) > 0) and np.all((s.times > 0) & (s.times <= T))
+    known = _section_closed_form(scene)
+    if known is not None:
+        t_run, times, point = known
+        s = poincare(scene, time=t_run, integrator="dop853", tolerance=1e-12, max_step=0.01)
+        assert len(s) >= 2
+        if times is not None:
+            np.testing.assert_allclose(s.times, times[:len(s)], rtol=0, atol=1e-8)
+            assert len(s) == np.sum(times < t_run)
+        np.testing.assert_allclose(s.points, np.broadcast_to(point, s.points.shape), rtol=0,
+                                   atol=1e-9 if scene == "free_body" else 1e-8)
 
 
 def test_model_copied_not_advanced_and_method():
