@@ -106,15 +106,66 @@ def test_integrator_independent_long_run():
     assert all(abs(v - mean) < 0.1 * mean for v in vals), vals
 
 
+def _late_growth(r) -> float:
+    """ln(d/d0) gained by the neighbour over the second half of the run (renormalisations summed)."""
+    return float(r.log_growth[-1] - np.interp(0.5 * r.times[-1], r.times, r.log_growth))
+
+
+def _section_closed_form(scene):
+    """(time, the section's crossing times or None, its points) in closed form where the scene's default start
+    makes them simple (dop853 at 1e-12 runs them), else None."""
+    if scene == "free_body":  # omega_y = 0 upward: one point of the closed polhode, from 2E and |L|^2
+        I, w0 = np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.1, 0.1])
+        E2, L2 = I @ w0**2, (I * I) @ w0**2
+        wx = math.sqrt((L2 - I[2] * E2) / (I[0] * (I[0] - I[2])))
+        wz = math.sqrt((L2 - I[0] * E2) / (I[2] * (I[2] - I[0])))
+        return 40.0, None, (wx, wz)  # omega_x > 0 (the spin), omega_z > 0 (omega_y' = (I3 - I1) wz wx / I2 > 0)
+    if scene == "gyroscope":  # steady precession at theta = pi/2: omega_x = -phid cos(psi) crosses upward at
+        # psi = pi/2 + 2 pi k, psi = 200 t, where (theta, omega_y) = (pi/2, phid)
+        return 2.0, (math.pi / 2 + 2 * math.pi * np.arange(64)) / 200.0, (math.pi / 2, 0.24525)
+    if scene == "gimbal_gyroscope":  # released at rest: every inner.rate = 0 upward is the cusp it started at,
+        # inner.angle = 1 rad with outer.rate = 0 (energy and p_outer conserved: an integrable top)
+        return 2.0, None, (1.0, 0.0)
+    return None
+
+
 @pytest.mark.parametrize("scene", EMBEDDED_SCENES)
 def test_every_embedded_scene(scene):
+    """Every embedded scene's default start is a regular motion: integrable (the torque-free body; the Lagrange
+    tops heavy_top and gyroscope, and the top in axisymmetric gimbals with its two cyclic angles; spacecraft, a
+    gyrostat with free wheels), or near a stable equilibrium or steady motion (cmg_spacecraft, coupled_pendula at
+    0.1 rad, the satellites' 0.01 rad librations), or on a regular torus (the double pendulum from 1 rad: its log
+    growth 3.2 at 100 s, 4.5 at 400 s). There the neighbour separates linearly (the shear of the torus's
+    frequencies) and its exponent falls as ln(c t) / t: over the second half of 200 output points the log growth
+    gains about ln 2 (seen 0.04-0.72), asserted below ln 4 (quadratic growth). A chaotic motion gains lambda T / 2:
+    the double pendulum from (pi/2, pi/2) gains 9.4 over the second half of 20 s, asserted above 5, with an
+    exponent above 0.5 1/s (as test_double_pendulum_chaotic): the counter-case, run with that scene.
+    The default Poincare section: times increasing in (0, T], finite points; where the start makes it simple,
+    at its closed form (dop853 at 1e-12): the free body's one point of its polhode (1e-9), the gyroscope's
+    steady precession (one point, at psi = pi/2 + 2 pi k: 1e-8), the gimbals' cusp (inner.angle 1 rad, outer.rate
+    0: 1e-8)."""
     from gyrosim.scene import load_scene
 
     T = 200 * load_scene(scene).output_interval  # 200 output points (2 s; the satellites' 2000 s)
     r = lyapunov(scene, time=T)
     assert np.isfinite(r.exponent) and len(r.history) == len(r.times) > 0
+    assert _late_growth(r) < math.log(4.0), "the neighbour separates faster than quadratically: chaos?"
+    if scene == "double_pendulum":
+        c = lyapunov(scene, time=20.0, start_values=DP_CHAOTIC)
+        assert c.exponent > 0.5 and _late_growth(c) > 5.0
     s = poincare(scene, time=T)
     assert s.points.shape == (len(s.times), len(s.names)) and np.all(np.isfinite(s.points))
+    assert np.all(np.diff(s.times) > 0) and np.all((s.times > 0) & (s.times <= T))
+    known = _section_closed_form(scene)
+    if known is not None:
+        t_run, times, point = known
+        s = poincare(scene, time=t_run, integrator="dop853", tolerance=1e-12, max_step=0.01)
+        assert len(s) >= 2
+        if times is not None:
+            np.testing.assert_allclose(s.times, times[:len(s)], rtol=0, atol=1e-8)
+            assert len(s) == np.sum(times < t_run)
+        np.testing.assert_allclose(s.points, np.broadcast_to(point, s.points.shape), rtol=0,
+                                   atol=1e-9 if scene == "free_body" else 1e-8)
 
 
 def test_model_copied_not_advanced_and_method():
@@ -165,6 +216,54 @@ def test_poincare_crossings_on_the_trajectory():
             assert np.all(rate > 0)  # upward
         else:
             assert np.allclose(at, s.points[:, col], atol=1e-6)
+
+
+@pytest.mark.parametrize("wrap", [None, False])
+def test_poincare_direction_on_a_known_sinusoid(wrap):
+    """A pendulum (m = 0.8 kg, centre of mass 0.3 m below its hinge, I_c = 0.01 kg*m^2) swung by a = 1e-4 rad is
+    the sinusoid angle = a cos(w t), w = sqrt(m g l / (I_c + m l^2)). The section angle = a/2 is crossed downward
+    at w t = pi/3 + 2 pi n with rate -a w sin(pi/3), upward at w t = 5 pi/3 + 2 pi n with rate +a w sin(pi/3);
+    "both" is the two merged in time; the angle taken modulo 2 pi (the default) or not (wrap=False: the crossing
+    test of any other variable). A section crossed the wrong way is a third of a period (0.39 s) off, its rate
+    of the other sign. Tolerances: times 1e-7 s, rates 1e-6 a w: the pendulum's nonlinearity (a^2/16 relative in
+    w, 3e-8 rad of phase over the 10 s), dop853 at 1e-12 and the refinement's 1e-10 of the scale."""
+    import tomllib
+
+    from gyrosim.scene import scene_from_dict
+
+    m, l, Ic, a, T = 0.8, 0.3, 0.01, 1e-4, 10.0
+    sc = scene_from_dict(tomllib.loads(f"""
+[scene]
+name = "pendulum"
+g = 9.81
+[[body]]
+name = "arm"
+joint = "hinge"
+axis = [0, 1, 0]
+mass = {m}
+cm = [0, 0, -{l}]
+inertia = {{ principal = [{Ic}, {Ic}, {Ic}] }}
+angle = {a}
+"""), "<test>")
+    w = math.sqrt(m * 9.81 * l / (Ic + m * l * l))
+    kw = dict(section=("angle", a / 2), record=["rate"], time=T, output_interval=0.05, integrator="dop853",
+              tolerance=1e-12, max_step=0.05, wrap=wrap)
+    expected = {}
+    for direction, phase, sign in (("down", math.pi / 3, -1.0), ("up", 5 * math.pi / 3, 1.0)):
+        t = (phase + 2 * math.pi * np.arange(20)) / w
+        t = t[t < T]
+        s = poincare(sc, direction=direction, **kw)
+        assert s.direction == sign and len(s) == len(t) >= 8, (direction, s.times)
+        np.testing.assert_allclose(s.times, t, rtol=0, atol=1e-7, err_msg=direction)
+        np.testing.assert_allclose(s["rate"], sign * a * w * math.sin(math.pi / 3), rtol=0, atol=1e-6 * a * w,
+                                   err_msg=direction)
+        expected[direction] = (t, s["rate"])
+    both = poincare(sc, direction="both", **kw)
+    order = np.argsort(np.concatenate([expected["down"][0], expected["up"][0]]))
+    np.testing.assert_allclose(both.times, np.concatenate([expected["down"][0], expected["up"][0]])[order],
+                               rtol=0, atol=1e-7)
+    np.testing.assert_allclose(both["rate"], np.concatenate([expected["down"][1], expected["up"][1]])[order],
+                               rtol=0, atol=1e-6 * a * w)
 
 
 def test_poincare_errors():

@@ -32,3 +32,18 @@ def assert_same_rows(a, b) -> None:
     ca, cb = columns(a), columns(b)
     for name in a.column_names:
         np.testing.assert_array_equal(ca[name], cb[name], err_msg=name)
+
+
+
+def interruptible_env(folder: Path, prelude: str = "") -> dict:
+    """The environment of a ``gyrosim`` child (:func:`gyrosim_cmd`) that a test interrupts: a ``sitecustomize``
+    in ``folder`` puts SIGINT back to Python's handler at start-up, whatever the test runner's. A pytest started in
+    the background by a script (``make test &``) has SIGINT ignored, a child inherits that, and Python (and gyrosim
+    with it) leaves an ignored SIGINT ignored: the test's SIGINT would do nothing. ``prelude``: more Python run
+    there (e.g. an audit hook)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "sitecustomize.py").write_text("import signal\nimport sys\n\n"
+                                             "signal.signal(signal.SIGINT, signal.default_int_handler)\n" + prelude)
+    e = env()
+    e["PYTHONPATH"] = str(folder) + os.pathsep + e["PYTHONPATH"]
+    return e

@@ -104,6 +104,75 @@ def test_200_flipped_bytes_in_a_chunk_name_the_chunk_and_the_messages_lost(tmp_p
     assert mcap_info(tmp_path / "fixed.mcap").complete
 
 
+def _first_json_digit(data: bytes, c: dict) -> int:
+    """The file offset of the first digit in the first JSON message payload of chunk ``c`` (uncompressed)."""
+    import struct
+
+    region, q = data[c["data_start"]:c["data_start"] + c["data_len"]], 0
+    while q < len(region):
+        op, n = struct.unpack_from("<BQ", region, q)
+        payload = region[q + 9 + 22:q + 9 + n]  # a Message: channel, sequence, log and publish times, then data
+        if op == 0x05 and payload[:1] == b"{":
+            at = next(i for i, b in enumerate(payload) if 0x30 <= b <= 0x39)
+            return c["data_start"] + q + 9 + 22 + at
+        q += 9 + n
+    raise AssertionError("no JSON message in the chunk")
+
+
+def test_one_flipped_byte_in_an_uncompressed_chunk_is_caught_by_its_crc_alone(tmp_path):
+    """The 200 flipped bytes above are caught by zstd before the CRC is looked at. Here the chunks are not
+    compressed (Recorder compression="none") and one byte of the middle chunk's first JSON state message turns
+    into another digit (XOR 1): every record still frames and parses (mcap's own reader, CRCs not checked, reads
+    all 1800 messages, one of them altered), so only the chunk's CRC can tell. ``gyrosim mcap info`` exits 1
+    naming that chunk, its messages and the CRC mismatch; ``mcap recover`` drops exactly that chunk and writes a
+    file mcap's strict readers accept. Deterministic: the byte is found by parsing the chunk's records."""
+    path = tmp_path / "raw.mcap"
+    write_recording(path, n=600, compression="none")
+    data = path.read_bytes()
+    assert mcap_info(path).compression == {"none"}
+    cs = chunks(data)
+    k = len(cs) // 2
+    c = cs[k]
+    at = _first_json_digit(data, c)
+    bad = bytearray(data)
+    bad[at] ^= 0x01
+    path.write_bytes(bytes(bad))
+    with open(path, "rb") as f:  # framing intact: without CRCs mcap reads every message, one of them altered
+        got = {message_id(t, m) for t, m in _mcap_messages(f)}
+    assert len(got) == 1800 and got != all_messages(data)
+    with open(path, "rb") as f, pytest.raises(CRCValidationError):
+        list(StreamReader(f, validate_crcs=True).records)
+    lost = len(c["messages"])
+    where = f"chunk {k + 1} of {len(cs)} at byte {c['offset']} ({lost} messages)"
+
+    env = dict(os.environ, PYTHONPATH=SRC)
+    p = subprocess.run([sys.executable, "-m", "gyrosim.cli", "mcap", "info", path], env=env, capture_output=True,
+                       text=True, timeout=120)
+    assert p.returncode == 1 and "Traceback" not in p.stderr, p.stderr
+    assert "state:       DAMAGED" in p.stdout and where in p.stdout and "its CRC does not match" in p.stdout
+    assert f"{lost} lost" in p.stdout
+
+    fixed = tmp_path / "fixed.mcap"
+    p = subprocess.run([sys.executable, "-m", "gyrosim.cli", "mcap", "recover", path, fixed], env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and where in p.stdout and "its CRC does not match" in p.stdout, p.stdout + p.stderr
+    assert f"{lost} of the 1800 messages" in p.stdout and f"{lost} messages lost" in p.stderr
+    kept = {message_id(t, m) for t, m in strict_read(fixed)}
+    assert kept == all_messages(data) - c["messages"]  # exactly the other chunks, nothing altered passed on
+
+
+def _mcap_messages(f):
+    """(topic, message) of every message, read by mcap's stream reader without CRC checks."""
+    from mcap.records import Channel, Message
+
+    topic = {}
+    for r in StreamReader(f, validate_crcs=False).records:
+        if isinstance(r, Channel):
+            topic[r.id] = r.topic
+        elif isinstance(r, Message):
+            yield topic[r.channel_id], r
+
+
 def test_a_damaged_message_index_is_caught_by_the_data_section_crc(tmp_path, original):
     data, cs = original["data"], original["chunks"]
     c = cs[2]

@@ -38,6 +38,14 @@ Conventions (the contract)
 * Generalized forces use the joint's velocity coordinates: ball ``torque`` (3,) in the child frame; hinge scalar
   ``torque`` about the axis; free ``torque`` (3,) in the child frame and ``force`` (3,) in the parent frame, applied
   at the child origin. The reaction acts on the parent.
+* Springs, damping and couplings (optional keys of a body; :func:`joint_forces` turns them into generalized forces,
+  :func:`spring_energy` gives their potential): a hinge's ``stiffness`` k (N*m/rad) about its ``rest_angle``
+  and its ``damping`` c (N*m*s/rad) give ``tau = -k (angle - rest_angle) - c rate`` (plus a motor torque); a ball's
+  or a free joint's ``damping`` c (N*m*s) gives ``torque = -c omega`` (child frame; a free joint's force is not
+  damped). A coupling ``(a, b, k)`` is a torsion spring between hinges ``a`` and ``b``: ``-k (angle_a - angle_b)``
+  on ``a``, the opposite on ``b``; potential ``k (angle_a - angle_b)^2 / 2``.
+* External torques on bodies (``body_torque`` of :func:`forward_dynamics`): (3,) in the body's frame, acting on
+  that body alone (no reaction on the tree).
 
 Pinocchio's conventions, and how they are mapped
 ------------------------------------------------
@@ -249,7 +257,19 @@ def _pack(bodies: list[dict], model: pin.Model, slots: list[_Slot], state: list[
     return q, v, t
 
 
-def forward_dynamics(bodies: list[dict], g: float, state: list[dict], tau: list[dict] | None = None) -> list:
+def _external_forces(model: pin.Model, slots: list[_Slot], body_torque) -> list:
+    """Pinocchio's ``fext`` (one force per joint, in the joint's frame) of torques on bodies (body frames)."""
+    fext = [pin.Force.Zero() for _ in range(model.njoints)]
+    for slot, t in zip(slots, body_torque, strict=True):
+        if t is None or slot.joint_id == 0:  # a body fixed to the world: the torque goes to the ground
+            continue
+        # a pure torque: the same about any point, turned from the body frame into its joint's frame
+        fext[slot.joint_id] += pin.Force(np.zeros(3), slot.placement.rotation @ np.asarray(t, dtype=float))
+    return fext
+
+
+def forward_dynamics(bodies: list[dict], g: float, state: list[dict], tau: list[dict] | None = None,
+                     body_torque: list | None = None) -> list:
     """Joint accelerations of a tree, in gyrosim's coordinates.
 
     Parameters
@@ -264,6 +284,8 @@ def forward_dynamics(bodies: list[dict], g: float, state: list[dict], tau: list[
     tau : list of dict, optional
         Per body: ball ``{"torque": (3,)}``, hinge ``{"torque": float}``, free ``{"torque": (3,), "force": (3,)}``,
         fixed ``{}``; missing entries are zero.
+    body_torque : list, optional
+        Per body, an external torque (3,) in its body frame, or None.
 
     Returns
     -------
@@ -275,7 +297,12 @@ def forward_dynamics(bodies: list[dict], g: float, state: list[dict], tau: list[
     model, slots = build_model(bodies, g)
     data = model.createData()
     q, v, t = _pack(bodies, model, slots, state, tau)
-    ddq = pin.aba(model, data, q, v, t) if model.nv else np.zeros(0)
+    if not model.nv:
+        ddq = np.zeros(0)
+    elif body_torque is not None:
+        ddq = pin.aba(model, data, q, v, t, _external_forces(model, slots, body_torque))
+    else:
+        ddq = pin.aba(model, data, q, v, t)
     out: list = []
     for body, slot, s in zip(bodies, slots, state, strict=True):
         kind, iv = body["joint"], slot.idx_v
@@ -320,6 +347,101 @@ def energy(bodies: list[dict], g: float, state: list[dict]) -> float:
     # Pinocchio leaves out the bodies on the universe joint (a constant); add them so the value is complete
     world = model.inertias[0]
     return float(kinetic + potential + world.mass * g * world.lever[2])
+
+
+def joint_forces(bodies: list[dict], state: list[dict], couplings=(), motors=None) -> list[dict]:
+    """The generalized forces of the springs, the damping, the motors and the couplings at ``state``.
+
+    Parameters
+    ----------
+    bodies : list of dict
+        The tree; a body's optional ``stiffness``, ``rest_angle`` and ``damping`` (see the module docstring).
+    state : list of dict
+        The joint states.
+    couplings : sequence of (int, int, float)
+        Torsion springs ``(a, b, k)`` between hinges.
+    motors : sequence of float, optional
+        Per body, a hinge's motor torque (N*m about its axis; ignored for other joints).
+
+    Returns
+    -------
+    list of dict
+        ``tau`` for :func:`forward_dynamics`: hinge ``-k (angle - rest_angle) - c rate + motor`` and the couplings'
+        ``-k (angle_a - angle_b)`` on a, ``+k (angle_a - angle_b)`` on b; ball, free_rotation and free
+        ``torque = -c omega``.
+    """
+    tau: list[dict] = []
+    for i, (body, s) in enumerate(zip(bodies, state, strict=True)):
+        kind, c = body["joint"], float(body.get("damping", 0.0))
+        if kind == "hinge":
+            k, rest = float(body.get("stiffness", 0.0)), float(body.get("rest_angle", 0.0))
+            motor = float(motors[i]) if motors is not None else 0.0
+            tau.append({"torque": motor - k * (s["angle"] - rest) - c * s["rate"]})
+        elif kind in (*_SPHERICAL, "free"):
+            tau.append({"torque": -c * np.asarray(s["omega"], dtype=float)})
+        else:
+            tau.append({})
+    for a, b, k in couplings:
+        if bodies[a]["joint"] != "hinge" or bodies[b]["joint"] != "hinge":
+            raise ValueError(f"coupling ({a}, {b}): both bodies must be hinges")
+        m = k * (state[a]["angle"] - state[b]["angle"])
+        tau[a]["torque"] -= m
+        tau[b]["torque"] += m
+    return tau
+
+
+def spring_energy(bodies: list[dict], state: list[dict], couplings=()) -> float:
+    """The springs' potential: ``sum k (angle - rest_angle)^2 / 2`` over hinges plus ``sum k (angle_a -
+    angle_b)^2 / 2`` over couplings (J)."""
+    e = 0.0
+    for body, s in zip(bodies, state, strict=True):
+        if body["joint"] == "hinge":
+            e += 0.5 * float(body.get("stiffness", 0.0)) * (s["angle"] - float(body.get("rest_angle", 0.0))) ** 2
+    for a, b, k in couplings:
+        e += 0.5 * k * (state[a]["angle"] - state[b]["angle"]) ** 2
+    return e
+
+
+def random_springs(rng: np.random.Generator, bodies: list[dict]) -> tuple[list[dict], list[tuple[int, int, float]]]:
+    """Springs, damping and couplings for a tree.
+
+    Each hinge gets ``stiffness`` in [0, 20] N*m/rad about a ``rest_angle`` in [-pi, pi]; each hinge, ball,
+    free_rotation and free joint a ``damping`` in [0, 2] (N*m*s/rad or N*m*s); a quarter of each are 0 instead.
+    With two hinges or more, 1 to 3 couplings between random distinct hinges, stiffness in [0.5, 10] N*m/rad.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Random source.
+    bodies : list of dict
+        The tree (not changed).
+
+    Returns
+    -------
+    bodies : list of dict
+        Copies of the bodies with ``stiffness``, ``rest_angle`` and ``damping``.
+    couplings : list of (int, int, float)
+        ``(a, b, k)``.
+    """
+
+    def maybe(lo, hi):
+        return 0.0 if rng.random() < 0.25 else float(rng.uniform(lo, hi))
+
+    out = []
+    for body in bodies:
+        b = dict(body)
+        if b["joint"] == "hinge":
+            b.update(stiffness=maybe(0.0, 20.0), rest_angle=float(rng.uniform(-np.pi, np.pi)))
+        if b["joint"] != "fixed":
+            b["damping"] = maybe(0.0, 2.0)
+        out.append(b)
+    hinges = [i for i, b in enumerate(bodies) if b["joint"] == "hinge"]
+    couplings = []
+    if len(hinges) >= 2:
+        for _ in range(int(rng.integers(1, 4))):
+            a, b = rng.choice(hinges, size=2, replace=False)
+            couplings.append((int(a), int(b), float(rng.uniform(0.5, 10.0))))
+    return out, couplings
 
 
 def momentum_world(bodies: list[dict], state: list[dict]) -> np.ndarray:

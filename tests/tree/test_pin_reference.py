@@ -14,12 +14,15 @@ pytest.importorskip("pinocchio")
 from pin_reference import (  # noqa: E402 - after the importorskip
     energy,
     forward_dynamics,
+    joint_forces,
     momentum_world,
     quat_to_matrix,
     random_inertia,
     random_rotation,
+    random_springs,
     random_state,
     random_tree,
+    spring_energy,
 )
 
 G = 9.81
@@ -350,6 +353,27 @@ def test_energy_balance_on_random_trees(root, seed):
     rate = _time_derivative(lambda s: energy(bodies, G, s), bodies, state, tau, G)
     power = _power(bodies, state, tau)
     scale = 1.0 + abs(energy(bodies, G, state)) * 10.0
+    assert abs(rate - power) <= 1e-7 * scale, (rate, power)
+
+
+@pytest.mark.parametrize("root", ["free", "ball", "hinge"])
+@pytest.mark.parametrize("seed", range(4))
+def test_springs_conserve_and_damping_dissipates_on_random_trees(root, seed):
+    """With springs, damping, couplings and motors (random_springs, joint_forces), the energy plus the springs'
+    potential (spring_energy) changes at the power of the motors and the damping alone: the springs' and the
+    couplings' generalized forces are minus the gradient of that potential, so the reference's spring law and its
+    potential agree in sign and size. Tolerance as the energy balance above."""
+    rng = np.random.default_rng(1150 + seed)
+    bodies = random_tree(rng, 7, root_joint=root)
+    state = random_state(bodies, rng)
+    bodies, couplings = random_springs(rng, bodies)
+    motors = rng.normal(size=len(bodies))
+    tau = joint_forces(bodies, state, couplings, motors)
+    total = lambda s: energy(bodies, G, s) + spring_energy(bodies, s, couplings)  # noqa: E731
+    rate = _time_derivative(total, bodies, state, tau, G)
+    unsprung = [{**b, "stiffness": 0.0} for b in bodies]
+    power = _power(bodies, state, joint_forces(unsprung, state, (), motors))  # motors and damping
+    scale = 1.0 + (abs(energy(bodies, G, state)) + spring_energy(bodies, state, couplings)) * 10.0
     assert abs(rate - power) <= 1e-7 * scale, (rate, power)
 
 

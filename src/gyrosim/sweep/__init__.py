@@ -3,7 +3,8 @@
 Modules: :mod:`~gyrosim.sweep.spec` (distributions, the ``[sweep]`` table, checks before any work),
 :mod:`~gyrosim.sweep.sampling` (reproducible counter-based draws), :mod:`~gyrosim.sweep.runner` (a chunk of samples
 as one many-body Model), :mod:`~gyrosim.sweep.store` (the Parquet dataset, atomic chunk files, the manifest),
-:mod:`~gyrosim.sweep.execute` (local and Dask execution, resume, progress), :mod:`~gyrosim.sweep.plot`,
+:mod:`~gyrosim.sweep.execute` (local and Dask execution, resume, progress), :mod:`~gyrosim.sweep.interrupt`
+(Ctrl-C noted by a handler, acted on between engine calls), :mod:`~gyrosim.sweep.plot`,
 :mod:`~gyrosim.sweep.cli` (the sweep's benchmark is in the source checkout: bench/gyrosim_bench/sweep_bench.py).
 Only :mod:`~gyrosim.sweep.execute` imports dask (when a scheduler is given), and only this package does
 (docs/index.md).

@@ -67,17 +67,20 @@ def cmd_sweep(args) -> int:
     written), 2 a bad spec or folder (nothing run), 130 interrupted. -q: no progress bar or summary; -v: the log of
     the run (and of dask's client) on stderr."""
     from .._outputs import output_folder
-    from ..cli import verbosity
-    from .execute import run_sweep
-
-    v = verbosity(args)
-    output_folder(args.output, "--output")  # an existing folder or a new one inside one (made by the run)
+    from .interrupt import deferred
 
     try:
-        res = run_sweep(args.scene, samples=args.samples, vary=args.vary, set=args.set, integrator=args.integrator,
-                        max_step=args.max_step, stop_time=args.stop_time, output_interval=args.output_interval,
-                        seed=args.seed, output=args.output, scheduler=args.scheduler, chunk_size=args.chunk_size,
-                        resume=args.resume, progress=v >= 0, lyapunov=args.lyapunov)
+        with deferred():  # from here on a Ctrl-C is acted on in the sweep's own code, never lost (interrupt.py)
+            from ..cli import verbosity
+            from .execute import run_sweep
+
+            v = verbosity(args)
+            output_folder(args.output, "--output")  # an existing folder or a new one inside one (made by the run)
+            res = run_sweep(args.scene, samples=args.samples, vary=args.vary, set=args.set,
+                            integrator=args.integrator, max_step=args.max_step, stop_time=args.stop_time,
+                            output_interval=args.output_interval, seed=args.seed, output=args.output,
+                            scheduler=args.scheduler, chunk_size=args.chunk_size, resume=args.resume,
+                            progress=v >= 0, lyapunov=args.lyapunov)
     except KeyboardInterrupt:
         print(f"gyrosim sweep: interrupted; the chunks written so far are complete: `gyrosim sweep ... --output "
               f"{args.output} --resume` computes the others", file=sys.stderr)

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ConfigError, GyrosimError
+from .interrupt import check as check_interrupt
+from .interrupt import deferred
 from .runner import run_chunk
 from .spec import SweepSpec, build_spec
 from .store import prepare_output, read_manifest, require_pyarrow, schema, write_chunk
@@ -52,6 +54,7 @@ class SweepResult:
 def run_chunks_local(spec: SweepSpec, todo, on_result) -> None:
     """Run the chunks ``todo`` one after another in this process; ``on_result(k, columns)`` for each."""
     for k in todo:
+        check_interrupt()
         on_result(k, run_chunk(spec, k))
 
 
@@ -101,6 +104,10 @@ def run_chunks_dask(spec: SweepSpec, todo, on_result, client) -> None:
     ac = as_completed(list(inflight.values()), with_results=True, loop=client.loop)
     try:
         while True:
+            # wait in steps, acting on a Ctrl-C between them (sweep/interrupt.py: a wait inside next() would not)
+            while not ac.has_ready() and not ac.is_empty():
+                check_interrupt()
+                time.sleep(0.05)
             try:
                 fut, cols = next(ac)
             except StopIteration:
@@ -140,6 +147,15 @@ def run_sweep(scene=None, *, samples=None, vary=None, set=None, integrator=None,
     >>> t.num_rows, "omega_x_start" in t.column_names, "max_L_drift" in t.column_names
     (100, True, True)
     """
+    with deferred():  # Ctrl-C acted on between pieces of work, never lost (sweep/interrupt.py)
+        return _run_sweep(scene, samples=samples, vary=vary, set=set, integrator=integrator, max_step=max_step,
+                          stop_time=stop_time, output_interval=output_interval, seed=seed, output=output,
+                          scheduler=scheduler, chunk_size=chunk_size, resume=resume, progress=progress,
+                          lyapunov=lyapunov)
+
+
+def _run_sweep(scene, *, samples, vary, set, integrator, max_step, stop_time, output_interval,  # noqa: A002
+               seed, output, scheduler, chunk_size, resume, progress, lyapunov) -> SweepResult:
     require_pyarrow()
     out = Path(output)
     if resume and chunk_size is None and out.is_dir():

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import OUTPUT_NAMES, Model
+from .interrupt import check as check_interrupt
 from .sampling import draw
 from .spec import MODEL_WIDE, SweepSpec, column_name
 
@@ -154,6 +155,7 @@ def _drive(spec: SweepSpec, model: Model, names: list, drifts, s_energy: np.ndar
     while done < n:
         m = min(block, n - done)
         traj = model.trajectory(dt, m, status=status, **kw)
+        check_interrupt()  # a Ctrl-C in the sweep's process: acted on after each engine call
         e, dl = drifts(traj)
         if alive.all():
             np.fmax(max_e, e, out=max_e)
@@ -207,7 +209,7 @@ def _run_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
         # 200 renormalisations a run: a call of the engine over many copies costs milliseconds however short
         res = lyapunov_copies(_model_for(spec, k, per_body, wide), time=spec.stop_time,
                               output_interval=spec.output_interval, interval=spec.stop_time / LYAPUNOV_INTERVALS,
-                              period=False, keep_going=True)
+                              period=False, keep_going=True, progress=lambda *_: check_interrupt())
         out["lyapunov"] = np.atleast_1d(res.exponent)
     return out
 
