@@ -255,7 +255,7 @@ def test_errors_name_the_field():
 def _closed_form_point(name):
     """A point of embedded scene ``name`` whose small oscillations have a closed form: (the model set there, the
     ``about`` to linearize with, the frequencies in rad/s, their relative tolerance). The default start where it
-    is a steady motion (gyroscope, spacecraft, cmg_spacecraft), else the scene's equilibrium or a steady motion
+    is a steady motion (gyroscope; the spacecraft scenes set at rest), else the scene's equilibrium or a steady motion
     near its default."""
     from gyrosim import load_scene
 
