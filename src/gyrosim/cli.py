@@ -362,10 +362,9 @@ def _figure(result, run, panels, hidden, width, dpi, columns, what: str = ""):
     """One figure of ``panels`` (``_panels``' groups), a panel a row; its title names the run and the notes."""
     import textwrap
 
-    import matplotlib
     import matplotlib.pyplot as plt
 
-    from .telemetry.series import draw_series
+    from .telemetry.series import colours, draw_series
 
     n = len(panels)
     fig, axes = plt.subplots(n, 1, sharex=True, figsize=(width, 1.2 + 1.9 * n), squeeze=False, dpi=dpi,
@@ -375,14 +374,14 @@ def _figure(result, run, panels, hidden, width, dpi, columns, what: str = ""):
     for ax, (quantity, names) in zip(axes[:, 0], panels):
         cut = cut or len(names) > _MAX_LINES
         names = names[:_MAX_LINES]
-        cmap = matplotlib.colormaps["tab10" if len(names) <= 10 else "tab20"]
+        colour = colours(len(names))
         units = []
         for k, name in enumerate(names):
             var = run.model.variables.get(name) or run.model.variables.get(name.rsplit(".", 1)[-1])
             unit = getattr(var, "unit", "") or "1"
             if unit not in units:
                 units.append(unit)
-            enveloped |= draw_series(ax, t, result[name], name, columns, cmap(k % cmap.N))
+            enveloped |= draw_series(ax, t, result[name], name, columns, colour[k])
         _set_limits(ax, [result[name] for name in names])
         label = names[0].rpartition(".")[2] if len({m.rpartition(".")[2] for m in names}) == 1 else quantity
         ax.set_ylabel(f"{label} [{', '.join(units)}]")

@@ -793,10 +793,11 @@ def _readable_axis(v: np.ndarray, name: str, unit: str) -> tuple[np.ndarray, str
     """Values and label for an axis: a quantity that barely moves against its size (the gimbal's inner angle at
     1 rad +- 1e-9 in a regular motion) as its deviation from its first value, named in the label, never as an
     offset-only axis (``1e-9+1``)."""
+    from ..telemetry.series import barely_moves
+
     u = unit or "1"
-    finite = v[np.isfinite(v)]
-    if finite.size >= 2 and np.ptp(finite) < 1e-3 * np.max(np.abs(finite)):
-        v0 = float(finite[0])
+    if barely_moves([v]):
+        v0 = float(v[np.isfinite(v)][0])
         return v - v0, f"{name} - {v0:.10g} [{u}]"
     return v, f"{name} [{u}]"
 

@@ -58,16 +58,14 @@ def cmd_build(args) -> int:
 
     v = verbosity(args)
 
+    from .._atomic import check_writable
     from ..scene import load_scene
-    from .build import build_fmu
+    from .build import build_fmu, model_identifier
 
     load_scene(args.scene)  # a bad scene costs nothing, not even the output folder
     # an existing folder, or a new one inside an existing folder (the default with its parents), made now: a folder
     # that cannot be made or written is a bad --output (exit code 2), found before the compiler runs
     output_folder(args.output, "--output", default=Path(args.output) == DEFAULT_OUTPUT, make=True)
-    from .._atomic import check_writable
-    from .build import model_identifier
-
     check_writable(Path(args.output) / f"{model_identifier(args.scene)}.fmu", "--output")  # a read-only FMU: now
     try:
         path = build_fmu(args.scene, args.fmi_version, args.output, fmi_type=getattr(args, "fmi_type", "both"))

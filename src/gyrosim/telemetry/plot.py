@@ -27,6 +27,7 @@ from .._atomic import atomic_path
 from ..errors import RecordingError
 from . import messages as msg
 from .reading import Scan, iter_messages
+from .series import colours
 
 __all__ = ["StateSeries", "read_states", "plot_recording"]
 
@@ -126,28 +127,13 @@ def _style(n: int) -> dict:
     return {"linewidth": 0.35}
 
 
-def _barely_moves(values: list[np.ndarray]) -> bool:
-    """True when every series stays within 1e-3 of its (non-zero) initial value's magnitude."""
-    for y in values:
-        y = y[np.isfinite(y)]
-        if len(y) < 2:
-            continue
-        y0 = y[0]
-        if y0 == 0 or np.ptp(y) > 1e-3 * abs(y0):
-            return False
-    return any(np.isfinite(y).sum() >= 2 for y in values)
-
-
 #: The axes' width in pixel columns at the figures' size and dpi, about (what a band is computed for).
 _COLUMNS = 720
 
 
 def _colors(topics) -> dict:
-    """A colour per body, the same in every panel and distinct within one: tab10, tab20 beyond ten bodies."""
-    import matplotlib
-
-    cmap = matplotlib.colormaps["tab10" if len(topics) <= 10 else "tab20"]
-    return {t: cmap(i % cmap.N) for i, t in enumerate(topics)}
+    """A colour per body, the same in every panel and distinct within one."""
+    return dict(zip(topics, colours(len(topics))))
 
 
 def _panel(ax, series: dict, values: dict, name: str, unit: str, label) -> bool:
@@ -157,9 +143,9 @@ def _panel(ax, series: dict, values: dict, name: str, unit: str, label) -> bool:
     lines on top. Returns whether a band was drawn."""
     from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
-    from .series import draw_series, is_fast
+    from .series import barely_moves, draw_series, is_fast
 
-    deviation = _barely_moves(list(values.values()))
+    deviation = barely_moves(list(values.values()))
     colors = _colors(list(series))
     firsts, drawn = [], []
     for topic, y in values.items():

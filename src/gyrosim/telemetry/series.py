@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-__all__ = ["period_samples", "is_fast", "envelope", "draw_series"]
+__all__ = ["period_samples", "is_fast", "envelope", "draw_series", "barely_moves", "colours"]
 
 
 def period_samples(x) -> float:
@@ -102,3 +102,24 @@ def draw_series(ax, t, x, label: str, columns: int, color) -> bool:
         return False
     ax.plot(t, x, color=color, lw=0.9, label=label)
     return False
+
+
+def barely_moves(values) -> bool:
+    """True when every series stays within 1e-3 of its (non-zero) initial value's magnitude: one to draw as its
+    deviation from that value (named on the axis), never on an offset-only axis (``1e-9+1``)."""
+    for y in values:
+        y = y[np.isfinite(y)]
+        if len(y) < 2:
+            continue
+        y0 = y[0]
+        if y0 == 0 or np.ptp(y) > 1e-3 * abs(y0):
+            return False
+    return any(np.isfinite(y).sum() >= 2 for y in values)
+
+
+def colours(n: int) -> list:
+    """``n`` colours, distinct within a panel: tab10, tab20 beyond ten lines (repeating beyond twenty)."""
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10" if n <= 10 else "tab20"]
+    return [cmap(i % cmap.N) for i in range(n)]
