@@ -110,7 +110,9 @@ def main() -> None:
             _, topic, t, fields = pending.pop(0)
             pub = ROS2Publisher(topic=topic, msg_type=t, node_name="commander", **common)
             pubs.append(pub)
-            time.sleep(0.3)  # the service's subscriber matches the new publisher
+            deadline = time.monotonic() + 10.0
+            while not pub.pub.matching_status.matching and time.monotonic() < deadline:
+                time.sleep(0.01)  # until the service's subscriber has matched the new publisher
             pub.publish(**{k: _ns(v) for k, v in fields.items()})
         if not topics and time.monotonic() - t0 > 0.5 * seconds:
             topics = get_topic_names_and_types(**common, timeout=1.0)
