@@ -148,6 +148,14 @@ class Scene:
         return self.tree is not None
 
     @property
+    def kernel(self) -> str:
+        """The engine kernel picked for this system at set-up (docs/trees.md): ``"body"`` (Euler's equations in
+        closed form, the exact flows and splittings; independent bodies) or ``"tree"`` (the articulated-body
+        algorithm). Every feature that depends on it asks :attr:`integrators`, :meth:`variables` and the engine
+        description rather than the kernel's name."""
+        return "body" if self.tree is None else "tree"
+
+    @property
     def flags(self) -> int:
         """Engine term flags (GRAVITY | DAMPING | TORQUE)."""
         return ((_engine.GRAVITY if self.gravity else 0) | (_engine.DAMPING if self.damping else 0)
