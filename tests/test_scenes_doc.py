@@ -22,7 +22,7 @@ def test_the_page_has_an_example_of_each_kind():
     kinds = set()
     for text in BLOCKS:
         sc = scene_from_dict(tomllib.loads(text), "docs/scenes.md")
-        if sc.is_tree:
+        if sc.kernel == "tree":
             kinds |= {b.joint for b in sc.tree}
             kinds |= {"coupling"} if sc.couplings else set()
             kinds |= {"parameters"} if sc.aliases else set()

@@ -349,7 +349,7 @@ class InputSignal:
         return out
 
     def check_against(self, model) -> list[tuple[str, str, int | str | None]]:
-        """Check every name against the inputs of ``model`` (a :class:`~gyrosim.model.Model` or a TreeModel).
+        """Check every name against the inputs of ``model`` (a :class:`~gyrosim.model.Model`).
 
         Returns
         -------

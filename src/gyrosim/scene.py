@@ -143,11 +143,6 @@ class Scene:
     orbit: object | None = None
 
     @property
-    def is_tree(self) -> bool:
-        """True for a tree of bodies joined by joints (the tree engine), False for independent bodies."""
-        return self.tree is not None
-
-    @property
     def kernel(self) -> str:
         """The engine kernel picked for this system at set-up (docs/trees.md): ``"body"`` (Euler's equations in
         closed form, the exact flows and splittings; independent bodies) or ``"tree"`` (the articulated-body
@@ -176,10 +171,10 @@ class Scene:
         """Every variable of the scene by its full name (name -> ``model.Variable``), under :meth:`var_name`'s
         rule: the one table that the model, ``gyrosim info``, the FMU builder, the service and the sweep read."""
         if self.tree is not None:
-            from .tree_model import tree_variables
+            from .kernel_tree import tree_variables
 
             return tree_variables(self)
-        from .model import variables_for
+        from .kernel_body import variables_for
 
         if len(self.bodies) == 1:
             return variables_for(self)
@@ -188,13 +183,28 @@ class Scene:
             out.update({f"{body.name}.{n}": v for n, v in variables_for(self, b).items()})
         return out
 
+    def state_names(self) -> list[str]:
+        """The continuous coordinates by full name: the outputs whose start values a user sets (the quaternion
+        and rates of a body; a tree's joint coordinates and a circular orbit's anomaly)."""
+        if self.tree is None:
+            from .kernel_body import OUTPUT_NAMES
+
+            return [self.var_name(b, n) for b in self.body_names for n in OUTPUT_NAMES[:7]]
+        return [n for n, v in self.variables().items() if v.causality == "output" and v.start is not None]
+
+    @property
+    def n_systems(self) -> int:
+        """Independent systems a model of the scene steps: the bodies of the one-body kernel (each its own
+        system), or the copies of a tree (``systems``)."""
+        return len(self.bodies) if self.tree is None else self.systems
+
     def output_names(self) -> list[str]:
         """The columns of the engine's output rows (a trajectory's fields after ``time``), by full name."""
         if self.tree is not None:
-            from .tree_model import tree_output_names
+            from .kernel_tree import tree_output_names
 
             return tree_output_names(self)
-        from .model import OUTPUT_NAMES
+        from .kernel_body import OUTPUT_NAMES
 
         if len(self.bodies) == 1:
             return list(OUTPUT_NAMES)
@@ -533,7 +543,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     if integ not in INTEGRATORS:
         raise ConfigError("integrator", integ, _suggest(str(integ), INTEGRATORS), where=where)
     g = _num(sc, "g", where, G_DEFAULT, lo=0.0)
-    if _is_tree(data):
+    if _tree_syntax(data):
         return _tree_scene(data, sc, name, integ, g, where, source)
     bodies_tbl = data.get("body")
     if not isinstance(bodies_tbl, list) or not bodies_tbl:
@@ -567,7 +577,8 @@ def _one_body_scene(name, bodies, terms, integ, g, sc, where, source) -> Scene:
     return scene
 
 
-def _is_tree(data: dict) -> bool:
+def _tree_syntax(data: dict) -> bool:
+    """True where a scene uses the tree syntax (a joint, a parent, couplings, scene parameters or an orbit)."""
     from .scene_tree import TREE_KEYS
 
     bodies = data.get("body")

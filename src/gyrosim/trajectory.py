@@ -125,8 +125,9 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
         model = run.model
         if run.input is not None:
             out = run._advance_with_input(0, run.n)
-        elif type(model) is Model:  # the model is dropped when the run fails: its state before the call not kept
-            if model.n_bodies == 1 and len(run._columns):  # the result rows written once by the engine (pack's bits)
+        else:  # the model is dropped when the run fails: its state before the call not kept
+            # a lone body's result rows written once by the engine (pack's bits)
+            if model.ROWS_DIRECT and model.n_bodies == 1 and len(run._columns):
                 keep = key is not None
                 res, call = model._trajectory_select(run.dt, run.n, run._columns, run.t0, run.angles,
                                                      run.momentum, ready=keep)
@@ -139,8 +140,6 @@ def simulate(scene=None, *, start_values=None, start_time=0.0, stop_time=None, o
                 run = Run(scene, **args)  # it failed: again with whole rows, for the error and the rows before it
                 model = run.model
             out = model._trajectory(run.dt, run.n, run.angles, run.momentum, None, False)
-        else:
-            out = model.trajectory(run.dt, run.n, angles=run.angles, momentum=run.momentum)
     except IntegrationError as e:
         e.rows = run.pack(e.rows)
         raise

@@ -260,7 +260,7 @@ def _closed_form_point(name):
     from gyrosim import load_scene
 
     sc = load_scene(name)
-    tree = sc.tree if sc.is_tree else None
+    tree = sc.tree if sc.kernel == "tree" else None
     if name == "free_body":  # spin about the axis of least inertia (1, 2, 3 kg*m^2) at 1 rad/s: the wobble
         m = Model(name)
         for n, v in (("omega_x", 1.0), ("omega_y", 0.0), ("omega_z", 0.0)):

@@ -155,7 +155,7 @@ def test_fmu_glue_under_asan_ubsan(cc, host_asan, tmp_path, scene, version):
     so = d / binary_path(version, ident)
     assert "__asan_init" in subprocess.run(["nm", "-D", str(so)], capture_output=True, text=True).stdout
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    tree = Model(scene).scene.is_tree
+    tree = Model(scene).scene.kernel == "tree"
     out = _run([str(host_asan), str(version), str(so), token], input=_script(vr, version, tree)).stdout
     assert "DONE" in out and out.count("EXPECTED_ERROR") == 4, out[-3000:]
     rows = [ln.split() for ln in out.splitlines() if ln.startswith("OUT ")]

@@ -224,7 +224,7 @@ def _python_reference(scene, f, states, ders, outs, inputs, known):
     out), or None."""
     sc = load_scene(scene)
     names = [f.name[vr] for vr in outs]
-    if sc.is_tree:
+    if sc.kernel == "tree":
         from gyrosim.fmu.tree_fmu import _layout, tree_rows
 
         lay = _layout(sc)

@@ -16,9 +16,9 @@ from fmpy.validation import validate_fmu
 
 import gyrosim
 from gyrosim.fmu import build_fmu
+from gyrosim.kernel_tree import tree_output_names, tree_variables
 from gyrosim.model import Model
 from gyrosim.scene import load_scene
-from gyrosim.tree_model import tree_output_names, tree_variables
 
 SCENES = ("satellite", "satellite_wheels")
 VERSIONS = (2, 3)

@@ -31,9 +31,9 @@ from gyrosim.errors import ConfigError, IntegrationError
 from gyrosim.fmu import build_fmu, model_identifier
 from gyrosim.fmu.build import binary_path, fmi_include_dir, windows_compiler
 from gyrosim.fmu.tree_fmu import WORK_STATE
+from gyrosim.kernel_tree import tree_output_names, tree_variables
 from gyrosim.model import Model
 from gyrosim.scene import load_scene
-from gyrosim.tree_model import tree_output_names, tree_variables
 
 TREE_SCENES = ("gimbal_gyroscope", "spacecraft", "cmg_spacecraft", "double_pendulum", "coupled_pendula")
 VERSIONS = (2, 3)

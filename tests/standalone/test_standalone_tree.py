@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from standalone_helpers import BuiltFMU, parse_rows, step_failure, torque
 
+from gyrosim.kernel_tree import tree_output_names
 from gyrosim.model import Model
 from gyrosim.scene import load_scene
-from gyrosim.tree_model import tree_output_names
 
 SCENE = "spacecraft"
 MOTORS = ("wheel_x.motor_torque", "wheel_y.motor_torque", "wheel_z.motor_torque")

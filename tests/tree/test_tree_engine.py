@@ -18,7 +18,6 @@ from gyrosim.core.tree import TreeBody, TreeLayout
 from gyrosim.errors import ConfigError, IntegrationError
 from gyrosim.model import Model
 from gyrosim.scene import load_scene, scene_from_dict
-from gyrosim.tree_model import TreeModel
 
 G = 9.81
 TREE_SCENES = ("gimbal_gyroscope", "spacecraft", "cmg_spacecraft", "double_pendulum", "coupled_pendula")
@@ -419,7 +418,7 @@ def test_free_joint_only_at_a_root():
 @pytest.mark.parametrize("name", TREE_SCENES)
 def test_step_loop_equals_simulate_to_the_bit(name):
     m = Model(name)
-    assert isinstance(m, TreeModel)
+    assert type(m) is Model and m.scene.kernel == "tree"  # one Model class; the tree kernel
     rows = [m.outputs_array()[0]]
     for _ in range(20):
         m.step(0.01)
@@ -475,7 +474,7 @@ def test_a_one_body_tree_on_the_articulated_body_algorithm_is_the_same_top():
     text = _TOP_TREE + f"cm = [0.0, 0.0, {d!r}]\ninertia = {{ principal = [{1.75e-3 - m * d * d!r}, " \
                        f"{1.75e-3 - m * d * d!r}, 1.0e-3] }}\n"
     tree = scene_from_dict(tomllib.loads(text), "<test>")
-    assert tree.is_tree
+    assert tree.kernel == "tree"
     kw = dict(stop_time=2.0, output_interval=0.1, integrator="dop853", relative_tolerance=1e-12, max_step=0.1)
     names = ["q_w", "q_x", "q_y", "q_z", "omega_x", "energy", "L_z"]
     a = gyrosim.simulate(tree, output=names, **kw)  # one body: bare names whatever the kernel
@@ -502,7 +501,7 @@ def test_a_tree_top_given_with_cm_distance_is_the_same_top():
     by_hand = scene_from_dict(tomllib.loads(up + f"cm = [0.0, 0.0, {d!r}]\ninertia = {{ principal = ["
                                                  f"{1.75e-3 - m * d * d!r}, {1.75e-3 - m * d * d!r}, 1.0e-3] }}\n"),
                               "<test>")
-    assert given.is_tree and by_hand.is_tree
+    assert given.kernel == by_hand.kernel == "tree"
     kw = dict(stop_time=2.0, output_interval=0.1, integrator="dop853", relative_tolerance=1e-12, max_step=0.1)
     names = ["q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z"]
     ref = gyrosim.simulate("heavy_top", output=names, **kw)
@@ -552,7 +551,7 @@ def test_a_one_body_tree_that_euler_describes_runs_on_the_one_body_kernel(integ)
 
     text = _TOP_TREE + "cm_distance = 0.05\ninertia = { principal = [1.75e-3, 1.75e-3, 1.0e-3] }\n"
     tree = scene_from_dict(tomllib.loads(text), "<test>")
-    assert not tree.is_tree and type(Model(tree)) is Model
+    assert tree.kernel == "body" and type(Model(tree)) is Model
     kw = dict(stop_time=0.5, output_interval=0.1, integrator=integ, relative_tolerance=1e-10,
               max_step=1e-4 if integ == "euler" else 0.01)  # euler's balance holds max_drift only at small steps
     a = gyrosim.simulate(tree, **kw)
@@ -572,6 +571,6 @@ def test_a_one_body_tree_that_euler_describes_runs_on_the_one_body_kernel(integ)
 def test_one_body_trees_euler_does_not_describe_stay_on_the_articulated_body_algorithm(body):
     tbl = {"name": "b", "mass": 1.0, "inertia": {"principal": [1.0, 2.0, 2.5]}, **body}
     sc = scene_from_dict({"scene": {"name": "t"}, "body": [tbl]})
-    assert sc.is_tree
+    assert sc.kernel == "tree"
     m = Model(sc)
     assert "energy" in m.variables and not any("." in n for n in m.variables)  # one body: bare names

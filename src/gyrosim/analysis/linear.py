@@ -237,12 +237,10 @@ class _Block(NamedTuple):
 
 def _blocks(model, system: int = 0) -> list:
     """The model as independent trees (one for a tree scene; one per body for a one-body scene)."""
-    from ..tree_model import TreeModel, tree_output_names
-
     model.initialize()
-    if isinstance(model, TreeModel):
+    if model.scene.kernel == "tree":  # the articulated-body algorithm's rows are the tree's already
         L, sc = model.layout, model.scene
-        names = tree_output_names(sc)
+        names = sc.output_names()
         states = names[:L.nx]
         inputs = [(n, model._columns(n)) for n, v in model.variables.items() if v.causality == "input"]
         outputs = [(n, k) for k, n in enumerate(names) if n != "energy_error"]
@@ -494,9 +492,7 @@ def steady_precession(model, *, theta: float | None = None, spin: float | None =
     ``theta`` (rad; default its present one) and spin ``spin`` (omega_z, rad/s; default its present one): the
     precession rate phi' solving I1 cos(theta) phi'^2 - I3 omega_z phi' + m g l = 0 (``branch`` ``slow`` or
     ``fast``; theta = 0 is the sleeping top). Returns the rates ``phi_dot``, ``psi_dot``."""
-    from ..tree_model import TreeModel
-
-    if isinstance(model, TreeModel) or model.n_bodies != 1:
+    if model.scene.kernel != "body" or model.n_bodies != 1:
         raise ConfigError("about", "steady_precession", "a one-body symmetric top on a pivot (heavy_top, "
                           "gyroscope); for a tree set the rates and use about='steady'")
     I1, I2, I3 = (float(v) for v in model._moments[0])
@@ -540,11 +536,9 @@ def steady_precession(model, *, theta: float | None = None, spin: float | None =
 
 
 def _inert_bodies(model) -> list:
-    """The tree bodies of ``model`` with no inertia at their joint (:meth:`TreeModel.inert_bodies`); none for a
-    one-body model."""
-    from ..tree_model import TreeModel
-
-    return model.inert_bodies() if isinstance(model, TreeModel) else []
+    """The tree bodies of ``model`` with no inertia at their joint (``model.inert_bodies()``; none on the one-body
+    kernel, whose moments are checked > 0)."""
+    return model.inert_bodies()
 
 
 def _check_finite(model, blocks, A=None) -> None:
@@ -574,9 +568,7 @@ def _check_finite(model, blocks, A=None) -> None:
 
 def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
     """Newton on f(x) = 0 from the present state, velocities set to 0 first (a tree or a one-body model)."""
-    from ..tree_model import TreeModel
-
-    if not isinstance(model, TreeModel):
+    if model.scene.kernel == "body":  # independent bodies: at rest where they are
         for n in ("omega_x", "omega_y", "omega_z"):
             model.set(n, 0.0)
         model.initialize()

@@ -12,9 +12,9 @@ adds the state derivatives ``der(q_w)`` ... ``der(omega_z)`` (``der(fast.q_w)``)
 others (the value references of the co-simulation variables do not change): the continuous states are q and omega of
 every body, 7 per body, and their derivatives the engine's right-hand side (``gs_derivatives``).
 
-A tree scene (bodies joined by joints, ``Scene.is_tree``) builds from the engine's tree (``tree.c``, ``rk.c``) and
+A tree scene (bodies joined by joints, ``Scene.kernel``) builds from the engine's tree (``tree.c``, ``rk.c``) and
 one generic glue, ``c/gyrosim_tree_model.c``, chosen at compile time by ``GS_TREE`` in the generated configuration;
-its variables are :func:`gyrosim.tree_model.tree_variables` and the configuration carries the scene as a table
+its variables are :func:`gyrosim.kernel_tree.tree_variables` and the configuration carries the scene as a table
 (:mod:`gyrosim.fmu.tree_fmu`).
 """
 
@@ -625,7 +625,7 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     scene : str, Path, Scene or None
         Embedded scene name, TOML path or :class:`~gyrosim.scene.Scene`; ``None`` is the full model
         (``RigidBody.fmu``) with every variable of fmu/README.md. Every body of the scene is exported. A tree
-        scene (bodies joined by joints) exports :func:`gyrosim.tree_model.tree_variables` through the generic tree
+        scene (bodies joined by joints) exports :func:`gyrosim.kernel_tree.tree_variables` through the generic tree
         glue (:mod:`gyrosim.fmu.tree_fmu`); its integrators are euler, rk4, adaptive and dop853.
     fmi_version : {2, 3}
     output_dir : path
@@ -666,7 +666,7 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise ConfigError("fmi_type", fmi_type, "one of " + ", ".join(FMI_TYPES))
     sc = load_scene(scene)
     integrator = sc.integrator if integrator is None else integrator
-    if sc.is_tree:
+    if (sc.kernel == "tree"):
         if integrator not in TREE_INTEGRATORS:
             raise ConfigError("integrator", integrator, "one of " + ", ".join(TREE_INTEGRATORS) + " (a tree of "
                               "bodies is integrated by the tree engine)")
@@ -681,12 +681,12 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise RuntimeError(f"the Windows binary needs the MinGW-w64 cross-compiler {WINDOWS_CC!r} on PATH "
                            "(Debian/Ubuntu: apt-get install gcc-mingw-w64-x86-64)")
     platforms = ("linux", "windows") if win_cc else ("linux",)
-    texts = engine_sources(tree=sc.is_tree)
+    texts = engine_sources(tree=(sc.kernel == "tree"))
     texts[f"fmi{fmi_version}Functions.c"] = resources.files(__package__).joinpath(
         "c", f"fmi{fmi_version}Functions.c").read_text()
     sources = [*texts, "gyrosim_config.h"]
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
-    if sc.is_tree:   # the generic tree glue and the scene's variable table (tree_fmu)
+    if (sc.kernel == "tree"):   # the generic tree glue and the scene's variable table (tree_fmu)
         from .tree_fmu import tree_config_header, tree_me_rows, tree_model_description, tree_rows
 
         rows = tree_rows(sc)
@@ -719,8 +719,9 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         for platform in platforms:
             so = root / binary_path(fmi_version, ident, platform)
             so.parent.mkdir(parents=True)
-            cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows", tree=sc.is_tree)
-                   if platform == "windows" else compile_command(src_dir, so, fmi_version, cc, tree=sc.is_tree))
+            tree = sc.kernel == "tree"
+            cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows", tree=tree)
+                   if platform == "windows" else compile_command(src_dir, so, fmi_version, cc, tree=tree))
             try:
                 flags = cmd[1:cmd.index("-shared")]
                 objs, jobs = _engine_objects(src_dir, cmd[0], flags, platform, ENGINE_UNITS)

@@ -5,7 +5,7 @@ A tree FMU's binary is the engine's tree (``core/engine/tree.c``, ``rk.c``) and 
 generated ``gyrosim_config.h`` as data,
 
 - the tree's description (``gs_tree_init``'s int32 array), the start parameter row and state (hexadecimal
-  floating literals: the bits of :class:`~gyrosim.tree_model.TreeModel`'s),
+  floating literals: the bits of :class:`~gyrosim.kernel_tree.TreeModel`'s),
 - a table from value reference to ``{kind, index, flags, name, unit, range}``: a slot of the parameter row
   (``GS_K_PARAM``: g, body parameters, couplings; ``GS_K_INPUT``; ``GS_K_MAX_DRIFT``), a scene parameter
   (``GS_K_ALIAS``, with its targets and factors in ``GS_ALIAS_TARGETS``), a joint coordinate of the state
@@ -15,7 +15,7 @@ generated ``gyrosim_config.h`` as data,
   file), which the glue checks at every set, as the model description's ``min``/``max`` state it,
 - the integrator, max_step and tolerance start values, the quaternions' slots, the states' nominal values.
 
-The variables are exactly :func:`~gyrosim.tree_model.tree_variables` (names, causality, variability, units, start
+The variables are exactly :func:`~gyrosim.kernel_tree.tree_variables` (names, causality, variability, units, start
 values, in that order from value reference 1). Model exchange adds local variables after them: the continuous
 state ``energy_expected`` (J: the energy the work-energy balance expects, E(0) plus the work of the inputs minus
 the joints' dissipation; ``energy_error = energy - energy_expected``) and the derivative ``der(<state>)`` of every
@@ -92,10 +92,10 @@ def tree_rows(sc: Scene) -> list[TreeRow]:
     Raises
     ------
     ConfigError
-        A variable the glue cannot map (a variable of :func:`~gyrosim.tree_model.tree_variables` unknown here), or
+        A variable the glue cannot map (a variable of :func:`~gyrosim.kernel_tree.tree_variables` unknown here), or
         a start value that is not the engine's start row's (the table would be wrong).
     """
-    from ..tree_model import tree_output_names, tree_variables
+    from ..kernel_tree import tree_output_names, tree_variables
 
     lay = _layout(sc)
     p0, y0 = lay.params(float(sc.g), float(sc.max_drift)), lay.state()

@@ -260,7 +260,7 @@ class Service:
         self.h = 1.0 / options.rate
         self._seq = [0] * len(self.bodies)
         self.tree = None
-        if getattr(model.scene, "is_tree", False):
+        if model.scene.kernel == "tree":  # each body from its parent's frame; inputs named <body>.<name>
             self.tree = TreeFrames(model)
             # a tree model's inputs are named <body>.<name>: each body's own, by their short names
             names = [n for n, v in model.variables.items() if v.causality == "input"]
@@ -635,7 +635,7 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
     if options.record:
         Recorder.check_writable(options.record)  # created once the session is up: a failed start keeps a file
         frames = None
-        if getattr(model.scene, "is_tree", False):  # one system: its parameters by full name, and its frames
+        if model.scene.kernel == "tree":  # one system: its parameters by full name, and its frames
             params = model.parameters()
             first = params
             frames = [{"body": b.name, "parent": model.body_names[b.parent] if b.parent >= 0 else msg.WORLD_FRAME,

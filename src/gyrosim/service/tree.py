@@ -2,7 +2,7 @@
 
 A tree scene (docs/trees.md) publishes, for every body, the transform parent -> body (``tf``, ``frame_id``
 the parent body's name or ``world`` for a root), the body's attitude in the world and its angular velocity
-(``state``, ``imu``). :class:`TreeFrames` reads them off a :class:`gyrosim.tree_model.TreeModel`'s outputs:
+(``state``, ``imu``). :class:`TreeFrames` reads them off a tree :class:`gyrosim.model.Model`'s outputs:
 
 * translation: the joint point ``pos`` in the parent frame (the parameters ``<body>.pos_x..z``), plus the
   position ``r`` of a ``free`` joint;
@@ -119,7 +119,7 @@ class TreeFrames:
 
     Parameters
     ----------
-    model : gyrosim.tree_model.TreeModel
+    model : gyrosim.model.Model
         The model; its joint points are read once (``<body>.pos_x..z``, after any ``--set``).
     """
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import OUTPUT_NAMES, Model
+from ..model import Model
 from .interrupt import check as check_interrupt
 from .sampling import draw
 from .spec import MODEL_WIDE, SweepSpec, column_name
@@ -180,29 +180,14 @@ def _drive(spec: SweepSpec, model: Model, names: list, drifts, s_energy: np.ndar
     return out
 
 
-def _run_tree_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
-    """``k`` samples of a tree: k copies in one model. The drifts are relative to the health monitor's own scales
-    (the energy scale S0 and the momentum scale of the tree); the angular momentum's is the change of the vector
-    L (conserved where the tree is torque-free)."""
-    model = _model_for(spec, k, per_body, wide)
-    names = _output_names(spec.scene)
-    col = {n: j for j, n in enumerate(names)}
-    out0 = model.outputs_array()  # validates and starts the state (t = 0)
-    nx = model.layout.nx
-    Lc = [col["L_x"], col["L_y"], col["L_z"]]
-    L0 = out0[:, Lc]
-
-    def drifts(traj):
-        e = np.fmax.reduce(np.abs(traj[1:, :, col["energy_error"]]), axis=0)
-        return e, np.fmax.reduce(np.sqrt(np.sum((traj[1:, :, Lc] - L0) ** 2, axis=2)), axis=0)
-
-    return _drive(spec, model, names, drifts, model._y[:, nx + 1].copy(), model._y[:, nx + 5].copy())
-
-
 def _run_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
     """``k`` samples sharing the model-wide values ``wide``, with the per-body values ``per_body`` (and their
-    ``lyapunov`` column when the spec asks for it)."""
-    out = _run_tree_group(spec, k, per_body, wide) if spec.scene.is_tree else _run_body_group(spec, k, per_body, wide)
+    ``lyapunov`` column when the spec asks for it): k systems of one model (k bodies of a one-body scene, k copies
+    of a tree), the drifts measured as the model's health monitor measures them (``Model.drift_measure``)."""
+    model = _model_for(spec, k, per_body, wide)
+    out0 = model.outputs_array()  # validates and starts the state (t = 0)
+    s_energy, s_L, drifts, kw = model.drift_measure(out0)
+    out = _drive(spec, model, _output_names(spec.scene), drifts, s_energy, s_L, **kw)
     if spec.lyapunov:
         from ..analysis.chaos import lyapunov_copies
 
@@ -212,28 +197,3 @@ def _run_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
                               period=False, keep_going=True, progress=lambda *_: check_interrupt())
         out["lyapunov"] = np.atleast_1d(res.exponent)
     return out
-
-
-def _run_body_group(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> dict:
-    """``k`` samples of a one-body scene: k bodies of one model."""
-    model = _model_for(spec, k, per_body, wide)
-
-    def per(name):
-        if name in per_body:
-            return np.asarray(per_body[name], dtype=float)
-        return np.full(k, model.get(name, 0))
-
-    out0 = model.outputs_array()  # validates and starts the state (t = 0)
-    I = np.stack([per("I1"), per("I2"), per("I3")], axis=1)
-    mgl = np.abs(per("mass") * per("g") * per("cm_distance")) if spec.scene.gravity else np.zeros(k)
-    w0 = out0[:, 4:7]
-    s_energy = 0.5 * np.einsum("bi,bi->b", I * w0, w0) + mgl
-    L0 = np.sqrt(np.einsum("bi,bi->b", out0[:, 10:13], out0[:, 10:13]))
-    s_L = np.maximum(L0, np.sqrt(2.0 * I.max(axis=1) * mgl))
-
-    def drifts(traj):
-        L = traj[1:, :, 10:13]
-        return (np.fmax.reduce(np.abs(traj[1:, :, 14]), axis=0),
-                np.fmax.reduce(np.abs(np.sqrt(np.einsum("tbi,tbi->tb", L, L)) - L0), axis=0))
-
-    return _drive(spec, model, list(OUTPUT_NAMES), drifts, s_energy, s_L, angles=False)

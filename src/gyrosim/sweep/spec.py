@@ -294,7 +294,7 @@ def _settable(scene: Scene) -> dict:
     from ..model import Variable
 
     v = {n: var for n, var in _variables(scene).items() if var.causality in ("parameter", "input")
-         or n in _STATES or (scene.is_tree and var.causality == "output" and var.start is not None)}
+         or n in scene.state_names()}
     v["tolerance"] = Variable("tolerance", "parameter", "fixed", "Real", "1",
                               "relative and absolute tolerance of adaptive and dop853", scene.tolerance,
                               **POSITIVE.fields())
@@ -383,9 +383,9 @@ def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None
 
     sc, table = load_sweep_scene(scene)
     where = f"{sc.source} [sweep]"
-    if not sc.is_tree and len(sc.bodies) != 1:
-        raise ConfigError("scene", sc.name, f"a one-body scene: a sweep replicates its body once per sample (this "
-                          f"scene has {len(sc.bodies)} bodies)")
+    if sc.n_systems != 1:
+        raise ConfigError("scene", sc.name, "one system (a one-body scene or a tree): a sweep replicates it once "
+                          f"per sample (this scene has {sc.n_systems} bodies, each its own system)")
     settable = _settable(sc)
 
     cli_vary, cli_set = _pairs(vary, "--vary"), _pairs(set, "--set")
@@ -518,7 +518,7 @@ def check_block(spec: SweepSpec, a: int, draws: dict) -> None:
     def arr(k):
         return np.asarray(draws[k], dtype=float) if k in draws else np.full(n, float(base[k]))
 
-    if not spec.scene.is_tree and any(k in draws for k in ("I1", "I2", "I3")):
+    if any(k in draws for k in ("I1", "I2", "I3")):  # a lone body's principal moments
         from ..core.inertia import TRIANGLE_RTOL
 
         I = np.stack([arr("I1"), arr("I2"), arr("I3")], axis=1)

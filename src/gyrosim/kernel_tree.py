@@ -1,9 +1,10 @@
-"""The step-based model of a tree scene (bodies joined by joints, docs/trees.md) on the engine's tree.
+"""The model's operations on the tree kernel: bodies joined by joints (docs/trees.md), integrated by the
+articulated-body algorithm (``core/engine/tree.c``).
 
-``Model(scene)`` returns a :class:`TreeModel` when the scene is a tree, so ``gyrosim simulate``, the service and the
-FMU glue drive it as they drive a one-body model: ``set``/``get`` by variable name (``rotor.angle``, or ``angle``
-with ``body="rotor"``), ``step(h)``, ``trajectory(dt, n)``, ``outputs()``, and exact state save and restore. Every
-step is one call of the C engine (``gs_tree_advance``), which the FMUs compile too.
+:class:`TreeKernel` maps a tree scene's variables (``rotor.angle``, or ``angle`` with ``body="rotor"``) onto the C
+engine's tree rows; every step is one call of the engine (``gs_tree_advance``), which the FMUs compile too. Its
+functions are the :class:`gyrosim.model.Model`'s own (``self`` is the model): the model calls the kernel its scene
+was set up with.
 """
 
 from __future__ import annotations
@@ -15,12 +16,12 @@ import numpy as np
 from .core import _engine
 from .core.tree import BODY_OUTPUTS, ORBIT_BODY_OUTPUTS, ORBIT_COORD, ORBIT_OUTPUTS, SCENE_OUTPUTS, TreeLayout
 from .errors import ConfigError, IntegrationError
-from .model import Model, Variable
 from .ranges import ANY, NONNEGATIVE, POSITIVE
-from .scene import TREE_INTEGRATORS, Scene, did_you_mean, load_scene
+from .scene import TREE_INTEGRATORS, Scene, did_you_mean
 from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS, NONNEGATIVE_PARAMS
+from .variables import Variable
 
-__all__ = ["TreeModel", "tree_variables", "tree_output_names"]
+__all__ = ["TreeKernel", "tree_variables", "tree_output_names"]
 
 _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 _COORD_META = {
@@ -182,30 +183,32 @@ _BODY_COLS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 
               "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
 
 
-class TreeModel(Model):
-    """Step-based model of a tree of bodies (built by ``Model(scene)`` for a tree scene).
+class TreeKernel:
+    """The tree kernel's operations of a :class:`~gyrosim.model.Model` (``self`` is the model).
 
     Variables are named ``<body>.<name>`` (``rotor.angle``, ``wheel_x.motor_torque``); the scene-wide ones bare
     (``energy``, ``L_z``, ``g``, ``integrator``). ``set``, ``get`` and ``outputs`` take the full name, or the body's
     own name with ``body=``.
 
     A scene with ``systems = k`` (the sweeps' replicas) holds k copies of the tree, stepped in one engine call:
-    :meth:`set` sets every copy, :meth:`set_many` one value per copy, :meth:`outputs_array` and
-    :meth:`trajectory` have a row per copy.
+    ``set`` sets every copy, ``set_many`` one value per copy, ``outputs_array`` and ``trajectory`` have a row per
+    copy.
 
     Examples
     --------
+    >>> from gyrosim import Model
     >>> m = Model("double_pendulum", parameters={"integrator": "rk4"})
     >>> m.step(0.01)
     >>> round(m.get("upper.angle"), 6) < 1.0
     True
     """
 
-    def __init__(self, scene=None, *, parameters: dict | None = None, start_time: float = 0.0,
-                 stop_time: float | None = None, tolerance: float | None = None):
-        self.scene = sc = load_scene(scene)
-        if not sc.is_tree:
-            raise ConfigError("scene", sc.name, "a tree scene (bodies with parent/joint)")
+    #: result rows come from whole output rows (``trajectory``), not written by the engine itself
+    ROWS_DIRECT = False
+
+    def setup(self) -> None:
+        """The model's engine rows for the scene's tree (``systems`` copies of it)."""
+        sc = self.scene
         self.layout = TreeLayout(sc.tree, sc.couplings, sc.orbit)
         self.variables = tree_variables(sc)
         self.body_names = sc.body_names
@@ -224,7 +227,14 @@ class TreeModel(Model):
         self._stats = np.zeros((k, 3), dtype=np.int64)
         self._status = np.zeros(k, dtype=np.int32)
         self._p = None  # the parameters the running state was started or moved with
-        self._start(start_time, stop_time, tolerance, parameters)
+
+    def _replicable(self) -> bool:
+        """Never: a tree model's rows are its own (gyrosim.trajectory.Run keeps no replica)."""
+        return False
+
+    def _trajectory(self, dt, n, angles: bool, momentum: bool, status, restore: bool) -> np.ndarray:
+        """:meth:`trajectory` (``restore`` is the one-body kernel's: a tree's state is always kept)."""
+        return self.trajectory(dt, n, angles=angles, momentum=momentum, status=status)
 
     # ----------------------------------------------------------------------------------------------- variables
     def _full(self, name, body) -> str:
@@ -266,7 +276,7 @@ class TreeModel(Model):
         min/max narrowed by its targets' rules), or a ConfigError naming the variable, the value and the range."""
         bad = ~v.range.contains(x)
         if bad.any():
-            raise ConfigError(name, float(x[np.flatnonzero(bad)[0]]), self._rule(name, v))
+            raise ConfigError(name, float(x[np.flatnonzero(bad)[0]]), TreeKernel._rule(self, name, v))
 
     def _rule(self, name: str, v: Variable) -> str:
         """What a value of variable ``name`` must be, as the messages say it."""
@@ -275,7 +285,7 @@ class TreeModel(Model):
 
     def _assign(self, name: str, v: Variable, x: np.ndarray) -> None:
         """Set parameter/input/start ``name`` to ``x`` (one value per system)."""
-        self._check_value(name, v, x)
+        TreeKernel._check_value(self, name, v, x)
         if v.causality == "output":
             if v.start is None:
                 raise ConfigError(name, float(x[0]), "a parameter, an input or a joint's start state; "
@@ -303,8 +313,8 @@ class TreeModel(Model):
         ConfigError
             Unknown name, a derived output, or a value that is not allowed (named with the rule).
         """
-        name = self._full(name, body)
-        v = self._var(name)
+        name = TreeKernel._full(self, name, body)
+        v = TreeKernel._var(self, name)
         if v.type == "String":
             allowed = self.scene.integrators
             if value not in allowed:
@@ -322,7 +332,7 @@ class TreeModel(Model):
         except (TypeError, ValueError):
             raise ConfigError(name, value, f"a real number in {v.unit or '1'}") from None
         if not math.isfinite(x):
-            raise ConfigError(name, value, self._rule(name, v))
+            raise ConfigError(name, value, TreeKernel._rule(self, name, v))
         if name == "max_step":
             self._check_positive(name, x)
             self.max_step = x
@@ -334,11 +344,11 @@ class TreeModel(Model):
             if self._p is not None:
                 self._p[:, 1] = x
         else:
-            self._assign(name, v, np.full(self.n_systems, x))
+            TreeKernel._assign(self, name, v, np.full(self.n_systems, x))
 
     def set_many(self, name: str, values) -> None:
         """One value per copy of the tree (``(n_systems,)``, sweeps); names and rules as :meth:`set`."""
-        v = self._var(name)
+        v = TreeKernel._var(self, name)
         if v.type == "String" or name in ("max_step", "max_drift"):
             raise ConfigError(name, "an array", "one value for every copy: use Model.set")
         try:
@@ -347,12 +357,12 @@ class TreeModel(Model):
             raise ConfigError(name, values, f"an array of real numbers in {v.unit or '1'}") from None
         if x.shape != (self.n_systems,):
             raise ConfigError(name, f"an array of shape {x.shape}", f"an array of shape ({self.n_systems},)")
-        self._assign(name, v, x)
+        TreeKernel._assign(self, name, v, x)
 
     def get(self, name: str, body=None, system: int = 0):
         """Value of a variable by full name (or the body's own name with ``body=``), of copy ``system``."""
-        name = self._full(name, body)
-        v = self._var(name)
+        name = TreeKernel._full(self, name, body)
+        v = TreeKernel._var(self, name)
         if v.type == "String":
             return self.integrator
         if v.causality == "output":
@@ -371,7 +381,7 @@ class TreeModel(Model):
         row = self._outputs_array()[0]
         if body is None:
             return {n: float(row[k]) for k, n in enumerate(self._out_names)}
-        pre = self._full("", body)
+        pre = TreeKernel._full(self, "", body)
         return {n[len(pre):]: float(row[k]) for k, n in enumerate(self._out_names) if n.startswith(pre)}
 
     def outputs_array(self) -> np.ndarray:
@@ -422,26 +432,22 @@ class TreeModel(Model):
             k = int(self._status[b])
             self._status[:] = 0
             self._y, self._hint = saved
-            raise IntegrationError(self._blowup(b, self._y[b], t, h, k,
+            raise IntegrationError(TreeKernel._blowup(self, b, self._y[b], t, h, k,
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
 
-    @property
     def trajectory_is_steps(self) -> bool:
         """Always: the tree engine's trajectory steps each output interval as :meth:`step` does."""
         return True
 
-    @property
     def input_names(self) -> list[str]:
         """The inputs by full name (``<body>.motor_torque``, ``<body>.tau_x``; bare in a scene of one body)."""
         return [n for n, v in self.variables.items() if v.causality == "input"]
 
     # ----------------------------------------------------------------------------------------------- the systems
-    @property
     def n_systems(self) -> int:
         """Copies of the tree the model steps, one state row each (the sweeps' replicas)."""
         return self._n_systems
 
-    @property
     def coordinates(self) -> list[tuple[str, str, int]]:
         """A system's continuous coordinates: (variable name, coordinate, slot in its state row), in slot order
         (a circular orbit's ``orbit_anomaly`` last)."""
@@ -450,7 +456,6 @@ class TreeModel(Model):
                        for (b, c), k in self.layout.coord_slots.items())
         return [(v, c, k) for k, v, c in slots]
 
-    @property
     def n_coords(self) -> int:
         return self.layout.nx
 
@@ -466,6 +471,22 @@ class TreeModel(Model):
     def fastest_rate(self, system: int = 0) -> float:
         return float(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1], self._p[system:system + 1],
                                          1))
+
+    def drift_measure(self, out0: np.ndarray) -> tuple:
+        """What the sweeps measure of each copy's drift from its outputs at the start ``out0``: the health
+        monitor's own scales (the energy scale S0 and the tree's momentum scale), ``drifts(traj) ->
+        (|energy_error|, |L - L0|)`` over a trajectory's rows (the change of the vector L, conserved where the tree
+        is torque-free), and the trajectory's options (none)."""
+        col = self._out_index
+        Lc = [col["L_x"], col["L_y"], col["L_z"]]
+        L0 = out0[:, Lc]
+        e_col, nx = col["energy_error"], self.layout.nx
+
+        def drifts(traj):
+            e = np.fmax.reduce(np.abs(traj[1:, :, e_col]), axis=0)
+            return e, np.fmax.reduce(np.sqrt(np.sum((traj[1:, :, Lc] - L0) ** 2, axis=2)), axis=0)
+
+        return self._y[:, nx + 1].copy(), self._y[:, nx + 5].copy(), drifts, {}
 
     def inert_bodies(self, system: int = 0) -> list:
         """The bodies that carry no inertia at their joint (the parameters of copy ``system`` as set; a fixed joint
@@ -549,7 +570,7 @@ class TreeModel(Model):
     def _blowup(self, b: int, y0: np.ndarray, t: float, h: float, k: int, where: str) -> str:
         """The message for copy ``b`` failing from state ``y0``: what drifted (the interval again with the monitor
         off), gimbal lock where the axes line up, and advice."""
-        lock = self.gimbal_lock(y0, b)
+        lock = TreeKernel.gimbal_lock(self, y0, b)
         pb = self._p[b:b + 1]
         rate = float(_engine.tree_scalar(self.layout.desc, y0.reshape(1, -1), pb, 1))
         n_sub = _engine.substeps(h, self.max_step) if self.integrator in ("euler", "rk4") else 0
@@ -609,7 +630,7 @@ class TreeModel(Model):
             b = int(np.flatnonzero(st)[0])
             k = int(st[b])
             t_k = t + (k - 1) * dt
-            msg = self._blowup(b, self._y[b], t_k, dt, 1, f"the output interval from t = {t_k!r} s to "
+            msg = TreeKernel._blowup(self, b, self._y[b], t_k, dt, 1, f"the output interval from t = {t_k!r} s to "
                                f"{t + k * dt!r} s (interval {k} of {n})")
             self._y, self._hint = saved
             err = IntegrationError(msg)
