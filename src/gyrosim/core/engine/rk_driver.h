@@ -257,9 +257,9 @@ static double RK_NAME(erk_step)(int method, RK_CTX *c, RK_NAME(step) *s, double 
     RK_NAME(combine)(c, s, D8_B, 12, h, s->y0, s->y1);
     RK_NAME(rhs_row)(c, s->y1, s->K[12]);
     stats[2] += 12;
-    /* The error as dop853.f and scipy's DOP853 estimate it (HNW I, II.10, "DOP853"): the 5th-order estimate E5
-     * with the 3rd-order E3 as a correction, err = |h| e5 / sqrt((e5 + 0.01 e3) ne), e5 and e3 the scaled sums of
-     * squares. E5 and E3 have the same zeros: the sums skip those stages. */
+    /* The error as dop853.f and scipy's DOP853 estimate it: the 5th-order estimate E5 with the 3rd-order E3 as a
+     * correction, err = |h| e5 / sqrt((e5 + 0.01 e3) ne), e5 and e3 the scaled sums of squares. E5 and E3 have
+     * the same zeros: the sums skip those stages. */
     double e5 = 0.0, e3 = 0.0;
     double a5v[RK_NV], a3v[RK_NV];
     RK_NAME(combine)(c, s, D8_E5, 13, 0.0, NULL, a5v);
@@ -287,9 +287,9 @@ static double RK_NAME(erk_step)(int method, RK_CTX *c, RK_NAME(step) *s, double 
 }
 
 /* The continuous extension of the step s at x in [0, 1] (nv components; not projected). adaptive: Dormand and
- * Prince's 4th-order interpolant, y0 + h sum_i K_i sum_j P[i][j] x^(j+1) (HNW I, II.6, (6.12)). dop853: the 7th-
- * order dense output of dop853.f (HNW I, II.6 and II.10), three more stages and the polynomial in x and 1 - x,
- * computed once per step at its first use. */
+ * Prince's 4th-order interpolant, y0 + h sum_i K_i sum_j P[i][j] x^(j+1) (HNW I, II.6, "dense output"). dop853:
+ * the 7th-order dense output of Hairer and Wanner's dop853.f (as scipy's DOP853 carries it): three more stages and
+ * a polynomial in x and 1 - x, computed once per step at its first use. */
 RK_MAYBE_UNUSED static void RK_NAME(dense)(int method, RK_CTX *c, RK_NAME(step) *s, double x, double *out, int64_t *stats) {
     const double h = s->h;
     const int nv = RK_NVAR(c);
