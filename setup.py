@@ -51,8 +51,8 @@ setup(
                      str(ENGINE / "rk.c"), str(ENGINE / "tree.c"),
                      str(ENGINE / "tree_cs.c")],
             depends=[str(ENGINE / "gyrosim_engine.h"), str(ENGINE / "gyrosim_ode.h"), str(ENGINE / "gyrosim_tree.h"),
-                     str(ENGINE / "rk_tables.h"), str(ENGINE / "exact_fast.h"), str(ENGINE / "cflags.txt"),
-                     str(ENGINE / "tree.c")],
+                     str(ENGINE / "rk_tables.h"), str(ENGINE / "rk_driver.h"), str(ENGINE / "exact_fast.h"),
+                     str(ENGINE / "cflags.txt"), str(ENGINE / "tree.c")],
             extra_compile_args=list(CFLAGS),
             libraries=["m"],
         )

@@ -411,30 +411,74 @@ static GS_INLINE void normalize_q(double *y) {
     }
 }
 
-static GS_INLINE void euler_step(double *y, const double *p, int flags, double h) {
-    double k[GS_NDY];
-    rhs(y, p, flags, k);
-    for (int i = 0; i < GS_Y_NQW; i++) y[i] += h * k[i];
-    if (flags & GS_WORK) y[GS_Y_BALANCE] += h * k[GS_DY_WORK];
-    normalize_q(y);
+/* ------------------------------------------------------------------------------------------- the driver */
+
+/* The one body in the Runge-Kutta driver (rk_driver.h): it integrates q, omega and, where the scene has GS_WORK
+ * terms, the energy the balance expects (y[GS_Y_BALANCE]) as an 8th component, the work of those terms. A state y
+ * into those components and back: */
+static GS_INLINE void to_step(const double *y, double *v) {
+    memcpy(v, y, GS_Y_NQW * sizeof(double));
+    v[GS_DY_WORK] = y[GS_Y_BALANCE];
 }
 
-static GS_INLINE void rk4_step(double *y, const double *p, int flags, double h) {
-    const double h2 = 0.5 * h;
-    double k1[GS_NDY], k2[GS_NDY], k3[GS_NDY], k4[GS_NDY], s[GS_Y_NQW];
-    rhs(y, p, flags, k1);
-    for (int i = 0; i < GS_Y_NQW; i++) s[i] = y[i] + h2 * k1[i];
-    rhs(s, p, flags, k2);
-    for (int i = 0; i < GS_Y_NQW; i++) s[i] = y[i] + h2 * k2[i];
-    rhs(s, p, flags, k3);
-    for (int i = 0; i < GS_Y_NQW; i++) s[i] = y[i] + h * k3[i];
-    rhs(s, p, flags, k4);
-    const double h6 = h / 6.0;
-    for (int i = 0; i < GS_Y_NQW; i++) y[i] += h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
-    if (flags & GS_WORK)
-        y[GS_Y_BALANCE] += h6 * (k1[GS_DY_WORK] + 2.0 * (k2[GS_DY_WORK] + k3[GS_DY_WORK]) + k4[GS_DY_WORK]);
-    normalize_q(y);
+static GS_INLINE void from_step(const double *v, int nv, double *y) {
+    memcpy(y, v, GS_Y_NQW * sizeof(double));
+    if (nv == GS_NDY) y[GS_Y_BALANCE] = v[GS_DY_WORK];
 }
+
+struct Sink;
+
+/* The driver's context: the body, its whole state y (fixed steps: the state they advance, whose q, omega and work
+ * the driver holds meanwhile; adaptive: the run's copy, kept current after every step), and where an adaptive run
+ * puts its output points. */
+typedef struct {
+    const double *p;
+    int flags;
+    int nv;   /* 7, or 8 with GS_WORK terms */
+    double *y;
+    int method;
+    int64_t *stats;
+    /* a trajectory's output points: at k dt (k = k_next..n_out, T = n_out dt) to the rows of sk, their outputs
+     * want; fail_row: -k where the health monitor tripped at point k */
+    const struct Sink *sk;
+    double dt, T;
+    int64_t n_out, k_next, fail_row;
+    int want;
+    double w;   /* |omega| at the start of the adaptive step */
+} Body;
+
+#define BODY_NV(flags) (((flags) & GS_WORK) ? GS_NDY : GS_Y_NQW)
+
+/* the health monitor and the reference angles within fixed steps, on the state y with the driver's components */
+static GS_INLINE int body_monitor(Body *c, const double *v) {
+    from_step(v, c->nv, c->y);
+    return drifted(c->flags, c->y, c->p);
+}
+
+static GS_INLINE void body_unwrap(Body *c, const double *v) {
+    from_step(v, c->nv, c->y);
+    gs_unwrap(c->y);
+}
+
+struct body_step_s;
+static int body_outputs_in_step(Body *c, struct body_step_s *s, double t, double t1, int clipped);
+static GS_INLINE void body_after_step(Body *c, const double *v, double h);
+
+#define RK_NAME(x) body_##x
+#define RK_NV GS_NDY
+#define RK_CTX Body
+#define RK_NVAR(c) ((c)->nv)
+#define RK_NERR(c) GS_Y_NQW
+#define RK_RHS(c, y, k) rhs((y), (c)->p, (c)->flags, (k))
+#define RK_PROJECT(c, v) normalize_q(v)
+#define RK_OK(c, v) ok(v)
+#define RK_MONITOR(c, v) body_monitor((c), (v))
+#define RK_EVERY(c, v) body_unwrap((c), (v))
+#define RK_ON_STEP(c, s, t, t1, clipped) body_outputs_in_step((c), (s), (t), (t1), (clipped))
+#define RK_AFTER_STEP(c, s, v) body_after_step((c), (v), (s)->h)
+#define RK_FINISH(c, v) 0
+#define RK_TLS 0
+#include "rk_driver.h"
 
 /* ---------------------------------------------------------------------------------------------------------
  * Lie-Poisson splitting. H = |L|^2/(2 Ip) + (1/Is - 1/Ip) Ls^2/2 [symmetric top, exact] + (1/Ir - 1/Ip) Lr^2/2
@@ -749,41 +793,29 @@ static int64_t fixed_steps(int method, double *y, const double *p, int flags, do
             if (CHECKED(k, cstride, flags)) return k + 1;
             if (DUE(k, stride, n_sub)) gs_unwrap(y);
         }
-    } else if (method == GS_EULER) {
-        for (int64_t k = 0; k < n_sub; k++) {
-            euler_step(y, p, flags, h);
-            if (check && !ok(y)) return k + 1;
-            if (CHECKED(k, cstride, flags)) return k + 1;
-            if (DUE(k, stride, n_sub)) gs_unwrap(y);
-        }
     } else {
-        /* the flags are constant: one loop per combination lets the compiler drop the absent terms */
-        switch (flags) {
-/* countdowns instead of (k + 1) % stride: the same steps, no integer division per step */
-#define RK4_LOOP(F) \
+        /* euler and rk4 in the driver on the body's components (to_step), every `stride` steps the reference
+         * angles; the flags are constant: one loop per combination lets the compiler drop the absent terms */
+        double v[GS_NDY];
+        to_step(y, v);
+        int64_t k;
+        switch (method == GS_EULER ? -1 : flags) {
+#define FIXED_LOOP(M, F) \
             { \
-                int64_t mon = cstride, due = stride; \
-                for (int64_t k = 0; k < n_sub; k++) { \
-                    rk4_step(y, p, (F), h); \
-                    if (check && !ok(y)) return k + 1; \
-                    if (cstride && --mon == 0) { \
-                        mon = cstride; \
-                        if (drifted((F), y, p)) return k + 1; \
-                    } \
-                    if (stride && --due == 0) { \
-                        due = stride; \
-                        gs_unwrap(y); \
-                    } \
-                } \
+                Body c = {p, (F), BODY_NV(F), y, (M), NULL, NULL, 0.0, 0.0, 0, 0, 0, 0, 0.0}; \
+                k = body_fixed_run((M), &c, v, h, n_sub, check, cstride, stride); \
+                from_step(v, c.nv, y); \
             } \
             break;
-            case 0: RK4_LOOP(0)
-            case GS_GRAVITY: RK4_LOOP(GS_GRAVITY)
-            case GS_TORQUE: RK4_LOOP(GS_TORQUE)
-            case GS_GRAVITY | GS_TORQUE: RK4_LOOP(GS_GRAVITY | GS_TORQUE)
-            default: RK4_LOOP(flags)
-#undef RK4_LOOP
+            case -1: FIXED_LOOP(GS_EULER, flags)
+            case 0: FIXED_LOOP(GS_RK4, 0)
+            case GS_GRAVITY: FIXED_LOOP(GS_RK4, GS_GRAVITY)
+            case GS_TORQUE: FIXED_LOOP(GS_RK4, GS_TORQUE)
+            case GS_GRAVITY | GS_TORQUE: FIXED_LOOP(GS_RK4, GS_GRAVITY | GS_TORQUE)
+            default: FIXED_LOOP(GS_RK4, flags)
+#undef FIXED_LOOP
         }
+        return k;
     }
     return 0;
 }
@@ -844,7 +876,7 @@ void gs_outputs_select(size_t n, const double *y, const double *p, double *out, 
 /* Where a trajectory's rows go: one body's row k at base + k * stride, either whole (GS_NOUT outputs; cols NULL) or
  * as the time t0 + k * dt and the outputs cols[0..ncols) (gs_trajectory_select: the caller's result rows, written
  * once). A row is computed at row_begin's pointer (the row itself, or scratch) and placed by row_end. */
-typedef struct {
+typedef struct Sink {
     double *base;
     size_t stride;
     const int64_t *cols;
@@ -1116,8 +1148,8 @@ static GS_INLINE int32_t advance_body(int method, int flags, double *y, const do
 }
 
 /* ------------------------------------------------------------------------------------------- blocks of bodies */
-/* rk4 and euler on GS_BLOCK bodies at once, structure of arrays: lane j does exactly the operations of rk4_step /
- * euler_step on body j, in the same order, so the bits are those of the one-body path; the loops over lanes are
+/* rk4 and euler on GS_BLOCK bodies at once, structure of arrays: lane j does exactly the operations of the driver's
+ * fixed_step (rk_driver.h) on body j, in the same order, so the bits are those of the one-body path; the loops over lanes are
  * what the compiler vectorises (SSE2 everywhere, AVX2 where the CPU has it: no FMA either way). */
 
 #define GS_BLOCK 8
@@ -1392,7 +1424,7 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
 
 
 /* ---------------------------------------------------------------------------------------------------------
- * Trajectories in one call (gs_trajectory) and the higher-order adaptive method (dop853).
+ * Trajectories in one call (gs_trajectory), and the adaptive methods' runs in the driver (rk_driver.h).
  *
  * Adaptive methods (adaptive = Dormand-Prince 5(4), dop853 = Dormand-Prince 8(5,3)) take the steps their error
  * control chooses over the whole run and produce the output points with their continuous extensions (4th and
@@ -1400,371 +1432,79 @@ size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, d
  * point exactly as a loop of gs_advance does (the same bits as Model.step).
  * --------------------------------------------------------------------------------------------------------- */
 
-#include "rk_tables.h"
-
-
-typedef struct {
-    double K[16][GS_NDY];   /* stages (dop853 uses 13 + 3 for dense output; dopri5 7) */
-    double y0[GS_NDY];      /* state at the start of the step: q, omega and, with GS_WORK terms, y[GS_Y_BALANCE] */
-    double y1[GS_NDY];      /* state at the end (before the quaternion's renormalisation) */
-    double h;
-    int nv;            /* components integrated: 7, or 8 with the energy the balance expects (GS_WORK terms) */
-    int dense_ready;   /* dop853's extra stages computed for this step */
-    double F[7][GS_NDY];    /* dop853's interpolation polynomial */
-} Step;
-
-/* a state y (GS_NY) into a step's components and back */
-static GS_INLINE void to_step(const double *y, double *v) {
-    memcpy(v, y, GS_Y_NQW * sizeof(double));
-    v[GS_DY_WORK] = y[GS_Y_BALANCE];
-}
-
-static GS_INLINE void from_step(const double *v, int nv, double *y) {
-    memcpy(y, v, GS_Y_NQW * sizeof(double));
-    if (nv == GS_NDY) y[GS_Y_BALANCE] = v[GS_DY_WORK];
-}
-
-/* dop853's sums on pairs of components (GCC and Clang vector extensions: SSE2 on x86-64, NEON on aarch64; a lane
- * does the scalar code's multiply and add, no contraction (the header's pragmas): the same bits), half the
- * floating-point instructions of the stages, whose chain is what a step waits on; a stage's derivatives stored as
- * pairs too, so that the next stage's 16-byte loads are forwarded from the stores (from two 8-byte stores they are
- * not, and the pairs were slower than the scalars). Component 7 (the work term) is 0 without GS_WORK terms, so the
- * pairs always cover 8 components. GS_NO_VECTORS, or another compiler: the scalar code. */
-#if (defined(__GNUC__) || defined(__clang__)) && !defined(GS_NO_VECTORS)
-#define GS_PAIRS 1
-typedef double gs_v2 __attribute__((vector_size(16)));
-static GS_INLINE gs_v2 v2_load(const double *p) {
-    gs_v2 v;
-    memcpy(&v, p, sizeof(v));
-    return v;
-}
-static GS_INLINE void v2_store(double *p, gs_v2 v) { memcpy(p, &v, sizeof(v)); }
-#endif
-
-/* a stage's derivatives into a row of Step.K (8 components) */
-static GS_INLINE void rhs_row(const double *y, const double *p, int flags, double *K) {
-#ifdef GS_PAIRS
-    double k[GS_NDY];
-    rhs(y, p, flags, k);
-    const gs_v2 k01 = {k[0], k[1]}, k23 = {k[2], k[3]}, k45 = {k[4], k[5]};
-    const gs_v2 k67 = {k[6], (flags & GS_WORK) ? k[GS_DY_WORK] : 0.0};
-    v2_store(K, k01);
-    v2_store(K + 2, k23);
-    v2_store(K + 4, k45);
-    v2_store(K + 6, k67);
-#else
-    rhs(y, p, flags, K);
-    if (!(flags & GS_WORK)) K[GS_DY_WORK] = 0.0;
-#endif
-}
-
-/* out = y0 + h * sum_j w[j] K[j] over the first nk stages, skipping the tableau's zeros; with y0 NULL, out = the
- * sums (h unused). 8 components are written (out has 8); nv of them count (7: without GS_WORK terms). The sums in
- * registers (the compiler cannot keep an array there past the stores into K; through an array here too the stages
- * were slower, measured): the same products and sums in the same order as an array loop, the same bits. */
-static GS_INLINE void erk_combine(const Step *s, const double *w, int nk, double h, int nv, const double *y0,
-                                  double *out) {
-#ifdef GS_PAIRS
-    (void)nv;
-    gs_v2 c01 = {0.0, 0.0}, c23 = {0.0, 0.0}, c45 = {0.0, 0.0}, c67 = {0.0, 0.0};
-    for (int j = 0; j < nk; j++) {
-        const double a = w[j];
-        if (a == 0.0) continue;
-        const double *k = s->K[j];
-        const gs_v2 av = {a, a};
-        c01 += av * v2_load(k);
-        c23 += av * v2_load(k + 2);
-        c45 += av * v2_load(k + 4);
-        c67 += av * v2_load(k + 6);
-    }
-    if (y0) {
-        const gs_v2 hv = {h, h};
-        c01 = v2_load(y0) + hv * c01;
-        c23 = v2_load(y0 + 2) + hv * c23;
-        c45 = v2_load(y0 + 4) + hv * c45;
-        c67 = v2_load(y0 + 6) + hv * c67;
-    }
-    v2_store(out, c01);
-    v2_store(out + 2, c23);
-    v2_store(out + 4, c45);
-    v2_store(out + 6, c67);
-#else
-    double c0 = 0.0, c1 = 0.0, c2 = 0.0, c3 = 0.0, c4 = 0.0, c5 = 0.0, c6 = 0.0, c7 = 0.0;
-    for (int j = 0; j < nk; j++) {
-        const double a = w[j];
-        if (a == 0.0) continue;
-        const double *k = s->K[j];
-        c0 += a * k[0];
-        c1 += a * k[1];
-        c2 += a * k[2];
-        c3 += a * k[3];
-        c4 += a * k[4];
-        c5 += a * k[5];
-        c6 += a * k[6];
-        if (nv == GS_NDY) c7 += a * k[7];
-    }
-    if (y0) {
-        out[0] = y0[0] + h * c0;
-        out[1] = y0[1] + h * c1;
-        out[2] = y0[2] + h * c2;
-        out[3] = y0[3] + h * c3;
-        out[4] = y0[4] + h * c4;
-        out[5] = y0[5] + h * c5;
-        out[6] = y0[6] + h * c6;
-        out[7] = y0[7] + h * c7;
-    } else {
-        out[0] = c0;
-        out[1] = c1;
-        out[2] = c2;
-        out[3] = c3;
-        out[4] = c4;
-        out[5] = c5;
-        out[6] = c6;
-        out[7] = c7;
-    }
-#endif
-}
-
-/* fmax(|a|, |b|) without the library call: the same value where neither is NaN (fabs makes the zeros alike); a NaN
- * there fails the step whatever the error norm (ok() checks y1, and y0 was accepted) */
-static GS_INLINE double max_abs(double a, double b) {
-    const double x = fabs(a), y = fabs(b);
-    return x > y ? x : y;
-}
-
-/* fmin(a, b) for a not NaN, inline */
-static GS_INLINE double gmin(double a, double b) { return b < a ? b : a; }
-
-/* One step of h from s.y0 with s.K[0] = f(y0): s.y1, s.K[last] = f(y1); returns the scaled error norm. */
-static double erk_step(int method, Step *s, const double *p, int flags, double h, double rtol, double atol,
-                       int64_t *stats) {
-    double yt[GS_NDY];
-    const int nv = s->nv;
-    if (method == GS_ADAPTIVE) {
-        for (int st = 1; st < 7; st++) {
-            for (int i = 0; i < nv; i++) {
-                double acc = 0.0;
-                for (int j = 0; j < st; j++) acc += D5_A[st][j] * s->K[j][i];
-                yt[i] = s->y0[i] + h * acc;
-            }
-            if (st == 6) memcpy(s->y1, yt, sizeof(yt));
-            rhs(yt, p, flags, s->K[st]);
+/* The output points within an accepted adaptive step from t to t1 (before it is committed), from the driver's
+ * continuous extension (the run is not cut there); the last point, where the step ends on it, from the step's end
+ * itself. Each point's state carries the reference angles and the monitor's values of the run's state c->y; the
+ * reference angles then follow the outputs. Returns 1 where the health monitor trips at a point (its row shows the
+ * state that tripped). */
+static int body_outputs_in_step(Body *c, struct body_step_s *s, double t, double t1, int clipped) {
+    double *yc = c->y;
+    const double *p = c->p;
+    c->w = sqrt(yc[GS_Y_OMEGA] * yc[GS_Y_OMEGA] + yc[GS_Y_OMEGA + 1] * yc[GS_Y_OMEGA + 1] +
+                yc[GS_Y_OMEGA + 2] * yc[GS_Y_OMEGA + 2]);
+    const Sink *sk = c->sk;
+    const int64_t n_out = c->n_out;
+    while (n_out > 0 && c->k_next <= n_out && (double)c->k_next * c->dt <= t1 * (1.0 + 1e-15)) {
+        const int64_t k = c->k_next;
+        const double tk = k == n_out ? c->T : (double)k * c->dt;
+        double yi[GS_NY];
+        memcpy(yi, yc, sizeof(yi));   /* the reference angles and the monitor's start values */
+        if (k == n_out && clipped) {
+            from_step(s->y1, c->nv, yi);
+        } else {
+            double v[GS_NDY];
+            body_dense(c->method, c, s, (tk - t) / s->h, v, c->stats);
+            from_step(v, c->nv, yi);
         }
-        stats[2] += 6;
-        double err = 0.0;
-        for (int i = 0; i < GS_Y_NQW; i++) {
-            double e = 0.0;
-            for (int j = 0; j < 7; j++) e += D5_E[j] * s->K[j][i];
-            e *= h;
-            const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
-            err += (e / sc) * (e / sc);
+        normalize_q(yi);
+        yi[GS_Y_TURN] = 0.0;
+        double scratch[GS_NOUT];
+        double *o = row_begin(sk, k, scratch);
+        if (drifted(c->flags, yi, p)) {   /* the health monitor at every output point: the row shows what tripped */
+            output_row(yi, p, o, c->want | GS_OUT_MOMENTUM);
+            row_end(sk, k, o);
+            c->fail_row = -k;
+            return 1;
         }
-        return sqrt(err / 7.0);
+        output_row(yi, p, o, c->want);
+        row_end(sk, k, o);
+        if (c->want & GS_OUT_ANGLES) {   /* the reference angles follow the outputs */
+            yc[GS_Y_REF] = o[GS_O_PHI];
+            yc[GS_Y_REF + 1] = o[GS_O_PSI];
+            yc[GS_Y_TURN] = c->w * (t1 - tk);
+        }
+        c->k_next = k + 1;
     }
-    /* dop853: 12 stages, then f(y1) as the 13th (FSAL); error as scipy's DOP853 (E5 with an E3 correction) */
-    for (int st = 1; st < 12; st++) {
-        erk_combine(s, D8_A[st], st, h, nv, s->y0, yt);
-        rhs_row(yt, p, flags, s->K[st]);
-    }
-    erk_combine(s, D8_B, 12, h, nv, s->y0, s->y1);
-    rhs_row(s->y1, p, flags, s->K[12]);
-    stats[2] += 12;
-    double e5 = 0.0, e3 = 0.0;
-    double a5v[GS_NDY], a3v[GS_NDY];
-    /* E5 and E3 have the same zeros: the terms of a loop that skipped the stages where both are zero */
-    erk_combine(s, D8_E5, 13, 0.0, GS_Y_NQW, NULL, a5v);
-    erk_combine(s, D8_E3, 13, 0.0, GS_Y_NQW, NULL, a3v);
-#ifdef GS_PAIRS
-    gs_v2 e = {0.0, 0.0};   /* (e5, e3): one division per component for both (on the chain to the next step) */
-    for (int i = 0; i < GS_Y_NQW; i++) {
-        const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
-        const gs_v2 a = {a5v[i], a3v[i]}, scv = {sc, sc};
-        const gs_v2 q = a / scv;
-        e += q * q;
-    }
-    e5 = e[0];
-    e3 = e[1];
-#else
-    for (int i = 0; i < GS_Y_NQW; i++) {
-        const double a5 = a5v[i], a3 = a3v[i];
-        const double sc = atol + rtol * max_abs(s->y0[i], s->y1[i]);
-        e5 += (a5 / sc) * (a5 / sc);
-        e3 += (a3 / sc) * (a3 / sc);
-    }
-#endif
-    if (e5 == 0.0 && e3 == 0.0) return 0.0;
-    return fabs(h) * e5 / sqrt((e5 + 0.01 * e3) * 7.0);
+    return 0;
 }
 
-/* The continuous extension at x in [0, 1] of the step (s->nv components; q not normalised). */
-static void erk_dense(int method, Step *s, const double *p, int flags, double x, double *out, int64_t *stats) {
-    const double h = s->h;
-    const int nv = s->nv;
-    if (method == GS_ADAPTIVE) {
-        const double x2 = x * x, x3 = x2 * x, x4 = x3 * x;
-        for (int i = 0; i < nv; i++) {
-            double acc = 0.0;
-            for (int j = 0; j < 7; j++) {
-                acc += s->K[j][i] * (D5_P[j][0] * x + D5_P[j][1] * x2 + D5_P[j][2] * x3 + D5_P[j][3] * x4);
-            }
-            out[i] = s->y0[i] + h * acc;
-        }
-        return;
-    }
-    if (!s->dense_ready) {
-        double yt[GS_NDY];
-        for (int st = 13; st < 16; st++) {
-            erk_combine(s, D8_A[st], st, h, nv, s->y0, yt);
-            rhs_row(yt, p, flags, s->K[st]);
-        }
-        stats[2] += 3;
-        for (int i = 0; i < nv; i++) {
-            const double dy = s->y1[i] - s->y0[i];
-            s->F[0][i] = dy;
-            s->F[1][i] = h * s->K[0][i] - dy;
-            s->F[2][i] = 2.0 * dy - h * (s->K[12][i] + s->K[0][i]);
-        }
-        for (int r = 0; r < 4; r++) {   /* the sums of the loop over the stages that skipped D's zeros */
-            double acc[GS_NDY];
-            erk_combine(s, D8_D[r], 16, 0.0, nv, NULL, acc);
-            for (int i = 0; i < nv; i++) s->F[3 + r][i] = h * acc[i];
-        }
-        s->dense_ready = 1;
-    }
-    const double xm = 1.0 - x;
-    for (int i = 0; i < nv; i++) {   /* scipy's Dop853DenseOutput: alternately times x and (1 - x) */
-        double v = s->F[6][i] * x;
-        v = (v + s->F[5][i]) * xm;
-        v = (v + s->F[4][i]) * x;
-        v = (v + s->F[3][i]) * xm;
-        v = (v + s->F[2][i]) * x;
-        v = (v + s->F[1][i]) * xm;
-        v = (v + s->F[0][i]) * x;
-        out[i] = s->y0[i] + v;
-    }
+/* After an accepted adaptive step (v: its end, projected): the run's state, and the rotation since the reference
+ * angles were updated (which are moved when it passes 1 rad) */
+static GS_INLINE void body_after_step(Body *c, const double *v, double h) {
+    double *yc = c->y;
+    from_step(v, c->nv, yc);
+    yc[GS_Y_TURN] += c->w * h;
+    if (yc[GS_Y_TURN] > 1.0) gs_unwrap(yc);
 }
 
-/* Adaptive integration of one body over [0, T]. With n_out > 0, the outputs at k*dt (k = 1..n_out, T = n_out*dt)
- * go to row k of sk from the continuous extension (the run is not cut there); else the last step ends at T
- * (step mode). Returns 0, or the failing step's index + 1 (y is then unchanged). */
+/* Adaptive integration of one body over [0, T] (the driver's erk_run). With n_out > 0, the outputs at k*dt
+ * (k = 1..n_out, T = n_out*dt) go to row k of sk from the continuous extension; else the last step ends at T (step
+ * mode). Returns 0, or the failing step's index + 1 (y is then unchanged; *fail_row: the first output point not
+ * written, or -k where the monitor tripped at point k). */
 static int64_t erk_run(int method, double *y, const double *p, int flags, double T, double rtol, double atol,
                        double max_step, double *hint, int64_t *stats, double dt, int64_t n_out, const Sink *sk,
                        int64_t *fail_row, int want) {
-    Step s;
-    s.nv = (flags & GS_WORK) ? GS_NDY : GS_Y_NQW;
-    double yc[GS_NY];
+    double yc[GS_NY], v[GS_NDY];
     memcpy(yc, y, sizeof(yc));
-    const double expo = method == GS_ADAPTIVE ? -0.2 : -0.125;
-    const double fmax_grow = method == GS_ADAPTIVE ? 5.0 : 10.0;
-    if (method == GS_ADAPTIVE) {   /* the 5(4) pair's local tolerance, calibrated to its global error (header) */
-        rtol *= GS_ADAPTIVE_TOL_SCALE;
-        atol *= GS_ADAPTIVE_TOL_SCALE;
+    to_step(yc, v);
+    Body c = {p, flags, BODY_NV(flags), yc, method, stats, sk, dt, T, n_out, 1, 0, want, 0.0};
+    /* bounded work: a step call GS_MAX_WORK steps, a trajectory more */
+    const int64_t st = body_erk_run(method, &c, v, T, rtol, atol, max_step, hint, stats,
+                                    n_out > 0 ? 50000000 : GS_MAX_WORK);
+    if (st) {
+        *fail_row = c.fail_row ? c.fail_row : c.k_next;
+        return st;
     }
-    double h = *hint;
-    rhs_row(yc, p, flags, s.K[0]);
-    stats[2] += 1;
-    if (!(h > 0.0)) {
-        double d0 = 0.0, d1 = 0.0;
-        for (int i = 0; i < GS_Y_NQW; i++) {
-            const double sc = atol + rtol * fabs(yc[i]);
-            d0 += (yc[i] / sc) * (yc[i] / sc);
-            d1 += (s.K[0][i] / sc) * (s.K[0][i] / sc);
-        }
-        d0 = sqrt(d0 / 7.0);
-        d1 = sqrt(d1 / 7.0);
-        h = (d0 > 1e-5 && d1 > 1e-5) ? 0.01 * d0 / d1 : 1e-6;
-    }
-    if (!(h > 0.0 && isfinite(h))) h = 1e-6;   /* an overflowing derivative: start small, the control adapts */
-    h = fmin(fmin(h, max_step), T);
-    double t = 0.0, last_h = h;
-    const double h_min = 1e-14 * fmax(1.0, T);
-    int64_t nstep = 0, k_next = 1;
-    while (t < T) {
-        nstep += 1;
-        if (nstep > (n_out > 0 ? 50000000 : GS_MAX_WORK)) {   /* bounded work: a step call, GS_MAX_WORK */
-            *fail_row = k_next;
-            return nstep;
-        }
-        const double remaining = T - t;
-        int clipped = 0;
-        if (h >= remaining * (1.0 - 1e-12)) {
-            h = remaining;
-            clipped = 1;
-        }
-        to_step(yc, s.y0);
-        s.h = h;
-        s.dense_ready = 0;
-        const double err = erk_step(method, &s, p, flags, h, rtol, atol, stats);
-        if (!(isfinite(err) && ok(s.y1))) {   /* ok() reads q and omega, the step's first 7 components */
-            if (h <= h_min) {
-                *fail_row = k_next;
-                return nstep;
-            }
-            h *= 0.2;
-            stats[1] += 1;
-            continue;
-        }
-        if (err > 1.0) {
-            stats[1] += 1;
-            h *= fmax(0.2, 0.9 * pow(err, expo));
-            if (h < h_min) {
-                *fail_row = k_next;
-                return nstep;
-            }
-            continue;
-        }
-        if (!clipped && h < h_min) {   /* the step size collapsed: a failure, not a crawl */
-            *fail_row = k_next;
-            return nstep;
-        }
-        const double t1 = clipped ? T : t + h;
-        const double w = sqrt(yc[GS_Y_OMEGA] * yc[GS_Y_OMEGA] + yc[GS_Y_OMEGA + 1] * yc[GS_Y_OMEGA + 1] +
-                            yc[GS_Y_OMEGA + 2] * yc[GS_Y_OMEGA + 2]);
-        /* output points in (t, t1] */
-        while (n_out > 0 && k_next <= n_out && (double)k_next * dt <= t1 * (1.0 + 1e-15)) {
-            const double tk = k_next == n_out ? T : (double)k_next * dt;
-            double yi[GS_NY];
-            memcpy(yi, yc, sizeof(yi));   /* the reference angles and the monitor's start values */
-            if (k_next == n_out && clipped) {
-                from_step(s.y1, s.nv, yi);
-            } else {
-                double v[GS_NDY];
-                erk_dense(method, &s, p, flags, (tk - t) / h, v, stats);
-                from_step(v, s.nv, yi);
-            }
-            normalize_q(yi);
-            yi[GS_Y_TURN] = 0.0;
-            double scratch[GS_NOUT];
-            double *o = row_begin(sk, k_next, scratch);
-            if (drifted(flags, yi, p)) {   /* the health monitor at every output point: the row shows what tripped */
-                output_row(yi, p, o, want | GS_OUT_MOMENTUM);
-                row_end(sk, k_next, o);
-                *fail_row = -k_next;
-                return nstep;
-            }
-            output_row(yi, p, o, want);
-            row_end(sk, k_next, o);
-            if (want & GS_OUT_ANGLES) {   /* the reference angles follow the outputs */
-                yc[GS_Y_REF] = o[GS_O_PHI];
-                yc[GS_Y_REF + 1] = o[GS_O_PSI];
-                yc[GS_Y_TURN] = w * (t1 - tk);
-            }
-            k_next += 1;
-        }
-        from_step(s.y1, s.nv, yc);
-        normalize_q(yc);
-        memcpy(s.K[0], method == GS_ADAPTIVE ? s.K[6] : s.K[12], sizeof(s.K[0]));
-        stats[0] += 1;
-        yc[GS_Y_TURN] += w * h;
-        if (yc[GS_Y_TURN] > 1.0) gs_unwrap(yc);
-        t = t1;
-        /* fmin and fmax inline: err is finite and positive here, pow's result too */
-        const double fac = err == 0.0 ? fmax_grow : gmin(fmax_grow, gmax(0.2, 0.9 * pow(err, expo)));
-        if (!clipped) last_h = h;
-        h = gmin(h * fac, max_step);
-        if (clipped) last_h = gmax(last_h, h);
-    }
-    *hint = fmin(last_h, max_step);
     memcpy(y, yc, sizeof(yc));
     return 0;
 }

@@ -1,11 +1,11 @@
 /*
- * gyrosim engine: one Runge-Kutta driver over a right-hand side (rk.c). It knows nothing of what it integrates:
- * a system gives its derivative function, how many components it integrates, how many of them enter the error
- * norm, a projection applied after every accepted step (unit quaternions) and the health monitor's check.
+ * gyrosim engine: the Runge-Kutta driver (rk_driver.h, the one-body engine's too) over a right-hand side given as
+ * a function (rk.c). It knows nothing of what it integrates: a system gives its derivative function, how many
+ * components it integrates, how many of them enter the error norm, a projection applied after every accepted step
+ * (unit quaternions) and the health monitor's check.
  *
  * The tree of bodies (tree.c) is driven by it with euler, rk4, adaptive (Dormand-Prince 5(4)) and dop853
- * (Dormand-Prince 8(5,3)); the tableaux are those of the one-body engine (rk_tables.h), so a method means the same
- * thing on every system.
+ * (Dormand-Prince 8(5,3)): the same code as the one body's, so a method means the same thing on every system.
  */
 #ifndef GYROSIM_ODE_H
 #define GYROSIM_ODE_H
@@ -20,7 +20,7 @@ extern "C" {
 #define GS_ODE_MAX 424
 
 typedef struct {
-    /* dy[0:nv] = f(y[0:nv]); y may hold more components after nv (the monitor's constants), read-only here */
+    /* dy[0:nv] = f(y); it reads y[0:ne] only (the stages' states have no more) */
     void (*rhs)(const void *ctx, const double *y, double *dy);
     /* after every accepted step (may be NULL): e.g. quaternions back to unit norm */
     void (*project)(const void *ctx, double *y);
@@ -29,7 +29,7 @@ typedef struct {
     int (*check)(const void *ctx, double *y);
     const void *ctx;
     int nv;   /* integrated components, at most GS_ODE_MAX */
-    int ne;   /* the first ne of them enter the adaptive methods' error norm */
+    int ne;   /* the first ne of them enter the adaptive methods' error norm (1 <= ne <= nv) */
     int ny;   /* the whole state (nv integrated, then constants the step carries along) */
 } gs_ode;
 
