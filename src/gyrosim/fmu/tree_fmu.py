@@ -39,8 +39,8 @@ __all__ = ["TreeRow", "tree_rows", "tree_me_rows", "tree_config_header", "tree_m
            "TREE_ENGINE", "TREE_GLUE", "WORK_STATE", "DER_UNITS"]
 
 #: The engine's files a tree FMU is compiled from (core/engine/) and its glue (fmu/c/).
-TREE_ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "exact_fast.h", "engine.c",
-               "exact.c", "rk.c", "tree.c", "tree_cs.c", "cflags.txt")
+TREE_ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "rk_driver.h", "exact_fast.h",
+               "engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "cflags.txt")
 TREE_GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_tree_model.h",
              "gyrosim_tree_model.c")
 #: Model exchange: the continuous state of the work integral (the engine's y[nx]).
