@@ -49,10 +49,10 @@ setup(
             "gyrosim.core._engine",
             sources=["src/gyrosim/core/_enginemodule.c", str(ENGINE / "engine.c"), str(ENGINE / "exact.c"),
                      str(ENGINE / "rk.c"), str(ENGINE / "tree.c"),
-                     str(ENGINE / "tree_cs.c")],
+                     str(ENGINE / "tree_cs.c"), str(ENGINE / "system.c")],
             depends=[str(ENGINE / "gyrosim_engine.h"), str(ENGINE / "gyrosim_ode.h"), str(ENGINE / "gyrosim_tree.h"),
-                     str(ENGINE / "rk_tables.h"), str(ENGINE / "exact_fast.h"), str(ENGINE / "cflags.txt"),
-                     str(ENGINE / "tree.c")],
+                     str(ENGINE / "gyrosim_system.h"), str(ENGINE / "rk_tables.h"), str(ENGINE / "exact_fast.h"),
+                     str(ENGINE / "cflags.txt"), str(ENGINE / "tree.c")],
             extra_compile_args=list(CFLAGS),
             libraries=["m"],
         )
