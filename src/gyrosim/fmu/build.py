@@ -33,6 +33,8 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from .._atomic import atomic_open
 from ..errors import ConfigError
 from ..scene import Scene, load_scene
@@ -196,14 +198,40 @@ def _unit_of(rows: list[FmuRow], row: FmuRow) -> str:
 
 
 def range_text(row: FmuRow) -> str:
-    """What a value of the parameter of ``row`` must be, as the model's message says it."""
+    """What a value of the parameter of ``row`` must be, from its range."""
     v = row.var
     return v.range.text(v.unit) + (f" (the range of scene parameter {row.name})" if row.kind == "alias" else "")
 
 
-def _ranges(rows: list[FmuRow]) -> tuple[list[str], dict[int, int]]:
+def _refusals(sc: Scene, rows: list[FmuRow]) -> dict[int, str]:
+    """What the model says of a value just outside each checked variable's range (the words after "is not
+    allowed: "), by position in ``rows``: the FMU refuses in the model's words. :func:`range_text` where the model
+    gives none."""
+    from ..model import Model
+
+    model, out = Model(sc), {}
+    for i, v in range_rows(rows):
+        rng = v.range
+        if math.isfinite(rng.min):
+            bad = rng.min if rng.exclusive_min else float(np.nextafter(rng.min, -math.inf))
+        else:
+            bad = rng.max if rng.exclusive_max else float(np.nextafter(rng.max, math.inf))
+        try:
+            model.set(rows[i].name, bad)
+        except ConfigError as e:
+            head, sep, words = str(e).partition(" is not allowed: ")
+            named = head.rpartition(" = ")[0]   # the model may name a body's variable by its short name
+            if sep and named and (rows[i].name == named or rows[i].name.endswith("." + named)):
+                out[i] = words
+                continue
+        out[i] = range_text(rows[i])
+    return out
+
+
+def _ranges(sc: Scene, rows: list[FmuRow]) -> tuple[list[str], dict[int, int]]:
     """The GS_RANGES rows and, by position in ``rows``, the row of each variable checked against its range."""
     table, where = [], {}
+    words = _refusals(sc, rows)
     for i, v in range_rows(rows):
         rng = v.range
         kinds = []
@@ -213,7 +241,7 @@ def _ranges(rows: list[FmuRow]) -> tuple[list[str], dict[int, int]]:
         lo = _hexf(rng.min) if math.isfinite(rng.min) else "0.0"
         hi = _hexf(rng.max) if math.isfinite(rng.max) else "0.0"
         where[i] = len(table)
-        table.append(f"{{{lo}, {hi}, {kinds[0]}, {kinds[1]}, {_c_string(range_text(rows[i]))}}}")
+        table.append(f"{{{lo}, {hi}, {kinds[0]}, {kinds[1]}, {_c_string(words[i])}}}")
     return table, where
 
 
@@ -223,7 +251,7 @@ def _config_header(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: str,
     glue (c/gyrosim_model.h)."""
     has_me = fmi_type in ("me", "both")
     table = ['{GS_K_TIME, 0, 0, 0, "time", "s", -1}' if fmi_version == 3 else '{GS_K_NONE, 0, 0, 0, "", "", -1}']
-    ranges, range_of = _ranges(rows)
+    ranges, range_of = _ranges(sc, rows)
     for i, r in enumerate(rows + (me_rows(lay, rows) if has_me else [])):
         table.append(f"{{{_KIND_C[r.kind]}, {r.index}, {r.aux}, {int(r.nonneg)}, {_c_string(r.name)}, "
                      f"{_c_string(_unit_of(rows, r) or '')}, {range_of.get(i, -1)}}}")
