@@ -47,12 +47,9 @@ setup(
     ext_modules=[
         Extension(
             "gyrosim.core._engine",
-            sources=["src/gyrosim/core/_enginemodule.c", str(ENGINE / "engine.c"), str(ENGINE / "exact.c"),
-                     str(ENGINE / "rk.c"), str(ENGINE / "tree.c"),
-                     str(ENGINE / "tree_cs.c")],
-            depends=[str(ENGINE / "gyrosim_engine.h"), str(ENGINE / "gyrosim_ode.h"), str(ENGINE / "gyrosim_tree.h"),
-                     str(ENGINE / "rk_tables.h"), str(ENGINE / "rk_driver.h"), str(ENGINE / "exact_fast.h"),
-                     str(ENGINE / "cflags.txt"), str(ENGINE / "tree.c")],
+            # the whole engine folder (one engine; the FMU builder copies the same files into every FMU)
+            sources=["src/gyrosim/core/_enginemodule.c", *sorted(str(f) for f in ENGINE.glob("*.c"))],
+            depends=[*sorted(str(f) for f in ENGINE.glob("*.h")), str(ENGINE / "cflags.txt")],
             extra_compile_args=list(CFLAGS),
             libraries=["m"],
         )

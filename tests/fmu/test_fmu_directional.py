@@ -225,10 +225,11 @@ def _python_reference(scene, f, states, ders, outs, inputs, known):
     sc = load_scene(scene)
     names = [f.name[vr] for vr in outs]
     if sc.kernel == "tree":
-        from gyrosim.fmu.tree_fmu import _layout, tree_rows
+        from gyrosim.core.tree import TreeLayout
+        from gyrosim.fmu.layout import fmu_rows
 
-        lay = _layout(sc)
-        rows = tree_rows(sc)
+        lay = TreeLayout(sc.tree, sc.couplings, sc.orbit)
+        rows = fmu_rows(sc)
         p = lay.params(float(sc.g), float(sc.max_drift)).copy()
         in_slot = {vr: r.index for vr, r in enumerate(rows, start=1) if r.kind == "input"}
         for vr in inputs:

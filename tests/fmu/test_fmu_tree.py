@@ -30,7 +30,7 @@ from gyrosim.core.tree import TreeLayout
 from gyrosim.errors import ConfigError, IntegrationError
 from gyrosim.fmu import build_fmu, model_identifier
 from gyrosim.fmu.build import binary_path, fmi_include_dir, windows_compiler
-from gyrosim.fmu.tree_fmu import WORK_STATE
+from gyrosim.fmu.layout import WORK_STATE
 from gyrosim.kernel_tree import tree_output_names, tree_variables
 from gyrosim.model import Model
 from gyrosim.scene import load_scene
@@ -123,9 +123,8 @@ def test_variables_are_the_tree_variables_and_validate(tree_fmu, scene, v):
     assert "euler, rk4, adaptive, dop853" in md.description
     with zipfile.ZipFile(path) as zf:
         names = set(zf.namelist())
-    assert {"sources/tree.c", "sources/rk.c", "sources/gyrosim_tree_model.c", "sources/gyrosim_config.h",
-            f"sources/fmi{v}Functions.c"} <= names
-    assert "sources/gyrosim_model.c" not in names   # the one-body glue is not part of a tree FMU
+    assert {"sources/tree.c", "sources/rk.c", "sources/system.c", "sources/gyrosim_model.c",
+            "sources/gyrosim_config.h", f"sources/fmi{v}Functions.c"} <= names   # one engine, one glue
 
 
 # ------------------------------------------------------------------------------------------------ co-simulation

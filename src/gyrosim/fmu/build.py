@@ -6,16 +6,15 @@ as the Python extension, so an FMU run and ``Model.step`` agree to the bit) plus
 validation, time, saved state; no physics). No Python on the host. The FMU carries its sources (FMI 2.0
 ``SourceFiles``, FMI 3.0 ``sources/buildDescription.xml``), from which it rebuilds to the same bits.
 
-Variables come from :func:`gyrosim.model.variables_for`; a multi-body scene exports every body, its variables
-named ``<body>.<name>`` (``fast.q_w``), with ``integrator`` and ``max_step`` shared by all bodies. Model exchange
-adds the state derivatives ``der(q_w)`` ... ``der(omega_z)`` (``der(fast.q_w)``), local variables after all the
-others (the value references of the co-simulation variables do not change): the continuous states are q and omega of
-every body, 7 per body, and their derivatives the engine's right-hand side (``gs_derivatives``).
-
-A tree scene (bodies joined by joints, ``Scene.kernel``) builds from the engine's tree (``tree.c``, ``rk.c``) and
-one generic glue, ``c/gyrosim_tree_model.c``, chosen at compile time by ``GS_TREE`` in the generated configuration;
-its variables are :func:`gyrosim.kernel_tree.tree_variables` and the configuration carries the scene as a table
-(:mod:`gyrosim.fmu.tree_fmu`).
+Every scene builds the same way: the binary is every engine source (one engine) and one glue,
+``c/gyrosim_model.c``, which knows no scene. What is particular to the scene is data in the generated
+``gyrosim_config.h``: its engine system (``gyrosim_system.h``: the description ``gs_sys_init`` takes, the row sizes,
+the start rows) and a table from value reference to what the variable is, both from :mod:`gyrosim.fmu.layout`. The
+variables are :meth:`Scene.variables <gyrosim.scene.Scene.variables>` in that order from value reference 1 (FMI 3.0:
+``time`` at 0); a multi-body scene names them ``<body>.<name>`` (``fast.q_w``). Model exchange adds local variables
+after all the others (the value references of the co-simulation variables do not change): a work integral's balance
+where it is a continuous state (``energy_expected``) and the derivative ``der(<state>)`` of every continuous state
+(:func:`gyrosim.fmu.layout.me_rows`).
 """
 
 from __future__ import annotations
@@ -34,14 +33,27 @@ import zipfile
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from .._atomic import atomic_open
 from ..errors import ConfigError
-from ..model import variables_for
-from ..scene import INTEGRATORS, TREE_INTEGRATORS, Scene, load_scene
+from ..scene import Scene, load_scene
+from .layout import (
+    DER_UNITS,
+    STATES,
+    FmuRow,
+    SystemLayout,
+    fmu_rows,
+    fmu_variables,
+    jacobian_pattern,
+    me_rows,
+    range_rows,
+    system_layout,
+)
 
 __all__ = ["build_fmu", "model_identifier", "fmi_include_dir", "compile_command", "binary_path", "C_FLAGS",
            "DEFAULT_OUTPUT", "WINDOWS_CC", "WINDOWS_C_FLAGS", "windows_compiler", "PLATFORMS", "engine_sources",
-           "SCENE_VARIABLES", "FMI_TYPES", "STATES", "ME_NORM_TOL"]
+           "FMI_TYPES", "STATES", "ME_NORM_TOL", "fmu_variables", "dependencies"]
 
 DEFAULT_OUTPUT = Path("fmu") / "dist"
 
@@ -60,23 +72,11 @@ WINDOWS_C_FLAGS = (*(f for f in C_FLAGS if f not in ("-fPIC", "-fvisibility=hidd
 #: The platforms an FMU may carry: name -> (FMI 2.0 folder, FMI 3.0 folder, library suffix).
 PLATFORMS = {"linux": ("linux64", "x86_64-linux", ".so"), "windows": ("win64", "x86_64-windows", ".dll")}
 
-#: The one-body FMU's engine files: the one-body engine, and the tree engine's complex step (tree_cs.c, which
-#: #includes tree.c; tree.c and rk.c compiled too) for the directional derivatives.
-_ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "rk_driver.h", "exact_fast.h",
-           "engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "cflags.txt")
+#: The engine's files every FMU is compiled from: the whole of core/engine/ (one engine; the package ships it, as
+#: setup.py compiles it), read from the folder so that a file added there is in every FMU; and the glue's (c/).
+_ENGINE = tuple(sorted(f.name for f in resources.files("gyrosim.core").joinpath("engine").iterdir()
+                       if f.name.endswith((".c", ".h")) or f.name == "cflags.txt"))
 _GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_model.c")
-#: Scene-wide variables (not per body) of a multi-body FMU.
-SCENE_VARIABLES = ("integrator", "max_step", "max_drift")
-_KINDS = {"I1": "GS_V_I1", "I2": "GS_V_I2", "I3": "GS_V_I3", "mass": "GS_V_MASS", "cm_distance": "GS_V_CM",
-          "g": "GS_V_G", "damping": "GS_V_DAMPING", "integrator": "GS_V_INTEGRATOR", "max_step": "GS_V_MAX_STEP",
-          "max_drift": "GS_V_MAX_DRIFT",
-          "q_w": "GS_V_QW", "q_x": "GS_V_QX", "q_y": "GS_V_QY", "q_z": "GS_V_QZ", "omega_x": "GS_V_OX",
-          "omega_y": "GS_V_OY", "omega_z": "GS_V_OZ", "tau_x": "GS_V_TX", "tau_y": "GS_V_TY", "tau_z": "GS_V_TZ",
-          "phi": "GS_V_PHI", "theta": "GS_V_THETA", "psi": "GS_V_PSI", "L_x": "GS_V_LX", "L_y": "GS_V_LY",
-          "L_z": "GS_V_LZ", "energy": "GS_V_ENERGY",
-          "energy_error": "GS_V_ENERGY_ERROR"}
-#: Derived outputs: computed at initialisation (initial="calculated"), not settable.
-_DERIVED = ("phi", "theta", "psi", "L_x", "L_y", "L_z", "energy", "energy_error")
 _UNITS = {  # unit -> SI base-unit exponents
     "kg.m2": {"kg": 1, "m": 2}, "kg": {"kg": 1}, "m": {"m": 1}, "m/s2": {"m": 1, "s": -2},
     "N.m.s": {"kg": 1, "m": 2, "s": -1}, "s": {"s": 1}, "1": {}, "rad/s": {"rad": 1, "s": -1},
@@ -85,13 +85,11 @@ _UNITS = {  # unit -> SI base-unit exponents
     # tree scenes
     "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1}, "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
     "m/s": {"m": 1, "s": -1}, "W": {"kg": 1, "m": 2, "s": -3},
+    "m3/s2": {"m": 3, "s": -2},
 }
 _TOKEN = "@INSTANTIATION_TOKEN@"
 #: ``fmi_type`` values: co-simulation, model exchange, or both interfaces in one FMU.
 FMI_TYPES = ("cs", "me", "both")
-#: The continuous states of each body (model exchange), in the order of the state vector.
-STATES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z")
-_DER_KINDS = ("GS_V_DQW", "GS_V_DQX", "GS_V_DQY", "GS_V_DQZ", "GS_V_DOX", "GS_V_DOY", "GS_V_DOZ")
 #: | |q| - 1 | beyond which a completed integrator step asks for a step event that renormalises q (GS_ME_NORM_TOL).
 ME_NORM_TOL = 1e-3
 _LOG_CATEGORIES = (("logStatusWarning", "Log messages with status Warning (this FMU has none)."),
@@ -107,15 +105,12 @@ def _engine_methods() -> tuple[str, ...]:
     return _engine.METHODS
 
 
-def engine_sources(tree: bool = False) -> dict[str, str]:
-    """The C sources an FMU is compiled from, ``{file name: text}`` (engine, then glue; no generated config);
-    ``tree``: those of a tree scene's FMU (the engine's tree and the generic tree glue)."""
-    from .tree_fmu import TREE_ENGINE, TREE_GLUE
-
+def engine_sources() -> dict[str, str]:
+    """The C sources every FMU is compiled from, ``{file name: text}`` (engine, then glue; no generated config)."""
     eng = resources.files("gyrosim.core").joinpath("engine")
     glue = resources.files(__package__).joinpath("c")
-    out = {name: eng.joinpath(name).read_text() for name in (TREE_ENGINE if tree else _ENGINE)}
-    out.update({name: glue.joinpath(name).read_text() for name in (TREE_GLUE if tree else _GLUE)})
+    out = {name: eng.joinpath(name).read_text() for name in _ENGINE}
+    out.update({name: glue.joinpath(name).read_text() for name in _GLUE})
     return out
 
 
@@ -188,96 +183,135 @@ def _c_string(s: str) -> str:
     return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def fmu_variables(sc: Scene) -> list[tuple[str, int, object]]:
-    """``(name, body, Variable)`` in value-reference order (from 1): scene-wide variables once, the rest per body
-    (named ``<body>.<name>`` when the scene has several bodies). ``body`` is -1 for scene-wide variables."""
-    n = len(sc.bodies)
-    rows = []
-    base = variables_for(sc, 0)
-    if n == 1:
-        return [(name, 0, v) for name, v in base.items()]
-    for name in SCENE_VARIABLES:
-        rows.append((name, -1, base[name]))
-    for b, body in enumerate(sc.bodies):
-        for name, v in variables_for(sc, b).items():
-            if name not in SCENE_VARIABLES:
-                rows.append((f"{body.name}.{name}", b, v))
-    return rows
+_KIND_C = {"time": "GS_K_TIME", "param": "GS_K_PARAM", "max_drift": "GS_K_MAX_DRIFT", "input": "GS_K_INPUT",
+           "alias": "GS_K_ALIAS", "state": "GS_K_STATE", "output": "GS_K_OUTPUT", "integrator": "GS_K_INTEGRATOR",
+           "max_step": "GS_K_MAX_STEP", "work": "GS_K_WORK", "der": "GS_K_DER"}
 
 
-def derivative_rows(sc: Scene, rows) -> list[tuple[str, int, int, int]]:
-    """Model exchange: ``(name, body, state index, kind)`` of every state derivative, body by body in the order of
-    :data:`STATES`; ``state index`` is the 0-based position of the state in ``rows`` (``der(q_w)``,
-    ``der(fast.q_w)``)."""
-    index = {name: i for i, (name, _, _) in enumerate(rows)}
-    out = []
-    for b, body in enumerate(sc.bodies):
-        for k, st in enumerate(STATES):
-            name = st if len(sc.bodies) == 1 else f"{body.name}.{st}"
-            out.append((f"der({name})", b, index[name], k))
+def _unit_of(rows: list[FmuRow], row: FmuRow) -> str:
+    """A variable's unit: its own, or for model exchange's locals the balance's (J) and a derivative's."""
+    if row.kind == "work":
+        return "J"
+    if row.kind == "der":
+        unit = next((r.var.unit for r in rows if r.kind == "state" and r.aux == row.index), "J")
+        return DER_UNITS[unit]
+    return row.var.unit
+
+
+def range_text(row: FmuRow) -> str:
+    """What a value of the parameter of ``row`` must be, from its range."""
+    v = row.var
+    return v.range.text(v.unit) + (f" (the range of scene parameter {row.name})" if row.kind == "alias" else "")
+
+
+def _refusals(sc: Scene, rows: list[FmuRow]) -> dict[int, str]:
+    """What the model says of a value just outside each checked variable's range (the words after "is not
+    allowed: "), by position in ``rows``: the FMU refuses in the model's words. :func:`range_text` where the model
+    gives none."""
+    from ..model import Model
+
+    model, out = Model(sc), {}
+    for i, v in range_rows(rows):
+        rng = v.range
+        if math.isfinite(rng.min):
+            bad = rng.min if rng.exclusive_min else float(np.nextafter(rng.min, -math.inf))
+        else:
+            bad = rng.max if rng.exclusive_max else float(np.nextafter(rng.max, math.inf))
+        try:
+            model.set(rows[i].name, bad)
+        except ConfigError as e:
+            head, sep, words = str(e).partition(" is not allowed: ")
+            named = head.rpartition(" = ")[0]   # the model may name a body's variable by its short name
+            if sep and named and (rows[i].name == named or rows[i].name.endswith("." + named)):
+                out[i] = words
+                continue
+        out[i] = range_text(rows[i])
     return out
 
 
-def _omega_nominal(body) -> float:
-    """The nominal value of a body's omega states: its largest start rate, at least 1 rad/s."""
-    return max(1.0, *(abs(float(w)) for w in body.omega0))
+def _ranges(sc: Scene, rows: list[FmuRow]) -> tuple[list[str], dict[int, int]]:
+    """The GS_RANGES rows and, by position in ``rows``, the row of each variable checked against its range."""
+    table, where = [], {}
+    words = _refusals(sc, rows)
+    for i, v in range_rows(rows):
+        rng = v.range
+        kinds = []
+        for bound, open_ in ((rng.min, rng.exclusive_min), (rng.max, rng.exclusive_max)):
+            kinds.append(("GS_BOUND_EXCLUSIVE" if open_ else "GS_BOUND_INCLUSIVE") if math.isfinite(bound)
+                         else "GS_BOUND_NONE")
+        lo = _hexf(rng.min) if math.isfinite(rng.min) else "0.0"
+        hi = _hexf(rng.max) if math.isfinite(rng.max) else "0.0"
+        where[i] = len(table)
+        table.append(f"{{{lo}, {hi}, {kinds[0]}, {kinds[1]}, {_c_string(words[i])}}}")
+    return table, where
 
 
-def _config_header(sc: Scene, rows, ident: str, token: str, fmi_version: int, integrator: str,
-                   fmi_type: str = "cs") -> str:
-    # FMI 3.0 has the independent variable time at value reference 0; FMI 2.0 leaves 0 unused
-    kinds = ["GS_V_TIME" if fmi_version == 3 else "GS_V_NONE"] + [_KINDS[v.name] for _, _, v in rows]
-    bodies = ["0"] + [str(max(b, 0)) for _, b, _ in rows]
-    if fmi_type != "cs":
-        for _, b, _, k in derivative_rows(sc, rows):
-            kinds.append(_DER_KINDS[k])
-            bodies.append(str(b))
-    g = sc.g if sc.gravity else 0.0  # Model: g of a scene without gravity is 0 (no potential energy term)
-    starts = []
-    for body in sc.bodies:
-        vals = [*body.moments, body.mass, body.cm_distance, g, body.damping, *body.q0, *body.omega0]
-        starts.append("{" + ", ".join(_hexf(v) for v in vals) + "}")
+def _config_header(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: str, token: str, fmi_version: int,
+                   integrator: str, fmi_type: str) -> str:
+    """The generated ``gyrosim_config.h``: the scene's system, variable table and start values, as data for the one
+    glue (c/gyrosim_model.h)."""
+    has_me = fmi_type in ("me", "both")
+    table = ['{GS_K_TIME, 0, 0, 0, "time", "s", -1}' if fmi_version == 3 else '{GS_K_NONE, 0, 0, 0, "", "", -1}']
+    ranges, range_of = _ranges(sc, rows)
+    for i, r in enumerate(rows + (me_rows(lay, rows) if has_me else [])):
+        table.append(f"{{{_KIND_C[r.kind]}, {r.index}, {r.aux}, {int(r.nonneg)}, {_c_string(r.name)}, "
+                     f"{_c_string(_unit_of(rows, r) or '')}, {range_of.get(i, -1)}}}")
+    targets = []
+    for ai, a in enumerate(sc.aliases):
+        for bi, pn, f in a.sets:
+            targets.append(f"{{{ai}, {lay.body_offset[bi] + lay.body_slots[pn]}, {_hexf(f)}, "
+                           f"{int(pn in lay.nonneg)}, {_c_string(sc.body_names[bi] + '.' + pn)}}}")
+
+    def arr(values, fmt=_hexf, empty="0.0"):
+        return "{" + (", ".join(fmt(v) for v in values) if len(values) else empty) + "}"
+
     lines = [
-        "/* Generated by gyrosim.fmu.build: the scene's variables, value references and start values. */",
+        "/* Generated by gyrosim.fmu.build: the scene's system, variable table and start values. */",
         "#ifndef GYROSIM_CONFIG_H", "#define GYROSIM_CONFIG_H", "",
         f"#define FMI_VERSION {fmi_version}",
         f"#define MODEL_IDENTIFIER {ident}",
         f'#define MODEL_IDENTIFIER_STRING "{ident}"',
         f'#define INSTANTIATION_TOKEN "{token}"',
         f"#define GS_SCENE_NAME {_c_string(sc.name)}", "",
-        f"#define GS_N_BODIES {len(sc.bodies)}",
-        f"#define GS_FLAGS {sc.flags}   /* GRAVITY=1, DAMPING=2, TORQUE=4 */",
-        f"#define GS_HAS_GRAVITY {int(sc.gravity)}",
         f"#define GS_HAS_CS {int(fmi_type in ('cs', 'both'))}   /* the interfaces: --fmi-type {fmi_type} */",
-        f"#define GS_HAS_ME {int(fmi_type in ('me', 'both'))}",
-        "#define GS_OMEGA_NOMINALS {" + ", ".join(_hexf(_omega_nominal(b)) for b in sc.bodies) + "}", "",
-        "/* value reference -> variable kind and body (index = value reference) */",
-        "#define GS_VR_KINDS {" + ", ".join(kinds) + "}",
-        "#define GS_VR_BODIES {" + ", ".join(bodies) + "}",
-        "#define GS_BODY_NAMES {" + ", ".join(_c_string(b.name) for b in sc.bodies) + "}", "",
+        f"#define GS_HAS_ME {int(has_me)}", "",
+        f"/* the system (gs_sys_init): {len(sc.body_names)} bodies ({', '.join(sc.body_names[:10])}) */",
+        "#define GS_SYS_DESC " + arr(lay.desc, str),
+        f"#define GS_SYS_NY {lay.ny}   /* state */",
+        f"#define GS_SYS_NP {lay.np}   /* parameter row */",
+        f"#define GS_SYS_NOUT {lay.nout}   /* output row */",
+        f"#define GS_SYS_NDY {lay.ndy}   /* derivative row: coordinates, then work integrals */",
+        f"#define GS_SYS_UNITS {lay.units}   /* units of hint, stats, anchors */",
+        f"#define GS_SYS_NEX {lay.nex}   /* anchor values per unit */",
+        f"#define GS_SYS_NX {lay.nx}   /* model exchange's continuous states */",
+        f"#define GS_ME_WORK_STATES {int(lay.work_states)}   /* the work integrals are continuous states */",
+        f"#define GS_ME_STATES_TEXT {_c_string(lay.states_text)}",
+        "#define GS_UNIT_NAMES " + arr(lay.unit_names, _c_string), "",
+        "/* start values: the parameter row (inputs 0) and the state (the monitor's part set at initialisation) */",
+        "#define GS_START_P " + arr(lay.p0),
+        "#define GS_START_Y " + arr(lay.y0),
         f"#define GS_START_INTEGRATOR_CODE {_engine_methods().index(integrator)}   /* {integrator} */",
         f"#define GS_START_MAX_STEP {_hexf(sc.max_step)}   /* {_fmt(sc.max_step)} */",
-        f"#define GS_START_MAX_DRIFT {_hexf(sc.max_drift)}   /* {_fmt(sc.max_drift)} */",
         f"#define GS_START_TOLERANCE {_hexf(sc.tolerance)}   /* {_fmt(sc.tolerance)} */",
-        "/* per body: I1, I2, I3, mass, cm_distance, g, damping, q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z */",
-        "#define GS_START_BODIES {" + ", \\\n    ".join(starts) + "}",
+        f"#define GS_INTEGRATOR_LIST {_c_string(', '.join(sc.integrators))}", "",
+        "/* scene parameters: their start values, and {alias, parameter-row slot, factor, >= 0, target} of every "
+        "target (alias -1: none) */",
+        f"#define GS_N_ALIASES {len(sc.aliases)}",
+        "#define GS_START_ALIASES " + arr([a.value for a in sc.aliases]),
+        "#define GS_ALIAS_TARGETS {" + (", ".join(targets) if targets else '{-1, 0, 0.0, 0, ""}') + "}", "",
+        "/* the parameters' ranges: {lo, hi, lower bound, upper bound, what the message says} (GS_RANGES row of "
+        "each GS_VARS row) */",
+        "#define GS_RANGES {" + (", ".join(ranges) if ranges else
+                                 '{0.0, 0.0, GS_BOUND_NONE, GS_BOUND_NONE, "a finite number"}') + "}", "",
+        "/* the quaternions' names (in the order of gs_sys_quat_slot) */",
+        "#define GS_QUAT_NAMES " + arr([n for _, n in lay.quats], _c_string, '""'),
+        "/* model exchange: the continuous states' nominal values */",
+        "#define GS_NOMINALS " + arr(lay.nominals[:lay.nx]), "",
+        "/* value reference -> {kind, index, aux, flags (1: >= 0), name, unit, range (GS_RANGES row, -1: none)} */",
+        "#define GS_VARS { \\\n    " + ", \\\n    ".join(table) + "}",
         "", "#endif", "",
     ]
     return "\n".join(lines)
-
-
-def _variable_description(name: str, v, sc: Scene) -> str:
-    if name == "integrator":
-        return v.description
-    return v.description
-
-
-_ME_NOTE = ("Model exchange: the continuous states are q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z of every body, "
-            "their derivatives the engine's right-hand side; the host's solver integrates them (integrator, max_step, "
-            "max_drift and the tolerance act in co-simulation only). |q| is a first integral of the flow, so it "
-            "drifts by the solver's error only: when a completed integrator step finds | |q| - 1 | > "
-            f"{ME_NORM_TOL:g}, the FMU asks for a step event and renormalises q in the event update "
-            "(valuesOfContinuousStatesChanged); the derived outputs use q normalised. No event indicators.")
 
 
 def _platforms_note(platforms) -> str:
@@ -371,121 +405,151 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
     return root
 
 
-def _model_description(sc: Scene, rows, ident, token, fmi_version, integrator, sources, fmi_type="cs",
-                       platforms=("linux",)) -> str:
+def _me_note(lay: SystemLayout) -> str:
+    """The model description's words on model exchange."""
+    note = (f"Model exchange: the continuous states are {lay.states_text}, their derivatives the engine's right-hand "
+            "side; the host's solver integrates them (integrator, max_step, max_drift and the tolerance act in "
+            "co-simulation only).")
+    if lay.quats:
+        note += (f" |q| is a first integral of the flow, so it drifts by the solver's error only: when a completed "
+                 f"integrator step finds | |q| - 1 | > {ME_NORM_TOL:g}, the FMU asks for a step event and "
+                 "renormalises q in the event update (valuesOfContinuousStatesChanged); the derived outputs use q "
+                 "normalised.")
+    return note + " No event indicators."
+
+
+def dependencies(lay: SystemLayout, rows: list[FmuRow], has_me: bool) -> dict[int, list[int]]:
+    """The ModelStructure's dependencies: ``{value reference of an output or a state derivative: value references of
+    the knowns it depends on}``; the knowns are those of the directional derivatives (the inputs, and with model
+    exchange the continuous states), from the system's Jacobian pattern (:func:`~gyrosim.fmu.layout.jacobian_pattern`).
+    As the glue computes them: a coordinate output depends on itself; a derivative other than dq/dt, or a derived
+    output, that depends on one component of a quaternion depends on all four (it sees q normalised); energy_error also
+    on its balance where that is a state."""
+    ddy, dout = jacobian_pattern(lay, rows)
+    state_vr = {r.aux: vr for vr, r in enumerate(rows, start=1) if r.kind == "state"}
+    input_vr = [vr for vr, r in enumerate(rows, start=1) if r.kind == "input"]
+    in_quat = {lay.coord_index[q] + a: lay.coord_index[q] for q, _ in lay.quats for a in range(4)}
+    extra = me_rows(lay, rows) if has_me else []
+    work_vr = {r.aux: vr for vr, r in enumerate(extra, start=len(rows) + 1) if r.kind == "work"}
+
+    def knowns(row, raw: bool) -> list[int]:
+        out = [vr for j, vr in enumerate(input_vr) if row[lay.ncoord + j]]
+        if has_me:
+            cols = {j for j in range(lay.ncoord) if row[j]}
+            if not raw:
+                cols |= {in_quat[j] + a for j in cols if j in in_quat for a in range(4)}
+            out += [state_vr[j] for j in cols if j in state_vr]
+        return sorted(out)
+
+    deps = {}
+    for vr, r in enumerate(rows, start=1):
+        if r.kind == "state":
+            deps[vr] = [vr] if has_me else []
+        elif r.kind == "output":
+            deps[vr] = knowns(dout[r.index], False) + ([work_vr[r.index]] if r.index in work_vr else [])
+    for vr, r in enumerate(extra, start=len(rows) + 1):
+        if r.kind == "der":
+            deps[vr] = knowns(ddy[r.index], r.index in in_quat)
+    return deps
+
+
+def _model_description(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: str, token: str, fmi_version: int,
+                       integrator: str, sources, fmi_type: str = "cs", platforms=("linux",)) -> str:
+    """modelDescription.xml: the variables of ``rows`` (value references from 1; FMI 3.0's time at 0), and with model
+    exchange :func:`~gyrosim.fmu.layout.me_rows` after them."""
     has_me = fmi_type in ("me", "both")
     integ = [i if i != "exact" or sc.exact_start() is None else "exact (a torque-free body or a Lagrange top only)"
-             for i in INTEGRATORS]
+             for i in sc.integrators]
     kind = {"cs": "co-simulation", "me": "model exchange", "both": "co-simulation and model exchange"}[fmi_type]
+    names = sc.body_names
     desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
             f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python), {kind}; "
-            f"{len(sc.bodies)} bod{'y' if len(sc.bodies) == 1 else 'ies'}; integrators " + ", ".join(integ) + "."
-            + (" " + _ME_NOTE if has_me else "") + " " + _platforms_note(platforms))
-    ders = derivative_rows(sc, rows) if has_me else []
-    is_state = {i for _, _, i, _ in ders}
-    units = {v.unit for _, _, v in rows if v.unit} | ({"1/s", "rad/s2"} if has_me else set())
+            f"{len(names)} bod{'y' if len(names) == 1 else 'ies'}"
+            + (f" ({', '.join(names)}) joined by joints" if lay.work_states else "")
+            + "; integrators " + ", ".join(integ) + "." + (" " + _me_note(lay) if has_me else "") + " "
+            + _platforms_note(platforms))
+    extra = me_rows(lay, rows) if has_me else []
+    all_rows = rows + extra
+    units = {_unit_of(rows, r) for r in all_rows} - {""}
     root = description_head(sc, ident, token, fmi_version, desc, sources, fmi_type, units)
     mv = ET.SubElement(root, "ModelVariables")
     if fmi_version == 3:
         ET.SubElement(mv, "Float64", name="time", valueReference="0", causality="independent",
                       variability="continuous", unit="s", description="simulation time")
-    outputs, initial_unknowns = [], []
-    b_of = [b for _, b, _ in rows]
-    for i, (name, _, v) in enumerate(rows):
-        vr = i + 1
-        index = i + 1  # 1-based index in ModelVariables (FMI 2.0)
-        attrs = {"name": name, "valueReference": str(vr), "causality": v.causality,
-                 "variability": v.variability, "description": _variable_description(v.name, v, sc)}
-        start = None
-        if v.causality == "output":
-            outputs.append((index, vr))
-            if v.name in _DERIVED:
+    state_vr = {r.aux: vr for vr, r in enumerate(rows, start=1) if r.kind == "state"}
+    state_vr.update({r.index: vr for vr, r in enumerate(extra, start=len(rows) + 1) if r.kind == "work"})
+    outputs, initial_unknowns, derivatives = [], [], []
+    for vr, r in enumerate(all_rows, start=1):   # the value reference is also the 1-based index (FMI 2.0)
+        v = r.var
+        start, nominal, derivative = None, None, None
+        if v is not None:
+            attrs = {"name": r.name, "valueReference": str(vr), "causality": v.causality,
+                     "variability": v.variability, "description": v.description}
+            if r.kind == "output":
+                outputs.append(vr)
                 attrs["initial"] = "calculated"
-                initial_unknowns.append((index, vr))
-            else:
+                initial_unknowns.append(vr)
+            elif r.kind == "state":
+                outputs.append(vr)
                 attrs["initial"] = "exact"
                 start = v.start
-        elif v.causality == "parameter":
-            attrs["initial"] = "exact"
-            start = integrator if v.name == "integrator" else v.start
+            elif v.causality == "parameter":
+                attrs["initial"] = "exact"
+                start = integrator if v.type == "String" else v.start
+            else:
+                start = v.start
+            if has_me and r.kind == "state" and lay.nominals[r.aux] != 1.0:
+                nominal = _fmt(lay.nominals[r.aux])
+            vtype = v.type
         else:
-            start = v.start
-        nominal = None
-        if i in is_state and v.name.startswith("omega"):
-            nominal = _fmt(_omega_nominal(sc.bodies[max(b_of[i], 0)]))
+            vtype = "Real"
+            if r.kind == "work":
+                what = ("the energy the work-energy balance expects, E(0) + W_inputs - W_dissipation (model "
+                        "exchange's continuous state of the work; energy_error = energy - energy_expected)")
+                if lay.nominals[r.index] != 1.0:
+                    nominal = _fmt(lay.nominals[r.index])
+            else:
+                what = f"derivative of {r.name[4:-1]} (model exchange: the engine's right-hand side)"
+                derivative = str(state_vr[r.index])
+                derivatives.append(vr)
+            attrs = {"name": r.name, "valueReference": str(vr), "causality": "local", "variability": "continuous",
+                     "description": what}
+            if r.kind == "work":
+                attrs["initial"] = "calculated"
+            initial_unknowns.append(vr)
+        unit = _unit_of(rows, r)
         if fmi_version == 2:
             sv = ET.SubElement(mv, "ScalarVariable", attrs)
-            t = ET.SubElement(sv, "Real" if v.type == "Real" else "String")
+            t = ET.SubElement(sv, "Real" if vtype == "Real" else "String")
             if start is not None:
                 t.set("start", start if isinstance(start, str) else _fmt(start))
-            if v.type == "Real" and v.unit:
-                t.set("unit", v.unit)
-            if v.type == "Real":
+            if vtype == "Real" and unit:
+                t.set("unit", unit)
+            if vtype == "Real" and v is not None:
                 range_attributes(t.attrib, v)
             if nominal is not None:
                 t.set("nominal", nominal)
-        else:
-            if v.type == "Real":
-                if start is not None:
-                    attrs["start"] = _fmt(start)
-                if v.unit:
-                    attrs["unit"] = v.unit
+            if derivative is not None:
+                t.set("derivative", derivative)
+        elif vtype == "Real":
+            if start is not None:
+                attrs["start"] = _fmt(start)
+            if unit:
+                attrs["unit"] = unit
+            if v is not None:
                 range_attributes(attrs, v)
-                if nominal is not None:
-                    attrs["nominal"] = nominal
-                ET.SubElement(mv, "Float64", attrs)
-            else:
-                se = ET.SubElement(mv, "String", attrs)
-                ET.SubElement(se, "Start", value=str(start))
-    derivatives = []
-    for j, (name, _, si, k) in enumerate(ders):
-        vr = index = len(rows) + 1 + j
-        derivatives.append((index, vr))
-        initial_unknowns.append((index, vr))   # initial="calculated" (a local continuous variable's default)
-        unit = "1/s" if k < 4 else "rad/s2"
-        what = f"derivative of {rows[si][0]}" + (" (model exchange: dq/dt = q * (0, omega) / 2)" if k < 4 else
-                                                  " (model exchange: Euler's equations with the scene's torques)")
-        attrs = {"name": name, "valueReference": str(vr), "causality": "local", "variability": "continuous",
-                 "description": what}
-        if fmi_version == 2:
-            sv = ET.SubElement(mv, "ScalarVariable", attrs)
-            ET.SubElement(sv, "Real", unit=unit, derivative=str(si + 1))
-        else:
-            attrs.update(unit=unit, derivative=str(si + 1))
+            if nominal is not None:
+                attrs["nominal"] = nominal
+            if derivative is not None:
+                attrs["derivative"] = derivative
             ET.SubElement(mv, "Float64", attrs)
-    model_structure(root, fmi_version, [vr for _, vr in outputs], [vr for _, vr in derivatives],
-                    [vr for _, vr in initial_unknowns], one_body_dependencies(sc, rows, has_me))
+        else:
+            se = ET.SubElement(mv, "String", attrs)
+            ET.SubElement(se, "Start", value=str(start))
+    initial_unknowns.sort()
+    model_structure(root, fmi_version, outputs, derivatives, initial_unknowns, dependencies(lay, rows, has_me))
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
-
-
-def one_body_dependencies(sc: Scene, rows, has_me: bool) -> dict[int, list[int]]:
-    """The ModelStructure's dependencies of a one-body scene's FMU: ``{value reference of an output or a state
-    derivative: value references of the knowns it depends on}`` (the knowns of the directional derivatives: the
-    continuous states and the inputs). Bodies are independent. Co-simulation only: no output depends on an input at
-    an instant (the outputs are the state and functions of it), so every list is empty. Model exchange: q_*, omega_*
-    on themselves; phi, theta, psi on q; L, energy, energy_error on q and omega; der(q_*) on q and omega; der(omega_*)
-    on omega, the body's inputs and, with gravity, q (the gravity torque; domega/dt sees q normalised, so all four)."""
-    vr_of = {(b, v.name): i + 1 for i, (_, b, v) in enumerate(rows)}
-    out: dict[int, list[int]] = {}
-    for i, (_, _, v) in enumerate(rows):
-        if v.causality == "output":
-            out[i + 1] = []
-    if not has_me:
-        return out
-    gravity = bool(sc.flags & 1)
-    for b in range(len(sc.bodies)):
-        q = [vr_of[(b, n)] for n in STATES[:4]]
-        w = [vr_of[(b, n)] for n in STATES[4:]]
-        tau = [vr_of[(b, n)] for n in ("tau_x", "tau_y", "tau_z") if (b, n) in vr_of]
-        for (bb, name), vr in vr_of.items():
-            if bb != b or vr not in out:
-                continue
-            out[vr] = [vr] if name in STATES else q if name in ("phi", "theta", "psi") else q + w
-        for j, (_, db, _, k) in enumerate(derivative_rows(sc, rows)):
-            if db == b:
-                out[len(rows) + 1 + j] = q + w if k < 4 else (q if gravity else []) + w + tau
-    return {k: sorted(v) for k, v in out.items()}
 
 
 def model_structure(root: ET.Element, fmi_version: int, outputs, derivatives, initial_unknowns, deps) -> None:
@@ -537,29 +601,25 @@ def _build_description(ident: str, sources) -> str:
 
 
 def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None = None,
-                    platform: str = "linux", *, tree: bool = False) -> list[str]:
-    """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources);
-    ``platform`` "windows" cross-compiles the DLL with MinGW-w64 (``cc`` default :data:`WINDOWS_CC`); ``tree``:
-    the FMU of a tree scene (the engine's tree and the generic tree glue)."""
+                    platform: str = "linux") -> list[str]:
+    """The compiler command that builds the FMU's shared library from ``src_dir`` (the FMU's sources: every engine
+    unit, the glue, the FMI functions); ``platform`` "windows" cross-compiles the DLL with MinGW-w64 (``cc`` default
+    :data:`WINDOWS_CC`)."""
     if platform == "windows":
         cc, flags = cc or WINDOWS_CC, WINDOWS_C_FLAGS
     else:
         cc, flags = cc or os.environ.get("CC", "gcc"), C_FLAGS
-    if tree:
-        srcs = ["engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "gyrosim_tree_model.c",
-                f"fmi{fmi_version}Functions.c"]
-    else:
-        srcs = ["engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
+    srcs = [*ENGINE_UNITS, "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
     return [cc, *flags, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 
 
 #: The engine's translation units: the same text in every FMU, so compiled once per compiler, flags and text and kept
 #: (:func:`_engine_objects`); an FMU build then compiles only its glue.
-ENGINE_UNITS = ("engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c")
+ENGINE_UNITS = tuple(f for f in _ENGINE if f.endswith(".c"))
 #: The headers the engine's units include (and nothing else: the glue's headers and the generated configuration
 #: are not the engine's).
-ENGINE_HEADERS = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "rk_driver.h", "exact_fast.h")
+ENGINE_HEADERS = tuple(f for f in _ENGINE if f.endswith(".h"))
 
 
 def object_cache_dir() -> Path | None:
@@ -624,15 +684,15 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
     ----------
     scene : str, Path, Scene or None
         Embedded scene name, TOML path or :class:`~gyrosim.scene.Scene`; ``None`` is the full model
-        (``RigidBody.fmu``) with every variable of fmu/README.md. Every body of the scene is exported. A tree
-        scene (bodies joined by joints) exports :func:`gyrosim.kernel_tree.tree_variables` through the generic tree
-        glue (:mod:`gyrosim.fmu.tree_fmu`); its integrators are euler, rk4, adaptive and dop853.
+        (``RigidBody.fmu``) with every variable of fmu/README.md. Every body of the scene is exported; the
+        variables are :meth:`Scene.variables <gyrosim.scene.Scene.variables>`, the integrators
+        :attr:`Scene.integrators <gyrosim.scene.Scene.integrators>`.
     fmi_version : {2, 3}
     output_dir : path
         Created if missing.
     fmi_type : {"cs", "me", "both"}
         The interfaces: co-simulation (the engine's integrators step the model), model exchange (the host's
-        solver integrates q and omega, 7 continuous states per body) or both in one FMU. ``gyrosim fmu build``
+        solver integrates the system's coordinates) or both in one FMU. ``gyrosim fmu build``
         defaults to ``both``; this function to ``cs`` (the variables then are exactly ``Model.variables``:
         model exchange adds the state derivatives ``der(...)``).
     integrator : str, optional
@@ -666,13 +726,9 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise ConfigError("fmi_type", fmi_type, "one of " + ", ".join(FMI_TYPES))
     sc = load_scene(scene)
     integrator = sc.integrator if integrator is None else integrator
-    if (sc.kernel == "tree"):
-        if integrator not in TREE_INTEGRATORS:
-            raise ConfigError("integrator", integrator, "one of " + ", ".join(TREE_INTEGRATORS) + " (a tree of "
-                              "bodies is integrated by the tree engine)")
-    elif integrator not in INTEGRATORS:
-        raise ConfigError("integrator", integrator, "one of " + ", ".join(INTEGRATORS))
-    elif integrator == "exact" and sc.exact_start() is not None:
+    if integrator not in sc.integrators:   # the integrators the scene's system takes
+        raise ConfigError("integrator", integrator, "one of " + ", ".join(sc.integrators))
+    if integrator == "exact" and sc.exact_start() is not None:
         raise ConfigError("integrator", integrator, "a general integrator: 'exact' solves a torque-free body or a "
                           f"Lagrange top only, and scene {sc.name!r} starts with {sc.exact_start()}")
     ident = model_identifier(scene)
@@ -681,23 +737,15 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         raise RuntimeError(f"the Windows binary needs the MinGW-w64 cross-compiler {WINDOWS_CC!r} on PATH "
                            "(Debian/Ubuntu: apt-get install gcc-mingw-w64-x86-64)")
     platforms = ("linux", "windows") if win_cc else ("linux",)
-    texts = engine_sources(tree=(sc.kernel == "tree"))
+    texts = engine_sources()
     texts[f"fmi{fmi_version}Functions.c"] = resources.files(__package__).joinpath(
         "c", f"fmi{fmi_version}Functions.c").read_text()
     sources = [*texts, "gyrosim_config.h"]
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
-    if (sc.kernel == "tree"):   # the generic tree glue and the scene's variable table (tree_fmu)
-        from .tree_fmu import tree_config_header, tree_me_rows, tree_model_description, tree_rows
-
-        rows = tree_rows(sc)
-        me_rows = tree_me_rows(sc, rows)
-        md = tree_model_description(sc, rows, me_rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type,
-                                    platforms)
-        config = tree_config_header(sc, rows, me_rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
-    else:
-        rows = fmu_variables(sc)
-        md = _model_description(sc, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type, platforms)
-        config = _config_header(sc, rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
+    lay = system_layout(sc)
+    rows = fmu_rows(sc, lay)
+    md = _model_description(sc, lay, rows, ident, _TOKEN, fmi_version, integrator, sources, fmi_type, platforms)
+    config = _config_header(sc, lay, rows, ident, _TOKEN, fmi_version, integrator, fmi_type)
     token = content_token(md, config, *texts.values())
     md, config = md.replace(_TOKEN, token), config.replace(_TOKEN, token)
     output_dir = Path(output_dir)
@@ -719,9 +767,8 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         for platform in platforms:
             so = root / binary_path(fmi_version, ident, platform)
             so.parent.mkdir(parents=True)
-            tree = sc.kernel == "tree"
-            cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows", tree=tree)
-                   if platform == "windows" else compile_command(src_dir, so, fmi_version, cc, tree=tree))
+            cmd = (compile_command(src_dir, so, fmi_version, win_cc, "windows")
+                   if platform == "windows" else compile_command(src_dir, so, fmi_version, cc))
             try:
                 flags = cmd[1:cmd.index("-shared")]
                 objs, jobs = _engine_objects(src_dir, cmd[0], flags, platform, ENGINE_UNITS)

@@ -24,7 +24,7 @@ def variables_table(scene=None) -> str:
     out = m.outputs(0)
     lines = ["| vr | name | causality | variability | unit | start | description |",
              "|---:|---|---|---|---|---|---|"]
-    for vr, (name, _, v) in enumerate(fmu_variables(m.scene), start=1):
+    for vr, (name, v) in enumerate(fmu_variables(m.scene), start=1):
         start = out[v.name] if v.causality == "output" else v.start
         start = f"{start:.6g}" if isinstance(start, float) else f"`{start}`"
         lines.append(f"| {vr} | `{name}` | {v.causality} | {v.variability} | {v.unit or '-'} | {start} | "

@@ -1,6 +1,6 @@
 /*
- * The FMU glue's interface (what fmi2Functions.c and fmi3Functions.c call), the same for the one-body glue
- * (gyrosim_model.h) and the tree glue (gyrosim_tree_model.h); included by either after its GsData and GsInstance.
+ * The FMU glue's interface (what fmi2Functions.c and fmi3Functions.c call); included by gyrosim_model.h after its
+ * GsData and GsInstance.
  */
 #ifndef GYROSIM_GLUE_API_H
 #define GYROSIM_GLUE_API_H
@@ -43,7 +43,7 @@ int gs_set_string(GsInstance *m, uint32_t vr, const char *value);
 int gs_do_step(GsInstance *m, double current_time, double h);
 double gs_time(const GsInstance *m);
 
-/* Model Exchange (the host's solver integrates q and omega; see gyrosim_model.c). */
+/* Model Exchange (the host's solver integrates the system's coordinates; see gyrosim_model.h). */
 void gs_me_start(GsInstance *m);
 int gs_me_set_time(GsInstance *m, double t);
 int gs_me_get_states(GsInstance *m, double x[], size_t nx);
@@ -55,7 +55,7 @@ void gs_me_enter_event_mode(GsInstance *m);
 int gs_me_update(GsInstance *m, int *values_changed);
 
 /* Directional derivatives (providesDirectionalDerivative(s)="true"): sensitivity[i] = sum over j of
- * d unknowns[i] / d knowns[j] * seed[j], by the engine's complex step (gs_tree_directional), one evaluation per known
+ * d unknowns[i] / d knowns[j] * seed[j], by the engine's complex step (gs_sys_directional), one evaluation per known
  * with a nonzero seed, summed over the knowns in their order. Knowns: the inputs, and in model exchange the continuous
  * states; unknowns: the outputs, and in model exchange the state derivatives. GS_OK, or GS_ERROR (logged) for a value
  * reference that is not one of these. */

@@ -1,7 +1,7 @@
 /*
- * The FMU glue's helpers shared by the one-body glue (gyrosim_model.c) and the tree glue (gyrosim_tree_model.c):
- * strings, numbers as Python prints them, logging by category, the FMI state machine's check. Included by the one
- * glue an FMU compiles, after its GsInstance (fields env, log, log_events, log_errors, fn, d.fmi_state).
+ * The FMU glue's helpers that know nothing of the variables: strings, numbers as Python prints them, logging by
+ * category, the FMI state machine's check, time, directional derivatives' driver, FMU states. Included by
+ * gyrosim_model.c after its GsInstance (fields env, log, log_events, log_errors, fn, d.fmi_state).
  */
 #ifndef GYROSIM_GLUE_COMMON_H
 #define GYROSIM_GLUE_COMMON_H
@@ -206,7 +206,7 @@ static int start_step(GsInstance *m, double current_time, double h) {
 }
 
 /* ------------------------------------------------------------------------------------------ directional derivatives */
-/* The driver both glues share. The glue defines GS_DD_COLUMN (the size of one column) before it includes this file,
+/* The driver. The glue defines GS_DD_COLUMN (the size of one column) before it includes this file,
  * and the four functions below: dd_known / dd_unknown check a value reference (1, or 0 with the message logged),
  * dd_column writes the derivatives of everything along one known's unit seed into col[GS_DD_COLUMN] (the engine's
  * complex step), dd_pick reads an unknown's derivative from the column of a known. */

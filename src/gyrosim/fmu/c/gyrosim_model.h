@@ -1,110 +1,132 @@
 /*
- * gyrosim FMU glue: the step-based model around the engine (../../core/engine/gyrosim_engine.h), independent of
- * the FMI version, for the scene's GS_N_BODIES bodies. fmi2Functions.c and fmi3Functions.c map the FMI calls
- * onto these functions. It keeps no physics: parameters, validation, time and the saved state; every step is
- * gs_advance, as in gyrosim.model.Model. Model Exchange (GS_HAS_ME) exposes q and omega of every body as the
- * continuous states (7 per body, body-major) and the engine's right-hand side (gs_derivatives) as their
- * derivatives; the host's solver integrates them.
+ * gyrosim FMU glue: the step-based model (gyrosim.model) around the engine's one system (gyrosim_system.h),
+ * independent of the FMI version and of the scene. fmi2Functions.c and fmi3Functions.c map the FMI calls onto these
+ * functions. It knows no scene and keeps no physics: the generated gyrosim_config.h gives the system's description
+ * (GS_SYS_DESC), its row sizes, the start rows and a table from value reference to what the variable is (GS_VARS); the
+ * glue keeps parameters, validation, time and the saved state, and every step is one gs_sys_advance.
+ *
+ * Model exchange: the continuous states are the system's coordinates (gs_sys_coord_slot), and where the scene's
+ * variables have them (GS_ME_WORK_STATES) the work integrals' balances; their derivatives are gs_sys_derivatives.
+ * A work integral that is not a state is accumulated by the trapezoidal rule at each completed integrator step and
+ * event. The host's solver lets |q| drift by its error: dq/dt is taken of q as it is, the rest of the right-hand
+ * side of q / |q|, and a completed integrator step with | |q| - 1 | > GS_ME_NORM_TOL asks for a step event that
+ * renormalises q. The coordinates output as the host integrates them; the derived outputs use q normalised.
  */
 #ifndef GYROSIM_MODEL_H
 #define GYROSIM_MODEL_H
 
-#include "gyrosim_engine.h"   /* first: its FP_CONTRACT pragma */
+#include "gyrosim_system.h"   /* first: the engine's FP_CONTRACT pragma */
 
 #include <stddef.h>
 #include <stdint.h>
 
-#include "gyrosim_config.h"   /* generated: GS_N_BODIES, GS_FLAGS, value references, start values */
+#include "gyrosim_config.h"   /* generated: the system, the variable table, the start values */
 
-#if defined(GS_TREE)
-/* A tree scene (bodies joined by joints): the generic tree glue (gyrosim_tree_model.c) behind the same functions */
-#include "gyrosim_tree_model.h"
-#else
-
-#include "gyrosim_tree.h"   /* directional derivatives: every body as a one-body tree (gyrosim_model.c) */
-
-/* Variable kinds; the generated gyrosim_config.h maps value references to (body, kind). */
+/* What a value reference is (GS_VARS rows: {kind, index, aux, flags, name, unit, range}). */
 enum {
-    GS_V_NONE = 0, GS_V_TIME,
-    GS_V_I1, GS_V_I2, GS_V_I3, GS_V_MASS, GS_V_CM, GS_V_G, GS_V_DAMPING, GS_V_INTEGRATOR, GS_V_MAX_STEP,
-    GS_V_MAX_DRIFT,
-    GS_V_QW, GS_V_QX, GS_V_QY, GS_V_QZ, GS_V_OX, GS_V_OY, GS_V_OZ, GS_V_TX, GS_V_TY, GS_V_TZ,
-    GS_V_PHI, GS_V_THETA, GS_V_PSI, GS_V_LX, GS_V_LY, GS_V_LZ, GS_V_ENERGY, GS_V_ENERGY_ERROR,
-    /* Model Exchange: der(q_w) ... der(omega_z) */
-    GS_V_DQW, GS_V_DQX, GS_V_DQY, GS_V_DQZ, GS_V_DOX, GS_V_DOY, GS_V_DOZ,
-    GS_V_COUNT
+    GS_K_NONE = 0,
+    GS_K_TIME,        /* FMI 3.0's independent variable (value reference 0) */
+    GS_K_PARAM,       /* a parameter: index = its slot in the parameter row; effective at initialisation */
+    GS_K_MAX_DRIFT,   /* the health monitor's bound: index = its slot; effective at once */
+    GS_K_INPUT,       /* an input: index = its slot in the parameter row; effective at once */
+    GS_K_ALIAS,       /* a scene parameter: index = its row in the aliases; it sets its targets to factor*value */
+    GS_K_STATE,       /* a coordinate (an output with a start value): index = its slot in y (and its output column),
+                       * aux = its coordinate (model exchange's state index) */
+    GS_K_OUTPUT,      /* a derived output: index = its column in the output row */
+    GS_K_INTEGRATOR,  /* the String parameter integrator */
+    GS_K_MAX_STEP,    /* s */
+    GS_K_WORK,        /* model exchange: a work integral's balance as a state: index = its state index, aux = the
+                       * output column of the energy_error it moves */
+    GS_K_DER          /* model exchange: the derivative of continuous state index */
 };
+#define GS_F_NONNEG 1  /* flags: the value must be >= 0 */
+
+typedef struct {
+    int kind;
+    int index;
+    int aux;
+    int flags;
+    const char *name;
+    const char *unit;
+    int range;        /* row in GS_RANGES: the values a parameter may take (-1: any finite number) */
+} GsVar;
+
+/* A parameter's range (gyrosim.ranges.Range): each bound absent, inclusive (x >= lo) or exclusive (x > lo). */
+enum { GS_BOUND_NONE = 0, GS_BOUND_INCLUSIVE = 1, GS_BOUND_EXCLUSIVE = 2 };
+typedef struct {
+    double lo, hi;
+    int lo_kind, hi_kind;   /* GS_BOUND_* */
+    const char *text;       /* what the messages say: "a finite number > 0 in kg" */
+} GsRange;
+
+typedef struct {
+    int alias;        /* row in the aliases */
+    int slot;         /* slot in the parameter row */
+    double factor;
+    int flags;
+    const char *name; /* the target's variable name, for messages */
+} GsAliasTarget;
 
 /* Life-cycle states (bit masks), shared by both FMI versions:
  * Instantiated, InitializationMode, StepComplete (FMI 2) / StepMode (FMI 3), Terminated, and for Model Exchange
  * EventMode and ContinuousTimeMode. */
 enum { GS_INSTANTIATED = 1, GS_INIT = 2, GS_STEP = 4, GS_TERMINATED = 8, GS_EVENT = 16, GS_CONT = 32 };
-
-/* Model Exchange: continuous states (q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z per body) and the norm drift
- * | |q| - 1 | beyond which fmi*CompletedIntegratorStep asks for a step event, at which q is renormalised. */
-#define GS_NX (GS_Y_NQW * GS_N_BODIES)
-#define GS_ME_NORM_TOL 1e-3
-
 enum { GS_OK = 0, GS_WARNING = 1, GS_DISCARD = 2, GS_ERROR = 3, GS_FATAL = 4 };
+
+/* Model exchange: the continuous states and the quaternion norm drift | |q| - 1 | beyond which a completed integrator
+ * step asks for a step event that renormalises q. */
+#define GS_NX GS_SYS_NX
+#define GS_ME_NORM_TOL 1e-3
+#define GS_N_ALIAS_ROWS (GS_N_ALIASES > 0 ? GS_N_ALIASES : 1)
+#define GS_EX_ROWS (GS_SYS_UNITS * (GS_SYS_NEX > 0 ? GS_SYS_NEX : 1))
 
 /* The whole mutable state of an instance: plain data, copied by get/set FMU state and serialised as bytes. */
 typedef struct {
     uint64_t token_hash;      /* FNV-1a of the instantiation token: a serialised state fits only its FMU */
     int32_t fmi_state;        /* GS_INSTANTIATED, ... */
-    int32_t integrator;       /* GS_EULER, ... GS_EXACT */
-    int32_t initialized;      /* parameters validated and p current (Model._initialized) */
-    int32_t state_dirty;      /* q, omega set since the last initialisation (Model._state_dirty) */
+    int32_t integrator;       /* GS_EULER, ... */
+    int32_t initialized;      /* p is current (Model._initialized) */
+    int32_t state_dirty;      /* a start state set since the last initialisation (Model._state_dirty) */
+    int32_t p_valid;          /* p has been built once */
     int32_t stop_defined;
     int32_t tolerance_defined;
+    int32_t me;               /* 1: a model exchange instance */
+    int32_t norm_events;      /* model exchange: renormalisations of q so far */
+    int32_t pad_;
     double max_step;          /* s */
-    double max_drift;         /* the health monitor's bound (engine p[GS_P_MAX_DRIFT]; 0: off) */
-    double tolerance;         /* relative and absolute tolerance of adaptive (the FMI tolerance) */
-    double start_time, stop_time;      /* s */
+    double tolerance;         /* rtol = atol of adaptive and dop853 (the FMI tolerance, else the scene's) */
+    double start_time, stop_time;   /* s */
     double t_base, h;         /* time = t_base + n*h (Model.time) */
     int64_t n;
-    double moments[GS_N_BODIES][3];    /* kg*m^2 */
-    double mass[GS_N_BODIES], cm_distance[GS_N_BODIES], g[GS_N_BODIES], damping[GS_N_BODIES];
-    double tau[GS_N_BODIES][3];        /* N*m */
-    double y[GS_N_BODIES][GS_NY];      /* engine state: q, omega, phi, psi */
-    double p[GS_N_BODIES][GS_NP];      /* engine parameters, current when initialized */
-    double hint[GS_N_BODIES];          /* adaptive's next internal step */
-    int64_t stats[GS_N_BODIES][GS_NSTATS];
-    double ex[GS_N_BODIES][GS_EX_SIZE];  /* exact's anchor */
-    /* Model Exchange */
-    int32_t me;               /* 1: a Model Exchange instance (after initialisation: event / continuous-time mode) */
-    int32_t norm_events;      /* renormalisations of q so far */
-    double t_work;            /* s: the time up to which the work in y[b][GS_Y_BALANCE] is accumulated */
-    double power[GS_N_BODIES];  /* W: the power of the work terms at t_work (trapezoidal rule) */
+    double t_work;            /* model exchange: the time up to which the trapezoidal work is accumulated */
+    double alias[GS_N_ALIAS_ROWS];   /* the scene parameters' values */
+    double par[GS_SYS_NP];    /* the parameter row as set (parameters, inputs, max_drift) */
+    double p[GS_SYS_NP];      /* the system's parameter row, current when initialized */
+    double y[GS_SYS_NY];      /* the system's state */
+    double hint[GS_SYS_UNITS];          /* the adaptive methods' next internal step */
+    int64_t stats[GS_SYS_UNITS * GS_NSTATS];
+    double ex[GS_EX_ROWS];    /* the exact flows' anchors */
+    double power[GS_SYS_UNITS];   /* model exchange: the work integrals' power at t_work (W) */
 } GsData;
 
 typedef void (*GsLogger)(void *env, int status, const char *category, const char *message);
 
 typedef struct {
     GsData d;
+    gs_system sys;            /* the system (constant) */
     char *instance_name;
     void *env;                /* passed to the wrapper's logger */
     GsLogger log;
     int log_events;           /* "logEvents" */
     int log_errors;           /* "logStatusError" */
     const char *fn;           /* the FMI function being called: the prefix of log messages */
-    double outputs[GS_N_BODIES][GS_NOUT];  /* cached outputs */
+    double outputs[GS_SYS_NOUT];  /* cached output row */
     int outputs_valid;
-    int32_t status[GS_N_BODIES];
-    GsData *scratch;          /* the state before a multi-body step (restored when a body fails) */
-    gs_tree tree;             /* directional derivatives: the one-body tree of a body (a ball joint; constant) */
+    GsData *scratch;          /* the state before a step (restored when it fails) */
+    int slot[GS_SYS_NDY];     /* y slot of every coordinate, then of every work integral's balance */
+    int in_quat[GS_SYS_NDY];  /* the y slot of the quaternion a coordinate belongs to, or -1 */
 } GsInstance;
 
 #include "gyrosim_glue_api.h"
-
-/* the integrators this FMU offers, for messages */
-#define GS_INTEGRATOR_LIST "euler, rk4, splitting, splitting4, adaptive, dop853" GS_EXACT_LIST \
-    ", strang_exact, yoshida_exact, bm4_exact, bm6_exact"
-#if GS_FLAGS == 0
-#define GS_EXACT_LIST ", exact"
-#else
-#define GS_EXACT_LIST ""
-#endif
-
-#endif   /* GS_TREE */
 
 #endif

@@ -1,0 +1,339 @@
+"""A scene's engine system as the FMU glue sees it: the rows of ``core/engine/gyrosim_system.h`` and the variable table.
+
+Every FMU compiles one glue (``c/gyrosim_model.c``) that knows no scene: :func:`system_layout` says what the scene's
+system is (its description for ``gs_sys_init``, its row sizes, start rows, where each parameter, input and
+coordinate lives, its quaternions, the continuous states of model exchange and their nominal values), and
+:func:`fmu_rows` maps every variable of :meth:`Scene.variables <gyrosim.scene.Scene.variables>` (value references from
+1, in that order) to what it is to the glue: a slot of the parameter row (``param``: effective at initialisation;
+``max_drift``, ``input``: at once), a scene parameter (``alias``, with its targets and factors), a coordinate of the
+state (``state``: an output with a settable start value), a column of the output row (``output``), ``integrator``,
+``max_step``; :func:`me_rows` adds model exchange's locals after them (a work integral's balance as a state,
+``work``, and the derivative ``der(<state>)`` of every continuous state).
+
+The kernel is asked once, in :func:`system_layout` (as ``gs_sys_init`` dispatches on the description's tag); the rest
+reads the layout.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from importlib import resources
+
+import numpy as np
+
+from ..core import _engine
+from ..errors import ConfigError
+from ..scene import Scene
+
+__all__ = ["SystemLayout", "FmuRow", "system_layout", "fmu_variables", "fmu_rows", "SCENE_SETTINGS",
+           "me_rows", "jacobian_pattern", "range_rows", "SYSTEM", "WORK_STATE", "DER_UNITS", "STATES"]
+
+#: gyrosim_system.h's constants (GS_KERNEL_*, GS_SP_*, GS_SB_*), read from the header the glue compiles.
+SYSTEM = {m[1]: int(m[2]) for m in re.finditer(
+    r"#define GS_((?:KERNEL|SP|SB)_\w+) (\d+)",
+    resources.files("gyrosim.core").joinpath("engine", "gyrosim_system.h").read_text())}
+#: Model exchange: the name of a work integral's balance as a continuous state (the tree's y[nx]).
+WORK_STATE = "energy_expected"
+#: The unit of a state's derivative by the state's unit.
+DER_UNITS = {"1": "1/s", "rad": "rad/s", "rad/s": "rad/s2", "m": "m/s", "m/s": "m/s2", "J": "W"}
+#: The coordinates of a body of the one-body kernel, in the order of its state row.
+STATES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z")
+
+
+@dataclass
+class SystemLayout:
+    """The engine system of a scene (gyrosim_system.h).
+
+    ``head``: scene-wide parameter slots by variable name; ``body_slots`` / ``input_slots``: a body parameter's or
+    input's slot in the body's block (from ``body_offset[b]``); ``coords``: the y slot of every coordinate by
+    ``(body, short name)``, ``coord_index``: its coordinate (model exchange's state index) by y slot; ``quats``:
+    ``(y slot of q_w, name)``; ``work_states``: the work integrals are continuous states (``energy_expected``) rather
+    than accumulated by the glue; ``nonneg``: variable short names that must be >= 0 beyond their range."""
+
+    desc: list[int]
+    ny: int
+    np: int
+    nout: int
+    ncoord: int
+    nwork: int
+    nex: int
+    units: int
+    unit_names: list[str]
+    p0: np.ndarray
+    y0: np.ndarray
+    head: dict[str, int]
+    body_offset: list[int]
+    body_slots: dict[str, int]
+    input_slots: dict[str, int]
+    coords: dict[tuple, int]
+    coord_index: dict[int, int]
+    quats: list[tuple[int, str]]
+    work_states: bool
+    nominals: list[float]
+    states_text: str
+    nonneg: frozenset = frozenset()
+    energy_error: list[int] = field(default_factory=list)   # the energy_error column of each work integral
+    pattern: object = None   # (rows) -> (ddy, dout) where the derivatives can be nonzero
+
+    @property
+    def nx(self) -> int:
+        """Model exchange's continuous states."""
+        return self.ncoord + (self.nwork if self.work_states else 0)
+
+    @property
+    def ndy(self) -> int:
+        return self.ncoord + self.nwork
+
+
+@dataclass(frozen=True)
+class FmuRow:
+    """One FMU variable: its name, :class:`~gyrosim.model.Variable` (None for model exchange's locals), what it is to
+    the glue (``kind``), the index that kind takes (a parameter-row slot, an alias row, a y slot, an output column, a
+    continuous-state index), ``aux`` (a state's coordinate; a work state's energy_error column) and whether it must
+    be >= 0."""
+
+    name: str
+    var: object
+    kind: str
+    index: int = 0
+    aux: int = 0
+    nonneg: bool = False
+
+
+def _body_layout(sc: Scene) -> SystemLayout:
+    """Independent bodies on the one-body kernel (Euler's equations, exact flows, splittings)."""
+    n, head, nb = len(sc.bodies), SYSTEM["SP_HEAD"], SYSTEM["SB_NP"]
+    ny = _engine.NY
+    g = sc.g if sc.gravity else 0.0   # Model: g of a scene without gravity is 0 (no potential energy term)
+    p0 = np.zeros(head + nb * n)
+    p0[SYSTEM["SP_DRIFT"]] = sc.max_drift
+    y0 = np.zeros(ny * n)
+    coords, coord_index, quats, nominals = {}, {}, [], []
+    for b, body in enumerate(sc.bodies):
+        o = head + nb * b
+        p0[o + SYSTEM["SB_I"]:o + SYSTEM["SB_I"] + 3] = body.moments
+        p0[o + SYSTEM["SB_MASS"]], p0[o + SYSTEM["SB_CM"]] = body.mass, body.cm_distance
+        p0[o + SYSTEM["SB_G"]], p0[o + SYSTEM["SB_DAMPING"]] = g, body.damping
+        y0[ny * b:ny * b + 4], y0[ny * b + 4:ny * b + 7] = body.q0, body.omega0
+        rate = max(1.0, *(abs(float(w)) for w in body.omega0))   # the body's largest start rate, at least 1
+        for k, st in enumerate(STATES):
+            coords[(b, st)] = ny * b + k
+            coord_index[ny * b + k] = len(STATES) * b + k
+            nominals.append(1.0 if k < 4 else rate)
+        quats.append((ny * b, sc.var_name(body.name, "q")))
+    sb = {"I1": SYSTEM["SB_I"], "I2": SYSTEM["SB_I"] + 1, "I3": SYSTEM["SB_I"] + 2, "mass": SYSTEM["SB_MASS"],
+          "cm_distance": SYSTEM["SB_CM"], "g": SYSTEM["SB_G"], "damping": SYSTEM["SB_DAMPING"]}
+    tau = SYSTEM["SB_TAU"]
+    gravity = bool(sc.flags & _engine.GRAVITY)
+
+    def pattern(rows):   # Euler's equations: which derivatives can be nonzero (per body; the bodies independent)
+        inputs = [r for r in rows if r.kind == "input"]
+        nk = len(STATES) * n + len(inputs)
+        ddy, dout = np.zeros((len(STATES) * n + n, nk), bool), np.zeros((_engine.NOUT * n, nk), bool)
+        for b in range(n):
+            q, w = [len(STATES) * b + k for k in range(4)], [len(STATES) * b + k for k in range(4, 7)]
+            taus = [len(STATES) * n + j for j, r in enumerate(inputs)
+                    if head + nb * b <= r.index < head + nb * (b + 1)]
+            for k in range(4):
+                ddy[len(STATES) * b + k, q + w] = True
+            for k in range(4, 7):
+                ddy[len(STATES) * b + k, (q if gravity else []) + w + taus] = True
+            o = _engine.NOUT * b
+            for k in range(7):
+                dout[o + k, len(STATES) * b + k] = True
+            dout[o + 7:o + 10, q[0]] = True   # phi, theta, psi: q (the closure adds all four)
+            for c in [q[0], *w]:   # L, energy, energy_error: q and omega
+                dout[o + 10:o + 15, c] = True
+        return ddy, dout
+
+    return SystemLayout(
+        desc=[SYSTEM["KERNEL_BODY"], sc.flags, n], ny=ny * n, np=head + nb * n, nout=_engine.NOUT * n,
+        ncoord=len(STATES) * n, nwork=n, nex=_engine.EX_SIZE, units=n, unit_names=sc.body_names, p0=p0, y0=y0,
+        head={"max_drift": SYSTEM["SP_DRIFT"]}, body_offset=[head + nb * b for b in range(n)], body_slots=sb,
+        input_slots={"tau_x": tau, "tau_y": tau + 1, "tau_z": tau + 2}, coords=coords, coord_index=coord_index,
+        quats=quats, work_states=False, nominals=nominals,
+        states_text="q_w, q_x, q_y, q_z, omega_x, omega_y, omega_z of every body", pattern=pattern)
+
+
+#: A tree body's parameter slots in its block (core/engine/gyrosim_tree.h GS_TB_*) and its inputs'.
+_TREE_BODY_SLOTS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 1, "I3": _engine.TB_I + 2,
+                    "cm_x": _engine.TB_CM, "cm_y": _engine.TB_CM + 1, "cm_z": _engine.TB_CM + 2,
+                    "pos_x": _engine.TB_POS, "pos_y": _engine.TB_POS + 1, "pos_z": _engine.TB_POS + 2,
+                    "stiffness": _engine.TB_STIFF, "rest_angle": _engine.TB_REST, "joint_damping": _engine.TB_DAMP,
+                    "damping": _engine.TB_DAMP}
+_TREE_INPUT_SLOTS = {"motor_torque": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU, "tau_y": _engine.TB_TAU + 1,
+                     "tau_z": _engine.TB_TAU + 2}
+
+
+def _tree_layout(sc: Scene) -> SystemLayout:
+    """A tree of bodies on the articulated-body algorithm."""
+    from ..core.tree import TreeLayout
+    from ..model import Model
+
+    lay = TreeLayout(sc.tree, sc.couplings, sc.orbit)
+    p0, y0 = lay.params(float(sc.g), float(sc.max_drift)), lay.state()
+    head = {"g": _engine.TP_G, "max_drift": _engine.TP_DRIFT, "orbit_mu": _engine.TP_MU,
+            "orbit_radius": _engine.TP_ORBIT_R}
+    head.update({name: lay.body_offset(len(sc.tree)) + i for i, name in enumerate(sc.coupling_names)})
+    quats = [(lay.coord_slots[(i, "q_w")], sc.var_name(b.name, "q")) for i, b in enumerate(sc.tree)
+             if (i, "q_w") in lay.coord_slots]
+    by_slot = {k: short for (_, short), k in lay.coord_slots.items()}
+    nominals = []
+    for k in range(lay.nx):   # 1 for quaternions, angles, positions; the start rate (at least 1) for rates
+        fast = by_slot.get(k, "").startswith(("omega_", "v_")) or by_slot.get(k) == "rate"
+        nominals.append(max(1.0, abs(float(y0[k]))) if fast else 1.0)
+    nominals.append(max(1.0, abs(float(Model(sc).get("energy")))))
+    joints = {b.joint for b in sc.tree}
+    coords = [what for what, on in (("quaternions and angular velocities", joints & {"ball", "free_rotation", "free"}),
+                                    ("hinge angles and rates", "hinge" in joints),
+                                    ("positions and velocities", "free" in joints)) if on]
+
+    def pattern(rows):   # the complex step at two generic points: an entry zero at both is zero by the equations
+        return tuple(a | b for a, b in zip(*(_tree_pattern(sc, lay, rows, seed) for seed in (1, 2))))
+
+    return SystemLayout(
+        desc=[SYSTEM["KERNEL_TREE"], *(int(x) for x in lay.desc)], ny=lay.ny, np=lay.np, nout=lay.nout,
+        ncoord=lay.nx, nwork=1, nex=0, units=1, unit_names=[sc.name], p0=p0, y0=y0, head=head,
+        body_offset=[lay.body_offset(b) for b in range(len(sc.tree))], body_slots=_TREE_BODY_SLOTS,
+        input_slots=_TREE_INPUT_SLOTS, coords=dict(lay.coord_slots), coord_index={k: k for k in range(lay.nx)},
+        quats=quats, work_states=True, nominals=nominals,
+        states_text=f"the joints' coordinates ({', '.join(coords)}) and {WORK_STATE}",
+        nonneg=frozenset({"g", "orbit_mu", "orbit_radius", "mass", "I1", "I2", "I3", "stiffness", "joint_damping",
+                          "damping", *sc.coupling_names}),
+        energy_error=[lay.nx + 4 * len(sc.tree) + 1], pattern=pattern)
+
+
+def _tree_pattern(sc: Scene, lay, rows, seed: int):
+    """``(ddy (nx + 1, nx + n_inputs), dout (nout, nx + n_inputs))``: where the tree engine's derivatives are not zero
+    at a random state, parameters and inputs; columns the coordinates, then the inputs of ``rows`` in their order."""
+    rng = np.random.default_rng(seed)
+    p = lay.params(float(sc.g), float(sc.max_drift)).copy()
+    slots = [r.index for r in rows if r.kind in ("param", "input")]
+    slots += [lay.body_offset(bi) + _TREE_BODY_SLOTS[pn] for a in sc.aliases for bi, pn, _ in a.sets]
+    for k in slots:
+        if k != _engine.TP_DRIFT:
+            p[k] = rng.uniform(0.5, 1.5)
+    y = lay.state().copy()
+    y[:lay.nx] = rng.normal(size=lay.nx)
+    for b in range(len(sc.tree)):
+        if (b, "q_w") in lay.coord_slots:
+            k = lay.coord_slots[(b, "q_w")]
+            y[k:k + 4] /= np.linalg.norm(y[k:k + 4])
+    inputs = [r.index for r in rows if r.kind == "input"]
+    n = lay.nx + len(inputs)
+    ddy, dout = np.zeros((n, lay.nx + 1)), np.zeros((n, lay.nout))   # a column per row here: transposed below
+    for j in range(n):
+        vy, vp = np.zeros(lay.nx), np.zeros(lay.np)
+        if j < lay.nx:
+            vy[j] = 1.0
+        else:
+            vp[inputs[j - lay.nx]] = 1.0
+        _engine.tree_directional(lay.desc, y.reshape(1, -1), p.reshape(1, -1), vy, vp, ddy[j], dout[j])
+    return ddy.T != 0.0, dout.T != 0.0
+
+
+_LAYOUTS = {"body": _body_layout, "tree": _tree_layout}
+
+
+def system_layout(sc: Scene) -> SystemLayout:
+    """The engine system of scene ``sc``: the kernel picked for it at set-up (:attr:`Scene.kernel`), asked once."""
+    return _LAYOUTS[sc.kernel](sc)
+
+
+def _split(sc: Scene, name: str) -> tuple[int | None, str]:
+    """The body (its index) and short name of variable ``name`` (:meth:`Scene.split_name`); a bare body parameter of a
+    scene of one body (``g`` of a pivoted body) is that body's."""
+    bi, short = sc.split_name(name)
+    if bi is None and "." not in name and len(sc.body_names) == 1:
+        return 0, short
+    return bi, short
+
+
+#: Settings of the whole scene: a scene of several independent bodies lists them under every body's name
+#: (:meth:`Scene.variables`); the FMU has each once, first, under its bare name.
+SCENE_SETTINGS = ("integrator", "max_step", "max_drift")
+
+
+def fmu_variables(sc: Scene) -> list[tuple[str, object]]:
+    """``(name, Variable)`` of the FMU's variables in value-reference order (from 1): :meth:`Scene.variables`, the
+    scene's settings (:data:`SCENE_SETTINGS`) once where they are listed per body."""
+    items = list(sc.variables().items())
+    if not any("." in n and n.rpartition(".")[2] in SCENE_SETTINGS for n, _ in items):
+        return items
+    first = {}
+    for n, v in items:
+        first.setdefault(n.rpartition(".")[2], v)
+    return [(s, first[s]) for s in SCENE_SETTINGS if s in first] + \
+        [(n, v) for n, v in items if n.rpartition(".")[2] not in SCENE_SETTINGS]
+
+
+def fmu_rows(sc: Scene, lay: SystemLayout | None = None) -> list[FmuRow]:
+    """The variables of ``sc`` in value-reference order (from 1), each mapped to the glue's kind.
+
+    Raises
+    ------
+    ConfigError
+        A variable the glue cannot map, or a start value that is not the system's start row's (the table would be
+        wrong).
+    """
+    lay = lay or system_layout(sc)
+    aliases = {a.name: i for i, a in enumerate(sc.aliases)}
+    columns = {name: i for i, name in enumerate(sc.output_names())}
+    rows = []
+    for name, v in fmu_variables(sc):
+        bi, short = _split(sc, name)
+        nonneg = short in lay.nonneg
+        if name in ("integrator", "max_step"):
+            row = FmuRow(name, v, name)
+        elif short == "max_drift":
+            row = FmuRow(name, v, "max_drift", lay.head["max_drift"])
+        elif name in lay.head:
+            row = FmuRow(name, v, "param", lay.head[name], nonneg=nonneg)
+        elif name in aliases:
+            row = FmuRow(name, v, "alias", aliases[name])
+        elif v.causality == "parameter" and bi is not None and short in lay.body_slots:
+            row = FmuRow(name, v, "param", lay.body_offset[bi] + lay.body_slots[short], nonneg=nonneg)
+        elif v.causality == "input" and bi is not None and short in lay.input_slots:
+            row = FmuRow(name, v, "input", lay.body_offset[bi] + lay.input_slots[short])
+        elif v.causality == "output" and v.start is not None and (bi, short) in lay.coords or \
+                (None, name) in lay.coords:
+            k = lay.coords.get((bi, short), lay.coords.get((None, name)))
+            row = FmuRow(name, v, "state", k, lay.coord_index[k])
+        elif v.causality == "output" and name in columns:
+            row = FmuRow(name, v, "output", columns[name])
+        else:
+            raise ConfigError("variable", name, "a variable the FMU's table knows (a parameter, an input, a "
+                              "coordinate or an output of the engine's row)")
+        start = {"param": lay.p0, "max_drift": lay.p0, "state": lay.y0}.get(row.kind)
+        if start is not None and float(start[row.index]) != float(v.start):
+            raise ConfigError("variable", name, f"a start value equal to the system's row ({v.start!r} in the "
+                              f"variables, {float(start[row.index])!r} in slot {row.index})")
+        rows.append(row)
+    return rows
+
+
+def me_rows(lay: SystemLayout, rows: list[FmuRow]) -> list[FmuRow]:
+    """Model exchange's local variables after ``rows``: the work integrals' balances where they are states
+    (``energy_expected``), then the derivatives ``der(...)`` of the continuous states in their order."""
+    states = {r.aux: r.name for r in rows if r.kind == "state"}
+    out = []
+    if lay.work_states:
+        for u in range(lay.nwork):
+            states[lay.ncoord + u] = WORK_STATE
+            out.append(FmuRow(WORK_STATE, None, "work", lay.ncoord + u, lay.energy_error[u]))
+    return out + [FmuRow(f"der({states[i]})", None, "der", i) for i in range(lay.nx)]
+
+
+def jacobian_pattern(lay: SystemLayout, rows: list[FmuRow]):
+    """Where the system's derivatives can be nonzero: ``(ddy (ndy, ncoord + n_inputs), dout (nout, ncoord +
+    n_inputs))`` as booleans, columns the coordinates, then the inputs of ``rows`` in their order."""
+    return lay.pattern(rows)
+
+
+def range_rows(rows: list[FmuRow]) -> list[tuple[int, object]]:
+    """The rows whose values the glue checks against a range at every set: ``(position, Variable)``."""
+    return [(i, r.var) for i, r in enumerate(rows)
+            if r.kind in ("param", "alias", "max_drift", "max_step") and r.var is not None and r.var.type == "Real"
+            and r.var.range.bounded and (math.isfinite(r.var.range.min) or math.isfinite(r.var.range.max))]
