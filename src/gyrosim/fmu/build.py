@@ -63,6 +63,7 @@ PLATFORMS = {"linux": ("linux64", "x86_64-linux", ".so"), "windows": ("win64", "
 #: The one-body FMU's engine files: the one-body engine, and the tree engine's complex step (tree_cs.c, which
 #: #includes tree.c; tree.c and rk.c compiled too) for the directional derivatives.
 _ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "rk_driver.h", "exact_fast.h",
+           "body_dynamics.h", "angles.h", "monitor.h", "splitting.h", "outputs.h", "exact_steps.h", "block.h",
            "engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "cflags.txt")
 _GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_model.c")
 #: Scene-wide variables (not per body) of a multi-body FMU.
@@ -559,7 +560,8 @@ def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None =
 ENGINE_UNITS = ("engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c")
 #: The headers the engine's units include (and nothing else: the glue's headers and the generated configuration
 #: are not the engine's).
-ENGINE_HEADERS = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "rk_driver.h", "exact_fast.h")
+ENGINE_HEADERS = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "rk_driver.h", "exact_fast.h",
+                  "body_dynamics.h", "angles.h", "monitor.h", "splitting.h", "outputs.h", "exact_steps.h", "block.h")
 
 
 def object_cache_dir() -> Path | None:

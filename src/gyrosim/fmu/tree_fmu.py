@@ -40,6 +40,7 @@ __all__ = ["TreeRow", "tree_rows", "tree_me_rows", "tree_config_header", "tree_m
 
 #: The engine's files a tree FMU is compiled from (core/engine/) and its glue (fmu/c/).
 TREE_ENGINE = ("gyrosim_engine.h", "gyrosim_ode.h", "gyrosim_tree.h", "rk_tables.h", "rk_driver.h", "exact_fast.h",
+               "body_dynamics.h", "angles.h", "monitor.h", "splitting.h", "outputs.h", "exact_steps.h", "block.h",
                "engine.c", "exact.c", "rk.c", "tree.c", "tree_cs.c", "cflags.txt")
 TREE_GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_tree_model.h",
              "gyrosim_tree_model.c")
