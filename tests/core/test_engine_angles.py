@@ -1,6 +1,6 @@
 """The engine's ZYZ angle outputs (phi, theta, psi) against numpy's arctan2 on many attitudes.
 
-The engine computes them with its own inline atan2 (Cephes' atan, engine.c ``gs_atan2``) instead of libm's; within
+The engine computes them with its own inline atan2 (Cephes' atan, angles.h ``gs_atan2``) instead of libm's; within
 2 ulp of the correctly rounded atan2 (measured on 20 million pairs), so theta = 2 atan2(|(x, y)|, |(w, z)|) agrees
 with numpy's to a few ulp of pi and phi, psi (unwrapped from reference angles) to a few ulp of their size. Zeros,
 signed zeros, the gimbal-lock attitudes (theta = 0 and pi) and non-finite quaternions keep IEEE atan2's values.

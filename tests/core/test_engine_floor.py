@@ -1,6 +1,6 @@
 """The engine's floor without libm (gyrosim_engine.h ``gs_floor`` on doubles, exact.c ``VFLOOR`` on vectors: |x|
 rounded by adding and taking away 2^52, the sign put back, one taken away where that rounded up) gives libm's floor
-bit for bit, the sign of a zero and a NaN's bits included, in every rounding mode: engine.c's angle wrap and the
+bit for bit, the sign of a zero and a NaN's bits included, in every rounding mode: angles.h's angle wrap and the
 exact flows' lanes and one-time evaluations use it for their periods and quadrants, and their bits must not depend
 on which floor ran (tests/core/test_engine_variants.py holds the builds to each other). The vectors as the builds
 have them: four lanes (the default build, on SSE2 outside the AVX2 clones; a build for AVX2), two (SSE2 without the

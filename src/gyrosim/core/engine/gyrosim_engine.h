@@ -82,7 +82,7 @@ extern "C" {
 #define GS_EXACT 5
 #define GS_DOP853 6
 /* compositions of the exact torque-free flow (gs_tf_flow) and the exact torque kick (q fixed): Strang (order 2),
- * Yoshida's triple jump (4), Blanes and Moan's S6 (4) and S10 (6) (engine.c, docs/accuracy.md) */
+ * Yoshida's triple jump (4), Blanes and Moan's S6 (4) and S10 (6) (splitting.h, docs/accuracy.md) */
 #define GS_STRANG_EXACT 7
 #define GS_YOSHIDA_EXACT 8
 #define GS_BM4_EXACT 9
