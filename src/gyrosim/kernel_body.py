@@ -197,6 +197,9 @@ def _params_of(moments, mass, g, cm, damping, tau, max_drift) -> np.ndarray:
 class BodyKernel:
     """The one-body kernel's operations of a :class:`~gyrosim.model.Model` (``self`` is the model)."""
 
+    #: what one row of the model's state is (Model.set_many's messages)
+    SYSTEM = "body"
+
     #: the engine writes a lone body's result rows itself (``_engine.trajectory_select``: gyrosim.simulate)
     ROWS_DIRECT = True
 
@@ -334,28 +337,9 @@ class BodyKernel:
             raise ConfigError(name, value, "a parameter, an input or a state start (q_*, omega_*); "
                               f"{name} is a derived output")
 
-    def set_many(self, name: str, values) -> None:
-        """Set a per-body parameter, input or state start for every body at once (sweeps).
-
-        ``values`` is an (n_bodies,) array in the variable's unit, one value per body; the names, rules and
-        messages are those of :meth:`set` (the first value that is not allowed raises as ``set`` would for its
-        body). ``integrator``, ``max_step`` and ``max_drift`` hold for the whole model: set them with :meth:`set`.
-
-        Raises
-        ------
-        ConfigError
-            Unknown name, a model-wide or derived variable, a shape other than (n_bodies,), or a value that is not
-            allowed.
-        """
-        v = BodyKernel._var(self, name)
-        if v.type == "String" or name in ("max_step", "max_drift"):
-            raise ConfigError(name, "an array", "one value for every body: use Model.set")
-        try:
-            x = np.asarray(values, dtype=float)
-        except (TypeError, ValueError):
-            raise ConfigError(name, values, f"an array of real numbers in {v.unit or '1'}") from None
-        if x.shape != (self.n_bodies,):
-            raise ConfigError(name, f"an array of shape {x.shape}", f"an array of shape ({self.n_bodies},)")
+    def _assign_many(self, name: str, v: Variable, x: np.ndarray) -> None:
+        """One value per body (Model.set_many checked the name and the shape): the first value that is not
+        allowed raises as ``set`` would for its body."""
         with np.errstate(invalid="ignore"):
             if name in ("I1", "I2", "I3", "mass"):
                 ok = x > 0

@@ -203,6 +203,9 @@ class TreeKernel:
     True
     """
 
+    #: what one row of the model's state is (Model.set_many's messages)
+    SYSTEM = "copy"
+
     #: result rows come from whole output rows (``trajectory``), not written by the engine itself
     ROWS_DIRECT = False
 
@@ -346,17 +349,8 @@ class TreeKernel:
         else:
             TreeKernel._assign(self, name, v, np.full(self.n_systems, x))
 
-    def set_many(self, name: str, values) -> None:
-        """One value per copy of the tree (``(n_systems,)``, sweeps); names and rules as :meth:`set`."""
-        v = TreeKernel._var(self, name)
-        if v.type == "String" or name in ("max_step", "max_drift"):
-            raise ConfigError(name, "an array", "one value for every copy: use Model.set")
-        try:
-            x = np.asarray(values, dtype=float)
-        except (TypeError, ValueError):
-            raise ConfigError(name, values, f"an array of real numbers in {v.unit or '1'}") from None
-        if x.shape != (self.n_systems,):
-            raise ConfigError(name, f"an array of shape {x.shape}", f"an array of shape ({self.n_systems},)")
+    def _assign_many(self, name: str, v: Variable, x: np.ndarray) -> None:
+        """One value per copy of the tree (Model.set_many checked the name and the shape)."""
         TreeKernel._assign(self, name, v, x)
 
     def get(self, name: str, body=None, system: int = 0):

@@ -98,9 +98,27 @@ class Model:
         return self._k.set(self, name, value, body)
 
     def set_many(self, name: str, values) -> None:
-        """One value per system (``(n_systems,)``: the bodies of a one-body scene, the copies of a tree), names
-        and rules as :meth:`set` (sweeps)."""
-        return self._k.set_many(self, name, values)
+        """One value per system (``(n_systems,)``: the bodies of a one-body scene, the copies of a tree), names,
+        rules and messages as :meth:`set` (sweeps). ``integrator``, ``max_step`` and ``max_drift`` hold for the
+        whole model: set them with :meth:`set`.
+
+        Raises
+        ------
+        ConfigError
+            Unknown name, a model-wide or derived variable, a shape other than (n_systems,), or a value that is
+            not allowed.
+        """
+        v = self._k._var(self, name)
+        if v.type == "String" or name in ("max_step", "max_drift"):
+            raise ConfigError(name, "an array", f"one value for every {self._k.SYSTEM}: use Model.set")
+        try:
+            x = np.asarray(values, dtype=float)
+        except (TypeError, ValueError):
+            raise ConfigError(name, values, f"an array of real numbers in {v.unit or '1'}") from None
+        n = self.n_systems
+        if x.shape != (n,):
+            raise ConfigError(name, f"an array of shape {x.shape}", f"an array of shape ({n},)")
+        self._k._assign_many(self, name, v, x)
 
     def get(self, name: str, *args, **kwargs):
         """Value of a variable by name (float, or str for ``integrator``): ``<body>.<name>``, or the name with
