@@ -166,7 +166,7 @@ void gs_sys_unwrap(const gs_system *s, double *y);
 
 /* Why unit `unit` failed in a step of H from y0 (the state before it; status_k its status from gs_sys_advance, the
  * failing internal step + 1): the step again with the health monitor off, then "cause; advice" into why (the kernel's
- * diagnosis, as gyrosim.model and gyrosim.tree_model word it). hint and ex as before the step (not changed). */
+ * diagnosis, as gyrosim.kernel_body and gyrosim.kernel_tree word it). hint and ex as before the step (not changed). */
 void gs_sys_diagnose(const gs_system *s, int method, const double *y0, const double *p, const double *hint,
                      const double *ex, double t, double H, double rtol, double atol, double max_step, int unit,
                      int32_t status_k, char *why, size_t n);

@@ -496,7 +496,7 @@ void gs_sys_unwrap(const gs_system *s, double *y) {
 }
 
 
-/* gyrosim.tree_model.TreeModel._blowup's cause and advice */
+/* gyrosim.kernel_tree.TreeKernel._blowup's cause and advice */
 static void diagnose_tree(const gs_system *s, int method, const double *y0, const double *p, const double *hint,
                           double H, double rtol, double atol, double max_step, int32_t k, char *why, size_t n) {
     const double rate = gs_tree_fastest_rate(&s->tree, y0, p);
