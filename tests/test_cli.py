@@ -244,8 +244,19 @@ def test_info_of_a_scene_lists_every_variable(capsys):
     assert rows["omega_z"].split()[:4] == ["omega_z", "output", "200.0", "rad/s"]
     assert rows["integrator"].split()[:3] == ["integrator", "parameter", "splitting"]
     assert "body-frame angular velocity" in rows["omega_z"]
+    assert "Integrators        euler, rk4, splitting" in out and "exact" in out
+    assert "Kernel             Euler's equations in closed form" in out
     assert main(["info", "free_body", "-q"]) == 0
     assert capsys.readouterr().out.split()[:2] == ["Name", "Causality"]
+
+
+def test_info_of_a_tree_names_its_kernel_and_integrators(capsys):
+    """What a system can do comes from what it is: a tree of hinges runs on the articulated-body algorithm with the
+    Runge-Kutta methods; the same one body written in the tree syntax keeps the one-body kernel's integrators."""
+    assert main(["info", "gimbal_gyroscope"]) == 0
+    out = capsys.readouterr().out
+    assert "Kernel             the articulated-body algorithm" in out
+    assert "Integrators        euler, rk4, adaptive, dop853\n" in out
 
 
 def test_info_of_an_fmu_reads_its_model_description(tmp_path, capsys):

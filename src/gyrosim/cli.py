@@ -443,6 +443,8 @@ def scene_info(scene) -> str:
              f"  Bodies             {len(sc.body_names)} ({names})",
              f"  Terms              {', '.join(terms) or 'none (torque-free)'}",
              f"  Integrator         {sc.integrator}",
+             f"  Integrators        {', '.join(sc.integrators)}",
+             f"  Kernel             {sc.kernel_description}",
              f"  Variables          {len(rows)}",
              *([f"  Sweep              {sweep_line} (gyrosim sweep FILE --output DIR)"] if sweep_line else []),
              "", "Default Experiment", "",

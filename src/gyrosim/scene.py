@@ -183,6 +183,12 @@ class Scene:
             out.update({f"{body.name}.{n}": v for n, v in variables_for(self, b).items()})
         return out
 
+    @property
+    def kernel_description(self) -> str:
+        """The kernel picked for the system, in words (``gyrosim info``)."""
+        return ("Euler's equations in closed form, with the exact flows and the splittings" if self.tree is None
+                else "the articulated-body algorithm")
+
     def state_names(self) -> list[str]:
         """The continuous coordinates by full name: the outputs whose start values a user sets (the quaternion
         and rates of a body; a tree's joint coordinates and a circular orbit's anomaly)."""
