@@ -21,13 +21,14 @@ from .ranges import NONNEGATIVE, POSITIVE
 from .scene import INTEGRATORS, Scene, did_you_mean
 from .variables import Variable
 
-__all__ = ["BodyKernel", "variables_for", "OUTPUT_NAMES"]
+__all__ = ["BodyKernel", "variables_for", "OUTPUT_NAMES", "STATE_NAMES"]
 
 _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 
 OUTPUT_NAMES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z", "phi", "theta", "psi",
                 "L_x", "L_y", "L_z", "energy", "energy_error")
-_STATE_NAMES = OUTPUT_NAMES[:7]
+#: A body's continuous coordinates, the head of its state row and of its outputs.
+STATE_NAMES = OUTPUT_NAMES[:7]
 _FIXED = ("euler", "rk4", "splitting", "splitting4", "strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact")
 #: The variables that enter the engine's parameter rows.
 _PARAM_NAMES = frozenset(("I1", "I2", "I3", "mass", "cm_distance", "g", "damping", "tau_x", "tau_y", "tau_z",
@@ -328,8 +329,8 @@ class BodyKernel:
             BodyKernel._own(self, "_tau")[i, k] = x
             if self._initialized:
                 self._p[i, 5 + k] = x
-        elif name in _STATE_NAMES:
-            self._y[i, _STATE_NAMES.index(name)] = x
+        elif name in STATE_NAMES:
+            self._y[i, STATE_NAMES.index(name)] = x
             self._state_dirty = True
             self._ex[i, _engine.EX_VALID] = 0.0
             self._out = None
@@ -365,8 +366,8 @@ class BodyKernel:
             BodyKernel._own(self, "_tau")[:, k] = x
             if self._initialized:
                 self._p[:, 5 + k] = x
-        elif name in _STATE_NAMES:
-            self._y[:, _STATE_NAMES.index(name)] = x
+        elif name in STATE_NAMES:
+            self._y[:, STATE_NAMES.index(name)] = x
             self._state_dirty = True
             self._ex[:, _engine.EX_VALID] = 0.0
             self._out = None
@@ -766,11 +767,11 @@ class BodyKernel:
     def coordinates(self) -> list[tuple[str, str, int]]:
         """A system's continuous coordinates: (variable name, coordinate, slot in its state row), in slot order;
         the names are a system's own (bare: each body of a one-body scene is a system)."""
-        return [(n, n, k) for k, n in enumerate(_STATE_NAMES)]
+        return [(n, n, k) for k, n in enumerate(STATE_NAMES)]
 
     def n_coords(self) -> int:
         """The state row's continuous coordinates (the slots after them are the monitor's)."""
-        return len(_STATE_NAMES)
+        return len(STATE_NAMES)
 
     def _restart_rows(self, rows: np.ndarray, coords: np.ndarray) -> int:
         """Put systems ``rows`` at ``coords`` (their first n_coords slots) and start them there as a state is

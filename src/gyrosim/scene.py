@@ -193,9 +193,9 @@ class Scene:
         """The continuous coordinates by full name: the outputs whose start values a user sets (the quaternion
         and rates of a body; a tree's joint coordinates and a circular orbit's anomaly)."""
         if self.tree is None:
-            from .kernel_body import OUTPUT_NAMES
+            from .kernel_body import STATE_NAMES
 
-            return [self.var_name(b, n) for b in self.body_names for n in OUTPUT_NAMES[:7]]
+            return [self.var_name(b, n) for b in self.body_names for n in STATE_NAMES]
         return [n for n, v in self.variables().items() if v.causality == "output" and v.start is not None]
 
     @property

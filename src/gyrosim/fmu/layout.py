@@ -25,6 +25,7 @@ import numpy as np
 
 from ..core import _engine
 from ..errors import ConfigError
+from ..kernel_body import STATE_NAMES
 from ..scene import Scene
 
 __all__ = ["SystemLayout", "FmuRow", "system_layout", "fmu_variables", "fmu_rows", "SCENE_SETTINGS",
@@ -39,7 +40,7 @@ WORK_STATE = "energy_expected"
 #: The unit of a state's derivative by the state's unit.
 DER_UNITS = {"1": "1/s", "rad": "rad/s", "rad/s": "rad/s2", "m": "m/s", "m/s": "m/s2", "J": "W"}
 #: The coordinates of a body of the one-body kernel, in the order of its state row.
-STATES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z")
+STATES = STATE_NAMES
 
 
 @dataclass

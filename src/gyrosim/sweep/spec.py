@@ -33,6 +33,7 @@ import numpy as np
 from ..core import _engine
 from ..core.inertia import check_principal_moments
 from ..errors import ConfigError
+from ..kernel_body import STATE_NAMES
 from ..ranges import POSITIVE
 from ..scene import INTEGRATORS, Scene, did_you_mean, load_scene, scene_from_dict
 
@@ -43,7 +44,6 @@ DISTRIBUTIONS = ("uniform", "normal", "lognormal", "choice", "linspace")
 _FORMS = "uniform(lo,hi), normal(mean,std), lognormal(mean,sigma), choice(a,b,...) or linspace(lo,hi)"
 #: Names that hold for a whole Model (one value per compiled call): samples are grouped by them.
 MODEL_WIDE = ("integrator", "max_step", "max_drift", "tolerance")
-_STATES = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z")
 #: The keys of a scene file's [sweep] table.
 SWEEP_KEYS = ("samples", "seed", "chunk_size", "stop_time", "output_interval", "integrator", "max_step", "vary", "set",
               "lyapunov")
@@ -52,7 +52,7 @@ DEFAULT_CHUNK = 2000
 
 
 #: A tree's joint coordinates (``<body>.<name>``): state starts too
-_TREE_STATES = _STATES + ("angle", "rate", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
+_TREE_STATES = STATE_NAMES + ("angle", "rate", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
 
 
 def column_name(name: str) -> str:
