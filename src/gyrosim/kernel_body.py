@@ -290,14 +290,7 @@ class BodyKernel:
             self._p_start = None  # the parameters are no longer the scene's start values
         if v.type == "String":
             if name == "integrator":
-                allowed = self.scene.integrators
-                if value not in allowed:
-                    raise ConfigError("integrator", value, "one of " + ", ".join(allowed)
-                                      + did_you_mean(value, allowed))
-                if value != self.integrator:
-                    self._hint[:] = 0.0
-                    self._ex[:, _engine.EX_VALID] = 0.0
-                self.integrator = value
+                self._set_integrator(value)
             return
         try:
             x = float(value)
@@ -804,6 +797,16 @@ class BodyKernel:
                     np.fmax.reduce(np.abs(np.sqrt(np.einsum("tbi,tbi->tb", L, L)) - L0), axis=0))
 
         return s_energy, s_L, drifts, {"angles": False}
+
+    def gimbal_lock(self, y=None, system: int = 0) -> None:
+        """None: independent bodies have no gimbals (their ZYZ angles' singularity is the outputs', not the
+        dynamics')."""
+        return None
+
+    def _forget(self) -> None:
+        """A new integrator: no step-size history, no exact anchor."""
+        self._hint[:] = 0.0
+        self._ex[:, _engine.EX_VALID] = 0.0
 
     def inert_bodies(self, system: int = 0) -> list:
         """None: a body of this kernel has principal moments > 0 (checked when it is initialised)."""

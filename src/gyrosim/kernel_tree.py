@@ -175,6 +175,11 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     return {v.name: v for v in V}
 
 
+#: The health monitor's scales in a tree's state row, after its nx coordinates (gyrosim_tree.h: y[nx + 1] the energy
+#: scale S0, y[nx + 5] the momentum scale).
+_MON_ESCALE = 1
+_MON_LSCALE = 5
+
 _BODY_COLS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 1, "I3": _engine.TB_I + 2,
               "cm_x": _engine.TB_CM, "cm_y": _engine.TB_CM + 1, "cm_z": _engine.TB_CM + 2,
               "pos_x": _engine.TB_POS, "pos_y": _engine.TB_POS + 1, "pos_z": _engine.TB_POS + 2,
@@ -223,8 +228,7 @@ class TreeKernel:
         self._bodies = list(sc.tree)
         self._alias_names = [a.name for a in sc.aliases]
         self._alias_vals = np.tile(np.array([a.value for a in sc.aliases], dtype=float), (k, 1))
-        self.max_drift = float(sc.max_drift)
-        self._pp = np.tile(self.layout.params(float(sc.g), self.max_drift), (k, 1))  # the parameters as set
+        self._pp = np.tile(self.layout.params(float(sc.g), float(sc.max_drift)), (k, 1))  # the parameters as set
         self._y = np.tile(self.layout.state(), (k, 1))
         self._hint = np.zeros(k)
         self._stats = np.zeros((k, 3), dtype=np.int64)
@@ -319,16 +323,7 @@ class TreeKernel:
         name = TreeKernel._full(self, name, body)
         v = TreeKernel._var(self, name)
         if v.type == "String":
-            allowed = self.scene.integrators
-            if value not in allowed:
-                from .scene import INTEGRATORS
-
-                why = (f"{value!r} solves one body; a tree of bodies takes one of "
-                       if value in INTEGRATORS else "one of ")
-                raise ConfigError("integrator", value, why + ", ".join(allowed) + did_you_mean(value, allowed))
-            if value != self.integrator:
-                self._hint[:] = 0.0
-            self.integrator = value
+            self._set_integrator(value)
             return
         try:
             x = float(value)
@@ -466,6 +461,10 @@ class TreeKernel:
         return float(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1], self._p[system:system + 1],
                                          1))
 
+    def _forget(self) -> None:
+        """A new integrator: no step-size history."""
+        self._hint[:] = 0.0
+
     def drift_measure(self, out0: np.ndarray) -> tuple:
         """What the sweeps measure of each copy's drift from its outputs at the start ``out0``: the health
         monitor's own scales (the energy scale S0 and the tree's momentum scale), ``drifts(traj) ->
@@ -474,13 +473,13 @@ class TreeKernel:
         col = self._out_index
         Lc = [col["L_x"], col["L_y"], col["L_z"]]
         L0 = out0[:, Lc]
-        e_col, nx = col["energy_error"], self.layout.nx
+        e_col, mon = col["energy_error"], self.layout.nx
 
         def drifts(traj):
             e = np.fmax.reduce(np.abs(traj[1:, :, e_col]), axis=0)
             return e, np.fmax.reduce(np.sqrt(np.sum((traj[1:, :, Lc] - L0) ** 2, axis=2)), axis=0)
 
-        return self._y[:, nx + 1].copy(), self._y[:, nx + 5].copy(), drifts, {}
+        return self._y[:, mon + _MON_ESCALE].copy(), self._y[:, mon + _MON_LSCALE].copy(), drifts, {}
 
     def inert_bodies(self, system: int = 0) -> list:
         """The bodies that carry no inertia at their joint (the parameters of copy ``system`` as set; a fixed joint

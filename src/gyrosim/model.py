@@ -22,7 +22,7 @@ from .core import _engine
 from .errors import ConfigError, StepError
 from .kernel_body import OUTPUT_NAMES, BodyKernel, variables_for
 from .kernel_tree import TreeKernel
-from .scene import load_scene
+from .scene import INTEGRATORS, did_you_mean, load_scene
 from .variables import Variable
 
 __all__ = ["Model", "Variable", "ModelState", "variables_for", "OUTPUT_NAMES"]
@@ -96,6 +96,18 @@ class Model:
             Unknown name, a derived output, or a value that is not allowed (named with the rule).
         """
         return self._k.set(self, name, value, body)
+
+    def _set_integrator(self, value) -> None:
+        """The integrator by name, one that the scene's system takes (``Scene.integrators``); a new one starts
+        without the old one's history (the kernel's ``_forget``)."""
+        allowed = self.scene.integrators
+        if value not in allowed:
+            why = (f"{value!r} solves one body; a tree of bodies takes one of " if value in INTEGRATORS
+                   else "one of ")
+            raise ConfigError("integrator", value, why + ", ".join(allowed) + did_you_mean(value, allowed))
+        if value != self.integrator:
+            self._k._forget(self)
+        self.integrator = value
 
     def set_many(self, name: str, values) -> None:
         """One value per system (``(n_systems,)``: the bodies of a one-body scene, the copies of a tree), names,
@@ -218,8 +230,7 @@ class Model:
 
     def gimbal_lock(self, y=None, system: int = 0) -> str | None:
         """A message naming gimbal lock where two hinge axes of a chain line up, else None (trees)."""
-        f = getattr(self._k, "gimbal_lock", None)
-        return None if f is None else f(self, y, system)
+        return self._k.gimbal_lock(self, y, system)
 
     def drift_measure(self, out0: np.ndarray) -> tuple:
         """What the sweeps measure of each system's drift from its outputs at the start ``out0``: (energy
