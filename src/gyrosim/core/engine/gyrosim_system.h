@@ -134,10 +134,6 @@ const char *gs_sys_drift_name(const gs_system *s, int i);
 /* The fastest rate in the state (rad/s; the largest over the units). */
 double gs_sys_fastest_rate(const gs_system *s, const double *y, const double *p);
 
-/* The largest stable h*rate of a fixed-step method on this system with parameters p (gs_stable_x; under gravity
- * on a pivot gs_stable_x_gravity where that is the bound); inf where the rate does not bound the step. */
-double gs_sys_stable_x(const gs_system *s, int method, const double *p);
-
 /* 1 when no torque acts with parameters p (every unit). */
 int gs_sys_torque_free(const gs_system *s, const double *p);
 

@@ -310,18 +310,6 @@ double gs_sys_fastest_rate(const gs_system *s, const double *y, const double *p)
     return rate;
 }
 
-double gs_sys_stable_x(const gs_system *s, int method, const double *p) {
-    if (method < 0 || method >= GS_N_METHODS) return INFINITY;
-    const double x = gs_stable_x[method];
-    if (x < INFINITY || s->kernel != GS_KERNEL_BODY || !(s->flags & GS_GRAVITY)) return x;
-    for (int b = 0; b < s->units; b++) {   /* the exact-flow splittings under gravity on a pivot */
-        double e[GS_NP];
-        body_row(p, b, e);
-        if (e[GS_P_MGL] != 0.0) return gs_stable_x_gravity[method];
-    }
-    return x;
-}
-
 int gs_sys_torque_free(const gs_system *s, const double *p) {
     if (s->kernel == GS_KERNEL_TREE) return gs_tree_torque_free(&s->tree, p);
     for (int b = 0; b < s->units; b++) {
