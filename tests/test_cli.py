@@ -256,7 +256,7 @@ def test_info_of_a_tree_names_its_kernel_and_integrators(capsys):
     assert main(["info", "gimbal_gyroscope"]) == 0
     out = capsys.readouterr().out
     assert "Kernel             the articulated-body algorithm" in out
-    assert "Integrators        euler, rk4, adaptive, dop853\n" in out
+    assert "Integrators        euler, rk4, adaptive, dop853, midpoint, energy_momentum\n" in out
 
 
 def test_info_of_an_fmu_reads_its_model_description(tmp_path, capsys):

@@ -24,6 +24,11 @@ from .variables import Variable
 __all__ = ["TreeKernel", "tree_variables", "tree_output_names"]
 
 _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
+#: The tree's methods of equal steps of at most max_step.
+_FIXED = ("euler", "rk4", "midpoint", "energy_momentum")
+#: The implicit methods (implicit.c): their trajectories keep the Newton matrix from interval to interval, so they
+#: are not the bits of a loop of steps (each step builds its own).
+_IMPLICIT = ("midpoint", "energy_momentum")
 _COORD_META = {
     "q_w": ("1", "attitude quaternion relative to the parent, scalar part"),
     "q_x": ("1", "attitude quaternion relative to the parent, x part"),
@@ -408,7 +413,7 @@ class TreeKernel:
     def _check_call(self, h: float, what: str) -> None:
         """Refuse at once a fixed-step call of more internal steps than one call may take (adaptive and dop853
         fail in the engine when their error control needs more)."""
-        if self.integrator in ("euler", "rk4") and _engine.substeps(h, self.max_step) == 0:
+        if self.integrator in _FIXED and _engine.substeps(h, self.max_step) == 0:
             self._refuse_work(h, what)
 
     def _step_engine(self, h: float, t: float) -> None:
@@ -425,8 +430,10 @@ class TreeKernel:
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
 
     def trajectory_is_steps(self) -> bool:
-        """Always: the tree engine's trajectory steps each output interval as :meth:`step` does."""
-        return True
+        """The tree engine's trajectory steps each output interval as :meth:`step` does, except that the implicit
+        methods keep their Newton matrix over the run (the same solution, iterated to round-off from another
+        matrix: equal to round-off, not in every bit)."""
+        return self.integrator not in _IMPLICIT
 
     def input_names(self) -> list[str]:
         """The inputs by full name (``<body>.motor_torque``, ``<body>.tau_x``; bare in a scene of one body)."""
@@ -566,7 +573,7 @@ class TreeKernel:
         lock = TreeKernel.gimbal_lock(self, y0, b)
         pb = self._p[b:b + 1]
         rate = float(_engine.tree_scalar(self.layout.desc, y0.reshape(1, -1), pb, 1))
-        n_sub = _engine.substeps(h, self.max_step) if self.integrator in ("euler", "rk4") else 0
+        n_sub = _engine.substeps(h, self.max_step) if self.integrator in _FIXED else 0
         at = f" at internal step {k} of {n_sub}" if n_sub > 1 else ""
         y = y0.reshape(1, -1).copy()
         p = pb.copy()
@@ -574,7 +581,9 @@ class TreeKernel:
         hint, stats, st = self._hint[b:b + 1].copy(), np.zeros((1, 3), dtype=np.int64), np.zeros(1, dtype=np.int32)
         fails = _engine.tree_advance(self.layout.desc, _METHOD_CODES[self.integrator], y, p, h, self.tolerance,
                                      self.tolerance, self.max_step, hint, stats, st, 1)
-        if fails:
+        if fails and self.integrator in _IMPLICIT:
+            cause = f"the implicit step's Newton iterations did not converge, or the state became non-finite{at}"
+        elif fails:
             cause = f"the state became non-finite or overflowed{at}"
         else:
             d = np.empty((1, 2))

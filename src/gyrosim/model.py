@@ -22,7 +22,7 @@ from .core import _engine
 from .errors import ConfigError, StepError
 from .kernel_body import OUTPUT_NAMES, BodyKernel, variables_for
 from .kernel_tree import TreeKernel
-from .scene import INTEGRATORS, did_you_mean, load_scene
+from .scene import INTEGRATORS, TREE_INTEGRATORS, did_you_mean, load_scene
 from .variables import Variable
 
 __all__ = ["Model", "Variable", "ModelState", "variables_for", "OUTPUT_NAMES"]
@@ -103,7 +103,8 @@ class Model:
         allowed = self.scene.integrators
         if value not in allowed:
             why = (f"{value!r} solves one body; a tree of bodies takes one of " if value in INTEGRATORS
-                   else "one of ")
+                   else f"{value!r} integrates a tree of bodies (a scene with a `joint`); one body takes one of "
+                   if value in TREE_INTEGRATORS else "one of ")
             raise ConfigError("integrator", value, why + ", ".join(allowed) + did_you_mean(value, allowed))
         if value != self.integrator:
             self._k._forget(self)

@@ -546,8 +546,9 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
         raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-'", where=where)
     integ = sc.get("integrator", "rk4")
-    if integ not in INTEGRATORS:
-        raise ConfigError("integrator", integ, _suggest(str(integ), INTEGRATORS), where=where)
+    if integ not in INTEGRATORS and integ not in TREE_INTEGRATORS:
+        every = INTEGRATORS + tuple(i for i in TREE_INTEGRATORS if i not in INTEGRATORS)
+        raise ConfigError("integrator", integ, _suggest(str(integ), every), where=where)
     g = _num(sc, "g", where, G_DEFAULT, lo=0.0)
     if _tree_syntax(data):
         return _tree_scene(data, sc, name, integ, g, where, source)
@@ -568,6 +569,10 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
 
 def _one_body_scene(name, bodies, terms, integ, g, sc, where, source) -> Scene:
     """A scene on the one-body kernel: independent bodies, each integrated by Euler's equations."""
+    if integ not in INTEGRATORS:
+        raise ConfigError("integrator", integ, f"one of {', '.join(INTEGRATORS)} for a scene of independent bodies "
+                          f"('{integ}' integrates a tree of bodies: give a body a `joint` to run it on the tree "
+                          "engine)", where=where)
     scene = Scene(
         name=name, bodies=tuple(bodies), gravity="gravity" in terms, damping="damping" in terms,
         torque="torque" in terms, integrator=integ,
@@ -593,8 +598,9 @@ def _tree_syntax(data: dict) -> bool:
             (isinstance(bodies, list) and any(isinstance(b, dict) and any(k in b for k in TREE_KEYS) for b in bodies)))
 
 
-#: The integrators of the tree engine (the splittings and exact solve one body).
-TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853")
+#: The integrators of the tree engine (the splittings and exact solve one body; midpoint and energy_momentum, the
+#: implicit methods on the rotation group, solve trees).
+TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853", "midpoint", "energy_momentum")
 
 
 def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -> tuple[BodySpec, set] | None:
@@ -631,7 +637,8 @@ def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
 
     bodies, couplings, cnames, aliases = tree_from_dict(data, source)
     orbit = orbit_from_dict(sc["orbit"], bodies, f"{where}.orbit") if "orbit" in sc else None
-    one = _one_body_kernel(data, bodies, couplings, aliases, orbit, g, source)
+    # a tree-only integrator keeps a tree of one body on the tree engine
+    one = _one_body_kernel(data, bodies, couplings, aliases, orbit, g, source) if integ in INTEGRATORS else None
     if one is not None:  # a tree of one body that Euler's equations describe: the one-body kernel
         body, terms = one
         return _one_body_scene(name, (body,), terms, integ, g, sc, where, source)

@@ -112,7 +112,7 @@ static void blow_up(size_t n) {
     double *ex = xcalloc(n * GS_EX_SIZE, sizeof(double));
     int32_t *status = xcalloc(n, sizeof(int32_t));
     double *out = xcalloc(51 * n * GS_NOUT, sizeof(double));
-    for (int method = 0; method < GS_N_METHODS; method++) {
+    for (int method = 0; method < GS_N_BODY_METHODS; method++) {
         if (method == GS_EXACT) continue;
         one_body_start(n, 0, y, p, 1e-12);
         for (size_t b = 0; b < n; b++) y[b * GS_NY + 4] = 50.0;
@@ -176,9 +176,9 @@ static void tree(const char *name, int32_t *desc, int len, int ny, int np, const
     CHECK(gs_tree_init(t, desc, (size_t)len) == 0, "%s: gs_tree_init", name);
     CHECK(t->ny == ny && t->np == np, "%s: ny %d np %d, expected %d %d", name, t->ny, t->np, ny, np);
     const size_t n = 2;   /* two systems, the second with other motor torques */
-    const int methods[] = {GS_EULER, GS_RK4, GS_ADAPTIVE, GS_DOP853};
+    const int methods[] = {GS_EULER, GS_RK4, GS_ADAPTIVE, GS_DOP853, GS_MIDPOINT, GS_ENERGY_MOMENTUM};
     const int no = GS_TREE_NOUT(t);
-    for (int mi = 0; mi < 4; mi++) {
+    for (int mi = 0; mi < 6; mi++) {
         const int method = methods[mi];
         double *y = xcalloc(n * (size_t)ny, sizeof(double));
         double *p = xcalloc(n * (size_t)np, sizeof(double));
@@ -199,6 +199,11 @@ static void tree(const char *name, int32_t *desc, int len, int ny, int np, const
         CHECK(failed == 0, "%s: gs_tree_advance method %d: %zu failed", name, method, failed);
         failed = gs_tree_trajectory(t, method, n, y, p, 0.01, n_out, 1e-9, 1e-9, 1e-3, hint, stats, status, 1, out);
         CHECK(failed == 0, "%s: gs_tree_trajectory method %d: %zu failed", name, method, failed);
+        if (method == GS_MIDPOINT || method == GS_ENERGY_MOMENTUM) {   /* steps over several outputs: dense output */
+            failed = gs_tree_trajectory(t, method, n, y, p, 0.01, n_out, 1e-9, 1e-9, 0.03, hint, stats, status, 1,
+                                        out);
+            CHECK(failed == 0, "%s: dense gs_tree_trajectory method %d: %zu failed", name, method, failed);
+        }
         double *o = xcalloc((size_t)no, sizeof(double));
         double *dy = xcalloc((size_t)t->nx + 1, sizeof(double));
         int ndof = 0;
@@ -268,7 +273,7 @@ static int trees(const char *path) {
 int main(int argc, char **argv) {
     const int flag_sets[] = {0, GS_GRAVITY, GS_GRAVITY | GS_DAMPING | GS_TORQUE, GS_TORQUE};
     const size_t ns[] = {1, 9};
-    for (int method = 0; method < GS_N_METHODS; method++) {
+    for (int method = 0; method < GS_N_BODY_METHODS; method++) {
         for (int fi = 0; fi < 4; fi++) {
             if (method == GS_EXACT && flag_sets[fi] != 0) continue;
             for (int ni = 0; ni < 2; ni++) one_body(method, flag_sets[fi], ns[ni]);

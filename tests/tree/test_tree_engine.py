@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import gyrosim
+import gyrosim.scene
 import gyrosim.trajectory
 from gyrosim.core import _engine
 from gyrosim.core.analytic import SymmetricTop
@@ -542,7 +543,7 @@ angle = {a}
     np.testing.assert_allclose(r["angle"], a * np.cos(w * r["time"]), rtol=0, atol=1e-6 * a)
 
 
-@pytest.mark.parametrize("integ", _engine.METHODS)
+@pytest.mark.parametrize("integ", gyrosim.scene.INTEGRATORS)
 def test_a_one_body_tree_that_euler_describes_runs_on_the_one_body_kernel(integ):
     """heavy_top written in the tree syntax (joint = "ball", cm_distance: inertia about the pivot, as the one-body
     scene has it) is classified at set-up onto the one-body kernel: every integrator of a one-body scene (the

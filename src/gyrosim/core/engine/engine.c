@@ -30,7 +30,7 @@
 
 const char *const gs_method_names[GS_N_METHODS] = {"euler", "rk4", "splitting", "splitting4", "adaptive",
                                                    "exact", "dop853", "strang_exact", "yoshida_exact",
-                                                   "bm4_exact", "bm6_exact"};
+                                                   "bm4_exact", "bm6_exact", "midpoint", "energy_momentum"};
 
 int gs_method_code(const char *name) {
     if (!name) return -1;
@@ -42,9 +42,9 @@ int gs_method_code(const char *name) {
 
 /* the study's stability map (docs/accuracy.md) */
 const double gs_stable_x[GS_N_METHODS] = {0.0, 0.445, 1.15, 1.21, INFINITY, INFINITY, INFINITY,
-                                          INFINITY, INFINITY, INFINITY, INFINITY};
+                                          INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY};
 const double gs_stable_x_gravity[GS_N_METHODS] = {INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY,
-                                                  INFINITY, 8.89, 5.47, 17.6, 17.1};
+                                                  INFINITY, 8.89, 5.47, 17.6, 17.1, INFINITY, INFINITY};
 
 int64_t gs_substeps(double H, double max_step) {
     const double r = H / max_step;
@@ -408,7 +408,7 @@ int32_t gs_advance_one(int method, int flags, double *y, const double *p, double
 size_t gs_advance(int method, int flags, size_t n, double *y, const double *p, double t, double H,
                   double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
                   int32_t *status, int threads) {
-    if (method < 0 || method >= GS_N_METHODS) {
+    if (method < 0 || method >= GS_N_BODY_METHODS) {
         for (size_t b = 0; b < n; b++) status[b] = 1;
         return n;
     }
@@ -550,7 +550,7 @@ static GS_INLINE size_t trajectory_impl(int method, int flags, size_t n, double 
                                         double max_step, double *hint, int64_t *stats, double *ex, int32_t *status,
                                         int threads, double *out, int want, const Sink *sel) {
     int64_t n_sub = 1;
-    if (method < 0 || method >= GS_N_METHODS || !(dt > 0.0) || n_out < 0) {
+    if (method < 0 || method >= GS_N_BODY_METHODS || !(dt > 0.0) || n_out < 0) {
         for (size_t b = 0; b < n; b++) status[b] = 1;
         return n;
     }

@@ -87,7 +87,12 @@ extern "C" {
 #define GS_YOSHIDA_EXACT 8
 #define GS_BM4_EXACT 9
 #define GS_BM6_EXACT 10
-#define GS_N_METHODS 11
+#define GS_N_BODY_METHODS 11   /* the one-body kernel takes the codes below this */
+/* implicit, on any tree (implicit.c): the implicit midpoint rule with rotations moved by the exponential map (order
+ * 2, symmetric, A-stable), and the same followed by a projection onto the energy and angular momentum the tree keeps */
+#define GS_MIDPOINT 11
+#define GS_ENERGY_MOMENTUM 12
+#define GS_N_METHODS 13
 
 /* Offsets in one body's state row y (GS_NY doubles; the head of this file tells more). "n: " = n slots from there */
 #define GS_Y_Q 0         /* 4: the attitude q_w, q_x, q_y, q_z (unit quaternion, body to world) */
@@ -173,7 +178,7 @@ double gs_fastest_rate(int flags, const double y[GS_NY], const double p[GS_NP]);
 #define GS_OMEGA_LIMIT 1e100
 
 /* The integrator names, indexed by code ("euler", "rk4", "splitting", "splitting4", "adaptive", "exact",
- * "dop853", "strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact"). adaptive is Dormand-Prince 5(4), dop853
+ * "dop853", "strang_exact", "yoshida_exact", "bm4_exact", "bm6_exact", "midpoint", "energy_momentum"). adaptive is Dormand-Prince 5(4), dop853
  * Dormand-Prince 8(5,3); both take rtol and atol. The *_exact ones are fixed-step compositions whose free part is the
  * exact torque-free flow (Jacobi elliptic functions) and whose kick is the torque's exact flow with q fixed. */
 extern const char *const gs_method_names[GS_N_METHODS];

@@ -41,6 +41,48 @@ typedef struct {
 int64_t gs_ode_advance(int method, const gs_ode *o, double *y, double H, int64_t n_sub, double rtol, double atol,
                        double max_step, double *hint, int64_t stats[GS_NSTATS]);
 
+
+/* ------------------------------------------------------------------------------------------- implicit methods */
+
+/* What the implicit methods (implicit.c: GS_MIDPOINT, GS_ENERGY_MOMENTUM) need beyond f: the unit quaternions in the
+ * state (each moved by q' = q (0, omega) / 2, omega the body-frame angular velocity at `omega`), the Jacobian of f
+ * as directional derivatives, and for energy_momentum the invariants to keep and the velocities it may move. */
+#define GS_LIE_MAXQ (GS_ODE_MAX / 7)
+#define GS_LIE_MAXINV 4
+typedef struct {
+    gs_ode ode;                 /* f, the monitor (project is not used: the exponential map keeps |q| = 1) */
+    int nq;                     /* unit quaternions */
+    int q[GS_LIE_MAXQ];         /* offset of each (w, x, y, z) in y */
+    int omega[GS_LIE_MAXQ];     /* offset of its angular velocity (3; rad/s, body frame) */
+    /* jv[0:ne] = J v, the derivative of f along v (ne values: a quaternion's four along q (0, dtheta) / 2).
+     * Returns 0 when it cannot. */
+    int (*jvp)(const void *ctx, const double *y, const double *v, double *jv);
+    /* energy_momentum: the invariants the system keeps now, as scaled residuals r[k] = (g_k(y) - g_k(0)) /
+     * scale_k; returns how many (0: none kept, no projection) */
+    int (*invariants)(const void *ctx, const double *y, double r[GS_LIE_MAXINV]);
+    int nvel;                   /* the velocity components the projection moves */
+    int vel[GS_ODE_MAX];
+} gs_lie;
+
+/* As gs_ode_advance for the implicit methods: n_sub steps of H / n_sub. Returns 0, or the failing step + 1 (y as
+ * before the call). */
+int64_t gs_lie_advance(int method, const gs_lie *L, double *y, double H, int64_t n_sub, int64_t stats[GS_NSTATS]);
+
+/* A run of many calls that keeps its Newton matrix between them (trajectories): gs_lie_begin, gs_lie_run for
+ * every interval (as gs_lie_advance; y unchanged on a failure), gs_lie_end. NULL: out of memory. */
+typedef struct gs_lie_run_s gs_lie_run_t;
+gs_lie_run_t *gs_lie_begin(int method, const gs_lie *L);
+int64_t gs_lie_run(gs_lie_run_t *r, double *y, double H, int64_t n_sub, int64_t stats[GS_NSTATS]);
+void gs_lie_end(gs_lie_run_t *r);
+
+/* n_out output intervals of dt in n_steps equal steps over the whole run (fewer steps than intervals: the outputs
+ * come from the dense output), emit(ec, k, state) at t = k dt for k = 1..n_out (the last one the end state). Returns
+ * 0, or the interval (1-based) in which a step failed; y is then the state emitted last (the start of that
+ * interval). */
+typedef void (*gs_lie_emit)(void *ec, int64_t k, const double *y);
+int64_t gs_lie_dense(gs_lie_run_t *r, double *y, double dt, int64_t n_out, int64_t n_steps,
+                     int64_t stats[GS_NSTATS], gs_lie_emit emit, void *ec);
+
 #ifdef __cplusplus
 }
 #endif

@@ -97,15 +97,17 @@ int gs_sys_init(gs_system *s, const int32_t *desc, size_t len) {
 
 int gs_sys_method_allowed(const gs_system *s, int method) {
     if (method < 0 || method >= GS_N_METHODS) return 0;
-    if (s->kernel == GS_KERNEL_BODY) return 1;
-    return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853;
+    if (s->kernel == GS_KERNEL_BODY) return method < GS_N_BODY_METHODS;
+    return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853 ||
+           method == GS_MIDPOINT || method == GS_ENERGY_MOMENTUM;
 }
 
 int gs_sys_method_applies(const gs_system *s, int method, const double *p, int *unit, char *why, size_t n) {
     if (!gs_sys_method_allowed(s, method)) {
         *unit = 0;
-        snprintf(why, n, method >= 0 && method < GS_N_METHODS ? "it solves one body; a tree of bodies takes"
-                                                              : "the system takes");
+        snprintf(why, n, method >= 0 && method < GS_N_BODY_METHODS ? "it solves one body; a tree of bodies takes"
+                         : method >= 0 && method < GS_N_METHODS ? "it solves a tree of bodies; one body takes"
+                                                                : "the system takes");
         return 0;
     }
     if (!p || s->kernel != GS_KERNEL_BODY || method != GS_EXACT) return 1;
@@ -488,7 +490,8 @@ void gs_sys_unwrap(const gs_system *s, double *y) {
 static void diagnose_tree(const gs_system *s, int method, const double *y0, const double *p, const double *hint,
                           double H, double rtol, double atol, double max_step, int32_t k, char *why, size_t n) {
     const double rate = gs_tree_fastest_rate(&s->tree, y0, p);
-    const int64_t n_sub = method == GS_EULER || method == GS_RK4 ? gs_substeps(H, max_step) : 0;
+    const int implicit = method == GS_MIDPOINT || method == GS_ENERGY_MOMENTUM;
+    const int64_t n_sub = method == GS_EULER || method == GS_RK4 || implicit ? gs_substeps(H, max_step) : 0;
     char at[80] = "", cause[320], advice[240];
     if (n_sub > 1) snprintf(at, sizeof(at), " at internal step %d of %lld", (int)k, (long long)n_sub);
     double y[GS_ODE_MAX + GS_TREE_NMON], pp[GS_TREE_NPMAX], h1 = hint ? hint[0] : 0.0;
@@ -498,7 +501,8 @@ static void diagnose_tree(const gs_system *s, int method, const double *y0, cons
     memcpy(pp, p, (size_t)s->np * sizeof(double));
     pp[GS_TP_DRIFT] = 0.0;
     if (gs_tree_advance(&s->tree, method, 1, y, pp, H, rtol, atol, max_step, &h1, stats, &status, 1)) {
-        snprintf(cause, sizeof(cause), "the state became non-finite or overflowed%s", at);
+        snprintf(cause, sizeof(cause), implicit ? "the implicit step's Newton iterations did not converge, or the "
+                 "state became non-finite%s" : "the state became non-finite or overflowed%s", at);
     } else {
         double dr[2];
         gs_tree_drift(&s->tree, y, p, dr);
@@ -565,7 +569,8 @@ static void diagnose_body(const gs_system *s, int method, const double *y0, cons
                  (long long)run_sub, (long long)(n_sub ? n_sub : 1), max_drift);
     }
     static const char *const alt[GS_N_METHODS] = {"rk4", "splitting", "dop853", "dop853", "splitting",
-                                                  "dop853", "splitting", "dop853", "dop853", "dop853", "dop853"};
+                                                  "dop853", "splitting", "dop853", "dop853", "dop853", "dop853",
+                                                  "dop853", "dop853"};
     const double hi = method == GS_ADAPTIVE || method == GS_DOP853 || method == GS_EXACT ? H : H / (double)n_sub;
     const double xs = gs_stable_x[method];
     const char *name = gs_method_names[method];

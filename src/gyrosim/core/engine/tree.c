@@ -1296,23 +1296,106 @@ static int ode_check(const void *ctx, double *y) {
     return 0;
 }
 
+/* ------------------------------------------------------------------------------ the implicit methods' view */
+
+/* J v by the complex step (tree_cs.c): exact, every gyroscopic term of every body in it */
+static int lie_jvp(const void *ctx, const double *y, const double *v, double *jv) {
+    const Ctx *c = (const Ctx *)ctx;
+    double d[GS_ODE_MAX + 1];
+    if (!gs_tree_directional(c->t, y, c->p, v, NULL, d, NULL)) return 0;
+    memcpy(jv, d, (size_t)c->t->nx * sizeof(double));
+    return 1;
+}
+
+/* 1 when nothing does work on the tree: no external torque, motor, damping or orbit (the energy is kept) */
+static int conservative(const gs_tree *t, const double *p) {
+    if (t->orbit != GS_ORBIT_NONE && p[GS_TP_MU] != 0.0) return 0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i);
+        if (b[GS_TB_TAU] != 0.0 || b[GS_TB_TAU + 1] != 0.0 || b[GS_TB_TAU + 2] != 0.0) return 0;
+        if (b[GS_TB_DAMP] != 0.0) return 0;
+        if (t->joint[i] == GS_J_HINGE && b[GS_TB_MOTOR] != 0.0) return 0;
+    }
+    return 1;
+}
+
+/* energy_momentum's invariants, scaled as the health monitor scales them: the energy against the balance's
+ * expected value y[nx] (constant where nothing does work), the angular momentum against L0 where no torque acts */
+static int lie_invariants(const void *ctx, const double *y, double r[GS_LIE_MAXINV]) {
+    const Ctx *c = (const Ctx *)ctx;
+    const gs_tree *t = c->t;
+    const double *m = y + t->nx;
+    int k = 0;
+    const int keep_e = conservative(t, c->p), keep_l = gs_tree_torque_free(t, c->p);
+    if (!keep_e && !keep_l) return 0;
+    Totals s;
+    totals_pre(t, y, c->p, c->pre, &s);
+    if (keep_e) r[k++] = (s.T + s.V - m[0]) / m[1];
+    if (keep_l) {
+        for (int a = 0; a < 3; a++) r[k++] = (s.L[a] - m[2 + a]) / m[5];
+    }
+    return k;
+}
+
+/* the quaternions, their angular velocities and the velocities of every joint */
+static void lie_view(const gs_tree *t, Ctx *ctx, gs_lie *L) {
+    L->ode = (gs_ode){ode_rhs, NULL, ode_check, ctx, t->nx + 1, t->nx, t->ny};
+    L->nq = 0;
+    L->nvel = 0;
+    L->jvp = lie_jvp;
+    L->invariants = lie_invariants;
+    for (int i = 0; i < t->n; i++) {
+        const int at = t->yi[i];
+        switch (t->joint[i]) {
+            case GS_J_BALL:
+                L->q[L->nq] = at;
+                L->omega[L->nq++] = at + 4;
+                for (int a = 0; a < 3; a++) L->vel[L->nvel++] = at + 4 + a;
+                break;
+            case GS_J_HINGE:
+                L->vel[L->nvel++] = at + 1;
+                break;
+            case GS_J_FREE:
+                L->q[L->nq] = at;
+                L->omega[L->nq++] = at + 7;
+                for (int a = 0; a < 6; a++) L->vel[L->nvel++] = at + 7 + a;
+                break;
+            default:
+                break;
+        }
+    }
+}
+
+static int implicit_method(int method) { return method == GS_MIDPOINT || method == GS_ENERGY_MOMENTUM; }
+
 static int32_t advance_system(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                               int64_t n_sub, double rtol, double atol, double max_step, double *hint,
                               int64_t *stats) {
     Ctx ctx = {t, p, pre};
-    gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
-    const int64_t k = gs_ode_advance(method, &o, y, H, n_sub, rtol, atol, max_step, hint, stats);
+    int64_t k;
+    if (implicit_method(method)) {
+        gs_lie L;
+        lie_view(t, &ctx, &L);
+        k = gs_lie_advance(method, &L, y, H, n_sub, stats);
+    } else {
+        gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
+        k = gs_ode_advance(method, &o, y, H, n_sub, rtol, atol, max_step, hint, stats);
+    }
     return (int32_t)(k > 2147483647 ? 2147483647 : k);
 }
 
 static int tree_method(int method) {
-    return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853;
+    return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853 ||
+           implicit_method(method);
 }
+
+/* the methods that take equal steps of at most max_step */
+static int fixed_method(int method) { return method == GS_EULER || method == GS_RK4 || implicit_method(method); }
 
 size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
                        double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads) {
     int64_t n_sub = 1;
-    if (method == GS_EULER || method == GS_RK4) n_sub = gs_substeps(H, max_step);
+    if (fixed_method(method)) n_sub = gs_substeps(H, max_step);
     if (!tree_method(method) || n_sub == 0) {
         for (size_t b = 0; b < n; b++) status[b] = tree_method(method) ? 1 : -1;
         return n;
@@ -1335,12 +1418,26 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
     return failed;
 }
 
+/* where the dense output writes a row */
+typedef struct {
+    const gs_tree *t;
+    const double *p;
+    const Pre *pre;
+    double *out;
+    size_t n, b, no;
+} Emit;
+
+static void emit_row(void *ec, int64_t k, const double *y) {
+    const Emit *e = (const Emit *)ec;
+    outputs_pre(e->t, y, e->p, e->pre, e->out + ((size_t)k * e->n + e->b) * e->no);
+}
+
 size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out) {
     const size_t no = (size_t)GS_TREE_NOUT(t);
     int64_t n_sub = 1;
-    if (method == GS_EULER || method == GS_RK4) n_sub = gs_substeps(dt, max_step);
+    if (fixed_method(method)) n_sub = gs_substeps(dt, max_step);
     for (size_t b = 0; b < n; b++) gs_tree_outputs(t, y + b * t->ny, p + b * t->np, out + b * no);
     if (!tree_method(method) || (n_sub == 0 && n_out > 0)) {
         for (size_t b = 0; b < n; b++) status[b] = tree_method(method) ? 1 : -1;
@@ -1361,9 +1458,38 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         status[b] = 0;
         static _Thread_local Pre pre;
         precompute(t, pb, &pre);
+        /* the implicit methods keep their Newton matrix over the run */
+        Ctx ctx = {t, pb, &pre};
+        gs_lie L;
+        gs_lie_run_t *run = NULL;
+        if (implicit_method(method)) {
+            lie_view(t, &ctx, &L);
+            run = gs_lie_begin(method, &L);
+        }
+        /* steps longer than the output interval: one run over the whole, the outputs from the dense output */
+        const int64_t n_steps = run ? gs_substeps((double)n_out * dt, max_step) : 0;
+        if (run && n_steps > 0 && n_steps < n_out) {
+            Emit em = {t, pb, &pre, out, n, b, no};
+            const int64_t f = gs_lie_dense(run, yb, dt, n_out, n_steps, stats + b * GS_NSTATS, emit_row, &em);
+            if (f) {
+                status[b] = (int32_t)(f > 2147483647 ? 2147483647 : f);
+                for (int64_t r = f; r <= n_out; r++) {
+                    for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
+                }
+                failed += 1;
+            }
+            gs_lie_end(run);
+            continue;
+        }
         for (int64_t k = 1; k <= n_out; k++) {
-            const int32_t s = advance_system(t, method, yb, pb, &pre, dt, n_sub, rtol, atol, max_step, hint + b,
-                                             stats + b * GS_NSTATS);
+            int32_t s;
+            if (run) {
+                const int64_t f = gs_lie_run(run, yb, dt, n_sub, stats + b * GS_NSTATS);
+                s = (int32_t)(f > 2147483647 ? 2147483647 : f);
+            } else {
+                s = advance_system(t, method, yb, pb, &pre, dt, n_sub, rtol, atol, max_step, hint + b,
+                                   stats + b * GS_NSTATS);
+            }
             if (s) {
                 status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
                 for (int64_t r = k; r <= n_out; r++) {
@@ -1374,6 +1500,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
             }
             outputs_pre(t, yb, pb, &pre, out + ((size_t)k * n + b) * no);
         }
+        gs_lie_end(run);
     }
     return failed;
 }

@@ -1,0 +1,582 @@
+/*
+ * gyrosim engine: the implicit integrators on a Lie group (gyrosim_ode.h, gs_lie), for any system that gives its
+ * derivatives, its Jacobian as directional derivatives and where its unit quaternions are (the tree of bodies).
+ *
+ * midpoint: the implicit midpoint rule, the rotations moved by the exponential map. With y = (q, x): q the unit
+ * quaternions, x every other component (angles, rates, angular velocities omega, positions), one step of h solves
+ * for the slope F
+ *
+ *     F = f(Y(F)),   Y(F) = (q0 exp(h/2 omega_mid), x0 + h/2 F),   omega_mid = omega0 + h/2 F_omega,
+ *
+ * and takes x1 = x0 + h F, q1 = q0 exp(h omega_mid) (exp: the unit quaternion of the body-frame rotation vector).
+ * This is the one-stage Runge-Kutta-Munthe-Kaas method on the Gauss tableau (Hairer, Lubich and Wanner, Geometric
+ * Numerical Integration, IV.8.2; at order 2 no dexp^-1 correction is needed): symmetric (q1 exp(-h/2 omega_mid)
+ * is the same midpoint from either end), A-stable (the linear oscillations it steps over stay bounded and are not
+ * damped: a gyroscope's nutation at h * omega_nutation >> 1), and it keeps every quadratic invariant of the x part
+ * exactly (HLW IV.2.1: the kinetic energy and |L| of a spacecraft with reaction wheels, whose mass matrix does not
+ * depend on the attitude). The quaternions stay unit by construction (products of unit quaternions), never
+ * renormalised.
+ *
+ * The nonlinear equations are solved by simplified Newton iterations (HLW, Solving ODEs II, IV.8) with the matrix
+ * I - h/2 J_xx - h^2/4 J_x,theta E_omega, J the exact Jacobian (the complex step through the system's jvp: it has
+ * every gyroscopic term of every articulated body, which is what keeps the iterations converging when h is far
+ * beyond the nutation period), to round-off: the invariants are exact only for the exact solution of the equations.
+ * The matrix is kept over steps and refreshed where the iterations slow down or fail.
+ *
+ * A component that nothing depends on (its Jacobian column is zero: the spin angle of an axisymmetric rotor, an
+ * orbit's anomaly) is no unknown: its slope is its derivative at the midpoint and its value the quadrature x0 + h F
+ * of its rate, so that the spin does not enter the Newton matrix or the step.
+ *
+ * energy_momentum: midpoint, then a projection of the velocities onto the invariants the system keeps now (its
+ * energy where nothing does work, its angular momentum where no torque acts): v1 <- v1 + G^T lambda with G the
+ * invariants' gradient with respect to the velocities, lambda from Newton iterations to round-off (HLW IV.4,
+ * algorithm 4.2). The energy and the angular momentum are then kept to round-off over any run, for any tree.
+ */
+#include "gyrosim_ode.h"   /* first: the engine header's FP_CONTRACT pragma */
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define LIE_EPS 2.220446049250313e-16
+#define LIE_MAXIT 24          /* Newton iterations per step before it counts as not converging */
+#define LIE_SLOW 6            /* a step that needed more refreshes the matrix before the next */
+#define LIE_MONITOR_PARTS 128 /* the health monitor within a long call, as the Runge-Kutta methods */
+
+/* what a component of y is */
+#define LIE_QUAT 0    /* part of a unit quaternion */
+#define LIE_X 1       /* a state component the right-hand side may read (an unknown of the Newton iterations) */
+#define LIE_QUAD 2    /* integrated but read by nothing (a work integral after ne, a cyclic angle): quadrature */
+
+struct gs_lie_run_s {
+    const gs_lie *L;
+    int method;
+    int nv, ne;
+    int kind[GS_ODE_MAX];
+    int m;                    /* unknowns of the Newton iterations */
+    int act[GS_ODE_MAX];      /* their components */
+    int ncol;                 /* Jacobian columns: ne x-components, then 3 per quaternion */
+    double *J;                /* ne x ncol, column-major: J[c * ne + r] */
+    double *A;                /* m x m, the LU factors of the Newton matrix, row-major */
+    int *piv;
+    double h_A;               /* the step A was built for */
+    int have_J, refresh;
+    double F[GS_ODE_MAX];     /* the slope: the last step's, the next one's first guess */
+    int have_F;
+    double G[GS_LIE_MAXINV][GS_ODE_MAX];   /* the projection's gradient */
+    int have_G;
+    double wmid[GS_LIE_MAXQ][3];           /* the last step's omega_mid per quaternion (the dense output's) */
+};
+
+/* ------------------------------------------------------------------------------------------- quaternions */
+
+/* q = exp of the body-frame rotation vector th: (cos |th|/2, sin(|th|/2) th / |th|) */
+static void quat_exp(const double th[3], double q[4]) {
+    const double a2 = th[0] * th[0] + th[1] * th[1] + th[2] * th[2];
+    const double a = sqrt(a2);
+    double c, s;   /* s = sin(a/2) / a */
+    if (a < 1e-4) {   /* the series: the next terms are below one ulp */
+        c = 1.0 - a2 / 8.0 + a2 * a2 / 384.0;
+        s = 0.5 - a2 / 48.0 + a2 * a2 / 3840.0;
+    } else {
+        c = cos(0.5 * a);
+        s = sin(0.5 * a) / a;
+    }
+    q[0] = c;
+    q[1] = s * th[0];
+    q[2] = s * th[1];
+    q[3] = s * th[2];
+}
+
+/* c = a b (Hamilton product) */
+static void quat_mul(const double a[4], const double b[4], double c[4]) {
+    c[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
+    c[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
+    c[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
+    c[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
+}
+
+/* out = q0 exp(s * omega) for every quaternion, omega read from w (a state) */
+static void turn_all(const gs_lie *L, const double *y0, const double *w, double s, double *out) {
+    for (int g = 0; g < L->nq; g++) {
+        const double *om = w + L->omega[g];
+        const double th[3] = {s * om[0], s * om[1], s * om[2]};
+        double e[4];
+        quat_exp(th, e);
+        quat_mul(y0 + L->q[g], e, out + L->q[g]);
+    }
+}
+
+/* ------------------------------------------------------------------------------------------- linear algebra */
+
+/* LU with partial pivoting of the n x n row-major A, in place. 0: singular. */
+static int lu_factor(int n, double *A, int *piv) {
+    for (int k = 0; k < n; k++) {
+        int p = k;
+        double best = fabs(A[k * n + k]);
+        for (int r = k + 1; r < n; r++) {
+            if (fabs(A[r * n + k]) > best) {
+                best = fabs(A[r * n + k]);
+                p = r;
+            }
+        }
+        piv[k] = p;
+        if (!(best > 0.0)) return 0;
+        if (p != k) {
+            for (int c = 0; c < n; c++) {
+                const double tmp = A[k * n + c];
+                A[k * n + c] = A[p * n + c];
+                A[p * n + c] = tmp;
+            }
+        }
+        const double inv = 1.0 / A[k * n + k];
+        for (int r = k + 1; r < n; r++) {
+            const double l = A[r * n + k] * inv;
+            A[r * n + k] = l;
+            if (l != 0.0) {
+                for (int c = k + 1; c < n; c++) A[r * n + c] -= l * A[k * n + c];
+            }
+        }
+    }
+    return 1;
+}
+
+static void lu_solve(int n, const double *A, const int *piv, double *b) {
+    for (int k = 0; k < n; k++) {
+        if (piv[k] != k) {
+            const double tmp = b[k];
+            b[k] = b[piv[k]];
+            b[piv[k]] = tmp;
+        }
+        for (int r = k + 1; r < n; r++) b[r] -= A[r * n + k] * b[k];
+    }
+    for (int k = n - 1; k >= 0; k--) {
+        double s = b[k];
+        for (int c = k + 1; c < n; c++) s -= A[k * n + c] * b[c];
+        b[k] = s / A[k * n + k];
+    }
+}
+
+/* x = A^-1 b for a small dense system (the projection's n_inv x n_inv), by Gaussian elimination. 0: singular. */
+static int small_solve(int n, double A[GS_LIE_MAXINV][GS_LIE_MAXINV], double *b) {
+    double M[GS_LIE_MAXINV * GS_LIE_MAXINV];
+    int piv[GS_LIE_MAXINV];
+    for (int r = 0; r < n; r++) {
+        for (int c = 0; c < n; c++) M[r * n + c] = A[r][c];
+    }
+    if (!lu_factor(n, M, piv)) return 0;
+    lu_solve(n, M, piv, b);
+    return 1;
+}
+
+/* ------------------------------------------------------------------------------------------- the Jacobian */
+
+/* J at y: a column per x-component (a unit step in it) and three per quaternion (q (0, e_k) / 2); then which
+ * components are unknowns: those a column shows something depends on (an angular velocity also where its
+ * quaternion's columns do: the rotation depends on it). Returns the evaluations spent, -1 when jvp fails. */
+static int jacobian(gs_lie_run_t *r, const double *y) {
+    const gs_lie *L = r->L;
+    double v[GS_ODE_MAX];
+    memset(v, 0, sizeof(v));
+    int c = 0;
+    for (int i = 0; i < r->ne; i++) {
+        if (r->kind[i] == LIE_QUAT) continue;
+        v[i] = 1.0;
+        if (!L->jvp(L->ode.ctx, y, v, r->J + (size_t)c * r->ne)) return -1;
+        v[i] = 0.0;
+        c++;
+    }
+    for (int g = 0; g < L->nq; g++) {
+        const double *q = y + L->q[g];
+        for (int k = 0; k < 3; k++) {
+            double e[4] = {0.0, 0.0, 0.0, 0.0}, d[4];
+            e[1 + k] = 0.5;
+            quat_mul(q, e, d);
+            memcpy(v + L->q[g], d, sizeof(d));
+            if (!L->jvp(L->ode.ctx, y, v, r->J + (size_t)c * r->ne)) return -1;
+            c++;
+        }
+        memset(v + L->q[g], 0, 4 * sizeof(double));
+    }
+    /* the unknowns: x-components some x-row of f reads */
+    int col = 0, depends[GS_ODE_MAX];
+    memset(depends, 0, sizeof(depends));
+    for (int i = 0; i < r->ne; i++) {
+        if (r->kind[i] == LIE_QUAT) continue;
+        const double *Jc = r->J + (size_t)col * r->ne;
+        for (int a = 0; a < r->ne; a++) {
+            if (r->kind[a] != LIE_QUAT && Jc[a] != 0.0) {
+                depends[i] = 1;
+                break;
+            }
+        }
+        col++;
+    }
+    for (int g = 0; g < L->nq; g++) {
+        for (int k = 0; k < 3; k++, col++) {
+            const double *Jc = r->J + (size_t)col * r->ne;
+            for (int a = 0; a < r->ne; a++) {
+                if (r->kind[a] != LIE_QUAT && Jc[a] != 0.0) {
+                    depends[L->omega[g] + k] = 1;
+                    break;
+                }
+            }
+        }
+    }
+    r->m = 0;
+    for (int i = 0; i < r->ne; i++) {
+        if (r->kind[i] == LIE_QUAT) continue;
+        if (depends[i]) {
+            r->act[r->m++] = i;
+            r->kind[i] = LIE_X;
+        } else {
+            r->kind[i] = LIE_QUAD;
+        }
+    }
+    r->have_J = 1;
+    r->h_A = 0.0;   /* the matrix is rebuilt from the new J */
+    return c;
+}
+
+/* A = I - h/2 J_aa - h^2/4 J_a,theta(omega) over the unknowns, factored. 0: singular. */
+static int newton_matrix(gs_lie_run_t *r, double h) {
+    const gs_lie *L = r->L;
+    const int m = r->m, ne = r->ne;
+    int colof[GS_ODE_MAX];   /* the Jacobian column of each x-component */
+    int c = 0;
+    for (int i = 0; i < ne; i++) colof[i] = r->kind[i] == LIE_QUAT ? -1 : c++;
+    int pos[GS_ODE_MAX];     /* each component's place among the unknowns, -1 */
+    for (int i = 0; i < ne; i++) pos[i] = -1;
+    for (int a = 0; a < m; a++) pos[r->act[a]] = a;
+    for (int a = 0; a < m; a++) {
+        const int ra = r->act[a];
+        for (int b = 0; b < m; b++) r->A[a * m + b] = (a == b ? 1.0 : 0.0) - 0.5 * h * r->J[(size_t)colof[r->act[b]] * ne + ra];
+    }
+    for (int g = 0; g < L->nq; g++) {
+        for (int k = 0; k < 3; k++) {
+            const int b = pos[L->omega[g] + k];
+            if (b < 0) continue;
+            const double *Jc = r->J + (size_t)c * ne;
+            c++;
+            for (int a = 0; a < m; a++) r->A[a * m + b] -= 0.25 * h * h * Jc[r->act[a]];
+        }
+    }
+    (void)c;
+    r->h_A = h;
+    return lu_factor(m, r->A, r->piv);
+}
+
+/* ------------------------------------------------------------------------------------------- one step */
+
+static int finite_state(const gs_lie_run_t *r, const double *y) {
+    for (int i = 0; i < r->nv; i++) {
+        if (!isfinite(y[i]) || fabs(y[i]) > GS_OMEGA_LIMIT) return 0;
+    }
+    return 1;
+}
+
+/* The midpoint state Y(F) of the step from y0 (the x-components and quadratures at x0 + h/2 F, the quaternions
+ * turned by h/2 omega_mid); the constants after nv copied. */
+static void midpoint_state(const gs_lie_run_t *r, const double *y0, const double *F, double h, double *Y) {
+    for (int i = 0; i < r->nv; i++) {
+        if (r->kind[i] != LIE_QUAT) Y[i] = y0[i] + 0.5 * h * F[i];
+    }
+    turn_all(r->L, y0, Y, 0.5 * h, Y);
+}
+
+/* The Newton iterations of one step from y0: F converged (r->F). Returns the iterations (> 0), or 0 when they do
+ * not converge. *evals counts f. */
+static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, int64_t *evals) {
+    const gs_ode *o = &r->L->ode;
+    double Gv[GS_ODE_MAX], d[GS_ODE_MAX];
+    double prev = INFINITY;
+    for (int it = 1; it <= LIE_MAXIT; it++) {
+        midpoint_state(r, y0, r->F, h, Y);
+        o->rhs(o->ctx, Y, Gv);
+        *evals += 1;
+        for (int a = 0; a < r->m; a++) d[a] = Gv[r->act[a]] - r->F[r->act[a]];
+        lu_solve(r->m, r->A, r->piv, d);
+        /* the change of x1 = x0 + h F, relative to the component's size (at least 1e-8 of the largest: a
+         * component at 0 converges to the others' round-off, not to its own) */
+        double big = 0.0;
+        for (int a = 0; a < r->m; a++) {
+            const int i = r->act[a];
+            r->F[i] += d[a];
+            big = fmax(big, fabs(y0[i]) + fabs(h * r->F[i]));
+        }
+        double err = 0.0;
+        for (int a = 0; a < r->m; a++) {
+            const int i = r->act[a];
+            const double s = fmax(fmax(fabs(y0[i]), fabs(h * r->F[i])), 1e-8 * big);
+            const double e = s > 0.0 ? fabs(h * d[a]) / s : (d[a] == 0.0 ? 0.0 : INFINITY);
+            if (!(e <= err)) err = e;   /* NaN propagates */
+        }
+        for (int i = 0; i < r->nv; i++) {
+            if (r->kind[i] == LIE_QUAD) r->F[i] = Gv[i];
+        }
+        if (!(err == err)) return 0;
+        if (err <= 4.0 * LIE_EPS) return it;
+        /* converged to the noise of f's round-off: no more progress near it */
+        if (it >= 3 && err >= 0.5 * prev && err <= 1e-11) return it;
+        if (it >= 4 && err > 2.0 * prev) return 0;   /* diverging */
+        prev = err;
+    }
+    return 0;
+}
+
+/* energy_momentum's projection of y's velocities onto the invariants. 0: it could not (singular, no convergence) */
+static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
+    const gs_lie *L = r->L;
+    double res[GS_LIE_MAXINV];
+    const int ni = L->invariants(L->ode.ctx, y, res);
+    *evals += 1;
+    if (ni <= 0) return 1;
+    if (!r->have_G) {   /* the gradient by central differences: exact for the energy (quadratic in the velocities)
+                         * and the momentum (linear in them) up to round-off */
+        double vs = 0.0;
+        for (int j = 0; j < L->nvel; j++) vs = fmax(vs, fabs(y[L->vel[j]]));
+        if (!(vs > 0.0)) vs = 1.0;
+        for (int j = 0; j < L->nvel; j++) {
+            const int i = L->vel[j];
+            const double v = y[i], dv = 1e-4 * fmax(fabs(v), vs);
+            double rp[GS_LIE_MAXINV], rm[GS_LIE_MAXINV];
+            y[i] = v + dv;
+            L->invariants(L->ode.ctx, y, rp);
+            y[i] = v - dv;
+            L->invariants(L->ode.ctx, y, rm);
+            y[i] = v;
+            for (int k = 0; k < ni; k++) r->G[k][j] = (rp[k] - rm[k]) / (2.0 * dv);
+        }
+        *evals += 2 * L->nvel;
+        r->have_G = 1;
+    }
+    double GG[GS_LIE_MAXINV][GS_LIE_MAXINV];
+    for (int a = 0; a < ni; a++) {
+        for (int b = 0; b < ni; b++) {
+            double s = 0.0;
+            for (int j = 0; j < L->nvel; j++) s += r->G[a][j] * r->G[b][j];
+            GG[a][b] = s;
+        }
+    }
+    double prev = INFINITY;
+    for (int it = 1; it <= LIE_MAXIT; it++) {
+        double worst = 0.0;
+        for (int k = 0; k < ni; k++) worst = fmax(worst, fabs(res[k]));
+        if (!(worst == worst)) return 0;
+        if (worst <= 2.0 * LIE_EPS || (it >= 3 && worst >= 0.5 * prev && worst <= 1e-12)) {
+            if (it > 4) r->have_G = 0;   /* slow: a fresh gradient next step */
+            return 1;
+        }
+        prev = worst;
+        double lam[GS_LIE_MAXINV];
+        for (int k = 0; k < ni; k++) lam[k] = -res[k];
+        if (!small_solve(ni, GG, lam)) return 0;
+        for (int j = 0; j < L->nvel; j++) {
+            double s = 0.0;
+            for (int k = 0; k < ni; k++) s += r->G[k][j] * lam[k];
+            y[L->vel[j]] += s;
+        }
+        L->invariants(L->ode.ctx, y, res);
+        *evals += 1;
+    }
+    return 0;
+}
+
+/* One step of h on y (in place). Returns 1, or 0 when the iterations do not converge with a fresh matrix. */
+static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
+    const gs_ode *o = &r->L->ode;
+    double Y[GS_ODE_MAX + 16];
+    memcpy(Y, y, (size_t)o->ny * sizeof(double));
+    for (int attempt = 0; attempt < 2; attempt++) {
+        const int fresh = !r->have_J || r->refresh || attempt > 0;
+        if (fresh) {
+            const int k = jacobian(r, y);
+            if (k < 0) return 0;
+            *evals += k;
+            r->refresh = 0;
+        }
+        if (r->h_A != h && !newton_matrix(r, h)) return 0;
+        if (!r->have_F || attempt > 0) {   /* the first guess: f(y0) */
+            o->rhs(o->ctx, y, r->F);
+            *evals += 1;
+            r->have_F = 1;
+        }
+        const int it = solve_step(r, y, h, Y, evals);
+        if (it) {
+            if (it > LIE_SLOW) r->refresh = 1;
+            break;
+        }
+        if (fresh && attempt > 0) return 0;
+        r->have_F = 0;
+    }
+    /* x1 = x0 + h F, q1 = q0 exp(h omega_mid): omega_mid is Y's (the converged midpoint) */
+    double y1[GS_ODE_MAX + 16];
+    memcpy(y1, y, (size_t)o->ny * sizeof(double));
+    for (int i = 0; i < r->nv; i++) {
+        if (r->kind[i] != LIE_QUAT) y1[i] = y[i] + h * r->F[i];
+    }
+    turn_all(r->L, y, Y, h, y1);
+    for (int g = 0; g < r->L->nq; g++) memcpy(r->wmid[g], Y + r->L->omega[g], sizeof(r->wmid[g]));
+    if (r->method == GS_ENERGY_MOMENTUM) {
+        double keep[GS_ODE_MAX + 16];
+        memcpy(keep, y1, (size_t)o->ny * sizeof(double));
+        if (!project(r, y1, evals)) {   /* again with a fresh gradient */
+            memcpy(y1, keep, (size_t)o->ny * sizeof(double));
+            r->have_G = 0;
+            if (!project(r, y1, evals)) return 0;
+        }
+    }
+    if (!finite_state(r, y1)) return 0;
+    memcpy(y, y1, (size_t)o->ny * sizeof(double));
+    return 1;
+}
+
+/* ------------------------------------------------------------------------------------------- runs */
+
+gs_lie_run_t *gs_lie_begin(int method, const gs_lie *L) {
+    const gs_ode *o = &L->ode;
+    if ((method != GS_MIDPOINT && method != GS_ENERGY_MOMENTUM) || o->nv > GS_ODE_MAX || o->nv < 1 || o->ne < 1 ||
+        o->ne > o->nv || o->ny < o->nv || o->ny > GS_ODE_MAX + 16 || L->nq < 0 || L->nq > GS_LIE_MAXQ ||
+        L->nvel < 0 || L->nvel > GS_ODE_MAX || !L->jvp || (method == GS_ENERGY_MOMENTUM && !L->invariants))
+        return NULL;
+    gs_lie_run_t *r = (gs_lie_run_t *)calloc(1, sizeof(gs_lie_run_t));
+    if (!r) return NULL;
+    r->L = L;
+    r->method = method;
+    r->nv = o->nv;
+    r->ne = o->ne;
+    for (int i = 0; i < o->nv; i++) r->kind[i] = i < o->ne ? LIE_X : LIE_QUAD;
+    for (int g = 0; g < L->nq; g++) {
+        for (int a = 0; a < 4; a++) r->kind[L->q[g] + a] = LIE_QUAT;
+    }
+    r->ncol = 0;
+    for (int i = 0; i < o->ne; i++) r->ncol += r->kind[i] != LIE_QUAT;
+    r->ncol += 3 * L->nq;
+    const size_t nx = (size_t)r->ncol - 3 * (size_t)L->nq;
+    r->J = (double *)malloc((size_t)r->ne * (size_t)r->ncol * sizeof(double));
+    r->A = (double *)malloc(nx * nx * sizeof(double) + 1);
+    r->piv = (int *)malloc((nx + 1) * sizeof(int));
+    if (!r->J || !r->A || !r->piv) {
+        gs_lie_end(r);
+        return NULL;
+    }
+    return r;
+}
+
+void gs_lie_end(gs_lie_run_t *r) {
+    if (!r) return;
+    free(r->J);
+    free(r->A);
+    free(r->piv);
+    free(r);
+}
+
+int64_t gs_lie_run(gs_lie_run_t *r, double *y, double H, int64_t n_sub, int64_t stats[GS_NSTATS]) {
+    const gs_ode *o = &r->L->ode;
+    if (n_sub < 1 || !(H > 0.0)) return 1;
+    double y0[GS_ODE_MAX + 16];
+    memcpy(y0, y, (size_t)o->ny * sizeof(double));
+    const double h = H / (double)n_sub;
+    const int64_t cs = n_sub >= 2 * LIE_MONITOR_PARTS ? n_sub / LIE_MONITOR_PARTS : 0;
+    int64_t evals = 0, k = 0, countdown = cs;
+    for (int64_t s = 0; s < n_sub; s++) {
+        if (!lie_step(r, y, h, &evals)) {
+            k = s + 1;
+            break;
+        }
+        if (cs && --countdown == 0) {
+            countdown = cs;
+            if (o->check && o->check(o->ctx, y)) {
+                k = s + 1;
+                break;
+            }
+        }
+    }
+    /* the monitor at the end too, where its stride did not land there */
+    if (!k && !(cs && n_sub % cs == 0) && o->check && o->check(o->ctx, y)) k = n_sub;
+    stats[0] += k ? k : n_sub;
+    stats[2] += evals;
+    if (k) {
+        memcpy(y, y0, (size_t)o->ny * sizeof(double));
+        r->have_F = 0;
+        r->have_G = 0;
+        r->refresh = 1;
+    }
+    return k;
+}
+
+int64_t gs_lie_advance(int method, const gs_lie *L, double *y, double H, int64_t n_sub, int64_t stats[GS_NSTATS]) {
+    gs_lie_run_t *r = gs_lie_begin(method, L);
+    if (!r) return 1;
+    const int64_t k = gs_lie_run(r, y, H, n_sub, stats);
+    gs_lie_end(r);
+    return k;
+}
+
+/* ------------------------------------------------------------------------------------------- dense output */
+
+/* The state at s in [0, 1] of the step of h from y0 to y1: the method's own continuous output, its collocation
+ * polynomial (Hairer, Norsett and Wanner I, II.7: the midpoint rule is the one-stage Gauss collocation method, of
+ * degree 1): the components y0 + s h F, each quaternion q0 exp(s h omega_mid), the step's rotation in part. Its
+ * error is O(h^2), the method's order, and it uses no slope at the step's ends: with steps far beyond a fast
+ * oscillation (a gyroscope's nutation) the slopes there carry that oscillation's velocity, which a Hermite
+ * interpolant would multiply by h into an O(h) error. */
+static void dense_state(const gs_lie_run_t *r, const double *y0, const double *y1, double h, double s,
+                        double *out) {
+    memcpy(out, y1, (size_t)r->L->ode.ny * sizeof(double));
+    for (int i = 0; i < r->nv; i++) {
+        if (r->kind[i] != LIE_QUAT) out[i] = y0[i] + s * (y1[i] - y0[i]);
+    }
+    for (int g = 0; g < r->L->nq; g++) {
+        const double *wm = r->wmid[g];
+        const double phi[3] = {s * h * wm[0], s * h * wm[1], s * h * wm[2]};
+        double e[4];
+        quat_exp(phi, e);
+        quat_mul(y0 + r->L->q[g], e, out + r->L->q[g]);
+    }
+}
+
+int64_t gs_lie_dense(gs_lie_run_t *r, double *y, double dt, int64_t n_out, int64_t n_steps,
+                     int64_t stats[GS_NSTATS], gs_lie_emit emit, void *ec) {
+    const gs_ode *o = &r->L->ode;
+    if (n_steps < 1 || n_out < 1 || !(dt > 0.0)) return 1;
+    const size_t ny = (size_t)o->ny;
+    double y0[GS_ODE_MAX + 16], last[GS_ODE_MAX + 16], ys[GS_ODE_MAX + 16];
+    const double T = (double)n_out * dt, h = T / (double)n_steps;
+    const int64_t cs = n_steps >= 2 * LIE_MONITOR_PARTS ? n_steps / LIE_MONITOR_PARTS : 1;
+    int64_t evals = 0, k = 1, fail = 0, steps = 0;
+    memcpy(last, y, ny * sizeof(double));
+    for (int64_t st = 0; st < n_steps && !fail; st++) {
+        const double t0 = (double)st * h, t1 = st + 1 == n_steps ? T : (double)(st + 1) * h;
+        memcpy(y0, y, ny * sizeof(double));
+        steps++;
+        if (!lie_step(r, y, h, &evals) || ((st + 1) % cs == 0 && o->check && o->check(o->ctx, y))) {
+            fail = k;
+            break;
+        }
+        /* the outputs within the step; the last ones at the run's end are the end state itself */
+        while (k <= n_out) {
+            const double tk = (double)k * dt;
+            if (st + 1 == n_steps && k == n_out) {
+                memcpy(ys, y, ny * sizeof(double));
+            } else if (tk <= t1) {
+                dense_state(r, y0, y, h, (tk - t0) / h, ys);
+            } else {
+                break;
+            }
+            emit(ec, k, ys);
+            memcpy(last, ys, ny * sizeof(double));
+            k++;
+        }
+    }
+    if (!fail && o->check && o->check(o->ctx, y)) fail = n_out;
+    stats[0] += steps;
+    stats[2] += evals;
+    if (fail) {   /* the state at the start of the failing interval (the last output emitted) */
+        memcpy(y, last, ny * sizeof(double));
+        r->have_F = 0;
+        r->have_G = 0;
+        r->refresh = 1;
+    }
+    return fail;
+}
