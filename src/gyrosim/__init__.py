@@ -24,8 +24,8 @@ _LAZY = {
     "RigidBodyDynamics": ".core.seeds", "InertiaTensor": ".core.inertia", "SymmetricTop": ".core.analytic",
     "Gyroscope": ".core.analytic", "TorqueFreeSolution": ".core.analytic", "Model": ".model",
     "load_scene": ".scene", "simulate": ".trajectory", "normal_modes": ".analysis.linear",
-    "linearize": ".analysis.linear", "canonical_momenta": ".analysis.hamiltonian",
-    "hamiltonian": ".analysis.hamiltonian", "symplecticity_error": ".analysis.hamiltonian",
+    "linearize": ".analysis.linear", "canonical_momenta": ".analysis.hamilton",
+    "hamiltonian": ".analysis.hamilton", "symplecticity_error": ".analysis.hamilton",
 }
 
 

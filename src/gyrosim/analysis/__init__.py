@@ -9,7 +9,7 @@ from __future__ import annotations
 _LAZY: dict[str, str] = {}
 _LAZY.update(dict.fromkeys(("lyapunov", "poincare", "plot_chaos", "LyapunovResult", "PoincareSection"), ".chaos"))
 _LAZY.update(dict.fromkeys(("canonical_momenta", "hamiltonian", "mass_matrix", "symplecticity_error",
-                            "symplecticity_errors", "CanonicalChart", "Symplecticity"), ".hamiltonian"))
+                            "symplecticity_errors", "CanonicalChart", "Symplecticity"), ".hamilton"))
 
 
 def __getattr__(name):

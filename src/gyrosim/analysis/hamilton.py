@@ -1,6 +1,9 @@
 """The Hamiltonian view of any scene: canonical momenta, the Hamiltonian, and how symplectic each integrator's
 one-step map is.
 
+(The module is ``hamilton``, not ``hamiltonian``: a submodule of that name would shadow the function
+``gyrosim.analysis.hamiltonian`` once imported.)
+
 Coordinates and momenta. A scene's configuration is its joints' coordinates: a hinge's ``angle`` (rad), a ``free``
 body's position ``r_x..z`` (m, world) and, for every ``ball``, ``free_rotation`` or ``free`` joint (and a one-body
 scene's body), its rotation, charted by the rotation vector ``rot_x..z`` (rad) in the body (child) frame about a base
