@@ -22,7 +22,7 @@ __all__ = ["main", "build_parser", "add_verbosity", "verbosity", "scene_info", "
 
 #: Modules that add their own subcommands through ``register(subparsers)``.
 _PLUGINS = ("gyrosim.fmu.cli", "gyrosim.service.cli", "gyrosim.telemetry.cli", "gyrosim.sweep.cli",
-            "gyrosim.cosim", "gyrosim.analysis.linear_cli")
+            "gyrosim.cosim", "gyrosim.analysis.linear_cli", "gyrosim.analysis.hamilton_cli")
 
 
 def add_verbosity(p: argparse.ArgumentParser) -> None:

@@ -194,3 +194,26 @@ def test_refusals():
         hamiltonian(Model("satellite"))
     with pytest.raises(ConfigError, match="about"):
         symplecticity_error("double_pendulum", "rk4", 0.01, about="equilibrium")
+
+
+# ------------------------------------------------------------------------------------------ gyrosim hamiltonian
+def test_cli_prints_momenta_H_and_the_defects(capsys):
+    from gyrosim.cli import main
+
+    assert main(["hamiltonian", "double_pendulum", "--set", "upper.rate=1", "--integrator", "rk4",
+                 "--step", "0.01", "--step", "0.005"]) == 0
+    out = capsys.readouterr().out
+    # th1' = th2' = 1 rad/s, th1 = th2: p1 = (m1 + m2) + m2 = 3, p2 = m2 + m2 = 2; p_a = (p1 + p2, p2)
+    assert "upper.p_angle  +5 kg*m^2/s" in out and "lower.p_angle  +2 kg*m^2/s" in out
+    assert out.count("not symplectic") == 2 and " H  " in out
+    assert main(["hamiltonian", "heavy_top", "--integrator", "strang_exact", "-q"]) == 0
+    assert "within the floor" in capsys.readouterr().out
+
+
+def test_cli_refusals(capsys):
+    from gyrosim.cli import main
+
+    assert main(["hamiltonian", "double_pendulum", "--integrator", "splitting"]) == 2
+    assert main(["hamiltonian", "double_pendulum", "--step", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "--integrator = 'splitting' is not allowed" in err and "--step = 0.0 is not allowed" in err

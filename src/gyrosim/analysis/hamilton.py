@@ -293,8 +293,8 @@ class CanonicalChart:
 def _refuse_orbit(model, what: str) -> None:
     orbit = getattr(model.scene, "orbit", None)
     if orbit is not None and orbit.circular:
-        raise ConfigError("scene", model.scene.name, f"a scene whose energy output is its Hamiltonian ({what}): on a "
-                          "circular orbit the gravity gradient and the tidal forces act through a potential that "
+        raise ConfigError("scene", model.scene.name, f"a scene whose energy output is its Hamiltonian for {what}; on "
+                          "a circular orbit the gravity gradient and the tidal forces act through a potential that "
                           "turns with the orbit (a Hamiltonian that depends on time) and is not in 'energy'")
 
 
@@ -346,7 +346,7 @@ def hamiltonian(model, *, system: int = 0) -> float:
     ConfigError
         A scene on a circular orbit (its potential turns with the orbit and is not in ``energy``).
     """
-    _refuse_orbit(model, "hamiltonian")
+    _refuse_orbit(model, "hamiltonian()")
     model.initialize()
     if model.scene.kernel == "tree":
         return float(model._outputs_array()[system, model.scene.output_names().index("energy")])
