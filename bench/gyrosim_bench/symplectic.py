@@ -33,7 +33,7 @@ SCENES = (("heavy_top", "heavy_top", None, STEPS), ("heavy_top_moving", "heavy_t
           ("spacecraft_tumbling", "spacecraft", {"hub.omega_x": 1.0, "hub.omega_y": 0.5, "hub.omega_z": -0.8},
            SLOW_STEPS))
 #: A floor above this is no measurement: the map is not smooth at the difference steps.
-UNRESOLVED = 1e-6
+UNRESOLVED = 1e-6  # gyrosim.analysis.hamilton.NOT_SMOOTH
 
 
 def run_symplectic(quick: bool = False, bar=None) -> dict:

@@ -217,3 +217,12 @@ def test_cli_refusals(capsys):
     assert main(["hamiltonian", "double_pendulum", "--step", "0"]) == 2
     err = capsys.readouterr().err
     assert "--integrator = 'splitting' is not allowed" in err and "--step = 0.0 is not allowed" in err
+
+
+def test_exact_next_to_a_turning_point_is_not_smooth():
+    """The Lagrange top's exact flow from heavy_top's release (theta' = 0) is not a smooth map at the difference
+    steps (its floor says so: no verdict); from a moving state it is at the floor (docs/accuracy.md)."""
+    r = symplecticity_error("heavy_top", "exact", 0.01)
+    assert not r.smooth and not r.at_floor
+    r = symplecticity_error("heavy_top", "exact", 0.01, about={"omega_y": -2.0})
+    assert r.smooth and r.at_floor and r.error < 1e-11

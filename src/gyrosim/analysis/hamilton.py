@@ -35,9 +35,11 @@ On a circular orbit the gravity gradient and the tidal forces act through a pote
 Symplecticity. :func:`symplecticity_error` measures how far an integrator's one-step map Phi_h (one internal step:
 ``max_step = h``) is from preserving the symplectic form: M^T J M - J, M = dPhi_h/dx in the canonical coordinates
 x = (q, p) above, J = [[0, I], [-I, 0]]. A symplectic method (the splittings and exact-flow splittings of the
-one-body kernel, its exact flow) gives zero to the measurement's floor; a Runge-Kutta method does not (rk4: the
-defect is O(h^5) per step; euler: O(h^2)). Damping makes the exact flow itself contract phase space: the measured
-defect of a damped scene then is the flow's, not only the integrator's (``conservative`` in the result says so).
+one-body kernel, its exact flow) gives zero to the measurement's floor (``exact`` on the Lagrange top is not
+smooth next to a turning point of the nutation: a floor above :data:`NOT_SMOOTH` says so); a Runge-Kutta method
+does not (rk4: the defect is O(h^5) per step; euler: O(h^2)). Damping makes the exact flow itself contract phase
+space: the measured defect of a damped scene then is the flow's, not only the integrator's (``conservative`` in the
+result says so).
 
 Examples
 --------
@@ -74,6 +76,8 @@ __all__ = ["CanonicalChart", "Symplecticity", "canonical_momenta", "hamiltonian"
 _PARTNER = {"angle": "rate", "r_x": "v_x", "r_y": "v_y", "r_z": "v_z", "displacement": "velocity"}
 #: The relative size of the difference steps of the Jacobian (scaled coordinates: rad, and momenta over S).
 EPS = 1e-3
+#: A floor above this is no measurement: the map is not a smooth function of the state at the difference steps.
+NOT_SMOOTH = 1e-6
 
 
 # ---------------------------------------------------------------------------------------------------- rotations
@@ -408,14 +412,23 @@ class Symplecticity:
     note: str = ""
 
     @property
+    def smooth(self) -> bool:
+        """Whether the measurement means anything: a floor at most :data:`NOT_SMOOTH` (a larger one says the map
+        is not a smooth function of the state at the difference steps, e.g. ``exact`` on the Lagrange top next to
+        a turning point of its nutation, docs/accuracy.md)."""
+        return self.floor <= NOT_SMOOTH
+
+    @property
     def at_floor(self) -> bool:
-        """Whether the error is within the measurement's floor (a symplectic map, as far as it can tell)."""
-        return self.error <= self.floor
+        """Whether the error is within the measurement's floor (a symplectic map, as far as it can tell), the floor
+        being a measurement (:attr:`smooth`)."""
+        return self.smooth and self.error <= self.floor
 
     def record(self) -> dict:
         """A flat dict for tables (the study)."""
         return {"scene": self.scene, "integrator": self.integrator, "h": self.h, "error": self.error,
-                "floor": self.floor, "frobenius": self.frobenius, "conservative": self.conservative}
+                "floor": self.floor, "frobenius": self.frobenius, "conservative": self.conservative,
+                "smooth": self.smooth}
 
 
 def _prepare(scene, about):

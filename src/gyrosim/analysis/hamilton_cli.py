@@ -71,7 +71,7 @@ def cmd_hamiltonian(args) -> int:
                     raise
                 print(f"{integ:>14}  {h:>9.3g}  {'-':>13}  {'-':>9}  does not apply: {e}")
                 break
-            verdict = ("not smooth: no measurement" if r.floor > 1e-6 else
+            verdict = ("not smooth: no measurement" if not r.smooth else
                        "within the floor (symplectic as far as it shows)" if r.at_floor else "not symplectic")
             if r.note:
                 verdict += f"; {r.note}"
