@@ -82,7 +82,7 @@ def test_every_python_block_runs(page, tmp_path, monkeypatch):
 
 #: Modules whose docstrings the API pages show: their examples run as doctests.
 DOCTEST_MODULES = ["gyrosim.trajectory", "gyrosim.model", "gyrosim.core.inertia", "gyrosim.core.seeds",
-                   "gyrosim.core.analytic", "gyrosim.scene", "gyrosim.analysis.linear"]
+                   "gyrosim.core.analytic", "gyrosim.scene", "gyrosim.analysis.linear", "gyrosim.analysis.hamilton"]
 
 
 @pytest.mark.parametrize("name", DOCTEST_MODULES)

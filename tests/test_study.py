@@ -281,3 +281,22 @@ def test_bench_without_the_checkout_is_one_line_and_exit_2(tmp_path, monkeypatch
     out, err = capsys.readouterr()
     assert out == "" and len(err.strip().splitlines()) == 1 and "make bench" in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_symplectic_part_table():
+    """The symplectic part's table (gyrosim_bench.symplectic): cells at and above the floor, unresolved floors, the
+    fitted slope of a fixed-step method; one real run of its smallest case."""
+    from gyrosim_bench import symplectic
+
+    assert "symplectic" in study.PARTS
+    runs = [{"scene": "s", "integrator": "rk4", "h": h, "error": 3.0 * h**5, "floor": 1e-12} for h in (0.1, 0.05)]
+    runs += [{"scene": "s", "integrator": "splitting", "h": 0.1, "error": 1e-13, "floor": 1e-12},
+             {"scene": "s", "integrator": "exact", "h": 0.1, "error": 1e-3, "floor": 1.0},
+             {"scene": "s", "integrator": "adaptive", "h": 0.1, "error": 1e-9, "floor": 1e-12, "tolerance": 1e-10}]
+    text = symplectic.symplectic_table({"runs": runs})
+    assert "| rk4 | 3.00e-5 | 9.38e-7 | 5.00 |" in text
+    assert "floor (1.00e-12)" in text and "not smooth (floor 1)" in text and "tolerance 1e-10" in text
+    from gyrosim.analysis import symplecticity_error
+
+    r = symplecticity_error("double_pendulum", "rk4", 0.01)
+    assert r.record()["error"] == r.error > 100 * r.floor

@@ -15,12 +15,14 @@ Every error is measured against an exact solution, never against gyrosim's own o
 * ``stability``: the stability map of the fixed-step integrators (largest stable h |omega| / h omega_n over inertia
   ratios, spin axes, spins and tops) and the evidence for the engine's ``max_drift`` default
   (:mod:`gyrosim_bench.stability`).
+* ``symplectic``: the symplecticity error |M^T J M - J| of every integrator's one-step map on heavy_top,
+  double_pendulum, gimbal_gyroscope and spacecraft (:mod:`gyrosim_bench.symplectic`).
 
 Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and integrator, Model.step overhead,
 10,000-body throughput, all against a C baseline compiled with ``gcc -O2`` in the same run), ``long``,
-``stability``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` / ``tree`` (the FMU, service, sweep and
-tree benches: ``run(out_dir)`` of :mod:`gyrosim_bench.fmu_bench`, ``service_bench``, ``sweep_bench`` and
-``tree_bench``, each in its own process).
+``stability``, ``symplectic``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` / ``tree`` (the FMU,
+service, sweep and tree benches: ``run(out_dir)`` of :mod:`gyrosim_bench.fmu_bench`, ``service_bench``,
+``sweep_bench`` and ``tree_bench``, each in its own process).
 
 The study is not part of the installed package: it lives in the source checkout's ``bench/`` folder, and
 ``gyrosim bench`` (or ``make bench``) puts that folder on ``sys.path`` and runs :func:`main`.
@@ -34,9 +36,9 @@ every core, with the wall clock.
 
 Outputs in the folder given by ``--output`` (default ``docs/study``): one markdown table per part
 (``accuracy_<case>.md``, ``orders.md``, ``choose.md``, ``cost.md``, ``throughput.md``, ``long_run.md``,
-``stability.md``), ``summary.md`` with all of them, ``results.json`` with every number, and the PNG plots
-(``wp_<case>.png`` work-precision, ``step_<case>.png`` error against step/tolerance, ``long_<case>.png`` drift
-against time, ``cost.png``, ``stability.png``).
+``stability.md``, ``symplecticity.md``), ``summary.md`` with all of them, ``results.json`` with every number, and
+the PNG plots (``wp_<case>.png`` work-precision, ``step_<case>.png`` error against step/tolerance,
+``long_<case>.png`` drift against time, ``cost.png``, ``stability.png``).
 """
 
 from __future__ import annotations
@@ -74,7 +76,8 @@ INTEGRATORS = FIXED + ADAPTIVE
 TIMED = CLASSIC + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
-PARTS = ("accuracy", "cost", "long", "stability", "startup", "peers", "fmu", "service", "sweep", "tree")
+PARTS = ("accuracy", "cost", "long", "stability", "symplectic", "startup", "peers", "fmu", "service", "sweep",
+         "tree")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4, **EXACT_SPLIT_ORDER}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1357,8 +1360,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 
 #: results.json keys that each part writes (fmu and service leave their own files)
 PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
-             "stability": ("stability",), "startup": ("startup",), "peers": ("peers",), "fmu": (), "service": (),
-             "sweep": (), "tree": ()}
+             "stability": ("stability",), "symplectic": ("symplectic",), "startup": ("startup",), "peers": ("peers",),
+             "fmu": (), "service": (), "sweep": (), "tree": ()}
 #: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
 SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
 
@@ -1375,7 +1378,7 @@ def _plot_part(name: str) -> str | None:
 def _legacy_blocks(out: Path, old: dict) -> dict:
     """summary.md blocks of a results.json written before blocks were kept: rebuilt from the tables' files."""
     names = {"cost": ["cost", "throughput"], "long": ["long_run"], "stability": ["stability"],
-             "startup": ["startup"], "peers": ["peers"],
+             "symplectic": ["symplecticity"], "startup": ["startup"], "peers": ["peers"],
              "accuracy": [f"accuracy_{c}" for c in old.get("accuracy", {})] + ["orders"]}
     for m in old.get("messages", []):  # fmu / service: the markdown files their message says they wrote
         part = m.split(":", 1)[0]
@@ -1527,7 +1530,7 @@ def main(args) -> int:
                 for c in cases.values())
     n_cost = (len(cost_scenes()) * (len(TIMED) + 1) + 4) if "cost" in parts else 0  # see run_cost
     long_runs = [(c, i) for c in ("free_body", "heavy_top") for i in TIMED] if "long" in parts else []
-    total = n_acc + n_cost + len(long_runs) + sum(p in parts for p in ("stability", "startup", "peers"))
+    total = n_acc + n_cost + len(long_runs) + sum(p in parts for p in ("stability", "symplectic", "startup", "peers"))
     messages = []
     part_tables = {}
     part_files = {}
@@ -1598,6 +1601,13 @@ def main(args) -> int:
                 plan.results["stability"] = res
                 plan.tables["stability"] = stability_table(res)
                 plan.files.append(plot_stability(res, out))
+                bar.update()
+            elif part == "symplectic":
+                from .symplectic import run_symplectic, symplectic_table
+
+                res = run_symplectic(quick, bar)
+                plan.results["symplectic"] = res
+                plan.tables["symplecticity"] = symplectic_table(res)
                 bar.update()
             elif part == "startup":
                 bar.set_postfix_str("start-up")

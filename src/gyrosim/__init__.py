@@ -16,14 +16,16 @@ __version__ = "0.1.0"
 __all__ = [
     "RigidBodyDynamics", "InertiaTensor", "SymmetricTop", "Gyroscope", "TorqueFreeSolution",
     "GyrosimError", "ConfigError", "IntegrationError", "RecordingError", "StepError", "Model", "load_scene",
-    "simulate", "normal_modes", "linearize", "__version__",
+    "simulate", "normal_modes", "linearize", "canonical_momenta", "hamiltonian", "symplecticity_error",
+    "__version__",
 ]
 
 _LAZY = {
     "RigidBodyDynamics": ".core.seeds", "InertiaTensor": ".core.inertia", "SymmetricTop": ".core.analytic",
     "Gyroscope": ".core.analytic", "TorqueFreeSolution": ".core.analytic", "Model": ".model",
     "load_scene": ".scene", "simulate": ".trajectory", "normal_modes": ".analysis.linear",
-    "linearize": ".analysis.linear",
+    "linearize": ".analysis.linear", "canonical_momenta": ".analysis.hamilton",
+    "hamiltonian": ".analysis.hamilton", "symplecticity_error": ".analysis.hamilton",
 }
 
 

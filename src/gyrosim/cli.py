@@ -22,7 +22,7 @@ __all__ = ["main", "build_parser", "add_verbosity", "verbosity", "scene_info", "
 
 #: Modules that add their own subcommands through ``register(subparsers)``.
 _PLUGINS = ("gyrosim.fmu.cli", "gyrosim.service.cli", "gyrosim.telemetry.cli", "gyrosim.sweep.cli",
-            "gyrosim.cosim", "gyrosim.analysis.linear_cli")
+            "gyrosim.cosim", "gyrosim.analysis.linear_cli", "gyrosim.analysis.hamilton_cli")
 
 
 def add_verbosity(p: argparse.ArgumentParser) -> None:
@@ -752,7 +752,7 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--output", "-o", default=BENCH_OUTPUT, help="folder for plots and tables, existing or new inside "
                    "an existing folder (default: docs/study, made with its parents)")
     b.add_argument("--quick", action="store_true", help="a short ladder (seconds, for a smoke test)")
-    b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, "
+    b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, symplectic, "
                    "startup, peers, fmu, service, sweep, tree), merged into the folder's earlier results")
     add_verbosity(b)
     b.set_defaults(func=cmd_bench)

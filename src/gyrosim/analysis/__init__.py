@@ -1,4 +1,4 @@
-"""Analyses of classical mechanics on any scene: small oscillations (linear) and chaos.
+"""Analyses of classical mechanics on any scene: small oscillations (linear), chaos and the Hamiltonian view.
 
 Names are imported on first use (PEP 562): the command line registers its subcommands from this package without
 importing numpy or the engine. One line per module in ``_LAZY``.
@@ -8,6 +8,8 @@ from __future__ import annotations
 
 _LAZY: dict[str, str] = {}
 _LAZY.update(dict.fromkeys(("lyapunov", "poincare", "plot_chaos", "LyapunovResult", "PoincareSection"), ".chaos"))
+_LAZY.update(dict.fromkeys(("canonical_momenta", "hamiltonian", "mass_matrix", "symplecticity_error",
+                            "symplecticity_errors", "CanonicalChart", "Symplecticity"), ".hamilton"))
 
 
 def __getattr__(name):
