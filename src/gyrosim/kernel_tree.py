@@ -600,9 +600,13 @@ class TreeKernel:
             advice = lock
         elif self.integrator in ("adaptive", "dop853"):
             advice = "tighten or loosen the tolerance, check the parameters, or try the integrator 'rk4'"
+        elif self.integrator in _IMPLICIT and rate > 0:
+            hi = h / n_sub if n_sub > 0 else h
+            advice = (f"the fastest rate in the state is {rate:.4g} rad/s (h*rate = {hi * rate:.3g}); use a smaller "
+                      "max_step, or the integrator 'dop853'")
         elif rate > 0:
-            advice = (f"the fastest rate in the state is {rate:.4g} rad/s; use max_step <= {0.5 / rate:.3g} s or the "
-                      "integrator 'dop853'")
+            advice = (f"the fastest rate in the state is {rate:.4g} rad/s; use max_step <= {0.5 / rate:.3g} s, the "
+                      "integrator 'midpoint' (A-stable: it steps over fast spin and nutation) or 'dop853'")
         else:
             advice = "check the parameters, or try the integrator 'dop853'"
         return f"integrator {self.integrator!r} blew up in {where}: {cause}; {advice}"

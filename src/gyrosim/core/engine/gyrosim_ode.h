@@ -62,6 +62,9 @@ typedef struct {
     int (*invariants)(const void *ctx, const double *y, double r[GS_LIE_MAXINV]);
     int nvel;                   /* the velocity components the projection moves */
     int vel[GS_ODE_MAX];
+    int npos;                   /* and the position components (angles, positions; the quaternions move along
+                                 * their tangents q exp(dtheta)) */
+    int pos[GS_ODE_MAX];
 } gs_lie;
 
 /* As gs_ode_advance for the implicit methods: n_sub steps of H / n_sub. Returns 0, or the failing step + 1 (y as

@@ -27,9 +27,9 @@
  * orbit's anomaly) is no unknown: its slope is its derivative at the midpoint and its value the quadrature x0 + h F
  * of its rate, so that the spin does not enter the Newton matrix or the step.
  *
- * energy_momentum: midpoint, then a projection of the velocities onto the invariants the system keeps now (its
- * energy where nothing does work, its angular momentum where no torque acts): v1 <- v1 + G^T lambda with G the
- * invariants' gradient with respect to the velocities, lambda from Newton iterations to round-off (HLW IV.4,
+ * energy_momentum: midpoint, then a projection onto the invariants the system keeps now (its energy where
+ * nothing does work, its angular momentum where no torque acts): y1 <- y1 + G^T lambda in the velocities, positions
+ * and rotation vectors, G the invariants' gradient there, lambda from Newton iterations to round-off (HLW IV.4,
  * algorithm 4.2). The energy and the angular momentum are then kept to round-off over any run, for any tree.
  */
 #include "gyrosim_ode.h"   /* first: the engine header's FP_CONTRACT pragma */
@@ -324,37 +324,62 @@ static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, in
     return 0;
 }
 
-/* energy_momentum's projection of y's velocities onto the invariants. 0: it could not (singular, no convergence) */
+/* The projection's coordinates: the velocities, the positions, then three tangent directions per quaternion. */
+static int proj_n(const gs_lie *L) { return L->nvel + L->npos + 3 * L->nq; }
+
+/* y moved by d along projection coordinate j */
+static void proj_move(const gs_lie *L, double *y, int j, double d) {
+    if (j < L->nvel) {
+        y[L->vel[j]] += d;
+    } else if (j < L->nvel + L->npos) {
+        y[L->pos[j - L->nvel]] += d;
+    } else {
+        const int g = (j - L->nvel - L->npos) / 3, k = (j - L->nvel - L->npos) % 3;
+        double th[3] = {0.0, 0.0, 0.0}, e[4], q[4];
+        th[k] = d;
+        quat_exp(th, e);
+        memcpy(q, y + L->q[g], sizeof(q));
+        quat_mul(q, e, y + L->q[g]);
+    }
+}
+
+/* energy_momentum's projection of y onto the invariants, along their gradient with respect to the velocities,
+ * positions and rotations (the positions as well: at a turning point the energy's gradient in the velocities
+ * vanishes, and only the potential can take up an energy error). 0: it could not (singular, no convergence). */
 static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
     const gs_lie *L = r->L;
+    const int np = proj_n(L);
     double res[GS_LIE_MAXINV];
     const int ni = L->invariants(L->ode.ctx, y, res);
     *evals += 1;
     if (ni <= 0) return 1;
-    if (!r->have_G) {   /* the gradient by central differences: exact for the energy (quadratic in the velocities)
-                         * and the momentum (linear in them) up to round-off */
+    if (!r->have_G) {   /* the gradient by central differences: the energy is quadratic in the velocities and the
+                         * momentum linear in them (exact up to round-off there); in the positions the difference
+                         * step's error only tilts the direction of the projection, not where it ends */
         double vs = 0.0;
         for (int j = 0; j < L->nvel; j++) vs = fmax(vs, fabs(y[L->vel[j]]));
         if (!(vs > 0.0)) vs = 1.0;
-        for (int j = 0; j < L->nvel; j++) {
-            const int i = L->vel[j];
-            const double v = y[i], dv = 1e-4 * fmax(fabs(v), vs);
+        double keep[GS_ODE_MAX + 16];
+        memcpy(keep, y, (size_t)L->ode.ny * sizeof(double));
+        for (int j = 0; j < np; j++) {
+            const double d = j < L->nvel ? 1e-4 * fmax(fabs(y[L->vel[j]]), vs) : 1e-6;
             double rp[GS_LIE_MAXINV], rm[GS_LIE_MAXINV];
-            y[i] = v + dv;
+            proj_move(L, y, j, d);
             L->invariants(L->ode.ctx, y, rp);
-            y[i] = v - dv;
+            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
+            proj_move(L, y, j, -d);
             L->invariants(L->ode.ctx, y, rm);
-            y[i] = v;
-            for (int k = 0; k < ni; k++) r->G[k][j] = (rp[k] - rm[k]) / (2.0 * dv);
+            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
+            for (int k = 0; k < ni; k++) r->G[k][j] = (rp[k] - rm[k]) / (2.0 * d);
         }
-        *evals += 2 * L->nvel;
+        *evals += 2 * np;
         r->have_G = 1;
     }
     double GG[GS_LIE_MAXINV][GS_LIE_MAXINV];
     for (int a = 0; a < ni; a++) {
         for (int b = 0; b < ni; b++) {
             double s = 0.0;
-            for (int j = 0; j < L->nvel; j++) s += r->G[a][j] * r->G[b][j];
+            for (int j = 0; j < np; j++) s += r->G[a][j] * r->G[b][j];
             GG[a][b] = s;
         }
     }
@@ -371,10 +396,10 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
         double lam[GS_LIE_MAXINV];
         for (int k = 0; k < ni; k++) lam[k] = -res[k];
         if (!small_solve(ni, GG, lam)) return 0;
-        for (int j = 0; j < L->nvel; j++) {
+        for (int j = 0; j < np; j++) {
             double s = 0.0;
             for (int k = 0; k < ni; k++) s += r->G[k][j] * lam[k];
-            y[L->vel[j]] += s;
+            if (s != 0.0) proj_move(L, y, j, s);
         }
         L->invariants(L->ode.ctx, y, res);
         *evals += 1;
@@ -382,32 +407,45 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
     return 0;
 }
 
-/* One step of h on y (in place). Returns 1, or 0 when the iterations do not converge with a fresh matrix. */
+/* One step of h on y (in place). Returns 1, or 0 when the iterations do not converge with a fresh matrix. The
+ * kept matrix first; where that fails, a fresh one at the explicit midpoint predictor y0 + h/2 f(y0); then one at
+ * the last iterate's midpoint (full Newton's matrix, for steps where the Jacobian changes much over the step). */
 static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
     const gs_ode *o = &r->L->ode;
-    double Y[GS_ODE_MAX + 16];
+    double Y[GS_ODE_MAX + 16], base[GS_ODE_MAX + 16];
     memcpy(Y, y, (size_t)o->ny * sizeof(double));
-    for (int attempt = 0; attempt < 2; attempt++) {
-        const int fresh = !r->have_J || r->refresh || attempt > 0;
-        if (fresh) {
-            const int k = jacobian(r, y);
-            if (k < 0) return 0;
-            *evals += k;
-            r->refresh = 0;
-        }
-        if (r->h_A != h && !newton_matrix(r, h)) return 0;
+    int done = 0;
+    for (int attempt = 0; attempt < 3 && !done; attempt++) {
         if (!r->have_F || attempt > 0) {   /* the first guess: f(y0) */
             o->rhs(o->ctx, y, r->F);
             *evals += 1;
             r->have_F = 1;
         }
+        if (!r->have_J || r->refresh || attempt > 0) {
+            if (attempt == 2) {
+                memcpy(base, Y, sizeof(base));
+            } else if (attempt == 1) {
+                memcpy(base, y, (size_t)o->ny * sizeof(double));
+                midpoint_state(r, y, r->F, h, base);
+            } else {
+                memcpy(base, y, (size_t)o->ny * sizeof(double));
+            }
+            const int k = jacobian(r, base);
+            if (k < 0) return 0;
+            *evals += k;
+            r->refresh = 0;
+        }
+        if (r->h_A != h && !newton_matrix(r, h)) return 0;
         const int it = solve_step(r, y, h, Y, evals);
         if (it) {
             if (it > LIE_SLOW) r->refresh = 1;
-            break;
+            done = 1;
         }
-        if (fresh && attempt > 0) return 0;
+    }
+    if (!done) {
         r->have_F = 0;
+        r->refresh = 1;
+        return 0;
     }
     /* x1 = x0 + h F, q1 = q0 exp(h omega_mid): omega_mid is Y's (the converged midpoint) */
     double y1[GS_ODE_MAX + 16];
@@ -437,7 +475,7 @@ gs_lie_run_t *gs_lie_begin(int method, const gs_lie *L) {
     const gs_ode *o = &L->ode;
     if ((method != GS_MIDPOINT && method != GS_ENERGY_MOMENTUM) || o->nv > GS_ODE_MAX || o->nv < 1 || o->ne < 1 ||
         o->ne > o->nv || o->ny < o->nv || o->ny > GS_ODE_MAX + 16 || L->nq < 0 || L->nq > GS_LIE_MAXQ ||
-        L->nvel < 0 || L->nvel > GS_ODE_MAX || !L->jvp || (method == GS_ENERGY_MOMENTUM && !L->invariants))
+        L->nvel < 0 || L->nvel > GS_ODE_MAX || L->npos < 0 || L->npos > GS_ODE_MAX || !L->jvp || (method == GS_ENERGY_MOMENTUM && !L->invariants))
         return NULL;
     gs_lie_run_t *r = (gs_lie_run_t *)calloc(1, sizeof(gs_lie_run_t));
     if (!r) return NULL;

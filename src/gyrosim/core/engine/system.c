@@ -510,12 +510,17 @@ static void diagnose_tree(const gs_system *s, int method, const double *y0, cons
         snprintf(cause, sizeof(cause), "%s drifted by %.3g of its scale%s (max_drift = %g, the health monitor's "
                  "bound)", gs_sys_drift_name(s, i), dr[i], at, p[GS_TP_DRIFT]);
     }
+    const double hi = n_sub > 0 ? H / (double)n_sub : H;
     if (method == GS_ADAPTIVE || method == GS_DOP853) {
         snprintf(advice, sizeof(advice), "tighten or loosen the tolerance, check the parameters, or try the "
                  "integrator 'rk4'");
+    } else if (implicit && rate > 0.0) {
+        snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s (h*rate = %.3g); use a "
+                 "smaller max_step, or the integrator 'dop853'", rate, hi * rate);
     } else if (rate > 0.0) {
-        snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s; use max_step <= %.3g s or "
-                 "the integrator 'dop853'", rate, 0.5 / rate);
+        snprintf(advice, sizeof(advice), "the fastest rate in the state is %.4g rad/s; use max_step <= %.3g s, the "
+                 "integrator 'midpoint' (A-stable: it steps over fast spin and nutation) or 'dop853'", rate,
+                 0.5 / rate);
     } else {
         snprintf(advice, sizeof(advice), "check the parameters, or try the integrator 'dop853'");
     }

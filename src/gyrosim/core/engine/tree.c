@@ -1342,6 +1342,7 @@ static void lie_view(const gs_tree *t, Ctx *ctx, gs_lie *L) {
     L->ode = (gs_ode){ode_rhs, NULL, ode_check, ctx, t->nx + 1, t->nx, t->ny};
     L->nq = 0;
     L->nvel = 0;
+    L->npos = 0;
     L->jvp = lie_jvp;
     L->invariants = lie_invariants;
     for (int i = 0; i < t->n; i++) {
@@ -1353,11 +1354,13 @@ static void lie_view(const gs_tree *t, Ctx *ctx, gs_lie *L) {
                 for (int a = 0; a < 3; a++) L->vel[L->nvel++] = at + 4 + a;
                 break;
             case GS_J_HINGE:
+                L->pos[L->npos++] = at;
                 L->vel[L->nvel++] = at + 1;
                 break;
             case GS_J_FREE:
                 L->q[L->nq] = at;
                 L->omega[L->nq++] = at + 7;
+                for (int a = 0; a < 3; a++) L->pos[L->npos++] = at + 4 + a;
                 for (int a = 0; a < 6; a++) L->vel[L->nvel++] = at + 7 + a;
                 break;
             default:
