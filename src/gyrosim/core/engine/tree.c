@@ -1335,6 +1335,31 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
     return failed;
 }
 
+/* A dense trajectory's rows (gs_ode_trajectory's out): output point k of system b to out[(k * n + b) * no + .] */
+typedef struct {
+    const gs_tree *t;
+    const double *p;
+    const Pre *pre;
+    double *row0;    /* system b's row 0 */
+    size_t stride;   /* from one output point's row to the next: n * no */
+} TreeRows;
+
+static void tree_row(void *ctx, int64_t k, const double *y) {
+    const TreeRows *r = (const TreeRows *)ctx;
+    outputs_pre(r->t, y, r->p, r->pre, r->row0 + (size_t)k * r->stride);
+}
+
+/* adaptive and dop853 over all n_out intervals at once, the output points from the dense output (rk.c,
+ * gs_ode_trajectory): the first output point not written (the failing interval), or 0 */
+static int64_t dense_trajectory(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double dt,
+                                int64_t n_out, double rtol, double atol, double max_step, double *hint,
+                                int64_t *stats, double *row0, size_t stride) {
+    Ctx ctx = {t, p, pre};
+    const gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
+    TreeRows rows = {t, p, pre, row0, stride};
+    return gs_ode_trajectory(method, &o, y, dt, n_out, rtol, atol, max_step, hint, stats, tree_row, &rows);
+}
+
 size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out) {
@@ -1361,6 +1386,18 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         status[b] = 0;
         static _Thread_local Pre pre;
         precompute(t, pb, &pre);
+        if (method == GS_ADAPTIVE || method == GS_DOP853) {
+            const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, rtol, atol, max_step, hint + b,
+                                               stats + b * GS_NSTATS, out + b * no, n * no);
+            if (k) {
+                status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
+                for (int64_t r = k; r <= n_out; r++) {
+                    for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
+                }
+                failed += 1;
+            }
+            continue;
+        }
         for (int64_t k = 1; k <= n_out; k++) {
             const int32_t s = advance_system(t, method, yb, pb, &pre, dt, n_sub, rtol, atol, max_step, hint + b,
                                              stats + b * GS_NSTATS);
