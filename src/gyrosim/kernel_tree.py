@@ -429,11 +429,18 @@ class TreeKernel:
             raise IntegrationError(TreeKernel._blowup(self, b, self._y[b], t, h, k,
                                                 f"the step from t = {t!r} s with h = {h!r} s"))
 
+    #: Tree integrators whose trajectory call runs over all its output points with its own steps and interpolates
+    #: them (dense output, gs_ode_trajectory): not the bits of a loop of :meth:`step`. The others step each output
+    #: interval as :meth:`step` does.
+    _DENSE = ("adaptive", "dop853")
+
     def trajectory_is_steps(self) -> bool:
-        """The tree engine's trajectory steps each output interval as :meth:`step` does, except that the implicit
-        methods keep their Newton matrix over the run (the same solution, iterated to round-off from another
-        matrix: equal to round-off, not in every bit)."""
-        return self.integrator not in _IMPLICIT
+        """Whether :meth:`trajectory` over several output intervals gives the bits of a loop of :meth:`step` with
+        the integrator set: euler and rk4 do (each output interval stepped as :meth:`step` steps it); adaptive and
+        dop853 do not (their steps span the output points, which come from the dense output), nor do the implicit
+        methods (a trajectory keeps their Newton matrix over the run: equal to round-off, not in every bit; steps
+        longer than the output interval take the outputs from their collocation polynomial)."""
+        return self.integrator not in TreeKernel._DENSE and self.integrator not in _IMPLICIT
 
     def input_names(self) -> list[str]:
         """The inputs by full name (``<body>.motor_torque``, ``<body>.tau_x``; bare in a scene of one body)."""
@@ -613,7 +620,11 @@ class TreeKernel:
 
     def trajectory(self, dt: float, n: int, *, angles: bool = True, momentum: bool = True,
                    status: np.ndarray | None = None) -> np.ndarray:
-        """Advance ``n`` output intervals of ``dt`` s in one engine call: the bits of ``n`` calls of :meth:`step`.
+        """Advance ``n`` output intervals of ``dt`` s in one engine call. euler and rk4 give the bits of ``n`` calls
+        of :meth:`step`; adaptive and dop853 take the steps their error control chooses over the whole call (1001
+        output points do not force 1001 steps) and evaluate the output points with their dense output (4th and 7th
+        order; quaternions back to unit norm, the health monitor at every point): the step loop's values to the
+        tolerance's order, not its bits (one interval: its bits).
 
         ``status``: an (n_systems,) int32 array to keep going when copies blow up (sweeps): a failing copy gets the
         output interval (1-based) in which it failed and NaN rows from there; the others run to the end.

@@ -215,8 +215,8 @@ class Run:
         ``(m + 1, n_bodies, n_out)``, row 0 the current outputs (as :meth:`Model.trajectory` returns them).
 
         Intervals with the same input values go to the engine in one trajectory call where that gives the bits of a
-        step per interval (every tree integrator, the one-body fixed-step methods and ``exact``); ``adaptive`` and
-        ``dop853`` of one body take one step per interval (what an FMU's doStep does)."""
+        step per interval (``Model.trajectory_is_steps``: the fixed-step methods and ``exact``); ``adaptive`` and
+        ``dop853`` take one step per interval (what an FMU's doStep does), one body or a tree."""
         model, dt = self.model, self.dt
         times = self.t0 + np.arange(k0, k0 + m, dtype=np.float64) * dt  # FMPy: start_time + n_steps*interval
         table = self.input.table(times)

@@ -5,7 +5,8 @@
  * (unit quaternions) and the health monitor's check.
  *
  * The tree of bodies (tree.c) is driven by it with euler, rk4, adaptive (Dormand-Prince 5(4)) and dop853
- * (Dormand-Prince 8(5,3)): the same code as the one body's, so a method means the same thing on every system.
+ * (Dormand-Prince 8(5,3)): the same code as the one body's, so a method means the same thing on every system. Its
+ * trajectories with adaptive and dop853 run over all their output points at once (gs_ode_trajectory).
  */
 #ifndef GYROSIM_ODE_H
 #define GYROSIM_ODE_H
@@ -85,6 +86,29 @@ void gs_lie_end(gs_lie_run_t *r);
 typedef void (*gs_lie_emit)(void *ec, int64_t k, const double *y);
 int64_t gs_lie_dense(gs_lie_run_t *r, double *y, double dt, int64_t n_out, int64_t n_steps,
                      int64_t stats[GS_NSTATS], gs_lie_emit emit, void *ec);
+
+/* The most steps (accepted or not) of one gs_ode_trajectory call: the one-body engine's trajectories' bound */
+#define GS_ODE_TRAJECTORY_WORK 50000000
+
+/* A trajectory of GS_ADAPTIVE or GS_DOP853 from y over n_out output intervals of dt, as the one-body engine's
+ * (engine.c): the steps are those the error control chooses over the whole run [0, T = n_out dt] (none longer than
+ * max_step, the last one ending at T; no step is cut by the output grid), and the output points k dt (k = 1..n_out)
+ * are evaluated from the continuous extension of the accepted step that holds them (Hairer, Norsett, Wanner I, II.6:
+ * adaptive's 4th-order interpolant, dop853's 7th-order dense output; the point at T is the last step's end), then
+ * projected (o->project), checked by the health monitor (o->check, which may restart the constants after nv; the
+ * run carries them on) and passed to out(out_ctx, k, y) with the whole state (ny values) at that point. So 1001
+ * output points do not force 1001 steps, and the rows are not the bits of a loop of gs_ode_advance over dt (they
+ * agree with it to the tolerance's order; a run of one interval gives its bits).
+ *
+ * Returns 0 (y the state at T, hint updated as gs_ode_advance updates it), or the first output point not written
+ * (1..n_out): where a step fails (not finite, the step size collapsing, more than GS_ODE_TRAJECTORY_WORK steps) or
+ * where that point is not finite or trips the monitor. y is then the state at the last point written (its interval's
+ * start: as the point passed to out; the start when none), hint as before the call; stats counts the work done.
+ * n_out = 0: nothing to do, 0. Other method codes, sizes beyond the driver's, dt <= 0 or n_out < 0 fail at point 1.
+ */
+int64_t gs_ode_trajectory(int method, const gs_ode *o, double *y, double dt, int64_t n_out, double rtol,
+                          double atol, double max_step, double *hint, int64_t stats[GS_NSTATS],
+                          void (*out)(void *out_ctx, int64_t k, const double *y), void *out_ctx);
 
 #ifdef __cplusplus
 }

@@ -146,9 +146,14 @@ double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p);
 size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
                        double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads);
 
-/* n_out intervals of dt: outputs at every point (k = 0..n_out) into out[(k * n + b) * GS_TREE_NOUT + .], the bits of
- * a loop of gs_tree_advance. A failing system gets status[b] = the interval (1-based) and NaN rows from there; its
- * state is left at the start of that interval. Returns the failed systems. */
+/* n_out intervals of dt: outputs at every point (k = 0..n_out) into out[(k * n + b) * GS_TREE_NOUT + .]. euler and
+ * rk4 give the bits of a loop of gs_tree_advance over dt. adaptive and dop853 take the steps their error control
+ * chooses over the whole run (no step is cut by the output grid: 1001 points do not force 1001 steps) and evaluate
+ * the output points with their dense output (gyrosim_ode.h, gs_ode_trajectory; quaternions projected to unit norm,
+ * the health monitor at every point): not the bits of a loop of gs_tree_advance, the same to the tolerance's order
+ * (one interval: its bits). A failing system gets status[b] = the interval (1-based) and NaN rows from there; its
+ * state is left at the start of that interval (adaptive, dop853: the state of its row, interpolated) and its hint
+ * as before that interval (adaptive, dop853: before the call). Returns the failed systems. */
 size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out);

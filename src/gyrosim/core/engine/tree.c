@@ -1421,18 +1421,30 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
     return failed;
 }
 
-/* where the dense output writes a row */
+/* A dense trajectory's rows (gs_ode_trajectory's and gs_lie_dense's out): output point k of system b to
+ * out[(k * n + b) * no + .] */
 typedef struct {
     const gs_tree *t;
     const double *p;
     const Pre *pre;
-    double *out;
-    size_t n, b, no;
-} Emit;
+    double *row0;    /* system b's row 0 */
+    size_t stride;   /* from one output point's row to the next: n * no */
+} TreeRows;
 
-static void emit_row(void *ec, int64_t k, const double *y) {
-    const Emit *e = (const Emit *)ec;
-    outputs_pre(e->t, y, e->p, e->pre, e->out + ((size_t)k * e->n + e->b) * e->no);
+static void tree_row(void *ctx, int64_t k, const double *y) {
+    const TreeRows *r = (const TreeRows *)ctx;
+    outputs_pre(r->t, y, r->p, r->pre, r->row0 + (size_t)k * r->stride);
+}
+
+/* adaptive and dop853 over all n_out intervals at once, the output points from the dense output (rk.c,
+ * gs_ode_trajectory): the first output point not written (the failing interval), or 0 */
+static int64_t dense_trajectory(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double dt,
+                                int64_t n_out, double rtol, double atol, double max_step, double *hint,
+                                int64_t *stats, double *row0, size_t stride) {
+    Ctx ctx = {t, p, pre};
+    const gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
+    TreeRows rows = {t, p, pre, row0, stride};
+    return gs_ode_trajectory(method, &o, y, dt, n_out, rtol, atol, max_step, hint, stats, tree_row, &rows);
 }
 
 size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
@@ -1461,6 +1473,18 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         status[b] = 0;
         static _Thread_local Pre pre;
         precompute(t, pb, &pre);
+        if (method == GS_ADAPTIVE || method == GS_DOP853) {
+            const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, rtol, atol, max_step, hint + b,
+                                               stats + b * GS_NSTATS, out + b * no, n * no);
+            if (k) {
+                status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
+                for (int64_t r = k; r <= n_out; r++) {
+                    for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
+                }
+                failed += 1;
+            }
+            continue;
+        }
         /* the implicit methods keep their Newton matrix over the run */
         Ctx ctx = {t, pb, &pre};
         gs_lie L;
@@ -1472,8 +1496,8 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         /* steps longer than the output interval: one run over the whole, the outputs from the dense output */
         const int64_t n_steps = run ? gs_substeps((double)n_out * dt, max_step) : 0;
         if (run && n_steps > 0 && n_steps < n_out) {
-            Emit em = {t, pb, &pre, out, n, b, no};
-            const int64_t f = gs_lie_dense(run, yb, dt, n_out, n_steps, stats + b * GS_NSTATS, emit_row, &em);
+            TreeRows rows = {t, pb, &pre, out + b * no, n * no};
+            const int64_t f = gs_lie_dense(run, yb, dt, n_out, n_steps, stats + b * GS_NSTATS, tree_row, &rows);
             if (f) {
                 status[b] = (int32_t)(f > 2147483647 ? 2147483647 : f);
                 for (int64_t r = f; r <= n_out; r++) {
