@@ -40,7 +40,7 @@
 
 #define LIE_EPS 2.220446049250313e-16
 #define LIE_MAXIT 24          /* Newton iterations per step before it counts as not converging */
-#define LIE_SLOW 6            /* a step that needed more refreshes the matrix before the next */
+#define LIE_SLOW 12           /* a step that needed more iterations refreshes the matrix (the projection its gradient) */
 #define LIE_MONITOR_PARTS 128 /* the health monitor within a long call, as the Runge-Kutta methods */
 
 /* what a component of y is */
@@ -63,9 +63,13 @@ struct gs_lie_run_s {
     int have_J, refresh;
     double F[GS_ODE_MAX];     /* the slope: the last step's, the next one's first guess */
     int have_F;
+    double F1[GS_ODE_MAX];    /* the step's before that (the guess extrapolates the two) */
+    int n_F;                  /* converged slopes in F, F1 (0, 1, 2) */
+    double h_F;               /* the step they were taken with */
     double G[GS_LIE_MAXINV][GS_ODE_MAX];   /* the projection's gradient */
     int have_G;
     double wmid[GS_LIE_MAXQ][3];           /* the last step's omega_mid per quaternion (the dense output's) */
+    double bu[LIE_MAXIT][GS_ODE_MAX], by[LIE_MAXIT][GS_ODE_MAX];   /* a step's Broyden updates (solve_step) */
 };
 
 /* ------------------------------------------------------------------------------------------- quaternions */
@@ -284,18 +288,56 @@ static void midpoint_state(const gs_lie_run_t *r, const double *y0, const double
     turn_all(r->L, y0, Y, 0.5 * h, Y);
 }
 
+/* x <- H x: the Newton matrix's inverse (its LU factors) with the step's Broyden updates H += u y^T */
+static void apply_h(const gs_lie_run_t *r, int nb, double *x) {
+    double dots[LIE_MAXIT];
+    for (int k = 0; k < nb; k++) {
+        double sdot = 0.0;
+        for (int a = 0; a < r->m; a++) sdot += r->by[k][a] * x[a];
+        dots[k] = sdot;
+    }
+    lu_solve(r->m, r->A, r->piv, x);
+    for (int k = 0; k < nb; k++) {
+        for (int a = 0; a < r->m; a++) x[a] += dots[k] * r->bu[k][a];
+    }
+}
+
 /* The Newton iterations of one step from y0: F converged (r->F). Returns the iterations (> 0), or 0 when they do
- * not converge. *evals counts f. */
+ * not converge. *evals counts f.
+ *
+ * The residual R(F) = f(Y(F)) - F is solved by simplified Newton, dF = H R with H the inverse of the kept matrix
+ * I - h/2 J - h^2/4 J_theta, improved within the step by Broyden's second ("bad") update H += (s - H y) y^T / y^T y
+ * from each iteration's change s of F and y of -R (Broyden 1965; Dennis and Schnabel, Numerical Methods for
+ * Unconstrained Optimization, 8.2): the matrix kept over steps drifts from the Jacobian as the system turns, and the
+ * updates take up that drift without a new Jacobian, until the iterations reach round-off. */
 static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, int64_t *evals) {
     const gs_ode *o = &r->L->ode;
-    double Gv[GS_ODE_MAX], d[GS_ODE_MAX];
+    double Gv[GS_ODE_MAX], d[GS_ODE_MAX], R[GS_ODE_MAX], Rp[GS_ODE_MAX], dp[GS_ODE_MAX];
     double prev = INFINITY;
+    int nb = 0;
     for (int it = 1; it <= LIE_MAXIT; it++) {
         midpoint_state(r, y0, r->F, h, Y);
         o->rhs(o->ctx, Y, Gv);
         *evals += 1;
-        for (int a = 0; a < r->m; a++) d[a] = Gv[r->act[a]] - r->F[r->act[a]];
-        lu_solve(r->m, r->A, r->piv, d);
+        for (int a = 0; a < r->m; a++) R[a] = Gv[r->act[a]] - r->F[r->act[a]];
+        if (it > 1 && prev > 1e-10) {   /* a secant update from the last iteration (not in the round-off noise) */
+            double yy = 0.0;
+            for (int a = 0; a < r->m; a++) {
+                r->by[nb][a] = Rp[a] - R[a];
+                yy += r->by[nb][a] * r->by[nb][a];
+            }
+            if (yy > 0.0) {
+                double hy[GS_ODE_MAX];
+                memcpy(hy, r->by[nb], (size_t)r->m * sizeof(double));
+                apply_h(r, nb, hy);
+                for (int a = 0; a < r->m; a++) r->bu[nb][a] = (dp[a] - hy[a]) / yy;
+                nb++;
+            }
+        }
+        memcpy(Rp, R, (size_t)r->m * sizeof(double));
+        memcpy(d, R, (size_t)r->m * sizeof(double));
+        apply_h(r, nb, d);
+        memcpy(dp, d, (size_t)r->m * sizeof(double));
         /* the change of x1 = x0 + h F, relative to the component's size (at least 1e-8 of the largest: a
          * component at 0 converges to the others' round-off, not to its own) */
         double big = 0.0;
@@ -389,11 +431,11 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
         for (int k = 0; k < ni; k++) worst = fmax(worst, fabs(res[k]));
         if (!(worst == worst)) return 0;
         if (worst <= 2.0 * LIE_EPS || (it >= 3 && worst >= 0.5 * prev && worst <= 1e-12)) {
-            if (it > 4) r->have_G = 0;   /* slow: a fresh gradient next step */
+            if (it > LIE_SLOW) r->have_G = 0;   /* slow: a fresh gradient next step */
             return 1;
         }
         prev = worst;
-        double lam[GS_LIE_MAXINV];
+        double lam[GS_LIE_MAXINV], old[GS_LIE_MAXINV];
         for (int k = 0; k < ni; k++) lam[k] = -res[k];
         if (!small_solve(ni, GG, lam)) return 0;
         for (int j = 0; j < np; j++) {
@@ -401,8 +443,24 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
             for (int k = 0; k < ni; k++) s += r->G[k][j] * lam[k];
             if (s != 0.0) proj_move(L, y, j, s);
         }
+        memcpy(old, res, sizeof(old));
         L->invariants(L->ode.ctx, y, res);
         *evals += 1;
+        /* Broyden's update of the small matrix d res / d lambda (G G^T where the gradient is fresh): a kept gradient
+         * still points across the invariants' surface, and the update learns how far a move along it goes */
+        double ll = 0.0;
+        for (int k = 0; k < ni; k++) ll += lam[k] * lam[k];
+        if (ll > 0.0 && worst > 1e-10) {
+            double c[GS_LIE_MAXINV];
+            for (int a = 0; a < ni; a++) {
+                double sl = 0.0;
+                for (int b = 0; b < ni; b++) sl += GG[a][b] * lam[b];
+                c[a] = (res[a] - old[a] - sl) / ll;
+            }
+            for (int a = 0; a < ni; a++) {
+                for (int b = 0; b < ni; b++) GG[a][b] += c[a] * lam[b];
+            }
+        }
     }
     return 0;
 }
@@ -416,10 +474,19 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
     memcpy(Y, y, (size_t)o->ny * sizeof(double));
     int done = 0;
     for (int attempt = 0; attempt < 3 && !done; attempt++) {
-        if (!r->have_F || attempt > 0) {   /* the first guess: f(y0) */
+        if (!r->have_F || attempt > 0 || r->h_F != h) {   /* the first guess: f(y0) */
             o->rhs(o->ctx, y, r->F);
             *evals += 1;
             r->have_F = 1;
+            r->n_F = 0;
+        } else if (r->n_F >= 2) {   /* the last two steps' slopes extrapolated: an O(h^2) first guess */
+            for (int i = 0; i < r->nv; i++) {
+                const double f = r->F[i];
+                r->F[i] = 2.0 * f - r->F1[i];
+                r->F1[i] = f;
+            }
+        } else {   /* the last step's slope */
+            memcpy(r->F1, r->F, (size_t)r->nv * sizeof(double));
         }
         if (!r->have_J || r->refresh || attempt > 0) {
             if (attempt == 2) {
@@ -436,10 +503,12 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
             r->refresh = 0;
         }
         if (r->h_A != h && !newton_matrix(r, h)) return 0;
+        r->h_F = h;
         const int it = solve_step(r, y, h, Y, evals);
         if (it) {
             if (it > LIE_SLOW) r->refresh = 1;
             done = 1;
+            r->n_F = r->n_F < 2 ? r->n_F + 1 : 2;
         }
     }
     if (!done) {
