@@ -323,6 +323,68 @@ def test_the_series_and_carlsons_integrals_agree():
     assert np.abs(w - w_dop).max() / np.abs(w_dop).max() <= 1e-11
 
 
+KEYS7 = ("q_w", "q_x", "q_y", "q_z", "omega_x", "omega_y", "omega_z")
+
+
+def tiny_nutation_start(pole, rate):
+    """q, omega of the scene's top started a hair from a turning point near a pole, theta' = rate (omega_y).
+    upper: the scene's own start (theta 0.3, released, spin 60 rad/s): u0 = u2, 1 - u2 = 0.045 < 1/4. lower:
+    hanging (theta 2.9) and precessing faster than steadily (phi' = 20 rad/s), so that it rises: u0 = u1,
+    1 + u1 = 0.029. steady: theta 0.3 at the slow steady precession, u1 = u0 = u2 a near-double root."""
+    m = Model("heavy_top")
+    if pole == "upper":
+        o = m.outputs()
+        return [o[k] for k in KEYS7[:4]], [o["omega_x"], rate, o["omega_z"]]
+    if pole == "lower":
+        th0, phid = 2.9, 20.0
+    else:   # A cos(theta) phi'^2 - C w3 phi' + mgl = 0, the slow root, with w3 = 60 rad/s
+        th0 = 0.3
+        ac, cw, mgl = m.get("I1") * math.cos(th0), m.get("I3") * 60.0, m.get("mass") * m.get("g") * m.get("cm_distance")
+        phid = (cw - math.sqrt(cw * cw - 4 * ac * mgl)) / (2 * ac)
+    return list(zyz_quat(0.0, th0, 0.0)), list(zyz_omega(phid, th0, rate, 0.0, 60.0 - phid * math.cos(th0)))
+
+
+def one_step(integrator, q, w, tolerance=None):
+    m = Model("heavy_top", parameters={"integrator": integrator}, tolerance=tolerance)
+    for k, v in zip(KEYS7, (*q, *w)):
+        m.set(k, float(v))
+    m.step(0.01)
+    o = m.outputs()
+    return np.array([o[k] for k in KEYS7])
+
+
+@pytest.mark.parametrize("pole", ["upper", "lower", "steady"])
+@pytest.mark.parametrize("rate", [0.0, 1e-15, 1e-12, 1e-9, 1e-7, 1e-5, 1e-3])
+def test_a_tiny_nutation_rate_near_a_turning_point(pole, rate):
+    """Started at u0 = u2 - x2 with x2 = u'^2 / |f'(u0)| (upper: ~ theta'^2 / beta, 3.6e-21 at theta' = 1e-9;
+    lower: -x1 likewise): the phase (cn0^2 = x2 / d) needs x2 to full relative precision, which taking it as
+    v0 - (1 - u2) lost (x2 then 0 or a few ulps of v0: theta' lost, errors of the size of theta' up to 1e-7,
+    1e-11 at 1e-5 and 1e-3; 4e-7 near steady precession even at theta' = 0, where the state's round-off leaves
+    u0 a hair from the roots).
+
+    Tolerances: omega at t = 0 (the flow evaluated at its anchor) against the start, 1e-13: the round-off of
+    P = phi' sin(theta) from sigma and delta, terms of size a = C w3 / A = 34 rad/s, is a few eps * 34 ~ 1e-14, and
+    the defect was 1e-12 and more from theta' = 1e-12 on. After one step of 0.01 s against dop853 at rtol 1e-14,
+    3e-13 on every component: the reference's own error is up to ~1e-13 (dop853's tolerance over the step; it
+    agrees with a 40-digit Runge-Kutta to 2e-15 here), the exact flow's a few eps; 3e-13 is below the smallest
+    error the defect gave from theta' = 1e-12 on (9.7e-13)."""
+    q, w = tiny_nutation_start(pole, rate)
+    p = np.zeros(_engine.NP)
+    y = np.zeros(_engine.NY)
+    m = Model("heavy_top")
+    p[:3] = (m.get("I1"), m.get("I2"), m.get("I3"))
+    p[3] = m.get("mass") * m.get("g") * m.get("cm_distance")
+    y[:4], y[4:7] = q, w
+    _engine.start_state(y.reshape(1, -1), p.reshape(1, -1))
+    w0, q0 = np.empty((1, 3)), np.empty((1, 4))
+    _engine.ht_eval(p, y, np.zeros(1), w0, q0)
+    assert np.abs(w0[0] - w).max() <= 1e-13, (w0[0], w)
+    assert q_error(q0[0], np.array(q)) <= 4 * EPS
+    e = one_step("exact", q, w)
+    r = one_step("dop853", q, w, tolerance=1e-14)
+    assert np.abs(e - r).max() <= 3e-13, np.abs(e - r)
+
+
 @pytest.mark.parametrize("change,match", [
     ({"I2": 0.013}, r"mass\*g\*cm_distance = 0.4905 N\*m on a body with I1 = 0.0125 and I2 = 0.013"),
 ])

@@ -1312,17 +1312,26 @@ void gs_ht_setup(double A, double C, double mgl, const double w[3], const double
     if (x1 < -s0p) x1 = -s0p;
     if (x2 > v0) x2 = v0;
     if (x3 < x2) x3 = x2;
-    /* 1 - u2 and 1 + u1 to full relative precision near the poles (the cubic in v = 1 - u, s = 1 + u) */
+    /* 1 - u2 and 1 + u1 to full relative precision near the poles (the cubic in v = 1 - u, s = 1 + u), without
+     * losing x2 = u2 - u0 and -x1 = u0 - u1. Each turning point splits a gap known from q in two parts,
+     * v0 = 1 - u0 = x2 + v2 and s0p = 1 + u0 = -x1 + s1, and each part needs its relative precision: v2 (s1) for
+     * Delta's (Sigma's) rate and step, 1 / (1 - u) (1 / (1 + u)); x2 (-x1) for the phase, cn0^2 = x2 / d
+     * (sn0^2 = -x1 / d), since near a turning point u'^2 = f(u0) ~ |f'(u2)| x2 (Goldstein, Classical Mechanics,
+     * 3rd ed., sec. 5.7; Landau-Lifshitz, Mechanics, sec. 35): theta' = -u' / sin(theta) rests on sqrt(x2). So
+     * only the smaller part is found from its own cubic (x2 in x by ht_root, v2 in v by ht_polish) and the larger
+     * is the gap less it, which cancels nothing (it is at least half the gap). x2 = v0 - v2 with x2 the smaller
+     * would hold x2 only to ulp(v0): a top started a hair from its turning point (x2 ~ u'^2 / |f'(u0)| below
+     * ulp(v0)) would start at it, its theta' lost. */
     double v2 = v0 - x2, s1 = s0p + x1;
     const double c0 = wp2 - beta * v0, c1 = wp2 + beta * s0p;   /* alpha - beta, alpha + beta */
-    if (!constant && del != 0.0 && v2 < 0.25) {
+    if (!constant && del != 0.0 && v2 < 0.25 && v2 < x2) {
         double st = v2 > 0.0 ? v2 : del * del / (2.0 * (c0 - a * del));
         if (st > 0.0) {
             v2 = ht_polish(-beta, 2.0 * beta - c0 - a * a, 2.0 * c0 - 2.0 * a * del, -del * del, st);
             x2 = v0 - v2;
         }
     }
-    if (!constant && sig != 0.0 && s1 < 0.25) {
+    if (!constant && sig != 0.0 && s1 < 0.25 && s1 < -x1) {
         double st = s1 > 0.0 ? s1 : sig * sig / (2.0 * (c1 + a * sig));
         if (st > 0.0) {
             s1 = ht_polish(beta, -(2.0 * beta + c1 + a * a), 2.0 * c1 + 2.0 * a * sig, -sig * sig, st);
