@@ -68,6 +68,9 @@ struct gs_lie_run_s {
     double h_F;               /* the step they were taken with */
     double G[GS_LIE_MAXINV][GS_ODE_MAX];   /* the projection's gradient */
     int have_G;
+    double S[GS_LIE_MAXINV][GS_LIE_MAXINV];   /* d res / d lambda along G (kept over steps, Broyden-updated) */
+    int have_S;
+    int ni_G;                 /* the invariants G and S are for */
     double wmid[GS_LIE_MAXQ][3];           /* the last step's omega_mid per quaternion (the dense output's) */
     double bu[LIE_MAXIT][GS_ODE_MAX], by[LIE_MAXIT][GS_ODE_MAX];   /* a step's Broyden updates (solve_step) */
 };
@@ -395,6 +398,7 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
     const int ni = L->invariants(L->ode.ctx, y, res);
     *evals += 1;
     if (ni <= 0) return 1;
+    if (ni != r->ni_G) r->have_G = 0;   /* the invariants kept changed (an input, a parameter) */
     if (!r->have_G) {   /* the gradient by central differences: the energy is quadratic in the velocities and the
                          * momentum linear in them (exact up to round-off there); in the positions the difference
                          * step's error only tilts the direction of the projection, not where it ends */
@@ -416,22 +420,42 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
         }
         *evals += 2 * np;
         r->have_G = 1;
+        r->have_S = 0;
+        r->ni_G = ni;
     }
-    double GG[GS_LIE_MAXINV][GS_LIE_MAXINV];
-    for (int a = 0; a < ni; a++) {
-        for (int b = 0; b < ni; b++) {
-            double s = 0.0;
-            for (int j = 0; j < np; j++) s += r->G[a][j] * r->G[b][j];
-            GG[a][b] = s;
+    /* d res / d lambda, S = C G^T (C the invariants' Jacobian, G the gradient kept from an earlier step), by central
+     * differences along each direction G_k^T where it is not kept from the last step (kept, Broyden's updates below
+     * follow it): the iterations then converge as Newton's whatever the gradient's age (a kept gradient only tilts
+     * the direction of the projection) */
+    if (!r->have_S) {
+        double keep[GS_ODE_MAX + 16];
+        memcpy(keep, y, (size_t)L->ode.ny * sizeof(double));
+        for (int k = 0; k < ni; k++) {
+            double g2 = 0.0;
+            for (int j = 0; j < np; j++) g2 += r->G[k][j] * r->G[k][j];
+            if (!(g2 > 0.0)) return 0;
+            const double e = 1e-6 / g2;
+            double rp[GS_LIE_MAXINV], rm[GS_LIE_MAXINV];
+            for (int j = 0; j < np; j++) if (r->G[k][j] != 0.0) proj_move(L, y, j, e * r->G[k][j]);
+            L->invariants(L->ode.ctx, y, rp);
+            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
+            for (int j = 0; j < np; j++) if (r->G[k][j] != 0.0) proj_move(L, y, j, -e * r->G[k][j]);
+            L->invariants(L->ode.ctx, y, rm);
+            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
+            for (int a = 0; a < ni; a++) r->S[a][k] = (rp[a] - rm[a]) / (2.0 * e);
         }
+        *evals += 2 * ni;
+        r->have_S = 1;
     }
+    double (*GG)[GS_LIE_MAXINV] = r->S;
     double prev = INFINITY;
     for (int it = 1; it <= LIE_MAXIT; it++) {
         double worst = 0.0;
         for (int k = 0; k < ni; k++) worst = fmax(worst, fabs(res[k]));
         if (!(worst == worst)) return 0;
-        if (worst <= 2.0 * LIE_EPS || (it >= 3 && worst >= 0.5 * prev && worst <= 1e-12)) {
-            if (it > LIE_SLOW) r->have_G = 0;   /* slow: a fresh gradient next step */
+        if (worst <= 2.0 * LIE_EPS || (it >= 3 && worst >= 0.5 * prev && worst <= 1e-14)) {
+            if (it > 3) r->have_S = 0;          /* slow: a fresh matrix next step */
+            if (it > LIE_SLOW) r->have_G = 0;   /* and a fresh gradient */
             return 1;
         }
         prev = worst;
@@ -530,6 +554,7 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
         if (!project(r, y1, evals)) {   /* again with a fresh gradient */
             memcpy(y1, keep, (size_t)o->ny * sizeof(double));
             r->have_G = 0;
+            r->have_S = 0;
             if (!project(r, y1, evals)) return 0;
         }
     }
@@ -607,6 +632,7 @@ int64_t gs_lie_run(gs_lie_run_t *r, double *y, double H, int64_t n_sub, int64_t 
         memcpy(y, y0, (size_t)o->ny * sizeof(double));
         r->have_F = 0;
         r->have_G = 0;
+        r->have_S = 0;
         r->refresh = 1;
     }
     return k;
@@ -683,6 +709,7 @@ int64_t gs_lie_dense(gs_lie_run_t *r, double *y, double dt, int64_t n_out, int64
         memcpy(y, last, ny * sizeof(double));
         r->have_F = 0;
         r->have_G = 0;
+        r->have_S = 0;
         r->refresh = 1;
     }
     return fail;
