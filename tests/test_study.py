@@ -300,3 +300,51 @@ def test_symplectic_part_table():
 
     r = symplecticity_error("double_pendulum", "rk4", 0.01)
     assert r.record()["error"] == r.error > 100 * r.floor
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Issue 34's tree targets (gyrosim_bench.tree_targets, `gyrosim bench --only tree_targets`): the harness, never its
+# timings
+# ---------------------------------------------------------------------------------------------------------------
+def test_tree_targets_part_and_spin_axis_angle():
+    from gyrosim_bench import tree_targets
+
+    assert "tree_targets" in study.PARTS and study._parse_only(["tree_targets"]) == ["tree_targets"]
+    a = 1e-10   # atan2(|a x b|, a.b) resolves angles arccos cannot
+    q = np.array([[1.0, 0.0, 0.0, 0.0], [math.cos(a / 2), math.sin(a / 2), 0.0, 0.0]])
+    ax = tree_targets.spin_axis(q)
+    np.testing.assert_allclose(ax[0], [0.0, 0.0, 1.0])
+    assert tree_targets.axis_angle(ax[:1], ax[1:])[0] == pytest.approx(a, rel=1e-9)
+
+
+def test_mj_gimbal_rollout_and_step_agree_with_gyrosim(tmp_path):
+    """bench/mj_gimbal.py (MuJoCo's interpreter): the fast gyroscope's spin axis from mj_step chunks and from one
+    rollout are the same, agree with gyrosim's dop853, and an unstable run is flagged as blown up."""
+    import os
+    import subprocess
+    from pathlib import Path
+
+    import gyrosim
+    from gyrosim_bench import tree_bench, tree_targets
+
+    py = tree_bench._peer_python(None, "GYROSIM_MJ_PYTHON", "/tmp/mjvenv/bin/python")
+    if py is None or subprocess.run([py, "-c", "import mujoco"], capture_output=True).returncode != 0:
+        pytest.skip("no MuJoCo interpreter (GYROSIM_MJ_PYTHON or /tmp/mjvenv)")
+    params = tree_bench._gimbal_params()
+    params["bodies"][-1]["rate"] = 2500.0
+    ref = gyrosim.simulate("gimbal_gyroscope", start_values={"rotor.rate": 2500.0}, stop_time=0.1,
+                           output_interval=0.01, integrator="dop853", relative_tolerance=1e-12, max_step=0.01)
+    params["t_ref"] = ref["time"].tolist()
+    params["q_ref"] = np.stack([ref[f"rotor.q_world_{c}"] for c in "wxyz"], axis=1).tolist()
+    f = tmp_path / "p.json"
+    f.write_text(json.dumps(params))
+    script = Path(study.__file__).resolve().parents[1] / "mj_gimbal.py"
+    out = subprocess.run([py, str(script), "--params", str(f), "--method", "both", "--dt", "0.01,2e-5", "--T", "0.1",
+                          "--interval", "0.01"], capture_output=True, text=True, cwd=tmp_path,
+                         env=dict(os.environ, PYTHONPATH=""))
+    assert out.returncode == 0, out.stderr
+    bad, good = json.loads(out.stdout.splitlines()[-1])["rungs"]
+    assert bad["blew_up"] and not good["blew_up"]
+    assert good["methods_diff_rad"] <= 1e-12 and good["axis_error_max"] <= 1e-9
+    assert tree_targets.axis_angle(tree_targets.spin_axis([good["q_T"]]),
+                                   tree_targets.spin_axis(params["q_ref"][-1:]))[0] <= 1e-9

@@ -20,9 +20,10 @@ Every error is measured against an exact solution, never against gyrosim's own o
 
 Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and integrator, Model.step overhead,
 10,000-body throughput, all against a C baseline compiled with ``gcc -O2`` in the same run), ``long``,
-``stability``, ``symplectic``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` / ``tree`` (the FMU,
-service, sweep and tree benches: ``run(out_dir)`` of :mod:`gyrosim_bench.fmu_bench`, ``service_bench``,
-``sweep_bench`` and ``tree_bench``, each in its own process).
+``stability``, ``symplectic``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` / ``tree`` /
+``tree_targets`` (the FMU, service, sweep and tree benches and issue 34's tree targets: ``run(out_dir)`` of
+:mod:`gyrosim_bench.fmu_bench`, ``service_bench``, ``sweep_bench``, ``tree_bench`` and ``tree_targets``, each in its
+own process).
 
 The study is not part of the installed package: it lives in the source checkout's ``bench/`` folder, and
 ``gyrosim bench`` (or ``make bench``) puts that folder on ``sys.path`` and runs :func:`main`.
@@ -77,7 +78,9 @@ TIMED = CLASSIC + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
 PARTS = ("accuracy", "cost", "long", "stability", "symplectic", "startup", "peers", "fmu", "service", "sweep",
-         "tree")
+         "tree", "tree_targets")
+#: The parts run by a bench module of their own (``run(out_dir, quick)``, in its own process).
+EXTERNAL = ("fmu", "service", "sweep", "tree", "tree_targets")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4, **EXACT_SPLIT_ORDER}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1305,7 +1308,8 @@ json.dump({"result": r}, open(sys.argv[4], "w"), default=str)
 
 
 def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str]:
-    """Run the part's bench (gyrosim_bench.fmu_bench / service_bench / sweep_bench / tree_bench) when present.
+    """Run the part's bench (gyrosim_bench.fmu_bench / service_bench / sweep_bench / tree_bench / tree_targets) when
+    present.
 
     Each runs in its own Python process (they load FMU binaries, Zenoh and FMPy's native libraries, which should
     not share a process with each other or with the study) and in a scratch folder (they may build FMUs and hosts
@@ -1316,7 +1320,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 
     # (module, label): the label names the part's tables and files (fmu.md, tree_bench.md, ...)
     mods = {"fmu": (("gyrosim_bench.fmu_bench", "fmu"),), "service": (("gyrosim_bench.service_bench", "service"),),
-            "sweep": (("gyrosim_bench.sweep_bench", "sweep"),), "tree": (("gyrosim_bench.tree_bench", "tree_bench"),)}
+            "sweep": (("gyrosim_bench.sweep_bench", "sweep"),), "tree": (("gyrosim_bench.tree_bench", "tree_bench"),),
+            "tree_targets": (("gyrosim_bench.tree_targets", "tree_targets"),)}
     bench_dir = str(Path(__file__).resolve().parents[1])  # the folder that holds gyrosim_bench
     msgs = []
     for name, label in mods[part]:
@@ -1361,7 +1366,7 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 #: results.json keys that each part writes (fmu and service leave their own files)
 PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
              "stability": ("stability",), "symplectic": ("symplectic",), "startup": ("startup",), "peers": ("peers",),
-             "fmu": (), "service": (), "sweep": (), "tree": ()}
+             "fmu": (), "service": (), "sweep": (), "tree": (), "tree_targets": ()}
 #: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
 SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
 
@@ -1382,7 +1387,7 @@ def _legacy_blocks(out: Path, old: dict) -> dict:
              "accuracy": [f"accuracy_{c}" for c in old.get("accuracy", {})] + ["orders"]}
     for m in old.get("messages", []):  # fmu / service: the markdown files their message says they wrote
         part = m.split(":", 1)[0]
-        if part in ("fmu", "service", "sweep", "tree") and "(wrote " in m:
+        if part in EXTERNAL and "(wrote " in m:
             files = m.split("(wrote ", 1)[1].split(")", 1)[0].split(", ")
             names[part] = [f[:-3] for f in files if f.endswith(".md")]
     blocks = {}
@@ -1626,7 +1631,7 @@ def main(args) -> int:
                 if res.get("note"):
                     messages.append(f"peers: {res['note']}")
                 bar.update()
-            elif part in ("fmu", "service", "sweep", "tree"):
+            elif part in EXTERNAL:
                 bar.set_postfix_str(part)
                 try:
                     messages += _external_bench(part, out, quick, plan.external)
