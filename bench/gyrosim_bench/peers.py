@@ -290,9 +290,11 @@ def _tolerances(quick: bool, lo: float = 1e-15):
 # gyrosim
 # =============================================================================================================
 def _integrators() -> list[str]:
+    """The one-body kernel's integrators (the peers' cases are one body), in the engine's order."""
     from gyrosim.core import _engine
+    from gyrosim.scene import INTEGRATORS
 
-    return list(_engine.METHODS)
+    return [m for m in _engine.METHODS if m in INTEGRATORS]
 
 
 def _gyrosim_runs(case: PeerCase, ref: dict, T: float, quick: bool, rounds: int, budget: float) -> tuple[list, list]:

@@ -48,12 +48,15 @@ __all__ = ["FreeCase", "TopCase", "free_grid", "top_grid", "run", "stable_x", "r
 
 
 def _methods():
+    """The one-body kernel's integrators, in the engine's order (the tree's implicit methods are mapped on trees by
+    tree_stability)."""
     from gyrosim.core import _engine
+    from gyrosim.scene import INTEGRATORS
 
-    return tuple(_engine.METHODS)
+    return tuple(m for m in _engine.METHODS if m in INTEGRATORS)
 
 
-#: Fixed-step integrators of the engine (every name but the step-size-free ones and exact).
+#: Fixed-step integrators of the one-body engine (every name but the step-size-free ones and exact).
 FIXED = tuple(m for m in _methods() if m not in ("adaptive", "dop853", "exact"))
 #: Integrators that choose their own step.
 STEP_FREE = tuple(m for m in ("adaptive", "dop853") if m in _methods())
