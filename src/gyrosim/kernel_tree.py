@@ -10,6 +10,7 @@ was set up with.
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -193,6 +194,26 @@ _BODY_COLS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 
               "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
 
 
+#: A scene's engine layout, variable table and output names, built once per Scene object (a Scene is frozen; the
+#: tables only describe it): the set-up of a short run is mostly building them.
+_TABLES: dict[int, tuple] = {}
+
+
+def _scene_tables(sc) -> tuple:
+    """(layout, variables, output names, output index) of the scene, from the cache (keyed by the object's identity,
+    dropped with the object)."""
+    key = id(sc)
+    hit = _TABLES.get(key)
+    if hit is not None and hit[0]() is sc:
+        return hit[1:]
+    names = tree_output_names(sc)
+    tables = (weakref.ref(sc), TreeLayout(sc.tree, sc.couplings, sc.orbit), tree_variables(sc), tuple(names),
+              {n: i for i, n in enumerate(names)})
+    _TABLES[key] = tables
+    weakref.finalize(sc, _TABLES.pop, key, None)
+    return tables[1:]
+
+
 class TreeKernel:
     """The tree kernel's operations of a :class:`~gyrosim.model.Model` (``self`` is the model).
 
@@ -222,14 +243,12 @@ class TreeKernel:
     def setup(self) -> None:
         """The model's engine rows for the scene's tree (``systems`` copies of it)."""
         sc = self.scene
-        self.layout = TreeLayout(sc.tree, sc.couplings, sc.orbit)
-        self.variables = tree_variables(sc)
+        self.layout, variables, self._out_names, self._out_index = _scene_tables(sc)
+        self.variables = dict(variables)
         self.body_names = sc.body_names
         self.n_bodies = len(self.body_names)
         self._n_systems = k = max(1, int(getattr(sc, "systems", 1)))
         self._index = {b: i for i, b in enumerate(self.body_names)}
-        self._out_names = tree_output_names(sc)
-        self._out_index = {n: i for i, n in enumerate(self._out_names)}
         self._bodies = list(sc.tree)
         self._alias_names = [a.name for a in sc.aliases]
         self._alias_vals = np.tile(np.array([a.value for a in sc.aliases], dtype=float), (k, 1))
