@@ -10,9 +10,9 @@ slope is the fitted exponent over the steps above 10x the floor (fixed-step meth
 take the steps their error control picks inside h, at the scene's tolerance).
 
 ``heavy_top`` starts at a turning point of its nutation (released with theta' = 0); ``heavy_top_moving`` is the same
-top with omega = (0, -2, 60) rad/s (theta' != 0): the Lagrange top's ``exact`` flow is at the floor there and not
-at the turning point (docs/accuracy.md, the Hamiltonian view). ``spacecraft`` turns slowly (its hub at 0.05 rad/s,
-its wheels' angles cyclic); ``spacecraft_tumbling`` is its hub tumbling at omega = (1, 0.5, -0.8) rad/s.
+top with omega = (0, -2, 60) rad/s (theta' != 0): the Lagrange top's ``exact`` flow is at the floor at both.
+``spacecraft`` turns slowly (its hub at 0.05 rad/s, its wheels' angles cyclic); ``spacecraft_tumbling`` is its hub
+tumbling at omega = (1, 0.5, -0.8) rad/s.
 """
 
 from __future__ import annotations

@@ -653,6 +653,11 @@ def run(out_dir, quick: bool = False) -> str:
     line returned counts the targets met."""
     rows = main(out_dir, quick=quick,
                 command="gyrosim bench --only tree_targets" + (" --quick" if quick else ""))["summary"]
+    # the stability map of the trees beside the targets (docs/accuracy.md quotes it)
+    from .tree_stability import markdown, run_tree_stability
+
+    (Path(out_dir) / "tree_stability.md").write_text("### The stability map of the trees\n\n"
+                                                     + markdown(run_tree_stability(quick)))
     done = [r for r in rows if r["result"] in ("PASS", "FAIL")]
     return (f"{sum(r['result'] == 'PASS' for r in done)} of {len(done)} targets met"
             + (f", {len(rows) - len(done)} skipped" if len(done) < len(rows) else ""))

@@ -35,8 +35,8 @@ On a circular orbit the gravity gradient and the tidal forces act through a pote
 Symplecticity. :func:`symplecticity_error` measures how far an integrator's one-step map Phi_h (one internal step:
 ``max_step = h``) is from preserving the symplectic form: M^T J M - J, M = dPhi_h/dx in the canonical coordinates
 x = (q, p) above, J = [[0, I], [-I, 0]]. A symplectic method (the splittings and exact-flow splittings of the
-one-body kernel, its exact flow) gives zero to the measurement's floor (``exact`` on the Lagrange top is not
-smooth next to a turning point of the nutation: a floor above :data:`NOT_SMOOTH` says so); a Runge-Kutta method
+one-body kernel, its exact flow) gives zero to the measurement's floor (a map that is not a smooth function of
+the state shows a floor above :data:`NOT_SMOOTH`); a Runge-Kutta method
 does not (rk4: the defect is O(h^5) per step; euler: O(h^2)). Damping makes the exact flow itself contract phase
 space: the measured defect of a damped scene then is the flow's, not only the integrator's (``conservative`` in the
 result says so).
@@ -414,8 +414,7 @@ class Symplecticity:
     @property
     def smooth(self) -> bool:
         """Whether the measurement means anything: a floor at most :data:`NOT_SMOOTH` (a larger one says the map
-        is not a smooth function of the state at the difference steps, e.g. ``exact`` on the Lagrange top next to
-        a turning point of its nutation, docs/accuracy.md)."""
+        is not a smooth function of the state at the difference steps)."""
         return self.floor <= NOT_SMOOTH
 
     @property
