@@ -209,23 +209,42 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
     return fabs(cxa[0]) <= ctol && fabs(cxa[1]) <= ctol && fabs(cxa[2]) <= ctol;
 }
 
-/* What stays constant over a call (the parameters do): the bodies' spatial inertias, the rotors, the hinges
- * along a coordinate axis. */
+/* What stays constant over a call (the parameters do), made once by precompute: the bodies' spatial inertias, the
+ * rotors, the hinges along a coordinate axis, which terms of the right-hand side vanish in every state, and the
+ * joint factors of the bodies whose articulated inertia does not change.
+ *
+ * In the articulated-body algorithm (Featherstone, Rigid Body Dynamics Algorithms, 2008, table 7.1) a body's
+ * articulated inertia IA is its own inertia plus its children's, each turned into its frame: it changes with the
+ * state only through the children's joint angles. A body whose children are all rotors (a leaf is one with none)
+ * has IA constant (the rotors' are folded into IAbase, in the body's orientation), and so are its joint's
+ * U = IA S, D^-1 = (S^T U)^-1 and the inertia it passes to its parent, Ia = IA - U D^-1 U^T (eq. 7.34-7.36):
+ * made here, not at every stage (the spacecraft's hub and wheels, the gimbal's inner ring and rotor). */
 typedef struct {
     M6 I[GS_TREE_MAX];
     M6 IAbase[GS_TREE_MAX];    /* I plus the (constant) articulated inertias of the rotors hanging from the body */
     int rotor[GS_TREE_MAX];
     int axis_k[GS_TREE_MAX];   /* a hinge's axis is +e_k: k; else -1 */
-    double rotU[GS_TREE_MAX][6], rotDi[GS_TREE_MAX];   /* a rotor's U = I S and 1 / (S^T U) */
-    M6 rotIa[GS_TREE_MAX];     /* a rotor's I - U U^T / D */
+    int ia_fixed[GS_TREE_MAX]; /* IA = IAbase in every state: every child a rotor; U, Di, Ia below are made */
+    int vlin0[GS_TREE_MAX];    /* the body's linear velocity is zero in every state: not free, every joint point from
+                                * a non-free root on is its parent's origin (then the bias acceleration c = v x vj
+                                * has no linear part either) */
+    int cm0[GS_TREE_MAX];      /* the centre of mass at the joint point */
+    int g0;                    /* no uniform gravity: the world's acceleration is zero */
+    double U[GS_TREE_MAX][6][6];   /* ia_fixed: U = IA S (k columns) */
+    double Di[GS_TREE_MAX][6][6];  /* ia_fixed: D^-1 (k x k) */
+    M6 Ia[GS_TREE_MAX];            /* ia_fixed, not a root: IA - U D^-1 U^T */
 } Pre;
 
 static void body_inertia(const double *b, M6 I);
 static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out);
+static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int i, const M6 IA, double U[6][6],
+                         double Di[6][6], M6 Ia);
 
 static void precompute(const gs_tree *t, const double *p, Pre *d) {
+    d->g0 = p[GS_TP_G] == 0.0;
     for (int i = 0; i < t->n; i++) {
-        const double *b = body_p(p, i), *a = b + GS_TB_AXIS;
+        const double *b = body_p(p, i), *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *r = b + GS_TB_POS;
+        const int par = t->parent[i];
         body_inertia(b, d->I[i]);
         memcpy(d->IAbase[i], d->I[i], sizeof(M6));
         d->rotor[i] = rotor_frame(t, b, i);
@@ -235,25 +254,26 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
                 if (a[k] == 1.0 && a[(k + 1) % 3] == 0.0 && a[(k + 2) % 3] == 0.0) d->axis_k[i] = k;
             }
         }
+        d->cm0[i] = c[0] == 0.0 && c[1] == 0.0 && c[2] == 0.0;
+        d->vlin0[i] = t->joint[i] != GS_J_FREE &&
+                      (par < 0 || (d->vlin0[par] && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0));
+        d->ia_fixed[i] = 1;
     }
-    /* a rotor's articulated inertia does not change (a leaf, in its parent's orientation): fold it in once */
-    static _Thread_local Kin kt;
     for (int i = 0; i < t->n; i++) {
+        if (t->parent[i] >= 0 && !d->rotor[i]) d->ia_fixed[t->parent[i]] = 0;
+    }
+    /* children first (a child's index is above its parent's): a rotor's Ia is folded into its parent's IAbase
+     * (a leaf, in its parent's orientation: a constant) before the parent's own factor is made */
+    static _Thread_local Kin kt;
+    for (int i = t->n - 1; i >= 0; i--) {
+        if (!d->ia_fixed[i]) continue;
+        joint_factor(t, p, d, i, d->IAbase[i], d->U[i], d->Di[i], t->parent[i] >= 0 ? d->Ia[i] : NULL);
         if (!d->rotor[i]) continue;
-        const double *b = body_p(p, i), *a = b + GS_TB_AXIS;
-        for (int r = 0; r < 6; r++) d->rotU[i][r] = d->I[i][r][0] * a[0] + d->I[i][r][1] * a[1] + d->I[i][r][2] * a[2];
-        d->rotDi[i] = 1.0 / (a[0] * d->rotU[i][0] + a[1] * d->rotU[i][1] + a[2] * d->rotU[i][2]);
-        for (int r = 0; r < 6; r++) {
-            for (int q = r; q < 6; q++) {
-                d->rotIa[i][r][q] = d->I[i][r][q] - d->rotU[i][r] * d->rotDi[i] * d->rotU[i][q];
-                d->rotIa[i][q][r] = d->rotIa[i][r][q];
-            }
-        }
-        memcpy(kt.r[0], b + GS_TB_POS, sizeof(kt.r[0]));
+        memcpy(kt.r[0], body_p(p, i) + GS_TB_POS, sizeof(kt.r[0]));
         kt.ident[0] = 1;
         kt.plane[0] = -1;
         kt.r0[0] = kt.r[0][0] == 0.0 && kt.r[0][1] == 0.0 && kt.r[0][2] == 0.0;
-        add_transformed_inertia(&kt, 0, d->rotIa[i], d->IAbase[t->parent[i]]);
+        add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[t->parent[i]]);
     }
 }
 
@@ -604,22 +624,122 @@ static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) 
     }
 }
 
-/* the articulated-body algorithm: joint accelerations qdd[i][0:k] */
+/* The joint's factors from the body's articulated inertia IA (Featherstone, table 7.1): U = IA S, D^-1 = (S^T U)^-1
+ * and, where Ia is not NULL, the articulated inertia the body passes to its parent, Ia = IA - U D^-1 U^T. S is
+ * (axis; 0) for a hinge ((e_k; 0) along a body axis: U is IA's column k) and the first k unit columns for ball (3)
+ * and free (6) joints (U: IA's first k columns); a fixed joint has none (Ia = IA). */
+static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int i, const M6 IA, double U[6][6],
+                         double Di[6][6], M6 Ia) {
+    const int k = gs_tree_ndof(t->joint[i]);
+    double D[6][6];
+    if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
+        const int ak = pre->axis_k[i];
+        for (int a = 0; a < 6; a++) U[a][0] = IA[a][ak];
+        D[0][0] = U[ak][0];
+    } else if (t->joint[i] == GS_J_HINGE) {
+        const double *ax = body_p(p, i) + GS_TB_AXIS;
+        for (int a = 0; a < 6; a++) U[a][0] = IA[a][0] * ax[0] + IA[a][1] * ax[1] + IA[a][2] * ax[2];
+        D[0][0] = ax[0] * U[0][0] + ax[1] * U[1][0] + ax[2] * U[2][0];
+    } else {
+        for (int a = 0; a < 6; a++) {
+            for (int j = 0; j < k; j++) U[a][j] = IA[a][j];
+        }
+        for (int a = 0; a < k; a++) {
+            for (int j = 0; j < k; j++) D[a][j] = IA[a][j];
+        }
+    }
+    if (k == 1) {
+        Di[0][0] = 1.0 / D[0][0];
+    } else if (k == 3) {
+        const double c00 = D[1][1] * D[2][2] - D[1][2] * D[2][1], c01 = D[1][2] * D[2][0] - D[1][0] * D[2][2],
+                     c02 = D[1][0] * D[2][1] - D[1][1] * D[2][0];
+        const double det = D[0][0] * c00 + D[0][1] * c01 + D[0][2] * c02;
+        const double id = 1.0 / det;
+        Di[0][0] = c00 * id;
+        Di[1][0] = c01 * id;
+        Di[2][0] = c02 * id;
+        Di[0][1] = (D[0][2] * D[2][1] - D[0][1] * D[2][2]) * id;
+        Di[1][1] = (D[0][0] * D[2][2] - D[0][2] * D[2][0]) * id;
+        Di[2][1] = (D[0][1] * D[2][0] - D[0][0] * D[2][1]) * id;
+        Di[0][2] = (D[0][1] * D[1][2] - D[0][2] * D[1][1]) * id;
+        Di[1][2] = (D[0][2] * D[1][0] - D[0][0] * D[1][2]) * id;
+        Di[2][2] = (D[0][0] * D[1][1] - D[0][1] * D[1][0]) * id;
+    } else if (k > 0 && !inverse(k, D, Di)) {
+        for (int a = 0; a < k; a++) {
+            for (int j = 0; j < k; j++) Di[a][j] = NAN;
+        }
+    }
+    if (Ia == NULL) return;
+    if (k == 1) {   /* a hinge: D^-1 is a number */
+        double Ud[6];
+        for (int a = 0; a < 6; a++) Ud[a] = U[a][0] * Di[0][0];
+        for (int a = 0; a < 6; a++) {
+            for (int j = a; j < 6; j++) {
+                Ia[a][j] = IA[a][j] - Ud[a] * U[j][0];
+                Ia[j][a] = Ia[a][j];
+            }
+        }
+        return;
+    }
+    double UDi[6][6];
+    for (int a = 0; a < 6; a++) {
+        for (int j = 0; j < k; j++) {
+            double s = 0.0;
+            for (int l = 0; l < k; l++) s += U[a][l] * Di[l][j];
+            UDi[a][j] = s;
+        }
+    }
+    for (int a = 0; a < 6; a++) {   /* symmetric: the upper triangle, mirrored */
+        for (int j = a; j < 6; j++) {
+            double s = 0.0;
+            for (int l = 0; l < k; l++) s += UDi[a][l] * U[j][l];
+            Ia[a][j] = IA[a][j] - s;
+            Ia[j][a] = Ia[a][j];
+        }
+    }
+}
+
+/* out = A c + x for a symmetric A; c_ang_only: c's linear half is zero (Pre.vlin0), only A's first 3 columns */
+static TREE_INLINE void mv6_add(const M6 A, const double c[6], int c_ang_only, const double x[6], double out[6]) {
+    if (c_ang_only) {
+        for (int a = 0; a < 6; a++) out[a] = (A[a][0] * c[0] + A[a][1] * c[1] + A[a][2] * c[2]) + x[a];
+    } else {
+        for (int a = 0; a < 6; a++) {
+            double s = 0.0;
+            for (int j = 0; j < 6; j++) s += A[a][j] * c[j];
+            out[a] = s + x[a];
+        }
+    }
+}
+
+/* The articulated-body algorithm (Featherstone, table 7.1): joint accelerations qdd[i][0:k]. Three passes: the
+ * bodies' bias forces pA = v x* I v - f_ext and bias accelerations c = v x vj (outwards); the articulated inertias
+ * IA and forces pA, each body's passed to its parent (inwards); the accelerations (outwards). What Pre knows is
+ * skipped: the joint factors of the bodies whose IA is constant, c's and v's linear halves where they vanish, the
+ * world's acceleration without gravity, the accelerations of leaves (no child needs them). */
 static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
                 const double (*fx)[6], double qdd[GS_TREE_MAX][6]) {
-    M6 IA[GS_TREE_MAX];
+    M6 IA[GS_TREE_MAX];   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
     double pA[GS_TREE_MAX][6], c[GS_TREE_MAX][6], U[GS_TREE_MAX][6][6], Di[GS_TREE_MAX][6][6], u[GS_TREE_MAX][6];
     double tau[GS_TREE_MAX][6];
-    int nd[GS_TREE_MAX];
     joint_forces(t, y, p, tau);
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i);
-        double h[6], f[6];
-        if (!pre->rotor[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));   /* a rotor's is folded (precompute) */
-        {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product), then f = v x* h with
-             * v_lin x m v_lin = 0 left out: at orbital speeds its round-off (1e-16 m |v|^2) would be a torque */
-            const double m = b[GS_TB_MASS], *cm = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin->v[i], *vl = kin->v[i] + 3;
-            double wc[3], vc[3], cvc[3], mwc[3], a1[3], a2[3];
+        const double *w = kin->v[i], *vl = kin->v[i] + 3, *J = b + GS_TB_I;
+        double f[6];
+        if (!pre->ia_fixed[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));
+        if (pre->cm0[i] && pre->vlin0[i]) {   /* h = (J w; 0), f = (w x J w; 0) */
+            double h[3];
+            h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2];
+            h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2];
+            h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2];
+            cross3(w, h, f);
+            f[3] = f[4] = f[5] = 0.0;
+        } else {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product), then f = v x* h
+                    * with v_lin x m v_lin = 0 left out: at orbital speeds its round-off (1e-16 m |v|^2) would be a
+                    * torque */
+            const double m = b[GS_TB_MASS], *cm = b + GS_TB_CM;
+            double h[3], wc[3], vc[3], cvc[3], mwc[3], a1[3], a2[3];
             cross3(w, cm, wc);
             for (int a = 0; a < 3; a++) {
                 vc[a] = m * (vl[a] + wc[a]);   /* momentum: m (v + w x c) */
@@ -629,7 +749,6 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
             h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2] + cvc[0];
             h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2] + cvc[1];
             h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cvc[2];
-            memcpy(h + 3, vc, sizeof(vc));
             cross3(w, h, a1);
             cross3(vl, mwc, a2);
             for (int a = 0; a < 3; a++) f[a] = a1[a] + a2[a];
@@ -642,140 +761,90 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         if (fx != NULL) {   /* the orbit's forces */
             for (int a = 0; a < 6; a++) pA[i][a] -= fx[i][a];
         }
+        /* c = v x vj: a joint below a body has no linear velocity of its own (vj = (wj; 0)), so c = (w x wj,
+         * v_lin x wj); a root's is zero (the world does not move) */
         if (t->parent[i] >= 0) {
-            crm(kin->v[i], kin->vj[i], c[i]);
+            const double *wj = kin->vj[i];
+            cross3(w, wj, c[i]);
+            if (pre->vlin0[i]) {
+                c[i][3] = c[i][4] = c[i][5] = 0.0;
+            } else {
+                cross3(vl, wj, c[i] + 3);
+            }
         } else {
-            for (int a = 0; a < 6; a++) c[i][a] = 0.0;   /* the world does not move */
+            for (int a = 0; a < 6; a++) c[i][a] = 0.0;
         }
     }
     for (int i = t->n - 1; i >= 0; i--) {
-        /* S is (axis; 0) for a hinge and the first k unit columns for ball (3) and free (6) joints */
-        const int k = gs_tree_ndof(t->joint[i]);
-        nd[i] = k;
-        double D[6][6];
-        if (pre->rotor[i]) {   /* U, D and the articulated inertia were made once (precompute) */
-            const double *ax = body_p(p, i) + GS_TB_AXIS;
-            for (int a = 0; a < 6; a++) U[i][a][0] = pre->rotU[i][a];
-            Di[i][0][0] = pre->rotDi[i];
-            u[i][0] = tau[i][0] - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
-            double pa[6], Ud[6];
-            mv6(pre->rotIa[i], c[i], pa);
-            for (int a = 0; a < 6; a++) {
-                Ud[a] = U[i][a][0] * Di[i][0][0];
-                pa[a] += pA[i][a] + Ud[a] * u[i][0];
-            }
-            add_xtf(kin, i, pa, pA[t->parent[i]]);
-            continue;
-        }
+        const int k = gs_tree_ndof(t->joint[i]), par = t->parent[i], fixed = pre->ia_fixed[i];
+        const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
+        M6 Iav;
+        const double (*Ia)[6] = fixed ? pre->Ia[i] : Iav;
+        if (!fixed) joint_factor(t, p, pre, i, IA[i], U[i], Di[i], par >= 0 ? Iav : NULL);
+        /* u = tau - S^T pA */
         if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
-            const int ak = pre->axis_k[i];
-            for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][ak];
-            D[0][0] = U[i][ak][0];
-            u[i][0] = tau[i][0] - pA[i][ak];
+            u[i][0] = tau[i][0] - pA[i][pre->axis_k[i]];
         } else if (t->joint[i] == GS_J_HINGE) {
             const double *ax = body_p(p, i) + GS_TB_AXIS;
-            for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][0] * ax[0] + IA[i][a][1] * ax[1] + IA[i][a][2] * ax[2];
-            D[0][0] = ax[0] * U[i][0][0] + ax[1] * U[i][1][0] + ax[2] * U[i][2][0];
             u[i][0] = tau[i][0] - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
         } else {
-            for (int a = 0; a < 6; a++) {
-                for (int j = 0; j < k; j++) U[i][a][j] = IA[i][a][j];
-            }
-            for (int a = 0; a < k; a++) {
-                for (int j = 0; j < k; j++) D[a][j] = IA[i][a][j];
-                u[i][a] = tau[i][a] - pA[i][a];
-            }
+            for (int a = 0; a < k; a++) u[i][a] = tau[i][a] - pA[i][a];
         }
-        if (k == 1) {
-            Di[i][0][0] = 1.0 / D[0][0];
-        } else if (k == 3) {
-            const double c00 = D[1][1] * D[2][2] - D[1][2] * D[2][1], c01 = D[1][2] * D[2][0] - D[1][0] * D[2][2],
-                         c02 = D[1][0] * D[2][1] - D[1][1] * D[2][0];
-            const double det = D[0][0] * c00 + D[0][1] * c01 + D[0][2] * c02;
-            const double id = 1.0 / det;
-            Di[i][0][0] = c00 * id;
-            Di[i][1][0] = c01 * id;
-            Di[i][2][0] = c02 * id;
-            Di[i][0][1] = (D[0][2] * D[2][1] - D[0][1] * D[2][2]) * id;
-            Di[i][1][1] = (D[0][0] * D[2][2] - D[0][2] * D[2][0]) * id;
-            Di[i][2][1] = (D[0][1] * D[2][0] - D[0][0] * D[2][1]) * id;
-            Di[i][0][2] = (D[0][1] * D[1][2] - D[0][2] * D[1][1]) * id;
-            Di[i][1][2] = (D[0][2] * D[1][0] - D[0][0] * D[1][2]) * id;
-            Di[i][2][2] = (D[0][0] * D[1][1] - D[0][1] * D[1][0]) * id;
-        } else if (k > 0 && !inverse(k, D, Di[i])) {
-            for (int a = 0; a < k; a++) {
-                for (int j = 0; j < k; j++) Di[i][a][j] = NAN;
-            }
-        }
-        const int par = t->parent[i];
         if (par < 0) continue;
-        /* Ia = IA - U D^-1 U^T, pa = pA + Ia c + U D^-1 u */
-        M6 Ia;
-        double pa[6];
-        if (k == 1) {   /* a hinge: D^-1 is a number */
-            double Ud[6];
-            for (int a = 0; a < 6; a++) Ud[a] = U[i][a][0] * Di[i][0][0];
-            for (int a = 0; a < 6; a++) {
-                for (int j = a; j < 6; j++) {
-                    Ia[a][j] = IA[i][a][j] - Ud[a] * U[i][j][0];
-                    Ia[j][a] = Ia[a][j];
-                }
-            }
-            mv6(Ia, c[i], pa);
-            for (int a = 0; a < 6; a++) pa[a] += pA[i][a] + Ud[a] * u[i][0];
+        /* to the parent: pa = pA + Ia c + U D^-1 u; IA_p += X^T Ia X, pA_p += X^T pa, X = [E 0; -E [r]x E] */
+        double pa[6], Udu[6];
+        if (k == 1) {
+            for (int a = 0; a < 6; a++) Udu[a] = Ui[a][0] * Dii[0][0] * u[i][0];
         } else {
-            double UDi[6][6], Du[6];
-            for (int a = 0; a < 6; a++) {
-                for (int j = 0; j < k; j++) {
-                    double s = 0.0;
-                    for (int l = 0; l < k; l++) s += U[i][a][l] * Di[i][l][j];
-                    UDi[a][j] = s;
-                }
+            double du[6];
+            for (int a = 0; a < k; a++) {
+                double s = 0.0;
+                for (int l = 0; l < k; l++) s += Dii[a][l] * u[i][l];
+                du[a] = s;
             }
-            for (int a = 0; a < 6; a++) {   /* symmetric: the upper triangle, mirrored */
-                for (int j = a; j < 6; j++) {
-                    double s = 0.0;
-                    for (int l = 0; l < k; l++) s += UDi[a][l] * U[i][j][l];
-                    Ia[a][j] = IA[i][a][j] - s;
-                    Ia[j][a] = Ia[a][j];
-                }
-            }
-            for (int a = 0; a < k; a++) Du[a] = u[i][a];
-            mv6(Ia, c[i], pa);
             for (int a = 0; a < 6; a++) {
                 double s = 0.0;
-                for (int l = 0; l < k; l++) s += UDi[a][l] * Du[l];
-                pa[a] += pA[i][a] + s;
+                for (int l = 0; l < k; l++) s += Ui[a][l] * du[l];
+                Udu[a] = s;
             }
         }
-        /* to the parent: IA_p += X^T Ia X, pA_p += X^T pa, X = [E 0; -E [r]x E] */
-        add_transformed_inertia(kin, i, Ia, IA[par]);
+        for (int a = 0; a < 6; a++) Udu[a] += pA[i][a];
+        mv6_add(Ia, c[i], pre->vlin0[i], Udu, pa);
+        if (!pre->rotor[i]) add_transformed_inertia(kin, i, Ia, IA[par]);   /* a rotor's is folded (precompute) */
         add_xtf(kin, i, pa, pA[par]);
     }
     double acc[GS_TREE_MAX][6];
     const double g = p[GS_TP_G];
     for (int i = 0; i < t->n; i++) {
-        const int par = t->parent[i];
+        const int par = t->parent[i], k = gs_tree_ndof(t->joint[i]), fixed = pre->ia_fixed[i];
+        const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
         double ap[6];
         if (par < 0) {
-            const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
-            xm(kin, i, up, ap);
+            if (pre->g0) {
+                for (int a = 0; a < 6; a++) ap[a] = 0.0;
+            } else {
+                const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
+                xm(kin, i, up, ap);
+            }
         } else {
             xm(kin, i, acc[par], ap);
+            for (int a = 0; a < 6; a++) ap[a] += c[i][a];
         }
-        for (int a = 0; a < 6; a++) ap[a] += c[i][a];
-        const int k = nd[i];
+        /* qdd = D^-1 (u - U^T ap) */
         double rhs[6];
         for (int a = 0; a < k; a++) {
             double s = 0.0;
-            for (int l = 0; l < 6; l++) s += U[i][l][a] * ap[l];
+            for (int l = 0; l < 6; l++) s += Ui[l][a] * ap[l];
             rhs[a] = u[i][a] - s;
         }
         for (int a = 0; a < k; a++) {
             double s = 0.0;
-            for (int l = 0; l < k; l++) s += Di[i][a][l] * rhs[l];
+            for (int l = 0; l < k; l++) s += Dii[a][l] * rhs[l];
             qdd[i][a] = s;
         }
+        if (t->leaf[i]) continue;   /* a = ap + S qdd: only the children use it */
         for (int a = 0; a < 6; a++) acc[i][a] = ap[a];
         if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
             acc[i][pre->axis_k[i]] += qdd[i][0];
