@@ -25,6 +25,9 @@ typedef double treal;   /* a value only compared, never differentiated (tree_cs.
 typedef double M3[3][3];
 typedef double M6[6][6];
 
+/* the coordinate axes after k in cyclic order, (k + 1) % 3 and (k + 2) % 3, without a division */
+static const int NEXT1[3] = {1, 2, 0}, NEXT2[3] = {2, 0, 1};
+
 int gs_tree_ncoord(int joint) {
     return joint == GS_J_BALL ? 7 : joint == GS_J_HINGE ? 2 : joint == GS_J_FREE ? 13 : 0;
 }
@@ -229,6 +232,12 @@ typedef struct {
                                 * a non-free root on is its parent's origin (then the bias acceleration c = v x vj
                                 * has no linear part either) */
     int cm0[GS_TREE_MAX];      /* the centre of mass at the joint point */
+    int nd[GS_TREE_MAX];       /* the joint's degrees of freedom (gs_tree_ndof) */
+    int ident[GS_TREE_MAX];    /* Kin.ident, Kin.plane and Kin.r0 where they do not depend on the state */
+    int plane[GS_TREE_MAX];
+    int r0[GS_TREE_MAX];
+    int ia_cols[GS_TREE_MAX];  /* the columns of IA the algorithm reads (bit j: column j): a root's only its joint's
+                                * U = IA S and D = S^T U (it passes no inertia on), a fixed root's none */
     int g0;                    /* no uniform gravity: the world's acceleration is zero */
     double U[GS_TREE_MAX][6][6];   /* ia_fixed: U = IA S (k columns) */
     double Di[GS_TREE_MAX][6][6];  /* ia_fixed: D^-1 (k x k) */
@@ -236,7 +245,7 @@ typedef struct {
 } Pre;
 
 static void body_inertia(const double *b, M6 I);
-static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out);
+static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out, int cols);
 static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int i, const M6 IA, double U[6][6],
                          double Di[6][6], M6 Ia);
 
@@ -255,6 +264,15 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
             }
         }
         d->cm0[i] = c[0] == 0.0 && c[1] == 0.0 && c[2] == 0.0;
+        d->nd[i] = gs_tree_ndof(t->joint[i]);
+        d->ident[i] = t->joint[i] == GS_J_FIXED || d->rotor[i];
+        d->plane[i] = d->rotor[i] ? -1 : d->axis_k[i];
+        d->r0[i] = t->joint[i] != GS_J_FREE && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0;
+        d->ia_cols[i] = 63;
+        if (par < 0) {
+            d->ia_cols[i] = t->joint[i] == GS_J_FIXED ? 0 : t->joint[i] == GS_J_FREE ? 63 : d->axis_k[i] >= 0 ?
+                            1 << d->axis_k[i] : 7;
+        }
         d->vlin0[i] = t->joint[i] != GS_J_FREE &&
                       (par < 0 || (d->vlin0[par] && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0));
         d->ia_fixed[i] = 1;
@@ -273,7 +291,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
         kt.ident[0] = 1;
         kt.plane[0] = -1;
         kt.r0[0] = kt.r[0][0] == 0.0 && kt.r[0][1] == 0.0 && kt.r[0][2] == 0.0;
-        add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[t->parent[i]]);
+        add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[t->parent[i]], 63);
     }
 }
 
@@ -281,7 +299,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
 static TREE_INLINE void rot_v(const Kin *k, int i, const double v[3], double out[3]) {
     const int pl = k->plane[i];
     if (pl >= 0) {
-        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const int a = NEXT1[pl], b = NEXT2[pl];
         const double c = k->cs[i][0], s = k->cs[i][1];
         out[a] = c * v[a] + s * v[b];
         out[b] = c * v[b] - s * v[a];
@@ -295,7 +313,7 @@ static TREE_INLINE void rot_v(const Kin *k, int i, const double v[3], double out
 static TREE_INLINE void rot_tv(const Kin *k, int i, const double v[3], double out[3]) {
     const int pl = k->plane[i];
     if (pl >= 0) {
-        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const int a = NEXT1[pl], b = NEXT2[pl];
         const double c = k->cs[i][0], s = k->cs[i][1];
         out[a] = c * v[a] - s * v[b];
         out[b] = c * v[b] + s * v[a];
@@ -309,7 +327,7 @@ static TREE_INLINE void rot_tv(const Kin *k, int i, const double v[3], double ou
 static TREE_INLINE void rot_blk(const Kin *k, int i, const M3 M, M3 out) {
     const int pl = k->plane[i];
     if (pl >= 0) {
-        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const int a = NEXT1[pl], b = NEXT2[pl];
         const double c = k->cs[i][0], s = k->cs[i][1];
         M3 N;   /* M E: columns a, b turned */
         for (int r = 0; r < 3; r++) {
@@ -392,42 +410,61 @@ static void body_inertia(const double *b, M6 I) {
 }
 
 /* positions and velocities of every body (pass 1 without the accelerations); world: also every body's world
- * rotation and origin (the roots' always) */
+ * rotation and origin (the roots' always, but for a root that is not free in a tree without gravity). A joint's
+ * rotation R is made only where it is used: E = R^T in the general case, (cos, sin) for a hinge along a body axis,
+ * nothing for a rotor or a fixed joint (E = 1); R itself only for the world rotations; nothing for a root that is
+ * not free without gravity and without world (the algorithm moves nothing into the world's frame: the world is at
+ * rest). */
 static void kinematics(const gs_tree *t, const double *y, const double *p, const Pre *pre, Kin *k, int world) {
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *s = y + t->yi[i];
+        const int par = t->parent[i], need_r = world || par < 0;
+        const int idle = par < 0 && pre->g0 && !world && t->joint[i] != GS_J_FREE;   /* E, cs, Rw unused */
         M3 R;
-        double vj[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-        memcpy(k->r[i], b + GS_TB_POS, sizeof(k->r[i]));
-        k->ident[i] = 0;
-        k->plane[i] = -1;
+        double *vj = k->vj[i];
+        k->ident[i] = pre->ident[i];
+        k->plane[i] = pre->plane[i];
+        k->r0[i] = pre->r0[i];
+        if (!pre->r0[i] || need_r) memcpy(k->r[i], b + GS_TB_POS, sizeof(k->r[i]));
+        vj[3] = vj[4] = vj[5] = 0.0;
         switch (t->joint[i]) {
             case GS_J_BALL:
-                quat_to_mat(s, R);
+                if (!idle) quat_to_mat(s, R);
                 memcpy(vj, s + 4, 3 * sizeof(double));
                 break;
             case GS_J_HINGE: {
                 const int ak = pre->axis_k[i];
-                if (pre->rotor[i]) {
-                    k->ident[i] = 1;
+                if (ak >= 0) {   /* vj = (rate e_k; 0) */
+                    vj[0] = vj[1] = vj[2] = 0.0;
+                    vj[ak] = s[1];
+                } else {
+                    for (int a = 0; a < 3; a++) vj[a] = b[GS_TB_AXIS + a] * s[1];
+                }
+                if (idle) {
+                    break;
+                } else if (pre->rotor[i]) {
+                    if (need_r) {
+                        memset(R, 0, sizeof(M3));
+                        R[0][0] = R[1][1] = R[2][2] = 1.0;
+                    }
                 } else if (ak >= 0) {   /* about a body axis: R from the angle's cosine and sine */
                     const double c = cos(s[0]), sn = sin(s[0]);
-                    const int a1 = (ak + 1) % 3, a2 = (ak + 2) % 3;
-                    k->plane[i] = ak;
                     k->cs[i][0] = c;
                     k->cs[i][1] = sn;
-                    memset(R, 0, sizeof(M3));
-                    R[ak][ak] = 1.0;
-                    R[a1][a1] = c;
-                    R[a1][a2] = -sn;
-                    R[a2][a1] = sn;
-                    R[a2][a2] = c;
+                    if (need_r) {
+                        const int a1 = NEXT1[ak], a2 = NEXT2[ak];
+                        memset(R, 0, sizeof(M3));
+                        R[ak][ak] = 1.0;
+                        R[a1][a1] = c;
+                        R[a1][a2] = -sn;
+                        R[a2][a1] = sn;
+                        R[a2][a2] = c;
+                    }
                 } else {
                     double q[4];
                     hinge_quat(b + GS_TB_AXIS, s[0], q);
                     quat_to_mat(q, R);
                 }
-                for (int a = 0; a < 3; a++) vj[a] = b[GS_TB_AXIS + a] * s[1];
                 break;
             }
             case GS_J_FREE:
@@ -437,24 +474,21 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
                 mtv3(R, s + 10, vj + 3);   /* v in child coordinates */
                 break;
             default:
-                k->ident[i] = 1;
+                vj[0] = vj[1] = vj[2] = 0.0;
+                if (need_r) {
+                    memset(R, 0, sizeof(M3));
+                    R[0][0] = R[1][1] = R[2][2] = 1.0;
+                }
         }
-        if (k->ident[i]) {
-            memset(R, 0, sizeof(M3));
-            R[0][0] = R[1][1] = R[2][2] = 1.0;
-        }
-        k->r0[i] = t->joint[i] != GS_J_FREE && k->r[i][0] == 0.0 && k->r[i][1] == 0.0 && k->r[i][2] == 0.0;
-        if (k->plane[i] < 0 && !k->ident[i]) {
+        if (k->plane[i] < 0 && !k->ident[i] && !idle) {
             for (int a = 0; a < 3; a++) {
                 for (int c = 0; c < 3; c++) k->E[i][a][c] = R[c][a];
             }
         }
-        memcpy(k->vj[i], vj, sizeof(vj));
-        const int par = t->parent[i];
         if (par < 0) {
-            memcpy(k->Rw[i], R, sizeof(M3));
+            if (!idle) memcpy(k->Rw[i], R, sizeof(M3));
             memcpy(k->ow[i], k->r[i], sizeof(k->ow[i]));
-            memcpy(k->v[i], vj, sizeof(vj));
+            memcpy(k->v[i], vj, 6 * sizeof(double));
         } else {
             if (world) {
                 double d[3];
@@ -557,13 +591,33 @@ static TREE_INLINE void turn_add(const M6 Ia, M6 out, const int pa, const int pb
     }
 }
 
+/* column col of out += X^T Ia X, X = diag(E, E) as in turn_add: the same arithmetic on one column */
+static TREE_INLINE void turn_add_col(const M6 Ia, M6 out, const int pa, const int pb, const int pl, const double c,
+                                     const double sn, const int col) {
+    double n[6];   /* (Ia X)[:, col]: Ia's column col if it is the axis', else ca xa + cb xb */
+    const int h = col < 3 ? 0 : 3, j = col - h;
+    if (j == pl) {
+        for (int row = 0; row < 6; row++) n[row] = Ia[row][col];
+    } else {
+        const double ca = j == pa ? c : sn, cb = j == pa ? -sn : c;
+        for (int row = 0; row < 6; row++) n[row] = ca * Ia[row][h + pa] + cb * Ia[row][h + pb];
+    }
+    for (int g = 0; g < 6; g += 3) {
+        out[g + pa][col] += c * n[g + pa] - sn * n[g + pb];
+        out[g + pb][col] += c * n[g + pb] + sn * n[g + pa];
+        out[g + pl][col] += n[g + pl];
+    }
+}
+
 /* out += X^T Ia X for the motion transform X = [E 0; -E [r]x E] (parent -> child) and a symmetric Ia = [A B; B^T C]:
  * with A', B', C' the blocks turned into the parent's orientation (E^T . E), the result is
- * [A' + rx B'^T - T rx, T; T^T, C'] with T = B' + rx C' (rx = [r]x). */
-static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) {
+ * [A' + rx B'^T - T rx, T; T^T, C'] with T = B' + rx C' (rx = [r]x). cols (Pre.ia_cols): the columns of out that are
+ * read; a turn in one coordinate plane makes only those, the other cases all of them. */
+static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out, int cols) {
     const int ident = kin->ident[i], r0 = kin->r0[i];
     const double *r = kin->r[i];
     M3 blk[3], rot[3];
+    if (cols == 0) return;
     if (ident && r0) {
         for (int a = 0; a < 6; a++) {
             for (int b = 0; b < 6; b++) out[a][b] += Ia[a][b];
@@ -572,6 +626,17 @@ static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) 
     }
     if (r0 && kin->plane[i] >= 0) {   /* X = diag(E, E), E a turn in one coordinate plane */
         const double c = kin->cs[i][0], sn = kin->cs[i][1];
+        if (cols != 63) {
+            for (int col = 0; col < 6; col++) {
+                if (!(cols & (1 << col))) continue;
+                switch (kin->plane[i]) {
+                    case 0: turn_add_col(Ia, out, 1, 2, 0, c, sn, col); break;
+                    case 1: turn_add_col(Ia, out, 2, 0, 1, c, sn, col); break;
+                    default: turn_add_col(Ia, out, 0, 1, 2, c, sn, col); break;
+                }
+            }
+            return;
+        }
         switch (kin->plane[i]) {
             case 0: turn_add(Ia, out, 1, 2, 0, c, sn); break;
             case 1: turn_add(Ia, out, 2, 0, 1, c, sn); break;
@@ -699,9 +764,15 @@ static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int 
     }
 }
 
-/* out = A c + x for a symmetric A; c_ang_only: c's linear half is zero (Pre.vlin0), only A's first 3 columns */
-static TREE_INLINE void mv6_add(const M6 A, const double c[6], int c_ang_only, const double x[6], double out[6]) {
-    if (c_ang_only) {
+/* out = A c + x for the bias acceleration c of body i: where c's linear half vanishes (Pre.vlin0) only A's first 3
+ * columns, and for a hinge along e_k (c = (w x e_k rate; 0)) only the two columns of the plane it turns in */
+static TREE_INLINE void mv6_add(const Pre *pre, int i, const M6 A, const double c[6], const double x[6],
+                                double out[6]) {
+    const int ak = pre->axis_k[i];
+    if (pre->vlin0[i] && ak >= 0) {
+        const int a1 = NEXT1[ak], a2 = NEXT2[ak];
+        for (int a = 0; a < 6; a++) out[a] = (A[a][a1] * c[a1] + A[a][a2] * c[a2]) + x[a];
+    } else if (pre->vlin0[i]) {
         for (int a = 0; a < 6; a++) out[a] = (A[a][0] * c[0] + A[a][1] * c[1] + A[a][2] * c[2]) + x[a];
     } else {
         for (int a = 0; a < 6; a++) {
@@ -710,6 +781,39 @@ static TREE_INLINE void mv6_add(const M6 A, const double c[6], int c_ang_only, c
             out[a] = s + x[a];
         }
     }
+}
+
+/* out = D^-1 x for k degrees of freedom (k a constant where it is inlined: the loops unroll) */
+static TREE_INLINE void dinv_mul(const int k, const double (*Di)[6], const double *x, double *out) {
+    for (int a = 0; a < k; a++) {
+        double s = 0.0;
+        for (int l = 0; l < k; l++) s += Di[a][l] * x[l];
+        out[a] = s;
+    }
+}
+
+/* out = U D^-1 u */
+static TREE_INLINE void u_dinv_u(const int k, const double (*U)[6], const double (*Di)[6], const double *u,
+                                 double out[6]) {
+    double du[6];
+    dinv_mul(k, Di, u, du);
+    for (int a = 0; a < 6; a++) {
+        double s = 0.0;
+        for (int l = 0; l < k; l++) s += U[a][l] * du[l];
+        out[a] = s;
+    }
+}
+
+/* the joint's accelerations qdd = D^-1 (u - U^T ap) (Featherstone, table 7.1) */
+static TREE_INLINE void joint_qdd(const int k, const double (*U)[6], const double (*Di)[6], const double *u,
+                                  const double ap[6], double *qdd) {
+    double rhs[6];
+    for (int a = 0; a < k; a++) {
+        double s = 0.0;
+        for (int l = 0; l < 6; l++) s += U[l][a] * ap[l];
+        rhs[a] = u[a] - s;
+    }
+    dinv_mul(k, Di, rhs, qdd);
 }
 
 /* The articulated-body algorithm (Featherstone, table 7.1): joint accelerations qdd[i][0:k]. Three passes: the
@@ -776,7 +880,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         }
     }
     for (int i = t->n - 1; i >= 0; i--) {
-        const int k = gs_tree_ndof(t->joint[i]), par = t->parent[i], fixed = pre->ia_fixed[i];
+        const int k = pre->nd[i], par = t->parent[i], fixed = pre->ia_fixed[i];
         const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
         const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
         M6 Iav;
@@ -796,53 +900,49 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         double pa[6], Udu[6];
         if (k == 1) {
             for (int a = 0; a < 6; a++) Udu[a] = Ui[a][0] * Dii[0][0] * u[i][0];
+        } else if (k == 3) {   /* a ball: the loops unroll */
+            u_dinv_u(3, Ui, Dii, u[i], Udu);
         } else {
-            double du[6];
-            for (int a = 0; a < k; a++) {
-                double s = 0.0;
-                for (int l = 0; l < k; l++) s += Dii[a][l] * u[i][l];
-                du[a] = s;
-            }
-            for (int a = 0; a < 6; a++) {
-                double s = 0.0;
-                for (int l = 0; l < k; l++) s += Ui[a][l] * du[l];
-                Udu[a] = s;
-            }
+            u_dinv_u(k, Ui, Dii, u[i], Udu);
         }
         for (int a = 0; a < 6; a++) Udu[a] += pA[i][a];
-        mv6_add(Ia, c[i], pre->vlin0[i], Udu, pa);
-        if (!pre->rotor[i]) add_transformed_inertia(kin, i, Ia, IA[par]);   /* a rotor's is folded (precompute) */
+        mv6_add(pre, i, Ia, c[i], Udu, pa);
+        if (!pre->rotor[i]) add_transformed_inertia(kin, i, Ia, IA[par], pre->ia_cols[par]);   /* a rotor's is folded (precompute) */
         add_xtf(kin, i, pa, pA[par]);
     }
     double acc[GS_TREE_MAX][6];
     const double g = p[GS_TP_G];
     for (int i = 0; i < t->n; i++) {
-        const int par = t->parent[i], k = gs_tree_ndof(t->joint[i]), fixed = pre->ia_fixed[i];
+        const int par = t->parent[i], k = pre->nd[i], fixed = pre->ia_fixed[i];
         const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
         const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
         double ap[6];
-        if (par < 0) {
-            if (pre->g0) {
-                for (int a = 0; a < 6; a++) ap[a] = 0.0;
+        if (par < 0 && pre->g0) {   /* the world at rest: ap = 0, qdd = D^-1 u */
+            for (int a = 0; a < 6; a++) ap[a] = 0.0;
+            if (k == 1) {
+                qdd[i][0] = Dii[0][0] * u[i][0];
+            } else if (k == 3) {
+                dinv_mul(3, Dii, u[i], qdd[i]);
             } else {
-                const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
-                xm(kin, i, up, ap);
+                dinv_mul(k, Dii, u[i], qdd[i]);
             }
         } else {
-            xm(kin, i, acc[par], ap);
-            for (int a = 0; a < 6; a++) ap[a] += c[i][a];
-        }
-        /* qdd = D^-1 (u - U^T ap) */
-        double rhs[6];
-        for (int a = 0; a < k; a++) {
-            double s = 0.0;
-            for (int l = 0; l < 6; l++) s += Ui[l][a] * ap[l];
-            rhs[a] = u[i][a] - s;
-        }
-        for (int a = 0; a < k; a++) {
-            double s = 0.0;
-            for (int l = 0; l < k; l++) s += Dii[a][l] * rhs[l];
-            qdd[i][a] = s;
+            if (par < 0) {
+                const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
+                xm(kin, i, up, ap);
+            } else {
+                xm(kin, i, acc[par], ap);
+                for (int a = 0; a < 6; a++) ap[a] += c[i][a];
+            }
+            /* qdd = D^-1 (u - U^T ap) */
+            if (k == 1) {
+                qdd[i][0] = Dii[0][0] * (u[i][0] - (Ui[0][0] * ap[0] + Ui[1][0] * ap[1] + Ui[2][0] * ap[2] +
+                                                    Ui[3][0] * ap[3] + Ui[4][0] * ap[4] + Ui[5][0] * ap[5]));
+            } else if (k == 3) {
+                joint_qdd(3, Ui, Dii, u[i], ap, qdd[i]);
+            } else {
+                joint_qdd(k, Ui, Dii, u[i], ap, qdd[i]);
+            }
         }
         if (t->leaf[i]) continue;   /* a = ap + S qdd: only the children use it */
         for (int a = 0; a < 6; a++) acc[i][a] = ap[a];
