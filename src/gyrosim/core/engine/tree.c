@@ -220,11 +220,11 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
  * articulated inertia IA is its own inertia plus its children's, each turned into its frame: it changes with the
  * state only through the children's joint angles. A body whose children are all rotors (a leaf is one with none)
  * has IA constant (the rotors' are folded into IAbase, in the body's orientation), and so are its joint's
- * U = IA S, D^-1 = (S^T U)^-1 and the inertia it passes to its parent, Ia = IA - U D^-1 U^T (eq. 7.34-7.36):
+ * U = IA S, D^-1 = (S^T U)^-1 and the inertia it passes to its parent, Ia = IA - U D^-1 U^T (table 7.1):
  * made here, not at every stage (the spacecraft's hub and wheels, the gimbal's inner ring and rotor). */
 typedef struct {
-    M6 I[GS_TREE_MAX];
-    M6 IAbase[GS_TREE_MAX];    /* I plus the (constant) articulated inertias of the rotors hanging from the body */
+    M6 IAbase[GS_TREE_MAX];    /* the body's spatial inertia I plus the (constant) articulated inertias of the rotors
+                                * hanging from it */
     int rotor[GS_TREE_MAX];
     int axis_k[GS_TREE_MAX];   /* a hinge's axis is +e_k: k; else -1 */
     int ia_fixed[GS_TREE_MAX]; /* IA = IAbase in every state: every child a rotor; U, Di, Ia below are made */
@@ -254,8 +254,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *r = b + GS_TB_POS;
         const int par = t->parent[i];
-        body_inertia(b, d->I[i]);
-        memcpy(d->IAbase[i], d->I[i], sizeof(M6));
+        body_inertia(b, d->IAbase[i]);
         d->rotor[i] = rotor_frame(t, b, i);
         d->axis_k[i] = -1;
         if (t->joint[i] == GS_J_HINGE) {
@@ -1184,7 +1183,7 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
 }
 
 void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
-    static _Thread_local Pre pre;   /* 9 kB: off the stack of FMU hosts' threads */
+    static _Thread_local Pre pre;   /* 38 kB: off the stack of FMU hosts' threads */
     precompute(t, p, &pre);
     derivs(t, y, p, &pre, dy);
 }
