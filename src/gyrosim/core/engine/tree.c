@@ -218,16 +218,19 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
  *
  * In the articulated-body algorithm (Featherstone, Rigid Body Dynamics Algorithms, 2008, table 7.1) a body's
  * articulated inertia IA is its own inertia plus its children's, each turned into its frame: it changes with the
- * state only through the children's joint angles. A body whose children are all rotors (a leaf is one with none)
- * has IA constant (the rotors' are folded into IAbase, in the body's orientation), and so are its joint's
- * U = IA S, D^-1 = (S^T U)^-1 and the inertia it passes to its parent, Ia = IA - U D^-1 U^T (table 7.1):
- * made here, not at every stage (the spacecraft's hub and wheels, the gimbal's inner ring and rotor). */
+ * state only through the children's joint angles. A body whose children are all folded (a leaf is one with none)
+ * has IA constant, and so are its joint's U = IA S, D^-1 = (S^T U)^-1 and the inertia it passes to its parent,
+ * Ia = IA - U D^-1 U^T (table 7.1): made here, not at every stage (the spacecraft's hub and wheels, the gimbal's
+ * inner ring and rotor). A child is folded, its Ia added to its parent's IAbase once, where the transform between
+ * them is constant too: a rotor (computed in its parent's orientation) and a body on a fixed joint whose own IA is
+ * constant (a composite body). */
 typedef struct {
-    M6 IAbase[GS_TREE_MAX];    /* the body's spatial inertia I plus the (constant) articulated inertias of the rotors
-                                * hanging from it */
+    M6 IAbase[GS_TREE_MAX];    /* the body's spatial inertia I plus the (constant) articulated inertias of its folded
+                                * children */
     int rotor[GS_TREE_MAX];
+    int fold[GS_TREE_MAX];     /* the body's Ia is in its parent's IAbase */
     int axis_k[GS_TREE_MAX];   /* a hinge's axis is +e_k: k; else -1 */
-    int ia_fixed[GS_TREE_MAX]; /* IA = IAbase in every state: every child a rotor; U, Di, Ia below are made */
+    int ia_fixed[GS_TREE_MAX]; /* IA = IAbase in every state: every child folded; U, Di, Ia below are made */
     int vlin0[GS_TREE_MAX];    /* the body's linear velocity is zero in every state: not free, every joint point from
                                 * a non-free root on is its parent's origin (then the bias acceleration c = v x vj
                                 * has no linear part either) */
@@ -276,21 +279,22 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
                       (par < 0 || (d->vlin0[par] && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0));
         d->ia_fixed[i] = 1;
     }
-    for (int i = 0; i < t->n; i++) {
-        if (t->parent[i] >= 0 && !d->rotor[i]) d->ia_fixed[t->parent[i]] = 0;
-    }
-    /* children first (a child's index is above its parent's): a rotor's Ia is folded into its parent's IAbase
-     * (a leaf, in its parent's orientation: a constant) before the parent's own factor is made */
+    /* children first (a child's index is above its parent's): when body i is reached, every child has been and
+     * ia_fixed[i] is final; a folded child's Ia (a constant, in its parent's orientation: E = 1) is in IAbase[i]
+     * before its own factor is made */
     static _Thread_local Kin kt;
     for (int i = t->n - 1; i >= 0; i--) {
+        const int par = t->parent[i];
+        d->fold[i] = d->rotor[i] || (t->joint[i] == GS_J_FIXED && par >= 0 && d->ia_fixed[i]);
+        if (par >= 0 && !d->fold[i]) d->ia_fixed[par] = 0;
         if (!d->ia_fixed[i]) continue;
-        joint_factor(t, p, d, i, d->IAbase[i], d->U[i], d->Di[i], t->parent[i] >= 0 ? d->Ia[i] : NULL);
-        if (!d->rotor[i]) continue;
+        joint_factor(t, p, d, i, d->IAbase[i], d->U[i], d->Di[i], par >= 0 ? d->Ia[i] : NULL);
+        if (!d->fold[i]) continue;
         memcpy(kt.r[0], body_p(p, i) + GS_TB_POS, sizeof(kt.r[0]));
         kt.ident[0] = 1;
         kt.plane[0] = -1;
         kt.r0[0] = kt.r[0][0] == 0.0 && kt.r[0][1] == 0.0 && kt.r[0][2] == 0.0;
-        add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[t->parent[i]], 63);
+        add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[par], 63);
     }
 }
 
@@ -906,7 +910,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         }
         for (int a = 0; a < 6; a++) Udu[a] += pA[i][a];
         mv6_add(pre, i, Ia, c[i], Udu, pa);
-        if (!pre->rotor[i]) add_transformed_inertia(kin, i, Ia, IA[par], pre->ia_cols[par]);   /* a rotor's is folded (precompute) */
+        if (!pre->fold[i]) add_transformed_inertia(kin, i, Ia, IA[par], pre->ia_cols[par]);   /* else in IAbase */
         add_xtf(kin, i, pa, pA[par]);
     }
     double acc[GS_TREE_MAX][6];
