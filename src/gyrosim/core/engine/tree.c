@@ -25,6 +25,9 @@ typedef double treal;   /* a value only compared, never differentiated (tree_cs.
 typedef double M3[3][3];
 typedef double M6[6][6];
 
+/* the coordinate axes after k in cyclic order, (k + 1) % 3 and (k + 2) % 3, without a division */
+static const int NEXT1[3] = {1, 2, 0}, NEXT2[3] = {2, 0, 1};
+
 int gs_tree_ncoord(int joint) {
     return joint == GS_J_BALL ? 7 : joint == GS_J_HINGE ? 2 : joint == GS_J_FREE ? 13 : 0;
 }
@@ -209,25 +212,52 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
     return fabs(cxa[0]) <= ctol && fabs(cxa[1]) <= ctol && fabs(cxa[2]) <= ctol;
 }
 
-/* What stays constant over a call (the parameters do): the bodies' spatial inertias, the rotors, the hinges
- * along a coordinate axis. */
+/* What stays constant over a call (the parameters do), made once by precompute: the bodies' spatial inertias, the
+ * rotors, the hinges along a coordinate axis, which terms of the right-hand side vanish in every state, and the
+ * joint factors of the bodies whose articulated inertia does not change.
+ *
+ * In the articulated-body algorithm (Featherstone, Rigid Body Dynamics Algorithms, 2008, table 7.1) a body's
+ * articulated inertia IA is its own inertia plus its children's, each turned into its frame: it changes with the
+ * state only through the children's joint angles. A body whose children are all folded (a leaf is one with none)
+ * has IA constant, and so are its joint's U = IA S, D^-1 = (S^T U)^-1 and the inertia it passes to its parent,
+ * Ia = IA - U D^-1 U^T (table 7.1): made here, not at every stage (the spacecraft's hub and wheels, the gimbal's
+ * inner ring and rotor). A child is folded, its Ia added to its parent's IAbase once, where the transform between
+ * them is constant too: a rotor (computed in its parent's orientation) and a body on a fixed joint whose own IA is
+ * constant (a composite body). */
 typedef struct {
-    M6 I[GS_TREE_MAX];
-    M6 IAbase[GS_TREE_MAX];    /* I plus the (constant) articulated inertias of the rotors hanging from the body */
+    M6 IAbase[GS_TREE_MAX];    /* the body's spatial inertia I plus the (constant) articulated inertias of its folded
+                                * children */
     int rotor[GS_TREE_MAX];
+    int fold[GS_TREE_MAX];     /* the body's Ia is in its parent's IAbase */
     int axis_k[GS_TREE_MAX];   /* a hinge's axis is +e_k: k; else -1 */
-    double rotU[GS_TREE_MAX][6], rotDi[GS_TREE_MAX];   /* a rotor's U = I S and 1 / (S^T U) */
-    M6 rotIa[GS_TREE_MAX];     /* a rotor's I - U U^T / D */
+    int ia_fixed[GS_TREE_MAX]; /* IA = IAbase in every state: every child folded; U, Di, Ia below are made */
+    int vlin0[GS_TREE_MAX];    /* the body's linear velocity is zero in every state: not free, every joint point from
+                                * a non-free root on is its parent's origin (then the bias acceleration c = v x vj
+                                * has no linear part either) */
+    int cm0[GS_TREE_MAX];      /* the centre of mass at the joint point */
+    int nd[GS_TREE_MAX];       /* the joint's degrees of freedom (gs_tree_ndof) */
+    int ident[GS_TREE_MAX];    /* Kin.ident, Kin.plane and Kin.r0 where they do not depend on the state */
+    int plane[GS_TREE_MAX];
+    int r0[GS_TREE_MAX];
+    int ia_cols[GS_TREE_MAX];  /* the columns of IA the algorithm reads (bit j: column j): a root's only its joint's
+                                * U = IA S and D = S^T U (it passes no inertia on), a fixed root's none */
+    int g0;                    /* no uniform gravity: the world's acceleration is zero */
+    double U[GS_TREE_MAX][6][6];   /* ia_fixed: U = IA S (k columns) */
+    double Di[GS_TREE_MAX][6][6];  /* ia_fixed: D^-1 (k x k) */
+    M6 Ia[GS_TREE_MAX];            /* ia_fixed, not a root: IA - U D^-1 U^T */
 } Pre;
 
 static void body_inertia(const double *b, M6 I);
-static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out);
+static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out, int cols);
+static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int i, const M6 IA, double U[6][6],
+                         double Di[6][6], M6 Ia);
 
 static void precompute(const gs_tree *t, const double *p, Pre *d) {
+    d->g0 = p[GS_TP_G] == 0.0;
     for (int i = 0; i < t->n; i++) {
-        const double *b = body_p(p, i), *a = b + GS_TB_AXIS;
-        body_inertia(b, d->I[i]);
-        memcpy(d->IAbase[i], d->I[i], sizeof(M6));
+        const double *b = body_p(p, i), *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *r = b + GS_TB_POS;
+        const int par = t->parent[i];
+        body_inertia(b, d->IAbase[i]);
         d->rotor[i] = rotor_frame(t, b, i);
         d->axis_k[i] = -1;
         if (t->joint[i] == GS_J_HINGE) {
@@ -235,25 +265,36 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
                 if (a[k] == 1.0 && a[(k + 1) % 3] == 0.0 && a[(k + 2) % 3] == 0.0) d->axis_k[i] = k;
             }
         }
-    }
-    /* a rotor's articulated inertia does not change (a leaf, in its parent's orientation): fold it in once */
-    static _Thread_local Kin kt;
-    for (int i = 0; i < t->n; i++) {
-        if (!d->rotor[i]) continue;
-        const double *b = body_p(p, i), *a = b + GS_TB_AXIS;
-        for (int r = 0; r < 6; r++) d->rotU[i][r] = d->I[i][r][0] * a[0] + d->I[i][r][1] * a[1] + d->I[i][r][2] * a[2];
-        d->rotDi[i] = 1.0 / (a[0] * d->rotU[i][0] + a[1] * d->rotU[i][1] + a[2] * d->rotU[i][2]);
-        for (int r = 0; r < 6; r++) {
-            for (int q = r; q < 6; q++) {
-                d->rotIa[i][r][q] = d->I[i][r][q] - d->rotU[i][r] * d->rotDi[i] * d->rotU[i][q];
-                d->rotIa[i][q][r] = d->rotIa[i][r][q];
-            }
+        d->cm0[i] = c[0] == 0.0 && c[1] == 0.0 && c[2] == 0.0;
+        d->nd[i] = gs_tree_ndof(t->joint[i]);
+        d->ident[i] = t->joint[i] == GS_J_FIXED || d->rotor[i];
+        d->plane[i] = d->rotor[i] ? -1 : d->axis_k[i];
+        d->r0[i] = t->joint[i] != GS_J_FREE && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0;
+        d->ia_cols[i] = 63;
+        if (par < 0) {
+            d->ia_cols[i] = t->joint[i] == GS_J_FIXED ? 0 : t->joint[i] == GS_J_FREE ? 63 : d->axis_k[i] >= 0 ?
+                            1 << d->axis_k[i] : 7;
         }
-        memcpy(kt.r[0], b + GS_TB_POS, sizeof(kt.r[0]));
+        d->vlin0[i] = t->joint[i] != GS_J_FREE &&
+                      (par < 0 || (d->vlin0[par] && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0));
+        d->ia_fixed[i] = 1;
+    }
+    /* children first (a child's index is above its parent's): when body i is reached, every child has been and
+     * ia_fixed[i] is final; a folded child's Ia (a constant, in its parent's orientation: E = 1) is in IAbase[i]
+     * before its own factor is made */
+    static _Thread_local Kin kt;
+    for (int i = t->n - 1; i >= 0; i--) {
+        const int par = t->parent[i];
+        d->fold[i] = d->rotor[i] || (t->joint[i] == GS_J_FIXED && par >= 0 && d->ia_fixed[i]);
+        if (par >= 0 && !d->fold[i]) d->ia_fixed[par] = 0;
+        if (!d->ia_fixed[i]) continue;
+        joint_factor(t, p, d, i, d->IAbase[i], d->U[i], d->Di[i], par >= 0 ? d->Ia[i] : NULL);
+        if (!d->fold[i]) continue;
+        memcpy(kt.r[0], body_p(p, i) + GS_TB_POS, sizeof(kt.r[0]));
         kt.ident[0] = 1;
         kt.plane[0] = -1;
         kt.r0[0] = kt.r[0][0] == 0.0 && kt.r[0][1] == 0.0 && kt.r[0][2] == 0.0;
-        add_transformed_inertia(&kt, 0, d->rotIa[i], d->IAbase[t->parent[i]]);
+        add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[par], 63);
     }
 }
 
@@ -261,7 +302,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
 static TREE_INLINE void rot_v(const Kin *k, int i, const double v[3], double out[3]) {
     const int pl = k->plane[i];
     if (pl >= 0) {
-        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const int a = NEXT1[pl], b = NEXT2[pl];
         const double c = k->cs[i][0], s = k->cs[i][1];
         out[a] = c * v[a] + s * v[b];
         out[b] = c * v[b] - s * v[a];
@@ -275,7 +316,7 @@ static TREE_INLINE void rot_v(const Kin *k, int i, const double v[3], double out
 static TREE_INLINE void rot_tv(const Kin *k, int i, const double v[3], double out[3]) {
     const int pl = k->plane[i];
     if (pl >= 0) {
-        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const int a = NEXT1[pl], b = NEXT2[pl];
         const double c = k->cs[i][0], s = k->cs[i][1];
         out[a] = c * v[a] - s * v[b];
         out[b] = c * v[b] + s * v[a];
@@ -289,7 +330,7 @@ static TREE_INLINE void rot_tv(const Kin *k, int i, const double v[3], double ou
 static TREE_INLINE void rot_blk(const Kin *k, int i, const M3 M, M3 out) {
     const int pl = k->plane[i];
     if (pl >= 0) {
-        const int a = (pl + 1) % 3, b = (pl + 2) % 3;
+        const int a = NEXT1[pl], b = NEXT2[pl];
         const double c = k->cs[i][0], s = k->cs[i][1];
         M3 N;   /* M E: columns a, b turned */
         for (int r = 0; r < 3; r++) {
@@ -372,42 +413,61 @@ static void body_inertia(const double *b, M6 I) {
 }
 
 /* positions and velocities of every body (pass 1 without the accelerations); world: also every body's world
- * rotation and origin (the roots' always) */
+ * rotation and origin (the roots' always, but for a root that is not free in a tree without gravity). A joint's
+ * rotation R is made only where it is used: E = R^T in the general case, (cos, sin) for a hinge along a body axis,
+ * nothing for a rotor or a fixed joint (E = 1); R itself only for the world rotations; nothing for a root that is
+ * not free without gravity and without world (the algorithm moves nothing into the world's frame: the world is at
+ * rest). */
 static void kinematics(const gs_tree *t, const double *y, const double *p, const Pre *pre, Kin *k, int world) {
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *s = y + t->yi[i];
+        const int par = t->parent[i], need_r = world || par < 0;
+        const int idle = par < 0 && pre->g0 && !world && t->joint[i] != GS_J_FREE;   /* E, cs, Rw unused */
         M3 R;
-        double vj[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-        memcpy(k->r[i], b + GS_TB_POS, sizeof(k->r[i]));
-        k->ident[i] = 0;
-        k->plane[i] = -1;
+        double *vj = k->vj[i];
+        k->ident[i] = pre->ident[i];
+        k->plane[i] = pre->plane[i];
+        k->r0[i] = pre->r0[i];
+        if (!pre->r0[i] || need_r) memcpy(k->r[i], b + GS_TB_POS, sizeof(k->r[i]));
+        vj[3] = vj[4] = vj[5] = 0.0;
         switch (t->joint[i]) {
             case GS_J_BALL:
-                quat_to_mat(s, R);
+                if (!idle) quat_to_mat(s, R);
                 memcpy(vj, s + 4, 3 * sizeof(double));
                 break;
             case GS_J_HINGE: {
                 const int ak = pre->axis_k[i];
-                if (pre->rotor[i]) {
-                    k->ident[i] = 1;
+                if (ak >= 0) {   /* vj = (rate e_k; 0) */
+                    vj[0] = vj[1] = vj[2] = 0.0;
+                    vj[ak] = s[1];
+                } else {
+                    for (int a = 0; a < 3; a++) vj[a] = b[GS_TB_AXIS + a] * s[1];
+                }
+                if (idle) {
+                    break;
+                } else if (pre->rotor[i]) {
+                    if (need_r) {
+                        memset(R, 0, sizeof(M3));
+                        R[0][0] = R[1][1] = R[2][2] = 1.0;
+                    }
                 } else if (ak >= 0) {   /* about a body axis: R from the angle's cosine and sine */
                     const double c = cos(s[0]), sn = sin(s[0]);
-                    const int a1 = (ak + 1) % 3, a2 = (ak + 2) % 3;
-                    k->plane[i] = ak;
                     k->cs[i][0] = c;
                     k->cs[i][1] = sn;
-                    memset(R, 0, sizeof(M3));
-                    R[ak][ak] = 1.0;
-                    R[a1][a1] = c;
-                    R[a1][a2] = -sn;
-                    R[a2][a1] = sn;
-                    R[a2][a2] = c;
+                    if (need_r) {
+                        const int a1 = NEXT1[ak], a2 = NEXT2[ak];
+                        memset(R, 0, sizeof(M3));
+                        R[ak][ak] = 1.0;
+                        R[a1][a1] = c;
+                        R[a1][a2] = -sn;
+                        R[a2][a1] = sn;
+                        R[a2][a2] = c;
+                    }
                 } else {
                     double q[4];
                     hinge_quat(b + GS_TB_AXIS, s[0], q);
                     quat_to_mat(q, R);
                 }
-                for (int a = 0; a < 3; a++) vj[a] = b[GS_TB_AXIS + a] * s[1];
                 break;
             }
             case GS_J_FREE:
@@ -417,24 +477,21 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
                 mtv3(R, s + 10, vj + 3);   /* v in child coordinates */
                 break;
             default:
-                k->ident[i] = 1;
+                vj[0] = vj[1] = vj[2] = 0.0;
+                if (need_r) {
+                    memset(R, 0, sizeof(M3));
+                    R[0][0] = R[1][1] = R[2][2] = 1.0;
+                }
         }
-        if (k->ident[i]) {
-            memset(R, 0, sizeof(M3));
-            R[0][0] = R[1][1] = R[2][2] = 1.0;
-        }
-        k->r0[i] = t->joint[i] != GS_J_FREE && k->r[i][0] == 0.0 && k->r[i][1] == 0.0 && k->r[i][2] == 0.0;
-        if (k->plane[i] < 0 && !k->ident[i]) {
+        if (k->plane[i] < 0 && !k->ident[i] && !idle) {
             for (int a = 0; a < 3; a++) {
                 for (int c = 0; c < 3; c++) k->E[i][a][c] = R[c][a];
             }
         }
-        memcpy(k->vj[i], vj, sizeof(vj));
-        const int par = t->parent[i];
         if (par < 0) {
-            memcpy(k->Rw[i], R, sizeof(M3));
+            if (!idle) memcpy(k->Rw[i], R, sizeof(M3));
             memcpy(k->ow[i], k->r[i], sizeof(k->ow[i]));
-            memcpy(k->v[i], vj, sizeof(vj));
+            memcpy(k->v[i], vj, 6 * sizeof(double));
         } else {
             if (world) {
                 double d[3];
@@ -537,13 +594,33 @@ static TREE_INLINE void turn_add(const M6 Ia, M6 out, const int pa, const int pb
     }
 }
 
+/* column col of out += X^T Ia X, X = diag(E, E) as in turn_add: the same arithmetic on one column */
+static TREE_INLINE void turn_add_col(const M6 Ia, M6 out, const int pa, const int pb, const int pl, const double c,
+                                     const double sn, const int col) {
+    double n[6];   /* (Ia X)[:, col]: Ia's column col if it is the axis', else ca xa + cb xb */
+    const int h = col < 3 ? 0 : 3, j = col - h;
+    if (j == pl) {
+        for (int row = 0; row < 6; row++) n[row] = Ia[row][col];
+    } else {
+        const double ca = j == pa ? c : sn, cb = j == pa ? -sn : c;
+        for (int row = 0; row < 6; row++) n[row] = ca * Ia[row][h + pa] + cb * Ia[row][h + pb];
+    }
+    for (int g = 0; g < 6; g += 3) {
+        out[g + pa][col] += c * n[g + pa] - sn * n[g + pb];
+        out[g + pb][col] += c * n[g + pb] + sn * n[g + pa];
+        out[g + pl][col] += n[g + pl];
+    }
+}
+
 /* out += X^T Ia X for the motion transform X = [E 0; -E [r]x E] (parent -> child) and a symmetric Ia = [A B; B^T C]:
  * with A', B', C' the blocks turned into the parent's orientation (E^T . E), the result is
- * [A' + rx B'^T - T rx, T; T^T, C'] with T = B' + rx C' (rx = [r]x). */
-static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) {
+ * [A' + rx B'^T - T rx, T; T^T, C'] with T = B' + rx C' (rx = [r]x). cols (Pre.ia_cols): the columns of out that are
+ * read; a turn in one coordinate plane makes only those, the other cases all of them. */
+static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out, int cols) {
     const int ident = kin->ident[i], r0 = kin->r0[i];
     const double *r = kin->r[i];
     M3 blk[3], rot[3];
+    if (cols == 0) return;
     if (ident && r0) {
         for (int a = 0; a < 6; a++) {
             for (int b = 0; b < 6; b++) out[a][b] += Ia[a][b];
@@ -552,6 +629,17 @@ static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) 
     }
     if (r0 && kin->plane[i] >= 0) {   /* X = diag(E, E), E a turn in one coordinate plane */
         const double c = kin->cs[i][0], sn = kin->cs[i][1];
+        if (cols != 63) {
+            for (int col = 0; col < 6; col++) {
+                if (!(cols & (1 << col))) continue;
+                switch (kin->plane[i]) {
+                    case 0: turn_add_col(Ia, out, 1, 2, 0, c, sn, col); break;
+                    case 1: turn_add_col(Ia, out, 2, 0, 1, c, sn, col); break;
+                    default: turn_add_col(Ia, out, 0, 1, 2, c, sn, col); break;
+                }
+            }
+            return;
+        }
         switch (kin->plane[i]) {
             case 0: turn_add(Ia, out, 1, 2, 0, c, sn); break;
             case 1: turn_add(Ia, out, 2, 0, 1, c, sn); break;
@@ -604,22 +692,161 @@ static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out) 
     }
 }
 
-/* the articulated-body algorithm: joint accelerations qdd[i][0:k] */
+/* The joint's factors from the body's articulated inertia IA (Featherstone, table 7.1): U = IA S, D^-1 = (S^T U)^-1
+ * and, where Ia is not NULL, the articulated inertia the body passes to its parent, Ia = IA - U D^-1 U^T. S is
+ * (axis; 0) for a hinge ((e_k; 0) along a body axis: U is IA's column k) and the first k unit columns for ball (3)
+ * and free (6) joints (U: IA's first k columns); a fixed joint has none (Ia = IA). */
+static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int i, const M6 IA, double U[6][6],
+                         double Di[6][6], M6 Ia) {
+    const int k = gs_tree_ndof(t->joint[i]);
+    double D[6][6];
+    if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
+        const int ak = pre->axis_k[i];
+        for (int a = 0; a < 6; a++) U[a][0] = IA[a][ak];
+        D[0][0] = U[ak][0];
+    } else if (t->joint[i] == GS_J_HINGE) {
+        const double *ax = body_p(p, i) + GS_TB_AXIS;
+        for (int a = 0; a < 6; a++) U[a][0] = IA[a][0] * ax[0] + IA[a][1] * ax[1] + IA[a][2] * ax[2];
+        D[0][0] = ax[0] * U[0][0] + ax[1] * U[1][0] + ax[2] * U[2][0];
+    } else {
+        for (int a = 0; a < 6; a++) {
+            for (int j = 0; j < k; j++) U[a][j] = IA[a][j];
+        }
+        for (int a = 0; a < k; a++) {
+            for (int j = 0; j < k; j++) D[a][j] = IA[a][j];
+        }
+    }
+    if (k == 1) {
+        Di[0][0] = 1.0 / D[0][0];
+    } else if (k == 3) {
+        const double c00 = D[1][1] * D[2][2] - D[1][2] * D[2][1], c01 = D[1][2] * D[2][0] - D[1][0] * D[2][2],
+                     c02 = D[1][0] * D[2][1] - D[1][1] * D[2][0];
+        const double det = D[0][0] * c00 + D[0][1] * c01 + D[0][2] * c02;
+        const double id = 1.0 / det;
+        Di[0][0] = c00 * id;
+        Di[1][0] = c01 * id;
+        Di[2][0] = c02 * id;
+        Di[0][1] = (D[0][2] * D[2][1] - D[0][1] * D[2][2]) * id;
+        Di[1][1] = (D[0][0] * D[2][2] - D[0][2] * D[2][0]) * id;
+        Di[2][1] = (D[0][1] * D[2][0] - D[0][0] * D[2][1]) * id;
+        Di[0][2] = (D[0][1] * D[1][2] - D[0][2] * D[1][1]) * id;
+        Di[1][2] = (D[0][2] * D[1][0] - D[0][0] * D[1][2]) * id;
+        Di[2][2] = (D[0][0] * D[1][1] - D[0][1] * D[1][0]) * id;
+    } else if (k > 0 && !inverse(k, D, Di)) {
+        for (int a = 0; a < k; a++) {
+            for (int j = 0; j < k; j++) Di[a][j] = NAN;
+        }
+    }
+    if (Ia == NULL) return;
+    if (k == 1) {   /* a hinge: D^-1 is a number */
+        double Ud[6];
+        for (int a = 0; a < 6; a++) Ud[a] = U[a][0] * Di[0][0];
+        for (int a = 0; a < 6; a++) {
+            for (int j = a; j < 6; j++) {
+                Ia[a][j] = IA[a][j] - Ud[a] * U[j][0];
+                Ia[j][a] = Ia[a][j];
+            }
+        }
+        return;
+    }
+    double UDi[6][6];
+    for (int a = 0; a < 6; a++) {
+        for (int j = 0; j < k; j++) {
+            double s = 0.0;
+            for (int l = 0; l < k; l++) s += U[a][l] * Di[l][j];
+            UDi[a][j] = s;
+        }
+    }
+    for (int a = 0; a < 6; a++) {   /* symmetric: the upper triangle, mirrored */
+        for (int j = a; j < 6; j++) {
+            double s = 0.0;
+            for (int l = 0; l < k; l++) s += UDi[a][l] * U[j][l];
+            Ia[a][j] = IA[a][j] - s;
+            Ia[j][a] = Ia[a][j];
+        }
+    }
+}
+
+/* out = A c + x for the bias acceleration c of body i: where c's linear half vanishes (Pre.vlin0) only A's first 3
+ * columns, and for a hinge along e_k (c = (w x e_k rate; 0)) only the two columns of the plane it turns in */
+static TREE_INLINE void mv6_add(const Pre *pre, int i, const M6 A, const double c[6], const double x[6],
+                                double out[6]) {
+    const int ak = pre->axis_k[i];
+    if (pre->vlin0[i] && ak >= 0) {
+        const int a1 = NEXT1[ak], a2 = NEXT2[ak];
+        for (int a = 0; a < 6; a++) out[a] = (A[a][a1] * c[a1] + A[a][a2] * c[a2]) + x[a];
+    } else if (pre->vlin0[i]) {
+        for (int a = 0; a < 6; a++) out[a] = (A[a][0] * c[0] + A[a][1] * c[1] + A[a][2] * c[2]) + x[a];
+    } else {
+        for (int a = 0; a < 6; a++) {
+            double s = 0.0;
+            for (int j = 0; j < 6; j++) s += A[a][j] * c[j];
+            out[a] = s + x[a];
+        }
+    }
+}
+
+/* out = D^-1 x for k degrees of freedom (k a constant where it is inlined: the loops unroll) */
+static TREE_INLINE void dinv_mul(const int k, const double (*Di)[6], const double *x, double *out) {
+    for (int a = 0; a < k; a++) {
+        double s = 0.0;
+        for (int l = 0; l < k; l++) s += Di[a][l] * x[l];
+        out[a] = s;
+    }
+}
+
+/* out = U D^-1 u */
+static TREE_INLINE void u_dinv_u(const int k, const double (*U)[6], const double (*Di)[6], const double *u,
+                                 double out[6]) {
+    double du[6];
+    dinv_mul(k, Di, u, du);
+    for (int a = 0; a < 6; a++) {
+        double s = 0.0;
+        for (int l = 0; l < k; l++) s += U[a][l] * du[l];
+        out[a] = s;
+    }
+}
+
+/* the joint's accelerations qdd = D^-1 (u - U^T ap) (Featherstone, table 7.1) */
+static TREE_INLINE void joint_qdd(const int k, const double (*U)[6], const double (*Di)[6], const double *u,
+                                  const double ap[6], double *qdd) {
+    double rhs[6];
+    for (int a = 0; a < k; a++) {
+        double s = 0.0;
+        for (int l = 0; l < 6; l++) s += U[l][a] * ap[l];
+        rhs[a] = u[a] - s;
+    }
+    dinv_mul(k, Di, rhs, qdd);
+}
+
+/* The articulated-body algorithm (Featherstone, table 7.1): joint accelerations qdd[i][0:k]. Three passes: the
+ * bodies' bias forces pA = v x* I v - f_ext and bias accelerations c = v x vj (outwards); the articulated inertias
+ * IA and forces pA, each body's passed to its parent (inwards); the accelerations (outwards). What Pre knows is
+ * skipped: the joint factors of the bodies whose IA is constant, c's and v's linear halves where they vanish, the
+ * world's acceleration without gravity, the accelerations of leaves (no child needs them). */
 static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
                 const double (*fx)[6], double qdd[GS_TREE_MAX][6]) {
-    M6 IA[GS_TREE_MAX];
+    M6 IA[GS_TREE_MAX];   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
     double pA[GS_TREE_MAX][6], c[GS_TREE_MAX][6], U[GS_TREE_MAX][6][6], Di[GS_TREE_MAX][6][6], u[GS_TREE_MAX][6];
     double tau[GS_TREE_MAX][6];
-    int nd[GS_TREE_MAX];
     joint_forces(t, y, p, tau);
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i);
-        double h[6], f[6];
-        if (!pre->rotor[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));   /* a rotor's is folded (precompute) */
-        {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product), then f = v x* h with
-             * v_lin x m v_lin = 0 left out: at orbital speeds its round-off (1e-16 m |v|^2) would be a torque */
-            const double m = b[GS_TB_MASS], *cm = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin->v[i], *vl = kin->v[i] + 3;
-            double wc[3], vc[3], cvc[3], mwc[3], a1[3], a2[3];
+        const double *w = kin->v[i], *vl = kin->v[i] + 3, *J = b + GS_TB_I;
+        double f[6];
+        if (!pre->ia_fixed[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));
+        if (pre->cm0[i] && pre->vlin0[i]) {   /* h = (J w; 0), f = (w x J w; 0) */
+            double h[3];
+            h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2];
+            h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2];
+            h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2];
+            cross3(w, h, f);
+            f[3] = f[4] = f[5] = 0.0;
+        } else {   /* h = I v from the mass, centre of mass and inertia about it (no 6x6 product), then f = v x* h
+                    * with v_lin x m v_lin = 0 left out: at orbital speeds its round-off (1e-16 m |v|^2) would be a
+                    * torque */
+            const double m = b[GS_TB_MASS], *cm = b + GS_TB_CM;
+            double h[3], wc[3], vc[3], cvc[3], mwc[3], a1[3], a2[3];
             cross3(w, cm, wc);
             for (int a = 0; a < 3; a++) {
                 vc[a] = m * (vl[a] + wc[a]);   /* momentum: m (v + w x c) */
@@ -629,7 +856,6 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
             h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2] + cvc[0];
             h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2] + cvc[1];
             h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cvc[2];
-            memcpy(h + 3, vc, sizeof(vc));
             cross3(w, h, a1);
             cross3(vl, mwc, a2);
             for (int a = 0; a < 3; a++) f[a] = a1[a] + a2[a];
@@ -642,140 +868,86 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         if (fx != NULL) {   /* the orbit's forces */
             for (int a = 0; a < 6; a++) pA[i][a] -= fx[i][a];
         }
+        /* c = v x vj: a joint below a body has no linear velocity of its own (vj = (wj; 0)), so c = (w x wj,
+         * v_lin x wj); a root's is zero (the world does not move) */
         if (t->parent[i] >= 0) {
-            crm(kin->v[i], kin->vj[i], c[i]);
+            const double *wj = kin->vj[i];
+            cross3(w, wj, c[i]);
+            if (pre->vlin0[i]) {
+                c[i][3] = c[i][4] = c[i][5] = 0.0;
+            } else {
+                cross3(vl, wj, c[i] + 3);
+            }
         } else {
-            for (int a = 0; a < 6; a++) c[i][a] = 0.0;   /* the world does not move */
+            for (int a = 0; a < 6; a++) c[i][a] = 0.0;
         }
     }
     for (int i = t->n - 1; i >= 0; i--) {
-        /* S is (axis; 0) for a hinge and the first k unit columns for ball (3) and free (6) joints */
-        const int k = gs_tree_ndof(t->joint[i]);
-        nd[i] = k;
-        double D[6][6];
-        if (pre->rotor[i]) {   /* U, D and the articulated inertia were made once (precompute) */
-            const double *ax = body_p(p, i) + GS_TB_AXIS;
-            for (int a = 0; a < 6; a++) U[i][a][0] = pre->rotU[i][a];
-            Di[i][0][0] = pre->rotDi[i];
-            u[i][0] = tau[i][0] - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
-            double pa[6], Ud[6];
-            mv6(pre->rotIa[i], c[i], pa);
-            for (int a = 0; a < 6; a++) {
-                Ud[a] = U[i][a][0] * Di[i][0][0];
-                pa[a] += pA[i][a] + Ud[a] * u[i][0];
-            }
-            add_xtf(kin, i, pa, pA[t->parent[i]]);
-            continue;
-        }
+        const int k = pre->nd[i], par = t->parent[i], fixed = pre->ia_fixed[i];
+        const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
+        M6 Iav;
+        const double (*Ia)[6] = fixed ? pre->Ia[i] : Iav;
+        if (!fixed) joint_factor(t, p, pre, i, IA[i], U[i], Di[i], par >= 0 ? Iav : NULL);
+        /* u = tau - S^T pA */
         if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
-            const int ak = pre->axis_k[i];
-            for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][ak];
-            D[0][0] = U[i][ak][0];
-            u[i][0] = tau[i][0] - pA[i][ak];
+            u[i][0] = tau[i][0] - pA[i][pre->axis_k[i]];
         } else if (t->joint[i] == GS_J_HINGE) {
             const double *ax = body_p(p, i) + GS_TB_AXIS;
-            for (int a = 0; a < 6; a++) U[i][a][0] = IA[i][a][0] * ax[0] + IA[i][a][1] * ax[1] + IA[i][a][2] * ax[2];
-            D[0][0] = ax[0] * U[i][0][0] + ax[1] * U[i][1][0] + ax[2] * U[i][2][0];
             u[i][0] = tau[i][0] - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
         } else {
-            for (int a = 0; a < 6; a++) {
-                for (int j = 0; j < k; j++) U[i][a][j] = IA[i][a][j];
-            }
-            for (int a = 0; a < k; a++) {
-                for (int j = 0; j < k; j++) D[a][j] = IA[i][a][j];
-                u[i][a] = tau[i][a] - pA[i][a];
-            }
+            for (int a = 0; a < k; a++) u[i][a] = tau[i][a] - pA[i][a];
         }
-        if (k == 1) {
-            Di[i][0][0] = 1.0 / D[0][0];
-        } else if (k == 3) {
-            const double c00 = D[1][1] * D[2][2] - D[1][2] * D[2][1], c01 = D[1][2] * D[2][0] - D[1][0] * D[2][2],
-                         c02 = D[1][0] * D[2][1] - D[1][1] * D[2][0];
-            const double det = D[0][0] * c00 + D[0][1] * c01 + D[0][2] * c02;
-            const double id = 1.0 / det;
-            Di[i][0][0] = c00 * id;
-            Di[i][1][0] = c01 * id;
-            Di[i][2][0] = c02 * id;
-            Di[i][0][1] = (D[0][2] * D[2][1] - D[0][1] * D[2][2]) * id;
-            Di[i][1][1] = (D[0][0] * D[2][2] - D[0][2] * D[2][0]) * id;
-            Di[i][2][1] = (D[0][1] * D[2][0] - D[0][0] * D[2][1]) * id;
-            Di[i][0][2] = (D[0][1] * D[1][2] - D[0][2] * D[1][1]) * id;
-            Di[i][1][2] = (D[0][2] * D[1][0] - D[0][0] * D[1][2]) * id;
-            Di[i][2][2] = (D[0][0] * D[1][1] - D[0][1] * D[1][0]) * id;
-        } else if (k > 0 && !inverse(k, D, Di[i])) {
-            for (int a = 0; a < k; a++) {
-                for (int j = 0; j < k; j++) Di[i][a][j] = NAN;
-            }
-        }
-        const int par = t->parent[i];
         if (par < 0) continue;
-        /* Ia = IA - U D^-1 U^T, pa = pA + Ia c + U D^-1 u */
-        M6 Ia;
-        double pa[6];
-        if (k == 1) {   /* a hinge: D^-1 is a number */
-            double Ud[6];
-            for (int a = 0; a < 6; a++) Ud[a] = U[i][a][0] * Di[i][0][0];
-            for (int a = 0; a < 6; a++) {
-                for (int j = a; j < 6; j++) {
-                    Ia[a][j] = IA[i][a][j] - Ud[a] * U[i][j][0];
-                    Ia[j][a] = Ia[a][j];
-                }
-            }
-            mv6(Ia, c[i], pa);
-            for (int a = 0; a < 6; a++) pa[a] += pA[i][a] + Ud[a] * u[i][0];
+        /* to the parent: pa = pA + Ia c + U D^-1 u; IA_p += X^T Ia X, pA_p += X^T pa, X = [E 0; -E [r]x E] */
+        double pa[6], Udu[6];
+        if (k == 1) {
+            for (int a = 0; a < 6; a++) Udu[a] = Ui[a][0] * Dii[0][0] * u[i][0];
+        } else if (k == 3) {   /* a ball: the loops unroll */
+            u_dinv_u(3, Ui, Dii, u[i], Udu);
         } else {
-            double UDi[6][6], Du[6];
-            for (int a = 0; a < 6; a++) {
-                for (int j = 0; j < k; j++) {
-                    double s = 0.0;
-                    for (int l = 0; l < k; l++) s += U[i][a][l] * Di[i][l][j];
-                    UDi[a][j] = s;
-                }
-            }
-            for (int a = 0; a < 6; a++) {   /* symmetric: the upper triangle, mirrored */
-                for (int j = a; j < 6; j++) {
-                    double s = 0.0;
-                    for (int l = 0; l < k; l++) s += UDi[a][l] * U[i][j][l];
-                    Ia[a][j] = IA[i][a][j] - s;
-                    Ia[j][a] = Ia[a][j];
-                }
-            }
-            for (int a = 0; a < k; a++) Du[a] = u[i][a];
-            mv6(Ia, c[i], pa);
-            for (int a = 0; a < 6; a++) {
-                double s = 0.0;
-                for (int l = 0; l < k; l++) s += UDi[a][l] * Du[l];
-                pa[a] += pA[i][a] + s;
-            }
+            u_dinv_u(k, Ui, Dii, u[i], Udu);
         }
-        /* to the parent: IA_p += X^T Ia X, pA_p += X^T pa, X = [E 0; -E [r]x E] */
-        add_transformed_inertia(kin, i, Ia, IA[par]);
+        for (int a = 0; a < 6; a++) Udu[a] += pA[i][a];
+        mv6_add(pre, i, Ia, c[i], Udu, pa);
+        if (!pre->fold[i]) add_transformed_inertia(kin, i, Ia, IA[par], pre->ia_cols[par]);   /* else in IAbase */
         add_xtf(kin, i, pa, pA[par]);
     }
     double acc[GS_TREE_MAX][6];
     const double g = p[GS_TP_G];
     for (int i = 0; i < t->n; i++) {
-        const int par = t->parent[i];
+        const int par = t->parent[i], k = pre->nd[i], fixed = pre->ia_fixed[i];
+        const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
         double ap[6];
-        if (par < 0) {
-            const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
-            xm(kin, i, up, ap);
+        if (par < 0 && pre->g0) {   /* the world at rest: ap = 0, qdd = D^-1 u */
+            for (int a = 0; a < 6; a++) ap[a] = 0.0;
+            if (k == 1) {
+                qdd[i][0] = Dii[0][0] * u[i][0];
+            } else if (k == 3) {
+                dinv_mul(3, Dii, u[i], qdd[i]);
+            } else {
+                dinv_mul(k, Dii, u[i], qdd[i]);
+            }
         } else {
-            xm(kin, i, acc[par], ap);
+            if (par < 0) {
+                const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
+                xm(kin, i, up, ap);
+            } else {
+                xm(kin, i, acc[par], ap);
+                for (int a = 0; a < 6; a++) ap[a] += c[i][a];
+            }
+            /* qdd = D^-1 (u - U^T ap) */
+            if (k == 1) {
+                qdd[i][0] = Dii[0][0] * (u[i][0] - (Ui[0][0] * ap[0] + Ui[1][0] * ap[1] + Ui[2][0] * ap[2] +
+                                                    Ui[3][0] * ap[3] + Ui[4][0] * ap[4] + Ui[5][0] * ap[5]));
+            } else if (k == 3) {
+                joint_qdd(3, Ui, Dii, u[i], ap, qdd[i]);
+            } else {
+                joint_qdd(k, Ui, Dii, u[i], ap, qdd[i]);
+            }
         }
-        for (int a = 0; a < 6; a++) ap[a] += c[i][a];
-        const int k = nd[i];
-        double rhs[6];
-        for (int a = 0; a < k; a++) {
-            double s = 0.0;
-            for (int l = 0; l < 6; l++) s += U[i][l][a] * ap[l];
-            rhs[a] = u[i][a] - s;
-        }
-        for (int a = 0; a < k; a++) {
-            double s = 0.0;
-            for (int l = 0; l < k; l++) s += Di[i][a][l] * rhs[l];
-            qdd[i][a] = s;
-        }
+        if (t->leaf[i]) continue;   /* a = ap + S qdd: only the children use it */
         for (int a = 0; a < 6; a++) acc[i][a] = ap[a];
         if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
             acc[i][pre->axis_k[i]] += qdd[i][0];
@@ -1015,7 +1187,7 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
 }
 
 void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
-    static _Thread_local Pre pre;   /* 9 kB: off the stack of FMU hosts' threads */
+    static _Thread_local Pre pre;   /* 38 kB: off the stack of FMU hosts' threads */
     precompute(t, p, &pre);
     derivs(t, y, p, &pre, dy);
 }
