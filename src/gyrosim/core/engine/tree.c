@@ -1491,6 +1491,47 @@ static int conservative(const gs_tree *t, const double *p) {
     return 1;
 }
 
+/* The energy T + V (J) and the angular momentum L (world, about the world origin) of a state where no orbit acts:
+ * totals_pre's T, V and L without the monitor's scales, each body's spatial momentum from its mass, centre of mass
+ * and inertia about it (Featherstone, RBDA 2.62: h_lin = m (v + omega x c), h_ang = I_c omega + c x h_lin) rather
+ * than through its 6x6 inertia (energy_momentum's projection evaluates them several times a step). */
+static void invariants_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *E,
+                           double L[3]) {
+    Kin kin;
+    kinematics(t, y, p, pre, &kin, 1);
+    const double g = p[GS_TP_G];
+    double T = 0.0, V = 0.0;
+    L[0] = L[1] = L[2] = 0.0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *c = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin.v[i], *v = kin.v[i] + 3;
+        const double m = b[GS_TB_MASS];
+        double wc[3], hl[3], ha[3], cxh[3], nw[3], fw[3], oxf[3], cw[3];
+        cross3(w, c, wc);
+        for (int a = 0; a < 3; a++) hl[a] = m * (v[a] + wc[a]);
+        cross3(c, hl, cxh);
+        ha[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2] + cxh[0];
+        ha[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2] + cxh[1];
+        ha[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cxh[2];
+        T += 0.5 * (dot3(w, ha) + dot3(v, hl));
+        mv3(kin.Rw[i], c, cw);
+        V += m * g * (kin.ow[i][2] + cw[2]);
+        if (t->joint[i] == GS_J_HINGE) {
+            const double e = y[t->yi[i]] - b[GS_TB_REST];
+            V += 0.5 * b[GS_TB_STIFF] * e * e;
+        }
+        mv3(kin.Rw[i], ha, nw);
+        mv3(kin.Rw[i], hl, fw);
+        cross3(kin.ow[i], fw, oxf);
+        for (int a = 0; a < 3; a++) L[a] += nw[a] + oxf[a];
+    }
+    const double *kc = p + GS_TP_HEAD + GS_TB_NP * t->n;
+    for (int c = 0; c < t->n_cpl; c++) {
+        const double e = y[t->yi[t->cpl_a[c]]] - y[t->yi[t->cpl_b[c]]];
+        V += 0.5 * kc[c] * e * e;
+    }
+    *E = T + V;
+}
+
 /* energy_momentum's invariants, scaled as the health monitor scales them: the energy against the balance's
  * expected value y[nx] (constant where nothing does work), the angular momentum against L0 where no torque acts */
 static int lie_invariants(const void *ctx, const double *y, double r[GS_LIE_MAXINV]) {
@@ -1500,11 +1541,18 @@ static int lie_invariants(const void *ctx, const double *y, double r[GS_LIE_MAXI
     int k = 0;
     const int keep_e = conservative(t, c->p), keep_l = gs_tree_torque_free(t, c->p);
     if (!keep_e && !keep_l) return 0;
-    Totals s;
-    totals_pre(t, y, c->p, c->pre, &s);
-    if (keep_e) r[k++] = (s.T + s.V - m[0]) / m[1];
+    double E, Lw[3];
+    if (t->orbit != GS_ORBIT_NONE) {   /* a Kepler potential (mu = 0 here: conservative() refuses another) */
+        Totals s;
+        totals_pre(t, y, c->p, c->pre, &s);
+        E = s.T + s.V;
+        memcpy(Lw, s.L, sizeof(Lw));
+    } else {
+        invariants_pre(t, y, c->p, c->pre, &E, Lw);
+    }
+    if (keep_e) r[k++] = (E - m[0]) / m[1];
     if (keep_l) {
-        for (int a = 0; a < 3; a++) r[k++] = (s.L[a] - m[2 + a]) / m[5];
+        for (int a = 0; a < 3; a++) r[k++] = (Lw[a] - m[2 + a]) / m[5];
     }
     return k;
 }
