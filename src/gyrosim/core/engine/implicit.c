@@ -59,6 +59,8 @@ struct gs_lie_run_s {
     double *J;                /* ne x ncol, column-major: J[c * ne + r] */
     double *A;                /* m x m, the LU factors of the Newton matrix, row-major */
     int *piv;
+    double *Ainv;             /* m x m, its inverse (row-major): a product per iteration, no triangular solves */
+    double *H;                /* m x m, the step's inverse with its Broyden updates */
     double h_A;               /* the step A was built for */
     int have_J, refresh;
     double F[GS_ODE_MAX];     /* the slope: the last step's, the next one's first guess */
@@ -73,7 +75,6 @@ struct gs_lie_run_s {
     int ni_G;                 /* the invariants G and S are for */
     double wmid[GS_LIE_MAXQ][3];           /* the last step's omega_mid per quaternion (the dense output's) */
     double comp[GS_ODE_MAX];               /* the compensated sum's carried rounding of each component */
-    double bu[LIE_MAXIT][GS_ODE_MAX], by[LIE_MAXIT][GS_ODE_MAX];   /* a step's Broyden updates (solve_step) */
 };
 
 /* ------------------------------------------------------------------------------------------- quaternions */
@@ -271,7 +272,16 @@ static int newton_matrix(gs_lie_run_t *r, double h) {
     }
     (void)c;
     r->h_A = h;
-    return lu_factor(m, r->A, r->piv);
+    if (!lu_factor(m, r->A, r->piv)) return 0;
+    /* the inverse, a column at a time */
+    double e[GS_ODE_MAX];
+    for (int c = 0; c < m; c++) {
+        memset(e, 0, (size_t)m * sizeof(double));
+        e[c] = 1.0;
+        lu_solve(m, r->A, r->piv, e);
+        for (int a = 0; a < m; a++) r->Ainv[(size_t)a * m + c] = e[a];
+    }
+    return 1;
 }
 
 /* ------------------------------------------------------------------------------------------- one step */
@@ -292,17 +302,14 @@ static void midpoint_state(const gs_lie_run_t *r, const double *y0, const double
     turn_all(r->L, y0, Y, 0.5 * h, Y);
 }
 
-/* x <- H x: the Newton matrix's inverse (its LU factors) with the step's Broyden updates H += u y^T */
-static void apply_h(const gs_lie_run_t *r, int nb, double *x) {
-    double dots[LIE_MAXIT];
-    for (int k = 0; k < nb; k++) {
-        double sdot = 0.0;
-        for (int a = 0; a < r->m; a++) sdot += r->by[k][a] * x[a];
-        dots[k] = sdot;
-    }
-    lu_solve(r->m, r->A, r->piv, x);
-    for (int k = 0; k < nb; k++) {
-        for (int a = 0; a < r->m; a++) x[a] += dots[k] * r->bu[k][a];
+/* out = H x (H the step's inverse Newton matrix with its Broyden updates, m x m row-major) */
+static void apply_h(const gs_lie_run_t *r, const double *x, double *out) {
+    const int m = r->m;
+    for (int a = 0; a < m; a++) {
+        const double *row = r->H + (size_t)a * m;
+        double sum = 0.0;
+        for (int b = 0; b < m; b++) sum += row[b] * x[b];
+        out[a] = sum;
     }
 }
 
@@ -316,32 +323,34 @@ static void apply_h(const gs_lie_run_t *r, int nb, double *x) {
  * updates take up that drift without a new Jacobian, until the iterations reach round-off. */
 static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, int64_t *evals) {
     const gs_ode *o = &r->L->ode;
-    double Gv[GS_ODE_MAX], d[GS_ODE_MAX], R[GS_ODE_MAX], Rp[GS_ODE_MAX], dp[GS_ODE_MAX];
+    double Gv[GS_ODE_MAX], d[GS_ODE_MAX], R[GS_ODE_MAX], Rp[GS_ODE_MAX], dp[GS_ODE_MAX], yv[GS_ODE_MAX];
     double prev = INFINITY;
-    int nb = 0;
+    const int m = r->m;
+    memcpy(r->H, r->Ainv, (size_t)m * (size_t)m * sizeof(double));
     for (int it = 1; it <= LIE_MAXIT; it++) {
         midpoint_state(r, y0, r->F, h, Y);
         o->rhs(o->ctx, Y, Gv);
         *evals += 1;
-        for (int a = 0; a < r->m; a++) R[a] = Gv[r->act[a]] - r->F[r->act[a]];
+        for (int a = 0; a < m; a++) R[a] = Gv[r->act[a]] - r->F[r->act[a]];
         if (it > 1 && prev > 1e-10) {   /* a secant update from the last iteration (not in the round-off noise) */
             double yy = 0.0;
-            for (int a = 0; a < r->m; a++) {
-                r->by[nb][a] = Rp[a] - R[a];
-                yy += r->by[nb][a] * r->by[nb][a];
+            for (int a = 0; a < m; a++) {
+                yv[a] = Rp[a] - R[a];
+                yy += yv[a] * yv[a];
             }
-            if (yy > 0.0) {
+            if (yy > 0.0) {   /* H += (s - H y) y^T / y^T y */
                 double hy[GS_ODE_MAX];
-                memcpy(hy, r->by[nb], (size_t)r->m * sizeof(double));
-                apply_h(r, nb, hy);
-                for (int a = 0; a < r->m; a++) r->bu[nb][a] = (dp[a] - hy[a]) / yy;
-                nb++;
+                apply_h(r, yv, hy);
+                for (int a = 0; a < m; a++) {
+                    const double u = (dp[a] - hy[a]) / yy;
+                    double *row = r->H + (size_t)a * m;
+                    for (int b = 0; b < m; b++) row[b] += u * yv[b];
+                }
             }
         }
-        memcpy(Rp, R, (size_t)r->m * sizeof(double));
-        memcpy(d, R, (size_t)r->m * sizeof(double));
-        apply_h(r, nb, d);
-        memcpy(dp, d, (size_t)r->m * sizeof(double));
+        memcpy(Rp, R, (size_t)m * sizeof(double));
+        apply_h(r, R, d);
+        memcpy(dp, d, (size_t)m * sizeof(double));
         /* the change of x1 = x0 + h F, relative to the component's size (at least 1e-8 of the largest: a
          * component at 0 converges to the others' round-off, not to its own) */
         double big = 0.0;
@@ -614,7 +623,9 @@ gs_lie_run_t *gs_lie_begin(int method, const gs_lie *L) {
     r->J = (double *)malloc((size_t)r->ne * (size_t)r->ncol * sizeof(double));
     r->A = (double *)malloc(nx * nx * sizeof(double) + 1);
     r->piv = (int *)malloc((nx + 1) * sizeof(int));
-    if (!r->J || !r->A || !r->piv) {
+    r->Ainv = (double *)malloc(nx * nx * sizeof(double) + 1);
+    r->H = (double *)malloc(nx * nx * sizeof(double) + 1);
+    if (!r->J || !r->A || !r->piv || !r->Ainv || !r->H) {
         gs_lie_end(r);
         return NULL;
     }
@@ -626,6 +637,8 @@ void gs_lie_end(gs_lie_run_t *r) {
     free(r->J);
     free(r->A);
     free(r->piv);
+    free(r->Ainv);
+    free(r->H);
     free(r);
 }
 
