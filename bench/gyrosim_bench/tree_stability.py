@@ -9,7 +9,8 @@ torque-free tree, the angular momentum within 10 % too: the one-body stability m
 The table gives the largest stable h below the first unstable one, as h and as h * rate, where rate is the tree's
 fastest rate at the start (``Model.fastest_rate``: the largest body angular speed or hinge rate) and, for the
 gyroscope, as h * omega_nutation (the rotor's nutation frequency I3 |spin| / I_gimbal, which sets the stiff
-mode). "> H_MAX" means no instability up to the ladder's top.
+mode). "> H_MAX" means no instability up to the ladder's top; "-": no rate to scale by (a pendulum released from
+rest).
 
 Run standalone from a checkout::
 
@@ -104,7 +105,7 @@ def markdown(res: dict) -> str:
     for r in res["runs"]:
         top = math.isinf(r["h"])
         h = f"> {H_MAX:g}" if top else ("unstable at every h" if r["h"] == 0 else f"{r['h']:.3g}")
-        hr = f"> {H_MAX * r['rate']:.3g}" if top else f"{r['h_rate']:.3g}"
+        hr = "-" if r["rate"] == 0 else (f"> {H_MAX * r['rate']:.3g}" if top else f"{r['h_rate']:.3g}")
         hn = "-" if r["nutation"] is None else (f"> {H_MAX * r['nutation']:.3g}" if top else f"{r['h_nutation']:.3g}")
         lines.append(f"| {r['case']} | {r['integrator']} | {h} | {hr} | {hn} |")
     lines.append("")
