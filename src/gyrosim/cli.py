@@ -658,8 +658,9 @@ def _chaos_parser(sub) -> None:
     c.add_argument("--start-values", nargs="+", action="extend", metavar="NAME VALUE",
                    help="name-value pairs of start values, as FMPy takes them (e.g. --start-values upper.angle 1.57)")
     c.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact, "
-                   "strang_exact, yoshida_exact, bm4_exact, bm6_exact (splittings on the exact torque-free flow; "
-                   "default: the scene's)")
+                   "strang_exact, yoshida_exact, bm4_exact, bm6_exact (splittings on the exact torque-free flow), "
+                   "midpoint, energy_momentum (implicit, trees of bodies); `gyrosim info SCENE` lists a scene's "
+                   "(default: the scene's)")
     c.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s (default: the scene's)")
     c.add_argument("--stop-time", type=float, metavar="T",
                    help=f"length of the run in s (default: {CHAOS_TIME:g} s, or the scene's stop time if longer)")
@@ -703,8 +704,9 @@ def _simulate_parser(sub) -> None:
     s.add_argument("--start-values", nargs="+", action="extend", metavar="NAME VALUE",
                    help="name-value pairs of start values, as FMPy takes them (e.g. --start-values I1 2 omega_z 10)")
     s.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact, "
-                   "strang_exact, yoshida_exact, bm4_exact, bm6_exact (splittings on the exact torque-free flow; "
-                   "default: the scene's)")
+                   "strang_exact, yoshida_exact, bm4_exact, bm6_exact (splittings on the exact torque-free flow), "
+                   "midpoint, energy_momentum (implicit, trees of bodies); `gyrosim info SCENE` lists a scene's "
+                   "(default: the scene's)")
     s.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s (default: the scene's)")
     s.add_argument("--start-time", type=float, default=0.0, metavar="T0", help="start time in s (default: 0)")
     s.add_argument("--stop-time", type=float, metavar="T", help="end time in s (default: the scene's)")

@@ -26,7 +26,8 @@ def register(subparsers) -> None:
     p.add_argument("--vary", action="append", metavar="NAME=DIST", help="draw NAME from DIST (repeatable)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="set NAME for every sample (repeatable)")
     p.add_argument("--integrator", help="euler, rk4, splitting, splitting4, adaptive, dop853, exact, strang_exact, "
-                   "yoshida_exact, bm4_exact, bm6_exact (default: the scene's)")
+                   "yoshida_exact, bm4_exact, bm6_exact, midpoint, energy_momentum (the last two: trees of bodies; "
+                   "default: the scene's)")
     p.add_argument("--max-step", type=float, metavar="S", help="largest internal step in s (default: the scene's)")
     p.add_argument("--stop-time", type=float, metavar="T", help="end time in s (default: the scene's)")
     p.add_argument("--output-interval", type=float, metavar="H",
