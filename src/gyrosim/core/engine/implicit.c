@@ -30,7 +30,8 @@
  * energy_momentum: midpoint, then a projection onto the invariants the system keeps now (its energy where
  * nothing does work, its angular momentum where no torque acts): y1 <- y1 + G^T lambda, G the invariants' gradient
  * in the velocities (and in the positions and rotation vectors where the velocities alone cannot move them: at a
- * turning point), lambda from Newton iterations to round-off (HLW IV.4, algorithm 4.2). The energy and the angular momentum are then kept to round-off over any run, for any tree.
+ * turning point), lambda from Newton iterations to round-off (HLW IV.4, algorithm 4.2). The energy and the angular
+ * momentum are then kept to round-off over any run, for any tree.
  */
 #include "gyrosim_ode.h"   /* first: the engine header's FP_CONTRACT pragma */
 
@@ -38,9 +39,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "quaternion.h"
+
 #define LIE_EPS 2.220446049250313e-16
 #define LIE_MAXIT 24          /* Newton iterations per step before it counts as not converging */
-#define LIE_SLOW 12           /* a step that needed more iterations refreshes the matrix (the projection its gradient) */
+/* a step that needed more iterations refreshes the matrix (a projection, its gradient) */
+#define LIE_SLOW 12
 #define LIE_MONITOR_PARTS 128 /* the health monitor within a long call, as the Runge-Kutta methods */
 
 /* what a component of y is */
@@ -95,14 +99,6 @@ static void quat_exp(const double th[3], double q[4]) {
     q[1] = s * th[0];
     q[2] = s * th[1];
     q[3] = s * th[2];
-}
-
-/* c = a b (Hamilton product) */
-static void quat_mul(const double a[4], const double b[4], double c[4]) {
-    c[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
-    c[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
-    c[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
-    c[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
 }
 
 /* out = q0 exp(s * omega) for every quaternion, omega read from w (a state) */
@@ -259,7 +255,9 @@ static int newton_matrix(gs_lie_run_t *r, double h) {
     for (int a = 0; a < m; a++) pos[r->act[a]] = a;
     for (int a = 0; a < m; a++) {
         const int ra = r->act[a];
-        for (int b = 0; b < m; b++) r->A[a * m + b] = (a == b ? 1.0 : 0.0) - 0.5 * h * r->J[(size_t)colof[r->act[b]] * ne + ra];
+        for (int b = 0; b < m; b++) {
+            r->A[a * m + b] = (a == b ? 1.0 : 0.0) - 0.5 * h * r->J[(size_t)colof[r->act[b]] * ne + ra];
+        }
     }
     for (int g = 0; g < L->nq; g++) {
         for (int k = 0; k < 3; k++) {
@@ -398,6 +396,21 @@ static void proj_move(const gs_lie *L, double *y, int j, double d) {
     }
 }
 
+/* The invariants' central difference (g(y + e dir) - g(y - e dir)) / (2 e) along a move dir (one value per
+ * projection coordinate, zeros skipped): slope[0:ni]; y as before. */
+static void invariants_slope(const gs_lie *L, double *y, const double *dir, double e, double *slope) {
+    const int np = proj_n(L);
+    double keep[GS_ODE_MAX + 16], rp[GS_LIE_MAXINV], rm[GS_LIE_MAXINV];
+    memcpy(keep, y, (size_t)L->ode.ny * sizeof(double));
+    for (int j = 0; j < np; j++) if (dir[j] != 0.0) proj_move(L, y, j, e * dir[j]);
+    const int ni = L->invariants(L->ode.ctx, y, rp);
+    memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
+    for (int j = 0; j < np; j++) if (dir[j] != 0.0) proj_move(L, y, j, -e * dir[j]);
+    L->invariants(L->ode.ctx, y, rm);
+    memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
+    for (int k = 0; k < ni; k++) slope[k] = (rp[k] - rm[k]) / (2.0 * e);
+}
+
 /* energy_momentum's projection of y onto the invariants, along their gradient with respect to the velocities,
  * positions and rotations (the positions as well: at a turning point the energy's gradient in the velocities
  * vanishes, and only the potential can take up an energy error). 0: it could not (singular, no convergence). */
@@ -415,18 +428,13 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
         double vs = 0.0;
         for (int j = 0; j < L->nvel; j++) vs = fmax(vs, fabs(y[L->vel[j]]));
         if (!(vs > 0.0)) vs = 1.0;
-        double keep[GS_ODE_MAX + 16];
-        memcpy(keep, y, (size_t)L->ode.ny * sizeof(double));
+        double unit[GS_ODE_MAX] = {0.0}, slope[GS_LIE_MAXINV];
         for (int j = 0; j < np; j++) {
             const double d = j < L->nvel ? 1e-4 * fmax(fabs(y[L->vel[j]]), vs) : 1e-6;
-            double rp[GS_LIE_MAXINV], rm[GS_LIE_MAXINV];
-            proj_move(L, y, j, d);
-            L->invariants(L->ode.ctx, y, rp);
-            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
-            proj_move(L, y, j, -d);
-            L->invariants(L->ode.ctx, y, rm);
-            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
-            for (int k = 0; k < ni; k++) r->G[k][j] = (rp[k] - rm[k]) / (2.0 * d);
+            unit[j] = 1.0;
+            invariants_slope(L, y, unit, d, slope);
+            unit[j] = 0.0;
+            for (int k = 0; k < ni; k++) r->G[k][j] = slope[k];
         }
         *evals += 2 * np;
         /* along the velocities alone where they can move every invariant (the energy and momentum are quadratic
@@ -456,21 +464,12 @@ static int project(gs_lie_run_t *r, double *y, int64_t *evals) {
      * follow it): the iterations then converge as Newton's whatever the gradient's age (a kept gradient only tilts
      * the direction of the projection) */
     if (!r->have_S) {
-        double keep[GS_ODE_MAX + 16];
-        memcpy(keep, y, (size_t)L->ode.ny * sizeof(double));
         for (int k = 0; k < ni; k++) {
-            double g2 = 0.0;
+            double g2 = 0.0, slope[GS_LIE_MAXINV];
             for (int j = 0; j < np; j++) g2 += r->G[k][j] * r->G[k][j];
             if (!(g2 > 0.0)) return 0;
-            const double e = 1e-6 / g2;
-            double rp[GS_LIE_MAXINV], rm[GS_LIE_MAXINV];
-            for (int j = 0; j < np; j++) if (r->G[k][j] != 0.0) proj_move(L, y, j, e * r->G[k][j]);
-            L->invariants(L->ode.ctx, y, rp);
-            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
-            for (int j = 0; j < np; j++) if (r->G[k][j] != 0.0) proj_move(L, y, j, -e * r->G[k][j]);
-            L->invariants(L->ode.ctx, y, rm);
-            memcpy(y, keep, (size_t)L->ode.ny * sizeof(double));
-            for (int a = 0; a < ni; a++) r->S[a][k] = (rp[a] - rm[a]) / (2.0 * e);
+            invariants_slope(L, y, r->G[k], 1e-6 / g2, slope);
+            for (int a = 0; a < ni; a++) r->S[a][k] = slope[a];
         }
         *evals += 2 * ni;
         r->have_S = 1;
@@ -600,11 +599,22 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
 
 /* ------------------------------------------------------------------------------------------- runs */
 
+/* After a failed run, whose state the caller puts back: nothing of it carries over (the slopes, the projection's
+ * gradient and matrix, the compensated sums' rounding), and the Newton matrix is made anew. */
+static void forget(gs_lie_run_t *r) {
+    r->have_F = 0;
+    r->have_G = 0;
+    r->have_S = 0;
+    r->refresh = 1;
+    memset(r->comp, 0, sizeof(r->comp));
+}
+
 gs_lie_run_t *gs_lie_begin(int method, const gs_lie *L) {
     const gs_ode *o = &L->ode;
     if ((method != GS_MIDPOINT && method != GS_ENERGY_MOMENTUM) || o->nv > GS_ODE_MAX || o->nv < 1 || o->ne < 1 ||
         o->ne > o->nv || o->ny < o->nv || o->ny > GS_ODE_MAX + 16 || L->nq < 0 || L->nq > GS_LIE_MAXQ ||
-        L->nvel < 0 || L->nvel > GS_ODE_MAX || L->npos < 0 || L->npos > GS_ODE_MAX || !L->jvp || (method == GS_ENERGY_MOMENTUM && !L->invariants))
+        L->nvel < 0 || L->nvel > GS_ODE_MAX || L->npos < 0 || L->npos > GS_ODE_MAX || proj_n(L) > GS_ODE_MAX ||
+        !L->jvp || (method == GS_ENERGY_MOMENTUM && !L->invariants))
         return NULL;
     gs_lie_run_t *r = (gs_lie_run_t *)calloc(1, sizeof(gs_lie_run_t));
     if (!r) return NULL;
@@ -669,11 +679,7 @@ int64_t gs_lie_run(gs_lie_run_t *r, double *y, double H, int64_t n_sub, int64_t 
     stats[2] += evals;
     if (k) {
         memcpy(y, y0, (size_t)o->ny * sizeof(double));
-        r->have_F = 0;
-        r->have_G = 0;
-        r->have_S = 0;
-        r->refresh = 1;
-        memset(r->comp, 0, sizeof(r->comp));
+        forget(r);
     }
     return k;
 }
@@ -747,11 +753,7 @@ int64_t gs_lie_dense(gs_lie_run_t *r, double *y, double dt, int64_t n_out, int64
     stats[2] += evals;
     if (fail) {   /* the state at the start of the failing interval (the last output emitted) */
         memcpy(y, last, ny * sizeof(double));
-        r->have_F = 0;
-        r->have_G = 0;
-        r->have_S = 0;
-        r->refresh = 1;
-        memset(r->comp, 0, sizeof(r->comp));
+        forget(r);
     }
     return fail;
 }

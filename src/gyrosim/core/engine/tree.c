@@ -8,6 +8,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "quaternion.h"
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -124,13 +126,6 @@ static void hinge_quat(const double axis[3], double angle, double q[4]) {
     q[1] = s * axis[0];
     q[2] = s * axis[1];
     q[3] = s * axis[2];
-}
-
-static void quat_mul(const double a[4], const double b[4], double c[4]) {
-    c[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
-    c[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
-    c[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
-    c[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
 }
 
 static TREE_INLINE void quat_rate(const double *q, const double *w, double *dq) {   /* q (0, w) / 2 */
@@ -347,7 +342,9 @@ static TREE_INLINE void rot_blk(const Kin *k, int i, const M3 M, M3 out) {
         M3 t;
         mm3(M, k->E[i], t);
         for (int r = 0; r < 3; r++) {
-            for (int q = 0; q < 3; q++) out[r][q] = k->E[i][0][r] * t[0][q] + k->E[i][1][r] * t[1][q] + k->E[i][2][r] * t[2][q];
+            for (int q = 0; q < 3; q++) {
+                out[r][q] = k->E[i][0][r] * t[0][q] + k->E[i][1][r] * t[1][q] + k->E[i][2][r] * t[2][q];
+            }
         }
     }
 }
@@ -1667,6 +1664,14 @@ static int64_t dense_trajectory(const gs_tree *t, int method, double *y, const d
     return gs_ode_trajectory(method, &o, y, dt, n_out, rtol, atol, max_step, hint, stats, tree_row, &rows);
 }
 
+/* System b failed in output interval k (1-based): its status, and NaN rows from there to n_out */
+static void failed_rows(size_t n, size_t b, size_t no, int64_t k, int64_t n_out, int32_t *status, double *out) {
+    status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
+    for (int64_t r = k; r <= n_out; r++) {
+        for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
+    }
+}
+
 size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out) {
@@ -1697,10 +1702,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
             const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, rtol, atol, max_step, hint + b,
                                                stats + b * GS_NSTATS, out + b * no, n * no);
             if (k) {
-                status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
-                for (int64_t r = k; r <= n_out; r++) {
-                    for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
-                }
+                failed_rows(n, b, no, k, n_out, status, out);
                 failed += 1;
             }
             continue;
@@ -1719,10 +1721,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
             TreeRows rows = {t, pb, &pre, out + b * no, n * no};
             const int64_t f = gs_lie_dense(run, yb, dt, n_out, n_steps, stats + b * GS_NSTATS, tree_row, &rows);
             if (f) {
-                status[b] = (int32_t)(f > 2147483647 ? 2147483647 : f);
-                for (int64_t r = f; r <= n_out; r++) {
-                    for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
-                }
+                failed_rows(n, b, no, f, n_out, status, out);
                 failed += 1;
             }
             gs_lie_end(run);
@@ -1738,10 +1737,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                                    stats + b * GS_NSTATS);
             }
             if (s) {
-                status[b] = (int32_t)(k > 2147483647 ? 2147483647 : k);
-                for (int64_t r = k; r <= n_out; r++) {
-                    for (size_t c = 0; c < no; c++) out[((size_t)r * n + b) * no + c] = NAN;
-                }
+                failed_rows(n, b, no, k, n_out, status, out);
                 failed += 1;
                 break;
             }
