@@ -26,10 +26,13 @@ def test_the_page_has_an_example_of_each_kind():
             kinds |= {b.joint for b in sc.tree}
             kinds |= {"coupling"} if sc.couplings else set()
             kinds |= {"parameters"} if sc.aliases else set()
+            kinds |= {"spring"} if sc.springs else set()
+            kinds |= {"force"} if sc.forces else set()
         else:
             kinds |= {"pivoted" if b.cm_distance > 0 else "free body" for b in sc.bodies}
         kinds |= {"sweep"} if "sweep" in tomllib.loads(text) else set()
-    assert kinds >= {"free body", "pivoted", "hinge", "ball", "free", "fixed", "coupling", "parameters", "sweep"}
+    assert kinds >= {"free body", "pivoted", "hinge", "ball", "free", "fixed", "coupling", "parameters", "sweep",
+                     "slider", "spring", "force"}
 
 
 @pytest.mark.parametrize("text", BLOCKS, ids=[re.search(r'name = "(\w+)"', b).group(1) for b in BLOCKS])
@@ -64,6 +67,8 @@ def test_every_key_the_parser_knows_is_documented():
     assert set(scene._BODY_KEYS) <= tables["`[[body]]` of independent bodies"]
     assert set(scene_tree._TREE_BODY_KEYS) <= tables["`[[body]]` of a tree"]
     assert {"name", "bodies", "stiffness"} <= tables["`[[coupling]]`"]
+    assert set(scene_tree._SPRING_KEYS) <= tables["`[[spring]]`"]
+    assert set(scene_tree._FORCE_KEYS) <= tables["`[[force]]`"]
     assert set(scene_tree._PARAMETER_KEYS) <= tables["`[parameters.NAME]`"]
     assert set(SWEEP_KEYS) <= tables["`[sweep]`"]
     assert {"mu", "radius", "anomaly"} <= tables["`[scene.orbit]`"]

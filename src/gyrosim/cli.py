@@ -539,7 +539,8 @@ def cmd_bench(args) -> int:
 #: The scenes a command takes by name (gyrosim.scene.EMBEDDED_SCENES and "full"; a test keeps them equal), written
 #: out here so that ``gyrosim --help`` does not import the engine.
 SCENE_NAMES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
-               "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels", "full")
+               "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels", "mass_spring_chain", "triatomic",
+               "full")
 SCENE_HELP = f"an embedded scene ({', '.join(SCENE_NAMES)}) or a scene file (.toml, docs/scenes.md)"
 
 

@@ -15,11 +15,28 @@ import weakref
 import numpy as np
 
 from .core import _engine
-from .core.tree import BODY_OUTPUTS, ORBIT_BODY_OUTPUTS, ORBIT_COORD, ORBIT_OUTPUTS, SCENE_OUTPUTS, TreeLayout
+from .core.tree import (
+    BODY_OUTPUTS,
+    BODY_SLOTS,
+    INPUT_SLOTS,
+    ORBIT_BODY_OUTPUTS,
+    ORBIT_COORD,
+    ORBIT_OUTPUTS,
+    SCENE_OUTPUTS,
+    TreeLayout,
+)
 from .errors import ConfigError, IntegrationError
 from .ranges import ANY, NONNEGATIVE, POSITIVE
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean
-from .scene_tree import BALL_PARAMS, BODY_PARAMS, HINGE_PARAMS, NONNEGATIVE_PARAMS
+from .scene_tree import (
+    BALL_DAMPING_PARAMS,
+    BALL_PARAMS,
+    BALL_SPRING_PARAMS,
+    BODY_PARAMS,
+    HINGE_PARAMS,
+    NONNEGATIVE_PARAMS,
+    SLIDER_PARAMS,
+)
 from .variables import Variable
 
 __all__ = ["TreeKernel", "tree_variables", "tree_output_names"]
@@ -46,7 +63,11 @@ _COORD_META = {
     "v_z": ("m/s", "velocity of the body's origin, world z"),
     "angle": ("rad", "hinge angle, unwrapped"),
     "rate": ("rad/s", "hinge rate"),
+    "displacement": ("m", "slider displacement along its axis"),
+    "velocity": ("m/s", "slider velocity along its axis"),
 }
+_SPRING_META = {"stiffness": ("N/m", "spring stiffness"), "rest_length": ("m", "spring rest length"),
+                "damping": ("N.s/m", "spring damping (along the line between its points)")}
 _SCENE_OUT_META = {
     "energy": ("J", "kinetic plus potential energy of the whole tree (gravity and springs)"),
     "energy_error": ("J", "work-energy balance E(t) - E(0) - W_inputs(t) + W_damping(t)"),
@@ -89,6 +110,11 @@ def tree_output_names(scene: Scene) -> list[str]:
 
 
 def _body_param_value(b, name: str) -> float:
+    if name.startswith(("stiffness_", "joint_damping_")):
+        v = b.ball_stiffness if name.startswith("stiffness_") else b.ball_damping
+        return float(v["xyz".index(name[-1])])
+    if name == "rest_displacement":
+        return float(b.rest_angle)
     if name == "mass":
         return float(b.mass)
     if name in ("I1", "I2", "I3"):
@@ -107,7 +133,10 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     scene-wide names bare)."""
     from .scene import INTEGRATORS
 
-    V = [Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z", float(scene.g),
+    gdir = tuple(scene.gravity_dir)
+    along = "along -z" if gdir == (0.0, 0.0, -1.0) else "along the scene's gravity direction " + \
+        "(" + ", ".join(f"{x:.6g}" for x in gdir) + ")"
+    V = [Variable("g", "parameter", "fixed", "Real", "m/s2", f"gravitational acceleration {along}", float(scene.g),
                   **NONNEGATIVE.fields())]
     orbit = scene.orbit
     if orbit is not None:
@@ -125,6 +154,11 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     for name, (_, _, k) in zip(scene.coupling_names, scene.couplings):
         V.append(Variable(name, "parameter", "fixed", "Real", "N.m/rad", "torsion spring between two hinges",
                           float(k), **NONNEGATIVE.fields()))
+    for sp in scene.springs:
+        ends = " and ".join(scene.tree[i].name if i >= 0 else "the world" for i in (sp.a, sp.b))
+        for k, (unit, desc) in _SPRING_META.items():
+            V.append(Variable(f"{sp.name}.{k}", "parameter", "fixed", "Real", unit, f"{desc}, between {ends}",
+                              float(getattr(sp, k)), **NONNEGATIVE.fields()))
     V += [Variable("integrator", "parameter", "fixed", "String", "",
                    "integrator: " + ", ".join(TREE_INTEGRATORS) + " (a tree; " +
                    ", ".join(i for i in INTEGRATORS if i not in TREE_INTEGRATORS) + " solve one body)",
@@ -140,14 +174,39 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
         params = dict(BODY_PARAMS)
         if b.joint == "hinge":
             params.update(HINGE_PARAMS)
+        elif b.joint == "slider":
+            params.update(SLIDER_PARAMS)
         elif b.joint in ("ball", "free_rotation", "free"):
             params.update(BALL_PARAMS)
-        for n, (unit, desc) in params.items():
-            V.append(Variable(pre + n, "parameter", "fixed", "Real", unit, desc, _body_param_value(b, n),
+            if np.any(b.ball_stiffness):
+                params.update(BALL_SPRING_PARAMS)
+            if np.any(b.ball_damping):
+                params.update(BALL_DAMPING_PARAMS)
+        unit = "m" if b.joint == "slider" else "rad"
+        stiff = "N/m" if b.joint == "slider" else "N.m/rad"
+        if b.lower is not None:
+            params["lower"] = (unit, "lower stop")
+        if b.upper is not None:
+            params["upper"] = (unit, "upper stop")
+        if b.lower is not None or b.upper is not None:
+            params["stop_stiffness"] = (stiff, "stiffness of the stops' spring-damper")
+            params["stop_damping"] = (stiff.replace("/", ".s/"), "damping of the stops' spring-damper (in contact)")
+        for n, (unit_n, desc) in params.items():
+            V.append(Variable(pre + n, "parameter", "fixed", "Real", unit_n, desc, _body_param_value(b, n),
                               **(NONNEGATIVE if n in NONNEGATIVE_PARAMS else ANY).fields()))
-        if b.motor_input:
+        if b.motor_input and b.joint == "slider":
+            V.append(Variable(pre + "motor_force", "input", "continuous", "Real", "N",
+                              "motor force along the slider axis (on this body; its reaction on the parent)", 0.0))
+        elif b.motor_input:
             V.append(Variable(pre + "motor_torque", "input", "continuous", "Real", "N.m",
                               "motor torque about the hinge axis (on this body; its reaction on the parent)", 0.0))
+        for f in scene.forces:
+            if scene.tree[f.body] is not b:
+                continue
+            for c in "xyz":
+                V.append(Variable(pre + f"{f.name}.f_{c}", "input", "continuous", "Real", "N",
+                                  f"force {f.name} at ({', '.join(f'{x:.6g}' for x in f.point)}) m of the body, "
+                                  f"{'world' if f.world else 'body'} {c}, held over each step", 0.0))
         if b.torque_input:
             for n in ("tau_x", "tau_y", "tau_z"):
                 V.append(Variable(pre + n, "input", "continuous", "Real", "N.m",
@@ -155,8 +214,8 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
         start = {"q": list(b.q0), "omega": list(b.omega0), "r": list(b.r0), "v": list(b.v0)}
         for c in b.coords:
             unit, desc = _COORD_META[c]
-            if c in ("angle", "rate"):
-                s = float(b.angle0 if c == "angle" else b.rate0)
+            if c in ("angle", "rate", "displacement", "velocity"):
+                s = float(b.angle0 if c in ("angle", "displacement") else b.rate0)
             else:
                 head, tail = c.rsplit("_", 1)
                 s = float(start[head]["wxyz".index(tail) if head == "q" else "xyz".index(tail)])
@@ -186,12 +245,40 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
 _MON_ESCALE = 1
 _MON_LSCALE = 5
 
-_BODY_COLS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 1, "I3": _engine.TB_I + 2,
-              "cm_x": _engine.TB_CM, "cm_y": _engine.TB_CM + 1, "cm_z": _engine.TB_CM + 2,
-              "pos_x": _engine.TB_POS, "pos_y": _engine.TB_POS + 1, "pos_z": _engine.TB_POS + 2,
-              "stiffness": _engine.TB_STIFF, "rest_angle": _engine.TB_REST, "joint_damping": _engine.TB_DAMP,
-              "damping": _engine.TB_DAMP, "motor_torque": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU,
-              "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
+_BODY_COLS = {**BODY_SLOTS, **INPUT_SLOTS}
+
+
+def element_columns(sc, layout: TreeLayout) -> dict[str, int]:
+    """The elements' variables (:meth:`Scene.element_variables`) by full name -> their column in a parameter row."""
+    out = {}
+    for name, (kind, e, short) in sc.element_variables().items():
+        if kind == "spring":
+            out[name] = layout.spring_offset(e) + {"stiffness": _engine.SPR_K, "rest_length": _engine.SPR_L0,
+                                                   "damping": _engine.SPR_C}[short]
+        else:
+            out[name] = layout.force_offset(e) + _engine.FRC_F + "xyz".index(short[-1])
+    return out
+
+
+def alias_targets(sc, layout: TreeLayout, a) -> list[tuple[int, float, bool, str]]:
+    """Where scene parameter ``a`` writes: ``(column, factor, must be >= 0, target name)`` per target (a body's
+    parameter, or a spring's: ``spring.<parameter>`` in ``a.sets`` with the spring's index)."""
+    out = []
+    for i, pn, f in a.sets:
+        if pn.startswith("spring."):
+            short = pn[7:]
+            col = layout.spring_offset(i) + {"stiffness": _engine.SPR_K, "rest_length": _engine.SPR_L0,
+                                             "damping": _engine.SPR_C}[short]
+            out.append((col, f, True, f"{sc.springs[i].name}.{short}"))
+        else:
+            out.append((layout.body_offset(i) + _BODY_COLS[pn], f, pn in NONNEGATIVE_PARAMS,
+                        f"{sc.tree[i].name}.{pn}"))
+    return out
+
+
+def tree_layout(sc) -> TreeLayout:
+    """The engine layout of a tree scene (cached with the scene's tables)."""
+    return _scene_tables(sc)[0]
 
 
 #: A scene's engine layout, variable table and output names, built once per Scene object (a Scene is frozen; the
@@ -207,8 +294,10 @@ def _scene_tables(sc) -> tuple:
     if hit is not None and hit[0]() is sc:
         return hit[1:]
     names = tree_output_names(sc)
-    tables = (weakref.ref(sc), TreeLayout(sc.tree, sc.couplings, sc.orbit), tree_variables(sc), tuple(names),
-              {n: i for i, n in enumerate(names)})
+    layout = TreeLayout(sc.tree, sc.couplings, sc.orbit, springs=sc.springs, forces=sc.forces,
+                        gravity_dir=sc.gravity_dir)
+    tables = (weakref.ref(sc), layout, tree_variables(sc), tuple(names), {n: i for i, n in enumerate(names)},
+              element_columns(sc, layout))
     _TABLES[key] = tables
     weakref.finalize(sc, _TABLES.pop, key, None)
     return tables[1:]
@@ -243,7 +332,7 @@ class TreeKernel:
     def setup(self) -> None:
         """The model's engine rows for the scene's tree (``systems`` copies of it)."""
         sc = self.scene
-        self.layout, variables, self._out_names, self._out_index = _scene_tables(sc)
+        self.layout, variables, self._out_names, self._out_index, self._element_cols = _scene_tables(sc)
         self.variables = dict(variables)
         self.body_names = sc.body_names
         self.n_bodies = len(self.body_names)
@@ -296,9 +385,11 @@ class TreeKernel:
             return [(_engine.TP_ORBIT_R, 1.0)]
         if name in self._alias_names:
             a = self.scene.aliases[self._alias_names.index(name)]
-            return [(self.layout.body_offset(bi) + _BODY_COLS[pn], f) for bi, pn, f in a.sets]
+            return [(col, f) for col, f, _, _ in alias_targets(self.scene, self.layout, a)]
         if name in self.scene.coupling_names:
             return [(self.layout.body_offset(self.n_bodies) + self.scene.coupling_names.index(name), 1.0)]
+        if name in self._element_cols:
+            return [(self._element_cols[name], 1.0)]
         bi, short = self.scene.split_name(name)
         return [(self.layout.body_offset(bi) + _BODY_COLS[short], 1.0)]
 

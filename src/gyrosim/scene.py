@@ -68,13 +68,14 @@ from .errors import ConfigError
 __all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
 
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
-                   "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels")
+                   "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels", "mass_spring_chain",
+                   "triatomic")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact", "strang_exact",
                "yoshida_exact", "bm4_exact", "bm6_exact")
 G_DEFAULT = 9.81
 
 _SCENE_KEYS = ("name", "description", "integrator", "max_step", "max_drift", "tolerance", "output_interval",
-               "stop_time", "g", "orbit")
+               "stop_time", "g", "gravity", "orbit")
 _BODY_KEYS = ("name", "count", "inertia", "mass", "cm_distance", "damping", "torque_input", "attitude", "rates",
               "spread")
 _SHAPES = {"sphere": ("mass", "radius"), "cylinder": ("mass", "radius", "height"),
@@ -141,6 +142,23 @@ class Scene:
     systems: int = 1
     #: a tree's orbit about a central body (core.tree.Orbit, ``[scene.orbit]``), or None
     orbit: object | None = None
+    #: a tree's elements: springs between bodies (core.tree.Spring) and force inputs (core.tree.Force)
+    springs: tuple = ()
+    forces: tuple = ()
+    #: gravity's direction (unit, world; g is its magnitude): -z unless the scene's ``gravity`` turns it
+    gravity_dir: tuple = (0.0, 0.0, -1.0)
+
+    def element_variables(self) -> dict:
+        """The elements' variables by full name -> ``(kind, element index, short name)``: a spring's parameters
+        ``<spring>.stiffness``, ``.rest_length``, ``.damping``; a force's inputs ``<body>.<force>.f_x..z``."""
+        out = {}
+        for e, sp in enumerate(self.springs):
+            for k in ("stiffness", "rest_length", "damping"):
+                out[f"{sp.name}.{k}"] = ("spring", e, k)
+        for e, f in enumerate(self.forces):
+            for c in "xyz":
+                out[self.var_name(self.tree[f.body].name, f"{f.name}.f_{c}")] = ("force", e, f"f_{c}")
+        return out
 
     @property
     def kernel(self) -> str:
@@ -238,7 +256,11 @@ class Scene:
                  else "gravity gradient and central force on Kepler orbits")
         return names, [t for t, on in (("gravity", self.g > 0), ("joint damping", self.damping),
                                        ("motor and torque inputs", self.torque),
-                                       ("springs", bool(self.couplings) or any(b.stiffness > 0 for b in self.tree)),
+                                       ("springs", bool(self.couplings) or bool(self.springs) or
+                                        any(b.stiffness > 0 or np.any(b.ball_stiffness > 0) for b in self.tree)),
+                                       ("joint stops", any(b.lower is not None or b.upper is not None
+                                                           for b in self.tree)),
+                                       ("force inputs", bool(self.forces)),
                                        (orbit, self.orbit is not None)) if on]
 
     def to_dict(self) -> dict:
@@ -280,6 +302,8 @@ class Scene:
 
         body, _, short = name.rpartition(".")
         names = self.body_names
+        if body and body not in names and name in self.element_variables():
+            return None, name
         if body:
             return names.index(body), short
         if len(names) == 1 and short in BODY_VARIABLES:
@@ -536,7 +560,8 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     ConfigError
         Naming the source, the key, the value and what is allowed; unknown keys get a "did you mean".
     """
-    _check_keys(data, ("scene", "body", "sweep", "coupling", "parameters"), source)  # [sweep]: `gyrosim sweep`
+    _check_keys(data, ("scene", "body", "sweep", "coupling", "parameters", "spring", "force"), source)
+    # [sweep]: `gyrosim sweep`
     sc = data.get("scene", {})
     if not isinstance(sc, dict):
         raise ConfigError("scene", sc, "a table [scene]", where=source)
@@ -550,8 +575,16 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
         every = INTEGRATORS + tuple(i for i in TREE_INTEGRATORS if i not in INTEGRATORS)
         raise ConfigError("integrator", integ, _suggest(str(integ), every), where=where)
     g = _num(sc, "g", where, G_DEFAULT, lo=0.0)
-    if _tree_syntax(data):
-        return _tree_scene(data, sc, name, integ, g, where, source)
+    gdir = (0.0, 0.0, -1.0)
+    if "gravity" in sc:
+        if "g" in sc:
+            raise ConfigError("g", sc["g"], "left out where gravity is given (g is gravity's magnitude)", where=where)
+        gv = _vec(sc, "gravity", 3, where)
+        g = float(np.linalg.norm(gv))
+        if g > 0 and not np.allclose(gv / g, gdir, rtol=0.0, atol=0.0):
+            gdir = tuple(float(x) for x in gv / g)
+    if _tree_syntax(data) or gdir != (0.0, 0.0, -1.0):
+        return _tree_scene(data, sc, name, integ, g, where, source, gdir)
     bodies_tbl = data.get("body")
     if not isinstance(bodies_tbl, list) or not bodies_tbl:
         raise ConfigError("body", bodies_tbl, "at least one [[body]] table", where=source)
@@ -594,7 +627,8 @@ def _tree_syntax(data: dict) -> bool:
 
     bodies = data.get("body")
     sc = data.get("scene")
-    return ("coupling" in data or "parameters" in data or (isinstance(sc, dict) and "orbit" in sc) or
+    return ("coupling" in data or "parameters" in data or "spring" in data or "force" in data or
+            (isinstance(sc, dict) and "orbit" in sc) or
             (isinstance(bodies, list) and any(isinstance(b, dict) and any(k in b for k in TREE_KEYS) for b in bodies)))
 
 
@@ -618,6 +652,8 @@ def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -
     b, tbl = bodies[0], data["body"][0]
     if b.parent != -1 or b.joint not in ("free_rotation", "ball") or np.any(b.pos != 0.0):
         return None
+    if not np.array_equal(b.rotation, [1.0, 0.0, 0.0, 0.0]) or np.any(b.ball_stiffness) or np.any(b.ball_damping):
+        return None  # a placement, a ball spring or damping per axis: the tree engine's terms
     J = np.asarray(b.inertia, dtype=float)
     if np.any(J != np.diag(np.diag(J))) or b.cm[0] != 0.0 or b.cm[1] != 0.0:
         return None
@@ -632,13 +668,19 @@ def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -
     return body, terms
 
 
-def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
+def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) -> Scene:
     from .scene_tree import orbit_from_dict, tree_from_dict
 
-    bodies, couplings, cnames, aliases = tree_from_dict(data, source)
+    bodies, couplings, cnames, aliases, springs, forces = tree_from_dict(data, source)
     orbit = orbit_from_dict(sc["orbit"], bodies, f"{where}.orbit") if "orbit" in sc else None
-    # a tree-only integrator keeps a tree of one body on the tree engine
-    one = _one_body_kernel(data, bodies, couplings, aliases, orbit, g, source) if integ in INTEGRATORS else None
+    names = [b.name for b in bodies]
+    for nm in cnames:
+        if nm in names or nm in [e.name for e in springs + forces]:
+            raise ConfigError("name", nm, "a coupling name no body, spring or force of the scene has", where=source)
+    # a tree-only integrator keeps a tree of one body on the tree engine; so do elements and a turned gravity
+    plain = not springs and not forces and gdir == (0.0, 0.0, -1.0)
+    one = (_one_body_kernel(data, bodies, couplings, aliases, orbit, g, source) if integ in INTEGRATORS and plain
+           else None)
     if one is not None:  # a tree of one body that Euler's equations describe: the one-body kernel
         body, terms = one
         return _one_body_scene(name, (body,), terms, integ, g, sc, where, source)
@@ -647,14 +689,14 @@ def _tree_scene(data, sc, name, integ, g, where, source) -> Scene:
                           f"integrated by the tree engine ('{integ}' solves one body)", where=where)
     return Scene(
         name=name, bodies=(), gravity=g > 0, damping=any(b.damping > 0 for b in bodies),
-        torque=any(b.torque_input or b.motor_input for b in bodies), integrator=integ,
+        torque=any(b.torque_input or b.motor_input for b in bodies) or bool(forces), integrator=integ,
         max_step=_num(sc, "max_step", where, 1e-3, lo=0.0, lo_open=True),
         max_drift=_num(sc, "max_drift", where, _engine.MAX_DRIFT, lo=0.0, lo_open=False),
         tolerance=_tolerance(sc, where),
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source, tree=bodies, couplings=couplings,
-        coupling_names=cnames, aliases=aliases, orbit=orbit)
+        coupling_names=cnames, aliases=aliases, orbit=orbit, springs=springs, forces=forces, gravity_dir=gdir)
 
 
 def full_scene() -> Scene:

@@ -61,7 +61,14 @@ __all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "BODY_VA
 
 _TREE_BODY_KEYS = ("name", "parent", "joint", "position", "axis", "mass", "cm", "cm_distance", "inertia",
                    "stiffness", "rest_angle", "joint_damping", "damping", "motor_input", "torque_input", "attitude",
-                   "rates", "angle", "rate", "r", "v")
+                   "rates", "angle", "rate", "r", "v", "rotation", "displacement", "velocity", "rest_displacement",
+                   "lower", "upper", "stop", "restitution", "stop_stiffness", "stop_damping")
+_SPRING_KEYS = ("name", "body_a", "point_a", "body_b", "point_b", "stiffness", "rest_length", "damping")
+_FORCE_KEYS = ("name", "body", "point", "frame")
+#: The stops' default spring-damper: a critically damped contact of time constant STOP_TIME (s) for the joint's
+#: inertia M (its subtree's moment about the axis, or its mass for a slider, at the joint's zero): k = M / tau^2,
+#: c = 2 M / tau.
+STOP_TIME = 0.01
 
 #: The keys of a [parameters.NAME] table: its range's bounds after the rest.
 _RANGE_KEYS = ("min", "max", "exclusive_min", "exclusive_max")
@@ -88,11 +95,27 @@ HINGE_PARAMS = {
     "rest_angle": ("rad", "hinge spring rest angle"),
     "joint_damping": ("N.m.s/rad", "hinge viscous damping"),
 }
+SLIDER_PARAMS = {
+    "stiffness": ("N/m", "slider spring stiffness about rest_displacement"),
+    "rest_displacement": ("m", "slider spring rest displacement"),
+    "joint_damping": ("N.s/m", "slider viscous damping"),
+}
 BALL_PARAMS = {"damping": ("N.m.s", "viscous torque -damping*omega (relative to the parent)")}
+#: A ball's spring (where the scene gives one) and its damping per axis (where given per axis).
+BALL_SPRING_PARAMS = {f"stiffness_{c}": ("N.m/rad", f"ball spring stiffness about body {c} (the potential "
+                                         "1/2 phi^T K phi, phi the rotation vector from the joint's zero)")
+                      for c in "xyz"}
+BALL_DAMPING_PARAMS = {f"joint_damping_{c}": ("N.m.s/rad", f"ball viscous damping about body {c}") for c in "xyz"}
+#: A hinge's or slider's stops (where the scene gives them); units (rad or m) set per joint.
+STOP_PARAMS = ("lower", "upper", "stop_stiffness", "stop_damping")
 #: The body parameters that must be >= 0 (point masses and massless gimbals are allowed: a tree body may have 0).
-NONNEGATIVE_PARAMS = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping")
+NONNEGATIVE_PARAMS = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping", "stiffness_x", "stiffness_y",
+                      "stiffness_z", "joint_damping_x", "joint_damping_y", "joint_damping_z", "stop_stiffness",
+                      "stop_damping")
 #: The short names of a body's own variables (a body's part of a name under Scene.var_name's rule).
-BODY_VARIABLES = frozenset({*BODY_PARAMS, *HINGE_PARAMS, *BALL_PARAMS, "motor_torque", "tau_x", "tau_y", "tau_z",
+BODY_VARIABLES = frozenset({*BODY_PARAMS, *HINGE_PARAMS, *SLIDER_PARAMS, *BALL_PARAMS, *BALL_SPRING_PARAMS,
+                            *BALL_DAMPING_PARAMS, *STOP_PARAMS, "motor_torque", "motor_force", "tau_x", "tau_y",
+                            "tau_z",
                             *(c for cs in JOINT_COORDS.values() for c in cs), *BODY_OUTPUTS, *ORBIT_BODY_OUTPUTS})
 
 
@@ -197,10 +220,16 @@ def _tree_body(tbl, index, names, where):
         raise ConfigError("joint", joint, s._suggest(str(joint), list(JOINTS)), where=where)
     if joint == "free" and pi != -1:
         raise ConfigError("joint", joint, "'free' on a root only (parent = 'world')", where=where)
-    only = {"axis": ("hinge",), "stiffness": ("hinge",), "rest_angle": ("hinge",), "joint_damping": ("hinge",),
-            "motor_input": ("hinge",), "angle": ("hinge",), "rate": ("hinge",),
-            "damping": ("ball", "free_rotation", "free"), "attitude": ("ball", "free_rotation", "free"),
-            "rates": ("ball", "free_rotation", "free"), "r": ("free",), "v": ("free",)}
+    balls = ("ball", "free_rotation", "free")
+    only = {"axis": ("hinge", "slider"), "stiffness": ("hinge", "slider", "ball", "free_rotation"),
+            "rest_angle": ("hinge",), "joint_damping": ("hinge", "slider", "ball", "free_rotation"),
+            "motor_input": ("hinge", "slider"), "angle": ("hinge",), "rate": ("hinge",),
+            "displacement": ("slider",), "velocity": ("slider",), "rest_displacement": ("slider",),
+            "lower": ("hinge", "slider"), "upper": ("hinge", "slider"), "stop": ("hinge", "slider"),
+            "restitution": ("hinge", "slider"), "stop_stiffness": ("hinge", "slider"),
+            "stop_damping": ("hinge", "slider"),
+            "damping": balls, "attitude": balls, "rates": balls, "r": ("free",), "v": ("free",),
+            "rotation": ("ball", "free_rotation", "hinge", "slider", "fixed")}
     for k, joints in only.items():
         if k in tbl and joint not in joints:
             hint = " (a hinge takes joint_damping)" if k == "damping" else ""
@@ -229,12 +258,20 @@ def _tree_body(tbl, index, names, where):
     cm = s._vec(tbl, "cm", 3, where) if "cm" in tbl else np.array([0.0, 0.0, cm_d])
     if cm_d and not mass > 0:
         raise ConfigError("mass", tbl.get("mass"), "a number > 0 for a body with cm_distance", where=where)
+    one = joint in ("hinge", "slider")
     kw = dict(name=name, parent=pi, joint=joint, pos=pos, axis=axis, mass=float(mass), cm=cm, inertia=J,
-              stiffness=s._num(tbl, "stiffness", where, 0.0, lo=0.0),
-              rest_angle=s._num(tbl, "rest_angle", where, 0.0),
-              damping=s._num(tbl, "joint_damping" if joint == "hinge" else "damping", where, 0.0, lo=0.0),
+              stiffness=s._num(tbl, "stiffness", where, 0.0, lo=0.0) if one else 0.0,
+              rest_angle=s._num(tbl, "rest_displacement" if joint == "slider" else "rest_angle", where, 0.0),
+              damping=s._num(tbl, "joint_damping", where, 0.0, lo=0.0) if one else 0.0,
               motor_input=_bool(tbl, "motor_input", where), torque_input=_bool(tbl, "torque_input", where),
-              angle0=s._num(tbl, "angle", where, 0.0), rate0=s._num(tbl, "rate", where, 0.0))
+              angle0=s._num(tbl, "displacement" if joint == "slider" else "angle", where, 0.0),
+              rate0=s._num(tbl, "velocity" if joint == "slider" else "rate", where, 0.0))
+    if joint in ("ball", "free_rotation", "free"):
+        kw.update(_ball_spring_damping(tbl, joint, where))
+    if "rotation" in tbl:
+        kw["rotation"] = _rotation(tbl["rotation"], where)
+    if one:
+        kw.update(_stops(tbl, joint, where))
     if "r" in tbl:
         kw["r0"] = s._vec(tbl, "r", 3, where)
     if "v" in tbl:
@@ -243,7 +280,209 @@ def _tree_body(tbl, index, names, where):
     return TreeBody(**kw)
 
 
-_ALIAS_TARGETS = tuple(BODY_PARAMS) + tuple(HINGE_PARAMS) + tuple(BALL_PARAMS)
+def _vec_or_scalar(tbl, key, where, unit):
+    """A key given as one number (every axis) or 3 (per body axis), each >= 0: ``(values (3,), per_axis)``."""
+    s = _h()
+    v = tbl[key]
+    if isinstance(v, list):
+        x = s._vec(tbl, key, 3, where)
+        per_axis = True
+    else:
+        x = np.full(3, s._num(tbl, key, where, 0.0))
+        per_axis = False
+    if not (np.all(np.isfinite(x)) and np.all(x >= 0)):
+        raise ConfigError(key, v, f"a number >= 0 or 3 of them (per body axis) in {unit}", where=where)
+    return x, per_axis
+
+
+def _ball_spring_damping(tbl, joint, where) -> dict:
+    """A ball's spring (``stiffness``: one number or 3, N*m/rad) and damping (``joint_damping`` or ``damping``: one
+    number, the isotropic ``damping``, or 3 per body axis)."""
+    out = {}
+    if "stiffness" in tbl:
+        if joint == "free":
+            raise ConfigError("stiffness", tbl["stiffness"], "left out of a free joint (a ball's spring pulls "
+                              "towards the joint's zero; a free root has none)", where=where)
+        out["ball_stiffness"], _ = _vec_or_scalar(tbl, "stiffness", where, "N*m/rad")
+    if "joint_damping" in tbl and "damping" in tbl:
+        raise ConfigError("joint_damping", tbl["joint_damping"], "left out where damping is given (the two keys "
+                          "mean the same on a ball joint)", where=where)
+    key = "joint_damping" if "joint_damping" in tbl else "damping"
+    if key in tbl:
+        x, per_axis = _vec_or_scalar(tbl, key, where, "N*m*s/rad")
+        if per_axis and joint == "free":
+            raise ConfigError(key, tbl[key], "one number (N*m*s) on a free joint: the torque -damping*omega",
+                              where=where)
+        if per_axis:
+            out["ball_damping"] = x
+        else:
+            out["damping"] = float(x[0])
+    return out
+
+
+def _rotation(spec, where) -> np.ndarray:
+    """A joint's placement: ``{quaternion = [w, x, y, z]}`` (normalised) or ``{zyz = [phi, theta, psi]}`` (rad)."""
+    s = _h()
+    from .core.rotations import euler_zyz_to_quat
+
+    if not isinstance(spec, dict):
+        raise ConfigError("rotation", spec, "a table {quaternion = [w, x, y, z]} or {zyz = [phi, theta, psi]}",
+                          where=where)
+    w = f"{where}.rotation"
+    k = s._one_of(spec, ("quaternion", "zyz"), w)
+    v = s._vec(spec, k, 4 if k == "quaternion" else 3, w)
+    if k == "zyz":
+        return np.asarray(euler_zyz_to_quat(*v), dtype=float)
+    n = float(np.linalg.norm(v))
+    if not n > 0:
+        raise ConfigError("quaternion", spec[k], "a non-zero quaternion [w, x, y, z] (it is normalised)", where=w)
+    q = v / n
+    return q if q[0] >= 0 else -q
+
+
+def _stops(tbl, joint, where) -> dict:
+    """A hinge's or slider's stops: ``lower`` and/or ``upper`` (rad, m; lower < upper) with ``stop = "spring"``
+    and its ``stop_stiffness``, ``stop_damping`` (default: STOP_TIME's contact, set by the tree)."""
+    s = _h()
+    out = {}
+    unit = "m" if joint == "slider" else "rad"
+    for k in ("lower", "upper"):
+        if k in tbl:
+            out[k] = s._num(tbl, k, where, None)
+    for k in ("stop", "restitution", "stop_stiffness", "stop_damping"):
+        if k in tbl and not out:
+            raise ConfigError(k, tbl[k], f"left out without lower or upper (the stops it sets, {unit})", where=where)
+    if "lower" in out and "upper" in out and not out["lower"] < out["upper"]:
+        raise ConfigError("upper", out["upper"], f"a number above lower = {out['lower']!r} {unit}", where=where)
+    stop = tbl.get("stop", "spring")
+    if stop not in ("spring", "impact"):
+        raise ConfigError("stop", stop, "'spring' (a stiff spring-damper) or 'impact'", where=where)
+    if stop == "impact" or "restitution" in tbl:
+        raise ConfigError("stop", stop if stop == "impact" else tbl.get("restitution"),
+                          "'spring': impact stops (an event located to round-off, with a coefficient of "
+                          "restitution) are not built yet", where=where)
+    for k in ("stop_stiffness", "stop_damping"):
+        if k in tbl:
+            out[k] = s._num(tbl, k, where, None, lo=0.0)
+    return out
+
+
+def stop_defaults(bodies: list) -> list:
+    """The bodies with their stops' default spring-damper (STOP_TIME's critically damped contact) where the scene
+    gave none: M the joint's inertia with its subtree at the joint's zero (a hinge: the subtree's moment about the
+    axis through the joint point; a slider: the subtree's mass)."""
+    out = list(bodies)
+    for i, b in enumerate(bodies):
+        if b.lower is None and b.upper is None:
+            continue
+        M = _joint_inertia(bodies, i)
+        k, c = M / STOP_TIME ** 2, 2.0 * M / STOP_TIME
+        out[i] = replace(b, stop_stiffness=b.stop_stiffness if b.stop_stiffness else k,
+                         stop_damping=b.stop_damping if b.stop_damping else c)
+    return out
+
+
+def _joint_inertia(bodies, i) -> float:
+    """Body i's joint inertia with its subtree at every joint's zero (placements included): the moment about the
+    hinge axis through the joint point, or the mass moved by a slider."""
+    from .core.rotations import quat_to_matrix
+
+    frames = {i: (np.eye(3), np.zeros(3))}   # body -> (R to body i's frame, its origin there)
+    M = 0.0
+    a = np.asarray(bodies[i].axis, dtype=float)
+    R0 = quat_to_matrix(bodies[i].rotation)
+    a = R0.T @ a   # the axis in body i's frame
+    for j in range(i, len(bodies)):
+        b = bodies[j]
+        if j != i:
+            if b.parent not in frames:
+                continue
+            Rp, op = frames[b.parent]
+            frames[j] = (Rp @ quat_to_matrix(b.rotation), op + Rp @ np.asarray(b.pos, dtype=float))
+        R, o = frames[j]
+        if bodies[i].joint == "slider":
+            M += b.mass
+            continue
+        c = o + R @ np.asarray(b.cm, dtype=float)
+        Jc = R @ np.asarray(b.inertia, dtype=float) @ R.T
+        M += float(a @ Jc @ a) + b.mass * float(c @ c - (a @ c) ** 2)
+    return M
+
+
+def springs_from_dict(data: dict, names: list, source: str) -> tuple:
+    """The ``[[spring]]`` elements: between a point of ``body_a`` and one of ``body_b`` (``world`` allowed, not
+    both), ``stiffness`` N/m, ``rest_length`` m, ``damping`` N*s/m, all >= 0."""
+    from .core.tree import Spring
+
+    s = _h()
+    out = []
+    tl = data.get("spring", [])
+    if not isinstance(tl, list):
+        raise ConfigError("spring", tl, "[[spring]] tables", where=source)
+    for i, t in enumerate(tl):
+        w = f"{source} spring[{i}]"
+        if not isinstance(t, dict):
+            raise ConfigError("spring", t, "a table ([[spring]])", where=w)
+        s._check_keys(t, _SPRING_KEYS, w)
+        nm = t.get("name", "spring" if i == 0 else f"spring_{i}")
+        _element_name(nm, names, [x.name for x in out], w)
+        ends = []
+        for side in ("a", "b"):
+            bn = t.get(f"body_{side}", "world")
+            if bn != "world" and bn not in names:
+                raise ConfigError(f"body_{side}", bn, f"'world' or a body of the scene ({', '.join(names)})"
+                                  f"{s.did_you_mean(str(bn), names + ['world'])}", where=w)
+            pt = s._vec(t, f"point_{side}", 3, w) if f"point_{side}" in t else np.zeros(3)
+            ends.append((-1 if bn == "world" else names.index(bn), pt))
+        if ends[0][0] == ends[1][0]:
+            raise ConfigError("body_b", t.get("body_b", "world"), "a body other than body_a (a spring joins two "
+                              "bodies, or a body and the world)", where=w)
+        out.append(Spring(nm, ends[0][0], ends[0][1], ends[1][0], ends[1][1],
+                          stiffness=s._num(t, "stiffness", w, 0.0, lo=0.0),
+                          rest_length=s._num(t, "rest_length", w, 0.0, lo=0.0),
+                          damping=s._num(t, "damping", w, 0.0, lo=0.0)))
+    return tuple(out)
+
+
+def forces_from_dict(data: dict, names: list, taken: list, source: str) -> tuple:
+    """The ``[[force]]`` inputs: a force (N) at ``point`` (m, body frame) of ``body``, in the body's ``frame`` or
+    the ``world``'s; inputs ``<body>.<name>.f_x..z``."""
+    from .core.tree import Force
+
+    s = _h()
+    out = []
+    tl = data.get("force", [])
+    if not isinstance(tl, list):
+        raise ConfigError("force", tl, "[[force]] tables", where=source)
+    for i, t in enumerate(tl):
+        w = f"{source} force[{i}]"
+        if not isinstance(t, dict):
+            raise ConfigError("force", t, "a table ([[force]])", where=w)
+        s._check_keys(t, _FORCE_KEYS, w)
+        nm = t.get("name", "force" if i == 0 else f"force_{i}")
+        _element_name(nm, names, taken + [x.name for x in out], w)
+        bn = t.get("body")
+        if bn not in names:
+            raise ConfigError("body", bn, f"a body of the scene ({', '.join(names)})"
+                              f"{s.did_you_mean(str(bn), names)}", where=w)
+        frame = t.get("frame", "body")
+        if frame not in ("body", "world"):
+            raise ConfigError("frame", frame, "'body' (the force turns with the body: a thruster) or 'world'",
+                              where=w)
+        pt = s._vec(t, "point", 3, w) if "point" in t else np.zeros(3)
+        out.append(Force(nm, names.index(bn), pt, frame == "world"))
+    return tuple(out)
+
+
+def _element_name(nm, bodies, taken, where):
+    if not isinstance(nm, str) or not nm or not all(c.isalnum() or c in "_-" for c in nm):
+        raise ConfigError("name", nm, "a non-empty name of letters, digits, '_' and '-' (it names variables)",
+                          where=where)
+    if nm in bodies or nm in taken:
+        raise ConfigError("name", nm, "a name no body, spring or force of the scene has", where=where)
+
+
+_ALIAS_TARGETS = tuple(BODY_PARAMS) + tuple(HINGE_PARAMS) + tuple(SLIDER_PARAMS) + tuple(BALL_PARAMS)
 
 
 def body_with(b: TreeBody, param: str, x: float) -> TreeBody:
@@ -262,12 +501,19 @@ def body_with(b: TreeBody, param: str, x: float) -> TreeBody:
         return replace(b, **{head: v})
     if param in ("joint_damping", "damping"):
         return replace(b, damping=x)
+    if param == "rest_displacement":
+        return replace(b, rest_angle=x)
     return replace(b, **{param: x})
 
 
+#: The spring parameters a scene parameter may set (``"<spring>.stiffness" = factor``): the target's parameter is
+#: named ``spring.<parameter>`` in Alias.sets, with the spring's index.
+_SPRING_TARGETS = ("stiffness", "rest_length", "damping")
+
+
 def tree_from_dict(data: dict, source: str):
-    """The tree's bodies, couplings and aliases from a parsed scene: ``(bodies, couplings, coupling names,
-    aliases)``; raises :class:`ConfigError` naming the key, the value and what is allowed."""
+    """The tree's bodies, couplings, aliases and elements from a parsed scene: ``(bodies, couplings, coupling names,
+    aliases, springs, forces)``; raises :class:`ConfigError` naming the key, the value and what is allowed."""
     s = _h()
     bodies_tbl = data.get("body")
     if not isinstance(bodies_tbl, list) or not bodies_tbl:
@@ -309,6 +555,9 @@ def tree_from_dict(data: dict, source: str):
                                   where=w)
         couplings.append((ia, ib, s._num(c, "stiffness", w, 0.0, lo=0.0)))
         cnames.append(nm)
+    springs = list(springs_from_dict(data, names, source))
+    forces = forces_from_dict(data, names, [x.name for x in springs], source)
+    snames = [x.name for x in springs]
     aliases = []
     pt = data.get("parameters", {})
     if not isinstance(pt, dict):
@@ -327,15 +576,20 @@ def tree_from_dict(data: dict, source: str):
         targets = []
         for tgt, f in sets.items():
             bn, _, pn = str(tgt).partition(".")
-            if bn not in names or pn not in _ALIAS_TARGETS:
+            if bn in snames and pn in _SPRING_TARGETS:
+                target = (snames.index(bn), f"spring.{pn}")
+            elif bn not in names or pn not in _ALIAS_TARGETS:
                 raise ConfigError("sets", tgt, f"<body>.<parameter> with a body of the scene and a parameter of "
-                                  f"{', '.join(_ALIAS_TARGETS)}", where=w)
+                                  f"{', '.join(_ALIAS_TARGETS)}, or <spring>.<parameter> with a parameter of "
+                                  f"{', '.join(_SPRING_TARGETS)}", where=w)
+            else:
+                target = (names.index(bn), pn)
             if isinstance(f, bool) or not isinstance(f, (int, float)) or not math.isfinite(f):
                 raise ConfigError(str(tgt), f, "a finite factor", where=w)
-            targets.append((names.index(bn), pn, float(f)))
+            targets.append((*target, float(f)))
         rng = declared
         for _, pn, f in targets:  # a target that must be >= 0: the parameter on the side its factor allows
-            if pn in NONNEGATIVE_PARAMS and f != 0.0:
+            if (pn in NONNEGATIVE_PARAMS or pn.startswith("spring.")) and f != 0.0:
                 rng = rng.intersect(NONNEGATIVE if f > 0 else Range(max=0.0))
         if rng.empty:
             rules = ", ".join(f"{names[bi]}.{pn} >= 0" for bi, pn, _ in targets if pn in NONNEGATIVE_PARAMS)
@@ -349,8 +603,11 @@ def tree_from_dict(data: dict, source: str):
             raise ConfigError("value", value, f"{rng.text(unit)}: it sets {bad}, which must be >= 0", where=w)
         aliases.append(Alias(an, value, unit, str(spec.get("description", "")), tuple(targets), rng))
         for bi, pn, f in targets:
-            bodies[bi] = body_with(bodies[bi], pn, f * value)
-    return tuple(bodies), tuple(couplings), tuple(cnames), tuple(aliases)
+            if pn.startswith("spring."):
+                springs[bi] = replace(springs[bi], **{pn[7:]: f * value})
+            else:
+                bodies[bi] = body_with(bodies[bi], pn, f * value)
+    return tuple(stop_defaults(bodies)), tuple(couplings), tuple(cnames), tuple(aliases), tuple(springs), forces
 
 
 def _declared_range(spec: dict, where: str, unit: str) -> Range:

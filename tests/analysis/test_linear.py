@@ -311,6 +311,11 @@ def _closed_form_point(name):
             k = int(np.argmax(b.axis))
             Ip[k] -= b.inertia[k, k]
         return Model(name), "equilibrium", _gyrostat_librations(sc.orbit.rate, I, Ip), 1e-9
+    if name == "mass_spring_chain":  # three masses between walls (m = k = 1): w^2 = 2 - sqrt 2, 2, 2 + sqrt 2
+        return Model(name), "equilibrium", [math.sqrt(2 - math.sqrt(2)), math.sqrt(2), math.sqrt(2 + math.sqrt(2))], \
+            1e-12
+    if name == "triatomic":  # ends m = 16, middle M = 12, k = 1: sqrt(k/m), sqrt(k/m (1 + 2m/M)) (and the translation)
+        return Model(name), "equilibrium", [0.25, 0.25 * math.sqrt(1 + 32 / 12)], 1e-12
     raise AssertionError(f"no closed form for {name}: add one")
 
 

@@ -184,8 +184,9 @@ def test_body_directional_is_the_one_body_tree_complex_step(lib):
     desc = np.array([1, 0, -1, _engine.J_BALL], dtype=np.int32)
     _, ty_n, tp_n, _ = _engine.tree_info(desc)
     tp, ty = np.zeros(tp_n), np.zeros(ty_n)
-    tp[_engine.TP_G], tp[_engine.TP_DRIFT] = sc.g, sc.max_drift
+    tp[_engine.TP_G], tp[_engine.TP_DRIFT], tp[_engine.TP_GDIR + 2] = sc.g, sc.max_drift, -1.0
     bp, mass, dist = _engine.TP_HEAD, body.mass, body.cm_distance
+    tp[bp + _engine.TB_ROT] = 1.0
     tp[bp + _engine.TB_AXIS + 2], tp[bp + _engine.TB_MASS], tp[bp + _engine.TB_CM + 2] = 1.0, mass, dist
     tp[bp + _engine.TB_I] = body.moments[0] - mass * dist * dist
     tp[bp + _engine.TB_I + 1] = body.moments[1] - mass * dist * dist

@@ -38,6 +38,14 @@ Conventions (the contract)
 * Generalized forces use the joint's velocity coordinates: ball ``torque`` (3,) in the child frame; hinge scalar
   ``torque`` about the axis; free ``torque`` (3,) in the child frame and ``force`` (3,) in the parent frame, applied
   at the child origin. The reaction acts on the parent.
+* Sliders (``slider``): one translation along ``axis`` (parent frame), state ``angle`` (the displacement, m) and
+  ``rate`` (m/s), generalized force ``torque`` (the force along the axis, N): Pinocchio's
+  ``JointModelPrismaticUnaligned``.
+* A body's optional ``rotation`` (4,) quaternion turns its joint frame in the parent's (the child's frame at the
+  joint's zero): Pinocchio's joint placement gets that rotation, and the joint's axis is given to it in the joint
+  frame (``Q^T axis``).
+* ``gravity`` may be a 3-vector (world) instead of a magnitude along -z.
+* ``point_forces`` of :func:`forward_dynamics`: ``(body, point (3,) body frame, force (3,), world)`` forces at points.
 * Springs, damping and couplings (optional keys of a body; :func:`joint_forces` turns them into generalized forces,
   :func:`spring_energy` gives their potential): a hinge's ``stiffness`` k (N*m/rad) about its ``rest_angle``
   and its ``damping`` c (N*m*s/rad) give ``tau = -k (angle - rest_angle) - c rate`` (plus a motor torque); a ball's
@@ -69,7 +77,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-JOINTS = ("ball", "free_rotation", "hinge", "free", "fixed")
+JOINTS = ("ball", "free_rotation", "hinge", "free", "fixed", "slider")
 """The joint kinds of the contract."""
 
 _SPHERICAL = ("ball", "free_rotation")
@@ -151,9 +159,12 @@ def _joint_model(body: dict):
     kind = body["joint"]
     if kind in _SPHERICAL:
         return pin.JointModelSpherical()
-    if kind == "hinge":
+    if kind in ("hinge", "slider"):
         axis = np.asarray(body["axis"], dtype=float)
-        return pin.JointModelRevoluteUnaligned(axis / np.linalg.norm(axis))
+        axis = quat_to_matrix(body.get("rotation", (1.0, 0.0, 0.0, 0.0))).T @ (axis / np.linalg.norm(axis))
+        if kind == "slider":
+            return pin.JointModelPrismaticUnaligned(axis)
+        return pin.JointModelRevoluteUnaligned(axis)
     if kind == "free":
         return pin.JointModelFreeFlyer()
     if kind == "fixed":
@@ -184,7 +195,8 @@ def build_model(bodies: list[dict], g: float = 9.81) -> tuple[pin.Model, list[_S
         If a parent does not come before its child, or a joint kind is unknown.
     """
     model = pin.Model()
-    model.gravity = pin.Motion(np.array([0.0, 0.0, -g]), np.zeros(3))
+    gv = np.array([0.0, 0.0, -g]) if np.ndim(g) == 0 else np.asarray(g, dtype=float)
+    model.gravity = pin.Motion(gv, np.zeros(3))
     slots: list[_Slot] = []
     for i, body in enumerate(bodies):
         parent = int(body["parent"])
@@ -195,7 +207,8 @@ def build_model(bodies: list[dict], g: float = 9.81) -> tuple[pin.Model, list[_S
         else:
             parent_joint, parent_placement = slots[parent].joint_id, slots[parent].placement
         # the joint frame: the parent's body frame translated to the joint point (same orientation)
-        placement = parent_placement * pin.SE3(np.eye(3), np.asarray(body["pos"], dtype=float))
+        rot = quat_to_matrix(body.get("rotation", (1.0, 0.0, 0.0, 0.0)))
+        placement = parent_placement * pin.SE3(rot, np.asarray(body["pos"], dtype=float))
         inertia = pin.Inertia(
             float(body["mass"]), np.asarray(body["cm"], dtype=float), np.asarray(body["inertia"], dtype=float)
         )
@@ -242,7 +255,7 @@ def _pack(bodies: list[dict], model: pin.Model, slots: list[_Slot], state: list[
             q[iq : iq + 4] = _quat_to_pin(s["q"])
             v[iv : iv + 3] = s["omega"]
             t[iv : iv + 3] = f.get("torque", np.zeros(3))
-        elif kind == "hinge":
+        elif kind in ("hinge", "slider"):
             q[iq] = s["angle"]
             v[iv] = s["rate"]
             t[iv] = f.get("torque", 0.0)
@@ -268,8 +281,40 @@ def _external_forces(model: pin.Model, slots: list[_Slot], body_torque) -> list:
     return fext
 
 
+def _point_forces(model, data, slots, q, point_forces) -> list:
+    """Pinocchio's ``fext`` (joint frames) of forces at points of bodies: ``(body, point, force, world)``."""
+    pin.forwardKinematics(model, data, q)
+    fext = [pin.Force.Zero() for _ in range(model.njoints)]
+    for i, pt, f, world in point_forces:
+        slot = slots[i]
+        R_body = data.oMi[slot.joint_id].rotation @ slot.placement.rotation   # body -> world
+        fb = R_body.T @ np.asarray(f, dtype=float) if world else np.asarray(f, dtype=float)
+        # (force; torque about the body origin) in the body frame, moved into the joint's frame
+        fext[slot.joint_id] += slot.placement.act(pin.Force(fb, np.cross(np.asarray(pt, dtype=float), fb)))
+    return fext
+
+
+def world_points(bodies: list[dict], g, state: list[dict], points) -> list:
+    """World position and velocity of points ``(body, point in its frame)`` (body -1: the world), by Pinocchio."""
+    model, slots = build_model(bodies, g)
+    data = model.createData()
+    q, v, _ = _pack(bodies, model, slots, state)
+    pin.forwardKinematics(model, data, q, v)
+    out = []
+    for i, pt in points:
+        pt = np.asarray(pt, dtype=float)
+        if i < 0:
+            out.append((pt, np.zeros(3)))
+            continue
+        slot = slots[i]
+        oMb = data.oMi[slot.joint_id] * slot.placement
+        vel = slot.placement.actInv(data.v[slot.joint_id])   # the body's spatial velocity, body frame
+        out.append((oMb.act(pt), oMb.rotation @ (vel.linear + np.cross(vel.angular, pt))))
+    return out
+
+
 def forward_dynamics(bodies: list[dict], g: float, state: list[dict], tau: list[dict] | None = None,
-                     body_torque: list | None = None) -> list:
+                     body_torque: list | None = None, point_forces=()) -> list:
     """Joint accelerations of a tree, in gyrosim's coordinates.
 
     Parameters
@@ -299,6 +344,11 @@ def forward_dynamics(bodies: list[dict], g: float, state: list[dict], tau: list[
     q, v, t = _pack(bodies, model, slots, state, tau)
     if not model.nv:
         ddq = np.zeros(0)
+    elif point_forces:
+        fext = _point_forces(model, data, slots, q, point_forces)
+        if body_torque is not None:
+            fext = [a + b for a, b in zip(fext, _external_forces(model, slots, body_torque))]
+        ddq = pin.aba(model, data, q, v, t, fext)
     elif body_torque is not None:
         ddq = pin.aba(model, data, q, v, t, _external_forces(model, slots, body_torque))
     else:
@@ -308,7 +358,7 @@ def forward_dynamics(bodies: list[dict], g: float, state: list[dict], tau: list[
         kind, iv = body["joint"], slot.idx_v
         if kind in _SPHERICAL:
             out.append(np.array(ddq[iv : iv + 3]))
-        elif kind == "hinge":
+        elif kind in ("hinge", "slider"):
             out.append(float(ddq[iv]))
         elif kind == "free":
             rot = quat_to_matrix(s["q"])
@@ -346,7 +396,8 @@ def energy(bodies: list[dict], g: float, state: list[dict]) -> float:
     potential = pin.computePotentialEnergy(model, data, q)
     # Pinocchio leaves out the bodies on the universe joint (a constant); add them so the value is complete
     world = model.inertias[0]
-    return float(kinetic + potential + world.mass * g * world.lever[2])
+    gv = np.array([0.0, 0.0, -g]) if np.ndim(g) == 0 else np.asarray(g, dtype=float)
+    return float(kinetic + potential - world.mass * gv @ world.lever)
 
 
 def joint_forces(bodies: list[dict], state: list[dict], couplings=(), motors=None) -> list[dict]:
@@ -608,6 +659,8 @@ def random_state(bodies: list[dict], rng: np.random.Generator) -> list[dict]:
             )
         elif kind == "fixed":
             state.append({})
+        elif kind == "slider":
+            state.append({"angle": float(rng.uniform(-1.0, 1.0)), "rate": float(rng.uniform(-2.0, 2.0))})
         else:
             raise ValueError(f"unknown joint {kind!r}; expected one of {JOINTS}")
     return state

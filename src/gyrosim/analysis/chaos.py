@@ -53,6 +53,8 @@ LEVELS = 2
 _SECTIONS = {
     "double_pendulum": ("upper.angle", 0.0, 1, ("lower.angle", "lower.rate")),
     "coupled_pendula": ("left.angle", 0.0, 1, ("right.angle", "right.rate")),
+    "mass_spring_chain": ("m1.velocity", 0.0, 1, ("m2.displacement", "m3.displacement")),
+    "triatomic": ("left.velocity", 0.0, 1, ("middle.displacement", "right.displacement")),
     "gimbal_gyroscope": ("inner.rate", 0.0, 1, ("inner.angle", "outer.rate")),
     "spacecraft": ("hub.omega_x", 0.0, 1, ("hub.omega_y", "hub.omega_z")),
     "cmg_spacecraft": ("hub.omega_x", 0.0, 1, ("hub.omega_y", "hub.omega_z")),

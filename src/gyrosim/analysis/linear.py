@@ -206,8 +206,10 @@ def one_body_tree(I1, I2, I3, mass, cm_distance, g, damping, tau, max_drift, q, 
     p = np.zeros(np_)
     p[_engine.TP_G] = g
     p[_engine.TP_DRIFT] = max_drift
+    p[_engine.TP_GDIR + 2] = -1.0
     b = _engine.TP_HEAD
     d = cm_distance
+    p[b + _engine.TB_ROT] = 1.0
     p[b + _engine.TB_AXIS + 2] = 1.0
     p[b + _engine.TB_MASS] = mass
     p[b + _engine.TB_CM + 2] = d

@@ -848,6 +848,11 @@ PyMODINIT_FUNC PyInit__engine(void) {
     {
         static const struct { const char *name; int value; } tc[] = {
             {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
+            {"J_SLIDER", GS_J_SLIDER}, {"TB_ROT", GS_TB_ROT}, {"TB_KB", GS_TB_KB}, {"TB_CB", GS_TB_CB},
+            {"TB_LIM", GS_TB_LIM}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
+            {"TB_STOP_C", GS_TB_STOP_C}, {"TP_GDIR", GS_TP_GDIR}, {"SPR_PA", GS_SPR_PA}, {"SPR_PB", GS_SPR_PB},
+            {"SPR_K", GS_SPR_K}, {"SPR_L0", GS_SPR_L0}, {"SPR_C", GS_SPR_C}, {"SPR_NP", GS_SPR_NP},
+            {"FRC_P", GS_FRC_P}, {"FRC_F", GS_FRC_F}, {"FRC_NP", GS_FRC_NP},
             {"TB_POS", GS_TB_POS}, {"TB_AXIS", GS_TB_AXIS}, {"TB_MASS", GS_TB_MASS}, {"TB_CM", GS_TB_CM},
             {"TB_I", GS_TB_I}, {"TB_STIFF", GS_TB_STIFF}, {"TB_REST", GS_TB_REST}, {"TB_DAMP", GS_TB_DAMP},
             {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}, {"TP_G", GS_TP_G}, {"TP_DRIFT", GS_TP_DRIFT},

@@ -17,11 +17,31 @@ import numpy as np
 
 from . import _engine
 
-__all__ = ["TreeBody", "TreeLayout", "Orbit", "JOINTS", "JOINT_COORDS", "MU_EARTH"]
+__all__ = ["TreeBody", "TreeLayout", "Orbit", "Spring", "Force", "JOINTS", "JOINT_COORDS", "MU_EARTH", "BODY_SLOTS",
+           "GRAVITY_DOWN"]
 
 #: The joints and their engine codes (free_rotation is a ball whose joint point is the centre of mass).
 JOINTS = {"free_rotation": _engine.J_BALL, "ball": _engine.J_BALL, "hinge": _engine.J_HINGE,
-          "free": _engine.J_FREE, "fixed": _engine.J_FIXED}
+          "free": _engine.J_FREE, "fixed": _engine.J_FIXED, "slider": _engine.J_SLIDER}
+
+#: Gravity's default direction (world): along -z.
+GRAVITY_DOWN = (0.0, 0.0, -1.0)
+
+#: A body's parameters and inputs by short name: their slot in the body's block of a parameter row
+#: (``gyrosim_tree.h`` GS_TB_*). A hinge's and a slider's spring, damping and motor share slots (their units differ).
+BODY_SLOTS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 1, "I3": _engine.TB_I + 2,
+              "cm_x": _engine.TB_CM, "cm_y": _engine.TB_CM + 1, "cm_z": _engine.TB_CM + 2,
+              "pos_x": _engine.TB_POS, "pos_y": _engine.TB_POS + 1, "pos_z": _engine.TB_POS + 2,
+              "stiffness": _engine.TB_STIFF, "rest_angle": _engine.TB_REST, "rest_displacement": _engine.TB_REST,
+              "joint_damping": _engine.TB_DAMP, "damping": _engine.TB_DAMP,
+              "stiffness_x": _engine.TB_KB, "stiffness_y": _engine.TB_KB + 1, "stiffness_z": _engine.TB_KB + 2,
+              "joint_damping_x": _engine.TB_CB, "joint_damping_y": _engine.TB_CB + 1,
+              "joint_damping_z": _engine.TB_CB + 2,
+              "lower": _engine.TB_LO, "upper": _engine.TB_HI, "stop_stiffness": _engine.TB_STOP_K,
+              "stop_damping": _engine.TB_STOP_C}
+#: A body's inputs by short name: their slot in its block.
+INPUT_SLOTS = {"motor_torque": _engine.TB_MOTOR, "motor_force": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU,
+               "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
 
 #: The state variables of each joint, in the engine's order.
 JOINT_COORDS = {
@@ -30,6 +50,7 @@ JOINT_COORDS = {
     "hinge": ("angle", "rate"),
     "free": ("q_w", "q_x", "q_y", "q_z", "r_x", "r_y", "r_z", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"),
     "fixed": (),
+    "slider": ("displacement", "velocity"),
 }
 
 #: The outputs every body has besides its joint's state, and the scene-wide outputs.
@@ -83,6 +104,18 @@ def _vec(x, n=3):
     return np.array(x, dtype=float).reshape(n)
 
 
+def _child_axis(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """A joint's axis in the child's frame at the joint's zero: Q^T axis (the engine's GS_TB_AXIS), for the axis in
+    the parent's frame and the placement Q; the axis itself where Q is the identity (bit for bit)."""
+    if q[0] == 1.0 and not q[1:].any():
+        return axis
+    w, x, y, z = q
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return R.T @ axis
+
+
 @dataclass(frozen=True)
 class TreeBody:
     """One body of a tree and its joint to its parent.
@@ -108,7 +141,16 @@ class TreeBody:
     motor_input, torque_input : bool
         A hinge motor-torque input ``motor_torque``; an external body-frame torque input ``tau_x..z``.
     q0, omega0, angle0, rate0, r0, v0
-        Start state of the joint (only those of its kind are used).
+        Start state of the joint (only those of its kind are used; a slider's displacement and velocity are
+        angle0, rate0).
+    rotation : (4,) ndarray
+        The joint's placement: the child's frame at the joint's zero in the parent's (unit quaternion w, x, y, z).
+    ball_stiffness, ball_damping : (3,) ndarray
+        A ball's spring about its zero (N*m/rad per body axis; the torque of 1/2 phi^T K phi) and its damping per
+        body axis (N*m*s/rad), besides ``damping``.
+    lower, upper : float or None
+        A hinge's or slider's stops (rad, m); ``stop_stiffness`` and ``stop_damping`` the spring-damper that acts
+        beyond them.
     """
 
     name: str
@@ -130,6 +172,13 @@ class TreeBody:
     rate0: float = 0.0
     r0: np.ndarray = field(default_factory=lambda: np.zeros(3))
     v0: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rotation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    ball_stiffness: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    ball_damping: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    lower: float | None = None
+    upper: float | None = None
+    stop_stiffness: float = 0.0
+    stop_damping: float = 0.0
 
     @property
     def coords(self) -> tuple[str, ...]:
@@ -139,6 +188,31 @@ class TreeBody:
     def principal(self) -> np.ndarray:
         """(3,) the diagonal of the inertia (I1, I2, I3 when the body axes are principal), kg*m^2."""
         return np.diag(self.inertia).copy()
+
+
+@dataclass(frozen=True)
+class Spring:
+    """A linear spring-damper between a point of body ``a`` and a point of body ``b`` (-1: the world); points in the
+    body frames (the world's for -1), m; ``stiffness`` N/m, ``rest_length`` m, ``damping`` N*s/m."""
+
+    name: str
+    a: int
+    point_a: np.ndarray
+    b: int
+    point_b: np.ndarray
+    stiffness: float = 0.0
+    rest_length: float = 0.0
+    damping: float = 0.0
+
+
+@dataclass(frozen=True)
+class Force:
+    """A force input (N) at ``point`` of body ``body`` (its frame, m), given in the body's frame or the world's."""
+
+    name: str
+    body: int
+    point: np.ndarray
+    world: bool = False
 
 
 class TreeLayout:
@@ -152,8 +226,12 @@ class TreeLayout:
         Torsion springs between two hinge bodies (a, b, stiffness N*m/rad): torque -k (angle_a - angle_b) on a and
         the opposite on b.
     orbit : Orbit or None
-        The orbit the tree is on (the description's last element; a circular orbit's anomaly is the state's last
-        coordinate, ``coord_slots[(None, "orbit_anomaly")]``).
+        The orbit the tree is on (the description's element after the couplings; a circular orbit's anomaly is the
+        state's last coordinate, ``coord_slots[(None, "orbit_anomaly")]``).
+    springs, forces : sequence of Spring, Force
+        The elements (the description's tail).
+    gravity_dir : (3,) sequence
+        Gravity's direction (unit, world).
 
     Attributes
     ----------
@@ -166,17 +244,26 @@ class TreeLayout:
         ``(body index, name)`` of every output column (``None`` for the scene-wide outputs).
     """
 
-    def __init__(self, bodies, couplings=(), orbit: Orbit | None = None):
+    def __init__(self, bodies, couplings=(), orbit: Orbit | None = None, springs=(), forces=(),
+                 gravity_dir=GRAVITY_DOWN):
         self.bodies = tuple(bodies)
         self.couplings = tuple((int(a), int(b), float(k)) for a, b, k in couplings)
         self.orbit = orbit
+        self.springs, self.forces = tuple(springs), tuple(forces)
+        self.gravity_dir = _vec(gravity_dir)
         d = [len(self.bodies), len(self.couplings)]
         for b in self.bodies:
             d += [b.parent, JOINTS[b.joint]]
         for a, b, _ in self.couplings:
             d += [a, b]
-        if orbit is not None:
-            d.append(orbit.code)
+        if orbit is not None or self.springs or self.forces:
+            d.append(orbit.code if orbit is not None else _engine.ORBIT_NONE)
+        if self.springs or self.forces:
+            d += [len(self.springs), len(self.forces)]
+            for s in self.springs:
+                d += [s.a, s.b]
+            for f in self.forces:
+                d += [f.body, int(f.world)]
         self.desc = np.array(d, dtype=np.int32)
         self.nx, self.ny, self.np, self.nout = _engine.tree_info(self.desc)
         self.coord_slots = {}
@@ -202,24 +289,35 @@ class TreeLayout:
             for c in ORBIT_OUTPUTS:
                 self.output_names.append((None, c))
         assert len(self.output_names) == self.nout
-        self.dof = sum({"hinge": 1, "free": 6, "fixed": 0}.get(b.joint, 3) for b in self.bodies)
+        self.dof = sum({"hinge": 1, "slider": 1, "free": 6, "fixed": 0}.get(b.joint, 3) for b in self.bodies)
 
     def body_offset(self, i: int) -> int:
         """Where body ``i``'s parameters start in a parameter row."""
         return _engine.TP_HEAD + _engine.TB_NP * i
+
+    def spring_offset(self, e: int) -> int:
+        """Where spring element ``e``'s parameters start in a parameter row."""
+        return self.body_offset(len(self.bodies)) + len(self.couplings) + _engine.SPR_NP * e
+
+    def force_offset(self, e: int) -> int:
+        """Where force element ``e``'s parameters start in a parameter row."""
+        return self.spring_offset(len(self.springs)) + _engine.FRC_NP * e
 
     def params(self, g: float, max_drift: float) -> np.ndarray:
         """(np,) the parameter row of the bodies' values (inputs at 0)."""
         p = np.zeros(self.np)
         p[_engine.TP_G] = g
         p[_engine.TP_DRIFT] = max_drift
+        p[_engine.TP_GDIR:_engine.TP_GDIR + 3] = self.gravity_dir
         if self.orbit is not None:
             p[_engine.TP_MU] = self.orbit.mu
             p[_engine.TP_ORBIT_R] = self.orbit.radius if self.orbit.circular else 0.0
         for i, b in enumerate(self.bodies):
             o = self.body_offset(i)
             p[o + _engine.TB_POS:o + _engine.TB_POS + 3] = _vec(b.pos)
-            p[o + _engine.TB_AXIS:o + _engine.TB_AXIS + 3] = _vec(b.axis)
+            Q = _vec(b.rotation, 4)
+            p[o + _engine.TB_ROT:o + _engine.TB_ROT + 4] = Q
+            p[o + _engine.TB_AXIS:o + _engine.TB_AXIS + 3] = _child_axis(Q, _vec(b.axis))
             p[o + _engine.TB_MASS] = b.mass
             p[o + _engine.TB_CM:o + _engine.TB_CM + 3] = _vec(b.cm)
             J = np.asarray(b.inertia, dtype=float)
@@ -227,9 +325,24 @@ class TreeLayout:
             p[o + _engine.TB_STIFF] = b.stiffness
             p[o + _engine.TB_REST] = b.rest_angle
             p[o + _engine.TB_DAMP] = b.damping
+            p[o + _engine.TB_KB:o + _engine.TB_KB + 3] = _vec(b.ball_stiffness)
+            p[o + _engine.TB_CB:o + _engine.TB_CB + 3] = _vec(b.ball_damping)
+            p[o + _engine.TB_LIM] = (b.lower is not None) + 2 * (b.upper is not None)
+            p[o + _engine.TB_LO] = b.lower if b.lower is not None else 0.0
+            p[o + _engine.TB_HI] = b.upper if b.upper is not None else 0.0
+            p[o + _engine.TB_STOP_K] = b.stop_stiffness
+            p[o + _engine.TB_STOP_C] = b.stop_damping
         ko = self.body_offset(len(self.bodies))
         for c, (_, _, k) in enumerate(self.couplings):
             p[ko + c] = k
+        for e, s in enumerate(self.springs):
+            o = self.spring_offset(e)
+            p[o + _engine.SPR_PA:o + _engine.SPR_PA + 3] = _vec(s.point_a)
+            p[o + _engine.SPR_PB:o + _engine.SPR_PB + 3] = _vec(s.point_b)
+            p[o + _engine.SPR_K], p[o + _engine.SPR_L0], p[o + _engine.SPR_C] = s.stiffness, s.rest_length, s.damping
+        for e, f in enumerate(self.forces):
+            o = self.force_offset(e)
+            p[o + _engine.FRC_P:o + _engine.FRC_P + 3] = _vec(f.point)
         return p
 
     def state(self) -> np.ndarray:
@@ -239,9 +352,9 @@ class TreeLayout:
             vals = {"q": _vec(b.q0, 4), "omega": _vec(b.omega0), "r": _vec(b.r0), "v": _vec(b.v0)}
             for c in b.coords:
                 k = self.coord_slots[(i, c)]
-                if c == "angle":
+                if c in ("angle", "displacement"):
                     y[k] = b.angle0
-                elif c == "rate":
+                elif c in ("rate", "velocity"):
                     y[k] = b.rate0
                 else:
                     head, tail = c.rsplit("_", 1)

@@ -86,6 +86,8 @@ _UNITS = {  # unit -> SI base-unit exponents
     "N.m/rad": {"kg": 1, "m": 2, "s": -2, "rad": -1}, "N.m.s/rad": {"kg": 1, "m": 2, "s": -1, "rad": -1},
     "m/s": {"m": 1, "s": -1}, "W": {"kg": 1, "m": 2, "s": -3},
     "m3/s2": {"m": 3, "s": -2},
+    # sliders, springs, forces
+    "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
 }
 _TOKEN = "@INSTANTIATION_TOKEN@"
 #: ``fmi_type`` values: co-simulation, model exchange, or both interfaces in one FMU.
@@ -257,10 +259,12 @@ def _config_header(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: str,
         table.append(f"{{{_KIND_C[r.kind]}, {r.index}, {r.aux}, {int(r.nonneg)}, {_c_string(r.name)}, "
                      f"{_c_string(_unit_of(rows, r) or '')}, {range_of.get(i, -1)}}}")
     targets = []
-    for ai, a in enumerate(sc.aliases):
-        for bi, pn, f in a.sets:
-            targets.append(f"{{{ai}, {lay.body_offset[bi] + lay.body_slots[pn]}, {_hexf(f)}, "
-                           f"{int(pn in lay.nonneg)}, {_c_string(sc.body_names[bi] + '.' + pn)}}}")
+    if sc.aliases:
+        from ..kernel_tree import alias_targets, tree_layout
+
+        for ai, a in enumerate(sc.aliases):
+            for col, f, nonneg, label in alias_targets(sc, tree_layout(sc), a):
+                targets.append(f"{{{ai}, {col}, {_hexf(f)}, {int(nonneg)}, {_c_string(label)}}}")
 
     def arr(values, fmt=_hexf, empty="0.0"):
         return "{" + (", ".join(fmt(v) for v in values) if len(values) else empty) + "}"

@@ -24,9 +24,11 @@ from importlib import resources
 import numpy as np
 
 from ..core import _engine
+from ..core.tree import BODY_SLOTS, INPUT_SLOTS
 from ..errors import ConfigError
 from ..kernel_body import STATE_NAMES
 from ..scene import Scene
+from ..scene_tree import NONNEGATIVE_PARAMS
 
 __all__ = ["SystemLayout", "FmuRow", "system_layout", "fmu_variables", "fmu_rows", "SCENE_SETTINGS",
            "me_rows", "jacobian_pattern", "range_rows", "SYSTEM", "WORK_STATE", "DER_UNITS", "STATES"]
@@ -76,6 +78,7 @@ class SystemLayout:
     states_text: str
     nonneg: frozenset = frozenset()
     energy_error: list[int] = field(default_factory=list)   # the energy_error column of each work integral
+    head_inputs: dict[str, int] = field(default_factory=dict)   # inputs outside a body's block (force elements)
     pattern: object = None   # (rows) -> (ddy, dout) where the derivatives can be nonzero
 
     @property
@@ -159,25 +162,24 @@ def _body_layout(sc: Scene) -> SystemLayout:
 
 
 #: A tree body's parameter slots in its block (core/engine/gyrosim_tree.h GS_TB_*) and its inputs'.
-_TREE_BODY_SLOTS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 1, "I3": _engine.TB_I + 2,
-                    "cm_x": _engine.TB_CM, "cm_y": _engine.TB_CM + 1, "cm_z": _engine.TB_CM + 2,
-                    "pos_x": _engine.TB_POS, "pos_y": _engine.TB_POS + 1, "pos_z": _engine.TB_POS + 2,
-                    "stiffness": _engine.TB_STIFF, "rest_angle": _engine.TB_REST, "joint_damping": _engine.TB_DAMP,
-                    "damping": _engine.TB_DAMP}
-_TREE_INPUT_SLOTS = {"motor_torque": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU, "tau_y": _engine.TB_TAU + 1,
-                     "tau_z": _engine.TB_TAU + 2}
+_TREE_BODY_SLOTS = BODY_SLOTS
+_TREE_INPUT_SLOTS = INPUT_SLOTS
 
 
 def _tree_layout(sc: Scene) -> SystemLayout:
     """A tree of bodies on the articulated-body algorithm."""
-    from ..core.tree import TreeLayout
+    from ..kernel_tree import element_columns, tree_layout
     from ..model import Model
 
-    lay = TreeLayout(sc.tree, sc.couplings, sc.orbit)
+    lay = tree_layout(sc)
     p0, y0 = lay.params(float(sc.g), float(sc.max_drift)), lay.state()
     head = {"g": _engine.TP_G, "max_drift": _engine.TP_DRIFT, "orbit_mu": _engine.TP_MU,
             "orbit_radius": _engine.TP_ORBIT_R}
     head.update({name: lay.body_offset(len(sc.tree)) + i for i, name in enumerate(sc.coupling_names)})
+    elements = sc.element_variables()
+    head_inputs = {}
+    for name, col in element_columns(sc, lay).items():
+        (head_inputs if elements[name][0] == "force" else head)[name] = col
     quats = [(lay.coord_slots[(i, "q_w")], sc.var_name(b.name, "q")) for i, b in enumerate(sc.tree)
              if (i, "q_w") in lay.coord_slots]
     by_slot = {k: short for (_, short), k in lay.coord_slots.items()}
@@ -201,18 +203,21 @@ def _tree_layout(sc: Scene) -> SystemLayout:
         input_slots=_TREE_INPUT_SLOTS, coords=dict(lay.coord_slots), coord_index={k: k for k in range(lay.nx)},
         quats=quats, work_states=True, nominals=nominals,
         states_text=f"the joints' coordinates ({', '.join(coords)}) and {WORK_STATE}",
-        nonneg=frozenset({"g", "orbit_mu", "orbit_radius", "mass", "I1", "I2", "I3", "stiffness", "joint_damping",
-                          "damping", *sc.coupling_names}),
+        nonneg=frozenset({"g", "orbit_mu", "orbit_radius", *NONNEGATIVE_PARAMS, *sc.coupling_names,
+                          *(n for n, (kind, _, _) in elements.items() if kind == "spring")}),
+        head_inputs=head_inputs,
         energy_error=[lay.nx + 4 * len(sc.tree) + 1], pattern=pattern)
 
 
 def _tree_pattern(sc: Scene, lay, rows, seed: int):
+    from ..kernel_tree import alias_targets, tree_layout
+
     """``(ddy (nx + 1, nx + n_inputs), dout (nout, nx + n_inputs))``: where the tree engine's derivatives are not zero
     at a random state, parameters and inputs; columns the coordinates, then the inputs of ``rows`` in their order."""
     rng = np.random.default_rng(seed)
     p = lay.params(float(sc.g), float(sc.max_drift)).copy()
     slots = [r.index for r in rows if r.kind in ("param", "input")]
-    slots += [lay.body_offset(bi) + _TREE_BODY_SLOTS[pn] for a in sc.aliases for bi, pn, _ in a.sets]
+    slots += [col for a in sc.aliases for col, _, _, _ in alias_targets(sc, tree_layout(sc), a)]
     for k in slots:
         if k != _engine.TP_DRIFT:
             p[k] = rng.uniform(0.5, 1.5)
@@ -291,7 +296,9 @@ def fmu_rows(sc: Scene, lay: SystemLayout | None = None) -> list[FmuRow]:
         elif short == "max_drift":
             row = FmuRow(name, v, "max_drift", lay.head["max_drift"])
         elif name in lay.head:
-            row = FmuRow(name, v, "param", lay.head[name], nonneg=nonneg)
+            row = FmuRow(name, v, "param", lay.head[name], nonneg=nonneg or name in lay.nonneg)
+        elif name in lay.head_inputs:
+            row = FmuRow(name, v, "input", lay.head_inputs[name])
         elif name in aliases:
             row = FmuRow(name, v, "alias", aliases[name])
         elif v.causality == "parameter" and bi is not None and short in lay.body_slots:

@@ -5,7 +5,7 @@
  * Featherstone's articulated-body algorithm (O(n)), in each body's own frame, driven by the one Runge-Kutta
  * driver (gyrosim_ode.h).
  *
- * Conventions (docs/trees.md): world z up, gravity g along -z. A body's frame has its origin at its joint point
+ * Conventions (docs/trees.md): world z up, gravity g along -z unless GS_TP_GDIR turns it. A body's frame has its origin at its joint point
  * (the pivot, the hinge's point, a free body's reference point). Joints, the child relative to its parent:
  *   GS_J_BALL   3 rotational degrees of freedom about the joint point: q (w, x, y, z; child -> parent), omega
  *               (rad/s, the child's angular velocity relative to the parent, in the child frame). free_rotation is
@@ -13,9 +13,14 @@
  *   GS_J_HINGE  1, about `axis` (unit, in the parent frame; equal in the child frame): angle (rad), rate (rad/s).
  *   GS_J_FREE   6, a root only: q, r (m, the origin from `pos`, world), omega (rad/s, child frame), v (m/s, world).
  *   GS_J_FIXED  0: the child frame is the parent's, moved by `pos`.
+ *   GS_J_SLIDER 1, along `axis`: displacement d (m), velocity (m/s); the child's origin at pos + d axis (parent
+ *               frame), its frame not turned.
+ * A joint's placement `rotation` (GS_TB_ROT, a unit quaternion Q; identity by default) turns the child's frame at the
+ * joint's zero: hinge R = Q Rot(a, angle) with a the axis in the child frame (GS_TB_AXIS holds the axis in the child
+ * frame: Q^T times the axis in the parent's), ball R = Q R(q), slider and fixed R = Q. A free joint has none.
  *
  * The state of one system, y[ny]: every body's joint coordinates in body order (ball: q[4], omega[3]; hinge:
- * angle, rate; free: q[4], r[3], omega[3], v[3]; fixed: none), then a circular orbit's anomaly u (rad), nx in all;
+ * angle, rate; free: q[4], r[3], omega[3], v[3]; fixed: none; slider: displacement, velocity), then a circular orbit's anomaly u (rad), nx in all;
  * then the health monitor:
  *   y[nx]     E0 + W (J): the energy the work-energy balance expects; W, the work of the motors and the external
  *             torques minus the joints' dissipation, is integrated with the state (component nx)
@@ -24,8 +29,23 @@
  *   y[nx+2..4] L0 (kg*m^2/s, world, about the world origin): the angular momentum the tree keeps while it is
  *             torque-free (restarted after every step where it is not)
  *   y[nx+5]   the momentum scale (kg*m^2/s)
- * The parameters of one system, p[np]: g (m/s^2), max_drift, the orbit's mu (m^3/s^2) and radius (m), then GS_TB_NP
- * per body (below), then the stiffness (N*m/rad) of every coupling spring between two hinges.
+ * The parameters of one system, p[np]: g (m/s^2), max_drift, the orbit's mu (m^3/s^2) and radius (m), gravity's
+ * direction (unit, world; (0, 0, -1) by default: g along -z), then GS_TB_NP per body (below), then the stiffness
+ * (N*m/rad) of every coupling spring between two hinges, then GS_SPR_NP per spring element, then GS_FRC_NP per force.
+ *
+ * Elements (between bodies, in the description after the couplings):
+ *   spring  a linear spring-damper between a point of body a and a point of body b (-1: the world; points in the
+ *           body frames, world for -1): force on b's point -(k (l - l0) + c l') u, u the unit vector from a's point
+ *           to b's, l their distance; the opposite on a. Its energy 1/2 k (l - l0)^2 is in the balance, its
+ *           damping's dissipation in W.
+ *   force   a force input f (N) at a point of a body (body frame), f in the body's frame or the world's; its work
+ *           in W.
+ * Joint stops (hinge, slider; GS_TB_LIM): beyond `lower` or `upper` a spring-damper pushes back: -k_s delta -
+ * c_s x' (delta the penetration), its energy 1/2 k_s delta^2 in the balance.
+ * Ball springs: the torque of the potential 1/2 phi^T K phi (phi = log q, the rotation vector of the joint's
+ * rotation from its zero, K = diag(GS_TB_KB)): tau = -Jr(phi)^-T K phi with Jr the right Jacobian of the
+ * exponential map (omega = Jr(phi) phi'), conservative for any K (-K phi is not when K is anisotropic). Ball
+ * damping: -(GS_TB_DAMP + GS_TB_CB[a]) omega_a per body axis.
  *
  * Orbits (the description's optional last element, GS_ORBIT_*): the tree about a central body of gravitational
  * parameter mu at the centre of an inertial frame.
@@ -56,6 +76,7 @@ extern "C" {
 #define GS_J_HINGE 1
 #define GS_J_FREE 2
 #define GS_J_FIXED 3
+#define GS_J_SLIDER 4
 
 /* per-body parameters (offsets in the body's block of p) */
 #define GS_TB_POS 0     /* 3: the joint point in the parent frame (m; world for a root) */
@@ -69,13 +90,36 @@ extern "C" {
 #define GS_TB_DAMP 18   /* joint viscous damping: hinge N*m*s/rad, ball and free N*m*s (-damping * omega) */
 #define GS_TB_MOTOR 19  /* hinge motor torque (N*m, on the child about the axis, its reaction on the parent) */
 #define GS_TB_TAU 20    /* 3: external torque on the body, body frame (N*m) */
-#define GS_TB_NP 23
+#define GS_TB_ROT 23    /* 4: the joint's placement: the child's frame at the joint's zero in the parent's (unit
+                         * quaternion w, x, y, z; (1, 0, 0, 0): none) */
+#define GS_TB_KB 27     /* 3: ball spring stiffness about the body axes (N*m/rad) */
+#define GS_TB_CB 30     /* 3: ball damping about the body axes (N*m*s/rad), besides the isotropic GS_TB_DAMP */
+#define GS_TB_LIM 33    /* the stops in use (hinge, slider): 0 none, 1 lower, 2 upper, 3 both */
+#define GS_TB_LO 34     /* lower stop (rad, m) */
+#define GS_TB_HI 35     /* upper stop (rad, m) */
+#define GS_TB_STOP_K 36 /* the stops' stiffness (N*m/rad, N/m) */
+#define GS_TB_STOP_C 37 /* the stops' damping (N*m*s/rad, N*s/m), while in contact */
+#define GS_TB_NP 38
 
 #define GS_TP_G 0
 #define GS_TP_DRIFT 1
 #define GS_TP_MU 2        /* the central body's gravitational parameter (m^3/s^2; 0: no orbit force) */
 #define GS_TP_ORBIT_R 3   /* the circular orbit's radius (m) */
-#define GS_TP_HEAD 4
+#define GS_TP_GDIR 4      /* 3: gravity's direction (unit, world): the acceleration is g times it */
+#define GS_TP_HEAD 7
+
+/* a spring element's parameters (its block after the couplings) */
+#define GS_SPR_PA 0   /* 3: the point on body a (its frame; world for the world), m */
+#define GS_SPR_PB 3   /* 3: the point on body b, m */
+#define GS_SPR_K 6    /* N/m */
+#define GS_SPR_L0 7   /* rest length, m */
+#define GS_SPR_C 8    /* N*s/m */
+#define GS_SPR_NP 9
+
+/* a force element's parameters (its block after the springs) */
+#define GS_FRC_P 0    /* 3: the point of the body, body frame, m */
+#define GS_FRC_F 3    /* 3: the force, N (body or world frame: the description says) */
+#define GS_FRC_NP 6
 
 #define GS_ORBIT_NONE 0
 #define GS_ORBIT_CIRCULAR 1
@@ -90,6 +134,10 @@ typedef struct {
     int joint[GS_TREE_MAX];      /* GS_J_* */
     int yi[GS_TREE_MAX];         /* offset of the body's joint coordinates in y */
     int cpl_a[GS_TREE_MAX], cpl_b[GS_TREE_MAX];   /* coupled hinge bodies */
+    int n_spr, n_frc;            /* spring and force elements */
+    int spr_a[GS_TREE_MAX], spr_b[GS_TREE_MAX];   /* a spring's bodies (-1: the world) */
+    int frc_b[GS_TREE_MAX], frc_w[GS_TREE_MAX];   /* a force's body; 1: the force in world axes */
+    int p_spr, p_frc;            /* where the springs' and the forces' parameters start in p */
     int leaf[GS_TREE_MAX];       /* 1 when no body hangs from this one */
     int orbit;                   /* GS_ORBIT_* */
     int ya;                      /* the circular orbit's anomaly in y (nx - 1), -1 without */
@@ -97,12 +145,14 @@ typedef struct {
 } gs_tree;
 
 /* The description as a flat int32 array: n, n_cpl, then (parent, joint) per body, then (a, b) per coupling, then
- * optionally the orbit (GS_ORBIT_*; none when left out). Returns 0, or a nonzero code when it is not a valid tree (a
- * parent not before its child, a free joint that is not a root, an unknown joint, a coupling between bodies that are
- * not hinges, sizes beyond GS_TREE_MAX, an unknown orbit, a Kepler orbit with a root that is not free). */
+ * optionally the orbit (GS_ORBIT_*; none when left out), then optionally n_spr, n_frc, (a, b) per spring (-1: the
+ * world), (body, world) per force. Returns 0, or a nonzero code when it is not a valid tree (a parent not before its
+ * child, a free joint that is not a root, an unknown joint, a coupling between bodies that are not hinges, sizes
+ * beyond GS_TREE_MAX, an unknown orbit, a Kepler orbit with a root that is not free, an element on no body). */
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
 
-/* Joint coordinates a body has (7, 2, 13, 0) and velocity degrees of freedom (3, 1, 6, 0). */
+/* Joint coordinates a body has (ball 7, hinge 2, free 13, fixed 0, slider 2) and velocity degrees of freedom (3, 1, 6,
+ * 0, 1). */
 int gs_tree_ncoord(int joint);
 int gs_tree_ndof(int joint);
 
@@ -162,7 +212,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
  * vp (np values: the parameters and inputs; NULL: 0), ddy[0:nx+1] = the derivative of gs_tree_derivatives and
  * dout[0:GS_TREE_NOUT] = the derivative of gs_tree_outputs (either NULL: not computed). Exact to round-off: no
  * difference quotient. Returns 1 (0 when the sizes exceed the limits below). */
-#define GS_TREE_NPMAX (GS_TP_HEAD + GS_TB_NP * GS_TREE_MAX + GS_TREE_MAX)
+#define GS_TREE_NPMAX (GS_TP_HEAD + (GS_TB_NP + 1 + GS_SPR_NP + GS_FRC_NP) * GS_TREE_MAX)
 #define GS_TREE_NOUTMAX (GS_ODE_MAX + 8 * GS_TREE_MAX + 11)
 int gs_tree_directional(const gs_tree *t, const double *y, const double *p, const double *vy, const double *vp,
                         double *ddy, double *dout);

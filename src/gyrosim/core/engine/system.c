@@ -365,7 +365,8 @@ static void euler_rates(const double q[4], const double dq[4], double e[3]) {
 }
 
 /* Body b of the body kernel as the one-body tree it is: {1, 0, -1, GS_J_BALL} (a ball joint at the pivot, the world
- * origin), the parameter row p[GS_TP_G] = g, p[GS_TP_DRIFT] = max_drift, the body's block bp = p + GS_TP_HEAD:
+ * origin), the parameter row p[GS_TP_G] = g, p[GS_TP_DRIFT] = max_drift, p[GS_TP_GDIR] = (0, 0, -1), the body's
+ * block bp = p + GS_TP_HEAD: bp[GS_TB_ROT] = 1 (no placement),
  * bp[GS_TB_AXIS + 2] = 1, bp[GS_TB_MASS] = mass, bp[GS_TB_CM + 2] = cm_distance (the centre of mass on body +z),
  * bp[GS_TB_I] = I1 - mass cm_distance^2, bp[GS_TB_I + 1] = I2 - mass cm_distance^2, bp[GS_TB_I + 2] = I3 (the inertia
  * about the centre of mass), bp[GS_TB_DAMP] = damping, bp[GS_TB_TAU + c] = tau; the state y[0:7] = q, omega
@@ -376,7 +377,9 @@ static void one_body_tree(const double *sp, int b, const double *y, double *ty, 
     memset(tp, 0, (size_t)np * sizeof(double));
     tp[GS_TP_G] = bp[GS_SB_G];
     tp[GS_TP_DRIFT] = sp[GS_SP_DRIFT];
+    tp[GS_TP_GDIR + 2] = -1.0;
     double *t = tp + GS_TP_HEAD;
+    t[GS_TB_ROT] = 1.0;
     const double mass = bp[GS_SB_MASS], dist = bp[GS_SB_CM];
     t[GS_TB_AXIS + 2] = 1.0;
     t[GS_TB_MASS] = mass;

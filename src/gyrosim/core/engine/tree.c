@@ -31,20 +31,43 @@ typedef double M6[6][6];
 static const int NEXT1[3] = {1, 2, 0}, NEXT2[3] = {2, 0, 1};
 
 int gs_tree_ncoord(int joint) {
-    return joint == GS_J_BALL ? 7 : joint == GS_J_HINGE ? 2 : joint == GS_J_FREE ? 13 : 0;
+    return joint == GS_J_BALL ? 7 : joint == GS_J_HINGE || joint == GS_J_SLIDER ? 2 : joint == GS_J_FREE ? 13 : 0;
 }
 
 int gs_tree_ndof(int joint) {
-    return joint == GS_J_BALL ? 3 : joint == GS_J_HINGE ? 1 : joint == GS_J_FREE ? 6 : 0;
+    return joint == GS_J_BALL ? 3 : joint == GS_J_HINGE || joint == GS_J_SLIDER ? 1 : joint == GS_J_FREE ? 6 : 0;
 }
+
+/* a joint of one coordinate and its rate: a hinge or a slider */
+static int one_dof(int joint) { return joint == GS_J_HINGE || joint == GS_J_SLIDER; }
 
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     if (len < 2) return 1;
     const int n = desc[0], nc = desc[1];
     if (n < 1 || n > GS_TREE_MAX || nc < 0 || nc > GS_TREE_MAX) return 2;
     const size_t base = (size_t)(2 + 2 * n + 2 * nc);
-    if (len != base && len != base + 1) return 3;
-    t->orbit = len == base + 1 ? desc[base] : GS_ORBIT_NONE;
+    if (len != base && len != base + 1 && len < base + 3) return 3;
+    t->orbit = len >= base + 1 ? desc[base] : GS_ORBIT_NONE;
+    t->n_spr = t->n_frc = 0;
+    if (len >= base + 3) {   /* the elements */
+        const int ns = desc[base + 1], nf = desc[base + 2];
+        if (ns < 0 || ns > GS_TREE_MAX || nf < 0 || nf > GS_TREE_MAX) return 2;
+        if (len != base + 3 + 2 * (size_t)ns + 2 * (size_t)nf) return 3;
+        for (int e = 0; e < ns; e++) {
+            const int a = desc[base + 3 + 2 * e], b = desc[base + 4 + 2 * e];
+            if (a < -1 || a >= n || b < -1 || b >= n || a == b) return 12;
+            t->spr_a[e] = a;
+            t->spr_b[e] = b;
+        }
+        for (int e = 0; e < nf; e++) {
+            const int b = desc[base + 3 + 2 * ns + 2 * e], w = desc[base + 4 + 2 * ns + 2 * e];
+            if (b < 0 || b >= n || (w != 0 && w != 1)) return 13;
+            t->frc_b[e] = b;
+            t->frc_w[e] = w;
+        }
+        t->n_spr = ns;
+        t->n_frc = nf;
+    }
     if (t->orbit < GS_ORBIT_NONE || t->orbit > GS_ORBIT_KEPLER) return 10;
     t->n = n;
     t->n_cpl = nc;
@@ -52,7 +75,7 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     for (int i = 0; i < n; i++) {
         const int par = desc[2 + 2 * i], j = desc[3 + 2 * i];
         if (par < -1 || par >= i) return 4;                      /* parents before their children */
-        if (j < GS_J_BALL || j > GS_J_FIXED) return 5;
+        if (j < GS_J_BALL || j > GS_J_SLIDER) return 5;
         if (j == GS_J_FREE && par != -1) return 6;               /* a free joint is a root */
         t->parent[i] = par;
         t->joint[i] = j;
@@ -77,7 +100,9 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     if (t->orbit == GS_ORBIT_CIRCULAR) t->ya = at++;
     t->nx = at;
     t->ny = at + GS_TREE_NMON;
-    t->np = GS_TP_HEAD + GS_TB_NP * n + nc;
+    t->p_spr = GS_TP_HEAD + GS_TB_NP * n + nc;
+    t->p_frc = t->p_spr + GS_SPR_NP * t->n_spr;
+    t->np = t->p_frc + GS_FRC_NP * t->n_frc;
     if (at + 1 > GS_ODE_MAX) return 9;
     return 0;
 }
@@ -165,6 +190,12 @@ static TREE_INLINE void mv6(const M6 A, const double x[6], double y[6]) {
 
 static const double *body_p(const double *p, int i) { return p + GS_TP_HEAD + GS_TB_NP * i; }
 
+/* the joint's placement is the identity (a free joint has none) */
+static int placed_plain(const gs_tree *t, const double *b, int i) {
+    const double *q = b + GS_TB_ROT;
+    return t->joint[i] == GS_J_FREE || (q[0] == 1.0 && q[1] == 0.0 && q[2] == 0.0 && q[3] == 0.0);
+}
+
 typedef struct {
     M3 E[GS_TREE_MAX];        /* parent coordinates -> child coordinates (R_rel^T) */
     double r[GS_TREE_MAX][3];  /* the child origin in parent coordinates */
@@ -187,7 +218,8 @@ typedef struct {
 static int rotor_frame(const gs_tree *t, const double *b, int i) {
     /* a rotor's articulated inertia is folded into its parent's: a leaf hinged to the world has no parent slot
      * to fold into (the world does not move), so it runs the general hinge path */
-    if (t->joint[i] != GS_J_HINGE || !t->leaf[i] || t->parent[i] < 0) return 0;
+    if (t->joint[i] != GS_J_HINGE || !t->leaf[i] || t->parent[i] < 0 || !placed_plain(t, b, i)) return 0;
+    if (b[GS_TB_LIM] != 0.0) return 0;
     if (b[GS_TB_TAU] != 0.0 || b[GS_TB_TAU + 1] != 0.0 || b[GS_TB_TAU + 2] != 0.0) return 0;
     const double *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *J = b + GS_TB_I;
     const double M[3][3] = {{J[0], J[3], J[4]}, {J[3], J[1], J[5]}, {J[4], J[5], J[2]}};
@@ -237,6 +269,10 @@ typedef struct {
     int ia_cols[GS_TREE_MAX];  /* the columns of IA the algorithm reads (bit j: column j): a root's only its joint's
                                 * U = IA S and D = S^T U (it passes no inertia on), a fixed root's none */
     int g0;                    /* no uniform gravity: the world's acceleration is zero */
+    int rot0[GS_TREE_MAX];     /* the joint's placement is the identity */
+    M3 Q[GS_TREE_MAX];         /* else its rotation matrix (child at the joint's zero -> parent) */
+    double ap[GS_TREE_MAX][3]; /* a slider's axis in the parent frame (Q times the child frame's) */
+    int elements;              /* springs or forces: the world kinematics is needed */
     double U[GS_TREE_MAX][6][6];   /* ia_fixed: U = IA S (k columns) */
     double Di[GS_TREE_MAX][6][6];  /* ia_fixed: D^-1 (k x k) */
     M6 Ia[GS_TREE_MAX];            /* ia_fixed, not a root: IA - U D^-1 U^T */
@@ -249,10 +285,18 @@ static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int 
 
 static void precompute(const gs_tree *t, const double *p, Pre *d) {
     d->g0 = p[GS_TP_G] == 0.0;
+    d->elements = t->n_spr > 0 || t->n_frc > 0;
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *r = b + GS_TB_POS;
         const int par = t->parent[i];
         body_inertia(b, d->IAbase[i]);
+        d->rot0[i] = placed_plain(t, b, i);
+        if (!d->rot0[i]) quat_to_mat(b + GS_TB_ROT, d->Q[i]);
+        if (d->rot0[i]) {
+            memcpy(d->ap[i], a, sizeof(d->ap[i]));
+        } else {
+            mv3(d->Q[i], a, d->ap[i]);
+        }
         d->rotor[i] = rotor_frame(t, b, i);
         d->axis_k[i] = -1;
         if (t->joint[i] == GS_J_HINGE) {
@@ -262,16 +306,16 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
         }
         d->cm0[i] = c[0] == 0.0 && c[1] == 0.0 && c[2] == 0.0;
         d->nd[i] = gs_tree_ndof(t->joint[i]);
-        d->ident[i] = t->joint[i] == GS_J_FIXED || d->rotor[i];
-        d->plane[i] = d->rotor[i] ? -1 : d->axis_k[i];
-        d->r0[i] = t->joint[i] != GS_J_FREE && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0;
+        const int moves = t->joint[i] == GS_J_FREE || t->joint[i] == GS_J_SLIDER;   /* its origin translates */
+        d->ident[i] = (t->joint[i] == GS_J_FIXED || t->joint[i] == GS_J_SLIDER || d->rotor[i]) && d->rot0[i];
+        d->plane[i] = d->rotor[i] || !d->rot0[i] ? -1 : d->axis_k[i];
+        d->r0[i] = !moves && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0;
         d->ia_cols[i] = 63;
         if (par < 0) {
-            d->ia_cols[i] = t->joint[i] == GS_J_FIXED ? 0 : t->joint[i] == GS_J_FREE ? 63 : d->axis_k[i] >= 0 ?
-                            1 << d->axis_k[i] : 7;
+            d->ia_cols[i] = t->joint[i] == GS_J_FIXED ? 0 : t->joint[i] == GS_J_FREE ? 63 :
+                            t->joint[i] == GS_J_SLIDER ? 56 : d->axis_k[i] >= 0 ? 1 << d->axis_k[i] : 7;
         }
-        d->vlin0[i] = t->joint[i] != GS_J_FREE &&
-                      (par < 0 || (d->vlin0[par] && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0));
+        d->vlin0[i] = !moves && (par < 0 || (d->vlin0[par] && r[0] == 0.0 && r[1] == 0.0 && r[2] == 0.0));
         d->ia_fixed[i] = 1;
     }
     /* children first (a child's index is above its parent's): when body i is reached, every child has been and
@@ -280,7 +324,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
     static _Thread_local Kin kt;
     for (int i = t->n - 1; i >= 0; i--) {
         const int par = t->parent[i];
-        d->fold[i] = d->rotor[i] || (t->joint[i] == GS_J_FIXED && par >= 0 && d->ia_fixed[i]);
+        d->fold[i] = d->rotor[i] || (t->joint[i] == GS_J_FIXED && par >= 0 && d->ia_fixed[i] && d->rot0[i]);
         if (par >= 0 && !d->fold[i]) d->ia_fixed[par] = 0;
         if (!d->ia_fixed[i]) continue;
         joint_factor(t, p, d, i, d->IAbase[i], d->U[i], d->Di[i], par >= 0 ? d->Ia[i] : NULL);
@@ -409,6 +453,22 @@ static void body_inertia(const double *b, M6 I) {
     }
 }
 
+/* R = Q R(q) (child -> parent) for a joint's own rotation q (NULL: none) after its placement Q (Pre.rot0: none) */
+static void placed(const Pre *pre, int i, const double *q, M3 R) {
+    if (q == NULL && pre->rot0[i]) {
+        memset(R, 0, sizeof(M3));
+        R[0][0] = R[1][1] = R[2][2] = 1.0;
+    } else if (q == NULL) {
+        memcpy(R, pre->Q[i], sizeof(M3));
+    } else if (pre->rot0[i]) {
+        quat_to_mat(q, R);
+    } else {
+        M3 Rq;
+        quat_to_mat(q, Rq);
+        mm3(pre->Q[i], Rq, R);
+    }
+}
+
 /* positions and velocities of every body (pass 1 without the accelerations); world: also every body's world
  * rotation and origin (the roots' always, but for a root that is not free in a tree without gravity). A joint's
  * rotation R is made only where it is used: E = R^T in the general case, (cos, sin) for a hinge along a body axis,
@@ -429,7 +489,7 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
         vj[3] = vj[4] = vj[5] = 0.0;
         switch (t->joint[i]) {
             case GS_J_BALL:
-                if (!idle) quat_to_mat(s, R);
+                if (!idle) placed(pre, i, s, R);
                 memcpy(vj, s + 4, 3 * sizeof(double));
                 break;
             case GS_J_HINGE: {
@@ -447,7 +507,7 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
                         memset(R, 0, sizeof(M3));
                         R[0][0] = R[1][1] = R[2][2] = 1.0;
                     }
-                } else if (ak >= 0) {   /* about a body axis: R from the angle's cosine and sine */
+                } else if (ak >= 0 && pre->rot0[i]) {   /* about a body axis: R from the angle's cosine and sine */
                     const double c = cos(s[0]), sn = sin(s[0]);
                     k->cs[i][0] = c;
                     k->cs[i][1] = sn;
@@ -463,10 +523,18 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
                 } else {
                     double q[4];
                     hinge_quat(b + GS_TB_AXIS, s[0], q);
-                    quat_to_mat(q, R);
+                    placed(pre, i, q, R);
                 }
                 break;
             }
+            case GS_J_SLIDER:   /* the origin moves along the axis; the frame keeps its placement */
+                for (int a = 0; a < 3; a++) {
+                    vj[a] = 0.0;
+                    vj[3 + a] = b[GS_TB_AXIS + a] * s[1];
+                    k->r[i][a] += pre->ap[i][a] * s[0];
+                }
+                placed(pre, i, NULL, R);
+                break;
             case GS_J_FREE:
                 quat_to_mat(s, R);
                 for (int a = 0; a < 3; a++) k->r[i][a] += s[4 + a];
@@ -475,10 +543,7 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
                 break;
             default:
                 vj[0] = vj[1] = vj[2] = 0.0;
-                if (need_r) {
-                    memset(R, 0, sizeof(M3));
-                    R[0][0] = R[1][1] = R[2][2] = 1.0;
-                }
+                if (need_r || !pre->rot0[i]) placed(pre, i, NULL, R);
         }
         if (k->plane[i] < 0 && !k->ident[i] && !idle) {
             for (int a = 0; a < 3; a++) {
@@ -503,18 +568,102 @@ static void kinematics(const gs_tree *t, const double *y, const double *p, const
     }
 }
 
-/* the joint generalized forces (springs, damping, motors, couplings) */
+/* ---------------------------------------------------------------------------------------------- joint forces */
+
+#ifndef GS_TREE_CS
+#define tree_atan2 atan2
+#endif
+
+/* the rotation vector phi = log q of a unit quaternion (w >= 0 taken: q and -q are one rotation): phi = 2
+ * atan2(|v|, w) v / |v|, by its series 2 / w (1 - |v|^2 / (3 w^2)) below |v| = 1e-4 (the next term is 1e-16 of it) */
+static void quat_log(const double *q, double phi[3]) {
+    const treal wr = q[0];
+    const double sg = wr < 0.0 ? -1.0 : 1.0;
+    const double w = sg * q[0], v[3] = {sg * q[1], sg * q[2], sg * q[3]};
+    const double s2 = dot3(v, v);
+    const treal s2r = s2;
+    double f;
+    if (s2r < 1e-8) {
+        f = 2.0 / w * (1.0 - s2 / (3.0 * w * w));
+    } else {
+        const double sn = sqrt(s2);
+        f = 2.0 * tree_atan2(sn, w) / sn;
+    }
+    for (int a = 0; a < 3; a++) phi[a] = f * v[a];
+}
+
+/* A ball spring's torque, the force of the potential V = 1/2 phi^T K phi (K = diag(k), phi = log q): with omega the
+ * joint's angular velocity in the child frame, omega = Jr(phi) phi' (Jr the right Jacobian of the exponential map),
+ * so V' = (K phi) . Jr^-1 omega and the torque is -Jr^-T K phi. Jr^-1 = I + 1/2 [phi]x + beta [phi]x^2 with beta =
+ * 1/th^2 - (1 + cos th) / (2 th sin th), th = |phi| (Chirikjian, Stochastic Models, Information Theory, and Lie
+ * Groups 2 (2012) 10.6; beta by its series 1/12 + th^2/720 + th^4/30240 below th = 0.01), so Jr^-T x = x - 1/2 phi x
+ * x + beta phi x (phi x x). Isotropic K gives -k phi (phi x phi = 0); an anisotropic one does not, and -K phi would do
+ * work around a closed loop of rotations. Returns V. */
+static double ball_spring(const double *q, const double *k, double tau[3]) {
+    double phi[3], x[3], px[3], ppx[3], beta;
+    quat_log(q, phi);
+    for (int a = 0; a < 3; a++) x[a] = k[a] * phi[a];
+    const double th2 = dot3(phi, phi);
+    const treal th2r = th2;
+    if (th2r < 1e-4) {
+        beta = 1.0 / 12.0 + th2 / 720.0 + th2 * th2 / 30240.0;
+    } else {
+        const double th = sqrt(th2);
+        beta = 1.0 / th2 - (1.0 + cos(th)) / (2.0 * th * sin(th));
+    }
+    cross3(phi, x, px);
+    cross3(phi, px, ppx);
+    for (int a = 0; a < 3; a++) tau[a] = -(x[a] - 0.5 * px[a] + beta * ppx[a]);
+    return 0.5 * dot3(phi, x);
+}
+
+static int ball_sprung(const double *b) {
+    const treal k0 = b[GS_TB_KB], k1 = b[GS_TB_KB + 1], k2 = b[GS_TB_KB + 2];
+    return k0 != 0.0 || k1 != 0.0 || k2 != 0.0;
+}
+
+/* A hinge's or slider's stops (GS_TB_LIM): beyond `lower` or `upper` the spring-damper -k_s delta - c_s x', delta
+ * the penetration (x - lower < 0 or x - upper > 0). *fe its elastic part, *fd its damping part; returns the
+ * energy 1/2 k_s delta^2. */
+static double stop_force(const double *b, double x, double xd, double *fe, double *fd) {
+    const treal lim = b[GS_TB_LIM], xr = x, lo = b[GS_TB_LO], hi = b[GS_TB_HI];
+    const int l = (int)lim;
+    double d = 0.0;
+    *fe = *fd = 0.0;
+    if ((l & 1) && xr < lo) {
+        d = x - b[GS_TB_LO];
+    } else if ((l & 2) && xr > hi) {
+        d = x - b[GS_TB_HI];
+    } else {
+        return 0.0;
+    }
+    *fe = -b[GS_TB_STOP_K] * d;
+    *fd = -b[GS_TB_STOP_C] * xd;
+    return 0.5 * b[GS_TB_STOP_K] * d * d;
+}
+
+/* the joint generalized forces (springs, damping, motors, stops, couplings) */
 static void joint_forces(const gs_tree *t, const double *y, const double *p, double tau[GS_TREE_MAX][6]) {
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *s = y + t->yi[i];
         for (int a = 0; a < 6; a++) tau[i][a] = 0.0;
         switch (t->joint[i]) {
             case GS_J_BALL:
-                for (int a = 0; a < 3; a++) tau[i][a] = -b[GS_TB_DAMP] * s[4 + a];
+                for (int a = 0; a < 3; a++) tau[i][a] = -(b[GS_TB_DAMP] + b[GS_TB_CB + a]) * s[4 + a];
+                if (ball_sprung(b)) {
+                    double ts[3];
+                    ball_spring(s, b + GS_TB_KB, ts);
+                    for (int a = 0; a < 3; a++) tau[i][a] += ts[a];
+                }
                 break;
             case GS_J_HINGE:
+            case GS_J_SLIDER: {
+                double fe, fd;
                 tau[i][0] = b[GS_TB_MOTOR] - b[GS_TB_STIFF] * (s[0] - b[GS_TB_REST]) - b[GS_TB_DAMP] * s[1];
+                stop_force(b, s[0], s[1], &fe, &fd);
+                tau[i][0] += fe + fd;
                 break;
+            }
             case GS_J_FREE:
                 for (int a = 0; a < 3; a++) tau[i][a] = -b[GS_TB_DAMP] * s[7 + a];
                 break;
@@ -705,6 +854,10 @@ static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int 
         const double *ax = body_p(p, i) + GS_TB_AXIS;
         for (int a = 0; a < 6; a++) U[a][0] = IA[a][0] * ax[0] + IA[a][1] * ax[1] + IA[a][2] * ax[2];
         D[0][0] = ax[0] * U[0][0] + ax[1] * U[1][0] + ax[2] * U[2][0];
+    } else if (t->joint[i] == GS_J_SLIDER) {   /* S = (0; axis) */
+        const double *ax = body_p(p, i) + GS_TB_AXIS;
+        for (int a = 0; a < 6; a++) U[a][0] = IA[a][3] * ax[0] + IA[a][4] * ax[1] + IA[a][5] * ax[2];
+        D[0][0] = ax[0] * U[3][0] + ax[1] * U[4][0] + ax[2] * U[5][0];
     } else {
         for (int a = 0; a < 6; a++) {
             for (int j = 0; j < k; j++) U[a][j] = IA[a][j];
@@ -865,9 +1018,13 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         if (fx != NULL) {   /* the orbit's forces */
             for (int a = 0; a < 6; a++) pA[i][a] -= fx[i][a];
         }
-        /* c = v x vj: a joint below a body has no linear velocity of its own (vj = (wj; 0)), so c = (w x wj,
-         * v_lin x wj); a root's is zero (the world does not move) */
-        if (t->parent[i] >= 0) {
+        /* c = v x vj: a joint below a body other than a slider has no linear velocity of its own (vj = (wj; 0)),
+         * so c = (w x wj, v_lin x wj); a slider's has no angular one (vj = (0; vl_j)): c = (0, w x vl_j); a root's
+         * is zero (the world does not move) */
+        if (t->parent[i] >= 0 && t->joint[i] == GS_J_SLIDER) {
+            c[i][0] = c[i][1] = c[i][2] = 0.0;
+            cross3(w, kin->vj[i] + 3, c[i] + 3);
+        } else if (t->parent[i] >= 0) {
             const double *wj = kin->vj[i];
             cross3(w, wj, c[i]);
             if (pre->vlin0[i]) {
@@ -892,6 +1049,9 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         } else if (t->joint[i] == GS_J_HINGE) {
             const double *ax = body_p(p, i) + GS_TB_AXIS;
             u[i][0] = tau[i][0] - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
+        } else if (t->joint[i] == GS_J_SLIDER) {
+            const double *ax = body_p(p, i) + GS_TB_AXIS;
+            u[i][0] = tau[i][0] - (ax[0] * pA[i][3] + ax[1] * pA[i][4] + ax[2] * pA[i][5]);
         } else {
             for (int a = 0; a < k; a++) u[i][a] = tau[i][a] - pA[i][a];
         }
@@ -911,7 +1071,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         add_xtf(kin, i, pa, pA[par]);
     }
     double acc[GS_TREE_MAX][6];
-    const double g = p[GS_TP_G];
+    const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     for (int i = 0; i < t->n; i++) {
         const int par = t->parent[i], k = pre->nd[i], fixed = pre->ia_fixed[i];
         const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
@@ -928,7 +1088,8 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
             }
         } else {
             if (par < 0) {
-                const double up[6] = {0.0, 0.0, 0.0, 0.0, 0.0, g};   /* gravity: the world accelerates upwards */
+                /* gravity: the world accelerates against it */
+                const double up[6] = {0.0, 0.0, 0.0, -g * gd[0], -g * gd[1], -g * gd[2]};
                 xm(kin, i, up, ap);
             } else {
                 xm(kin, i, acc[par], ap);
@@ -951,6 +1112,9 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         } else if (t->joint[i] == GS_J_HINGE) {
             const double *ax = body_p(p, i) + GS_TB_AXIS;
             for (int a = 0; a < 3; a++) acc[i][a] += ax[a] * qdd[i][0];
+        } else if (t->joint[i] == GS_J_SLIDER) {
+            const double *ax = body_p(p, i) + GS_TB_AXIS;
+            for (int a = 0; a < 3; a++) acc[i][3 + a] += ax[a] * qdd[i][0];
         } else {
             for (int a = 0; a < k; a++) acc[i][a] += qdd[i][a];
         }
@@ -1113,6 +1277,124 @@ static void lvlh_quat(const double r[3], const double v[3], double q[4]) {
     mat_to_quat(R, q);
 }
 
+/* ---------------------------------------------------------------------------------------------- elements */
+
+/* a point of body i (its frame; the world's for i = -1): position and velocity, world */
+static void body_point(const Kin *k, int i, const double *pt, double xw[3], double vw[3]) {
+    if (i < 0) {
+        memcpy(xw, pt, 3 * sizeof(double));
+        vw[0] = vw[1] = vw[2] = 0.0;
+        return;
+    }
+    double d[3], wp[3], vb[3];
+    mv3(k->Rw[i], pt, d);
+    cross3(k->v[i], pt, wp);
+    for (int a = 0; a < 3; a++) {
+        xw[a] = k->ow[i][a] + d[a];
+        vb[a] = k->v[i][3 + a] + wp[a];
+    }
+    mv3(k->Rw[i], vb, vw);
+}
+
+/* fx[i] += the spatial force (pt x F; F) of a force F (body frame) at the point pt of body i */
+static void add_point_force(int i, const double *pt, const double Fb[3], double fx[][6]) {
+    double n[3];
+    cross3(pt, Fb, n);
+    for (int a = 0; a < 3; a++) {
+        fx[i][a] += n[a];
+        fx[i][3 + a] += Fb[a];
+    }
+}
+
+/* a spring element's force on its point of body b (world; the opposite on a's), its length and rate */
+static void spring_force(const gs_tree *t, const double *p, const Kin *k, int e, double F[3], double *l,
+                         double *ld) {
+    const double *sp = p + t->p_spr + GS_SPR_NP * e;
+    double xa[3], va[3], xb[3], vb[3], d[3], dv[3];
+    body_point(k, t->spr_a[e], sp + GS_SPR_PA, xa, va);
+    body_point(k, t->spr_b[e], sp + GS_SPR_PB, xb, vb);
+    for (int a = 0; a < 3; a++) {
+        d[a] = xb[a] - xa[a];
+        dv[a] = vb[a] - va[a];
+    }
+    *l = sqrt(dot3(d, d));
+    const treal lr = *l;
+    if (lr > 0.0) {
+        *ld = dot3(d, dv) / *l;
+        const double f = sp[GS_SPR_K] * (*l - sp[GS_SPR_L0]) + sp[GS_SPR_C] * *ld;
+        for (int a = 0; a < 3; a++) F[a] = -f * d[a] / *l;
+    } else {   /* the points together: no direction (a spring of rest length 0 pulls with nothing) */
+        *ld = 0.0;
+        F[0] = F[1] = F[2] = 0.0;
+    }
+}
+
+/* The elements' forces on every body added to fx (body coordinates about its origin, (torque; force)): the
+ * springs' and the force inputs'. Returns their power less the springs' elastic part (that is in the energy): the
+ * springs' damping and the inputs' work. Needs the world kinematics. */
+static double element_forces(const gs_tree *t, const double *p, const Kin *k, double fx[][6]) {
+    double P = 0.0;
+    for (int e = 0; e < t->n_spr; e++) {
+        const double *sp = p + t->p_spr + GS_SPR_NP * e;
+        double F[3], Fb[3], l, ld;
+        spring_force(t, p, k, e, F, &l, &ld);
+        P -= sp[GS_SPR_C] * ld * ld;
+        const int a = t->spr_a[e], b = t->spr_b[e];
+        if (b >= 0) {
+            mtv3(k->Rw[b], F, Fb);
+            add_point_force(b, sp + GS_SPR_PB, Fb, fx);
+        }
+        if (a >= 0) {
+            for (int c = 0; c < 3; c++) F[c] = -F[c];
+            mtv3(k->Rw[a], F, Fb);
+            add_point_force(a, sp + GS_SPR_PA, Fb, fx);
+        }
+    }
+    for (int e = 0; e < t->n_frc; e++) {
+        const double *fp = p + t->p_frc + GS_FRC_NP * e, *pt = fp + GS_FRC_P;
+        const int i = t->frc_b[e];
+        double Fb[3], wp[3];
+        if (t->frc_w[e]) {
+            mtv3(k->Rw[i], fp + GS_FRC_F, Fb);
+        } else {
+            memcpy(Fb, fp + GS_FRC_F, sizeof(Fb));
+        }
+        add_point_force(i, pt, Fb, fx);
+        cross3(k->v[i], pt, wp);
+        for (int a = 0; a < 3; a++) P += Fb[a] * (k->v[i][3 + a] + wp[a]);
+    }
+    return P;
+}
+
+/* The potential of the joints' springs and stops, the ball springs, the couplings and the spring elements (J);
+ * the elements need the world kinematics (kin; NULL where the tree has none). */
+static double elastic(const gs_tree *t, const double *y, const double *p, const Kin *kin) {
+    double V = 0.0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), *s = y + t->yi[i];
+        if (one_dof(t->joint[i])) {
+            const double e = s[0] - b[GS_TB_REST];
+            double fe, fd;
+            V += 0.5 * b[GS_TB_STIFF] * e * e + stop_force(b, s[0], s[1], &fe, &fd);
+        } else if (t->joint[i] == GS_J_BALL && ball_sprung(b)) {
+            double ts[3];
+            V += ball_spring(s, b + GS_TB_KB, ts);
+        }
+    }
+    const double *kc = p + GS_TP_HEAD + GS_TB_NP * t->n;
+    for (int c = 0; c < t->n_cpl; c++) {
+        const double e = y[t->yi[t->cpl_a[c]]] - y[t->yi[t->cpl_b[c]]];
+        V += 0.5 * kc[c] * e * e;
+    }
+    for (int e = 0; e < t->n_spr && kin != NULL; e++) {
+        const double *sp = p + t->p_spr + GS_SPR_NP * e;
+        double F[3], l, ld;
+        spring_force(t, p, kin, e, F, &l, &ld);
+        V += 0.5 * sp[GS_SPR_K] * (l - sp[GS_SPR_L0]) * (l - sp[GS_SPR_L0]);
+    }
+    return V;
+}
+
 static double power(const gs_tree *t, const double *y, const double *p, const Kin *kin) {
     double P = 0.0;
     for (int i = 0; i < t->n; i++) {
@@ -1120,11 +1402,15 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
         P += dot3(b + GS_TB_TAU, kin->v[i]);
         switch (t->joint[i]) {
             case GS_J_BALL:
-                P -= b[GS_TB_DAMP] * dot3(s + 4, s + 4);
+                for (int a = 0; a < 3; a++) P -= (b[GS_TB_DAMP] + b[GS_TB_CB + a]) * s[4 + a] * s[4 + a];
                 break;
             case GS_J_HINGE:
-                P += (b[GS_TB_MOTOR] - b[GS_TB_DAMP] * s[1]) * s[1];
+            case GS_J_SLIDER: {
+                double fe, fd;
+                stop_force(b, s[0], s[1], &fe, &fd);
+                P += (b[GS_TB_MOTOR] - b[GS_TB_DAMP] * s[1] + fd) * s[1];
                 break;
+            }
             case GS_J_FREE:
                 P -= b[GS_TB_DAMP] * dot3(s + 7, s + 7);
                 break;
@@ -1138,15 +1424,19 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
 static void derivs(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *dy) {
     Kin kin;
     double qdd[GS_TREE_MAX][6], fnc[GS_TREE_MAX][6], fx[GS_TREE_MAX][6];
-    const int orbit = t->orbit != GS_ORBIT_NONE;
-    kinematics(t, y, p, pre, &kin, orbit);
+    const int orbit = t->orbit != GS_ORBIT_NONE, ext = orbit || pre->elements;
+    double P_el = 0.0;
+    kinematics(t, y, p, pre, &kin, ext);
     if (orbit) {
         orbit_forces(t, y, p, &kin, fnc, fx);
         for (int i = 0; i < t->n; i++) {
             for (int a = 0; a < 6; a++) fx[i][a] += fnc[i][a];
         }
+    } else if (ext) {
+        memset(fx, 0, (size_t)t->n * sizeof(fx[0]));
     }
-    aba(t, y, p, pre, &kin, orbit ? (const double (*)[6])fx : NULL, qdd);
+    if (pre->elements) P_el = element_forces(t, p, &kin, fx);
+    aba(t, y, p, pre, &kin, ext ? (const double (*)[6])fx : NULL, qdd);
     for (int i = 0; i < t->n; i++) {
         const double *s = y + t->yi[i];
         double *d = dy + t->yi[i];
@@ -1156,6 +1446,7 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
                 memcpy(d + 4, qdd[i], 3 * sizeof(double));
                 break;
             case GS_J_HINGE:
+            case GS_J_SLIDER:
                 d[0] = s[1];
                 d[1] = qdd[i][0];
                 break;
@@ -1173,7 +1464,7 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
                 break;
         }
     }
-    dy[t->nx] = power(t, y, p, &kin);
+    dy[t->nx] = power(t, y, p, &kin) + P_el;
     if (orbit) {   /* the work of the gravity-gradient torques and the tidal forces */
         for (int i = 0; i < t->n; i++) dy[t->nx] += dot3(fnc[i], kin.v[i]) + dot3(fnc[i] + 3, kin.v[i] + 3);
     }
@@ -1201,6 +1492,7 @@ void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, d
                 at += 3;
                 break;
             case GS_J_HINGE:
+            case GS_J_SLIDER:
                 qdd_out[at++] = d[1];
                 break;
             case GS_J_FREE:
@@ -1229,11 +1521,11 @@ static int root_of(const gs_tree *t, int i) {
 static void totals_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, Totals *s) {
     Kin kin;
     kinematics(t, y, p, pre, &kin, 1);
-    const double g = p[GS_TP_G];
+    const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     s->T = s->V = s->pot_scale = s->inertia = 0.0;
     s->L[0] = s->L[1] = s->L[2] = 0.0;
     for (int i = 0; i < t->n; i++) {
-        const double *b = body_p(p, i), *st = y + t->yi[i];
+        const double *b = body_p(p, i);
         M6 I;
         double h[6], cw[3], nw[3], fw[3], oxf[3];
         body_inertia(b, I);
@@ -1241,7 +1533,7 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
         s->T += 0.5 * (dot3(kin.v[i], h) + dot3(kin.v[i] + 3, h + 3));
         mv3(kin.Rw[i], b + GS_TB_CM, cw);
         const double m = b[GS_TB_MASS];
-        s->V += m * g * (kin.ow[i][2] + cw[2]);
+        s->V -= m * g * (gd[0] * (kin.ow[i][0] + cw[0]) + gd[1] * (kin.ow[i][1] + cw[1]) + gd[2] * (kin.ow[i][2] + cw[2]));
         const int r = root_of(t, i);
         double d[3];
         for (int a = 0; a < 3; a++) d[a] = kin.ow[i][a] + cw[a] - kin.ow[r][a];
@@ -1265,18 +1557,10 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
                 s->pot_scale += 1.5 * mu / (a * a * a) * (trJ + m * c2);
             }
         }
-        if (t->joint[i] == GS_J_HINGE) {
-            const double e = st[0] - b[GS_TB_REST];
-            s->V += 0.5 * b[GS_TB_STIFF] * e * e;
-            s->pot_scale += 0.5 * b[GS_TB_STIFF] * e * e;
-        }
     }
-    const double *kc = p + GS_TP_HEAD + GS_TB_NP * t->n;
-    for (int c = 0; c < t->n_cpl; c++) {
-        const double e = y[t->yi[t->cpl_a[c]]] - y[t->yi[t->cpl_b[c]]];
-        s->V += 0.5 * kc[c] * e * e;
-        s->pot_scale += 0.5 * kc[c] * e * e;
-    }
+    const double Ve = elastic(t, y, p, &kin);
+    s->V += Ve;
+    s->pot_scale += Ve;
 }
 
 #ifndef GS_TREE_CS   /* the monitor: real arithmetic only (tree_cs.c includes the rest) */
@@ -1295,10 +1579,15 @@ int gs_tree_torque_free(const gs_tree *t, const double *p) {
         mass += b[GS_TB_MASS];
         if (b[GS_TB_TAU] != 0.0 || b[GS_TB_TAU + 1] != 0.0 || b[GS_TB_TAU + 2] != 0.0) return 0;
         if (t->parent[i] >= 0) continue;
-        if (t->joint[i] == GS_J_HINGE || t->joint[i] == GS_J_FIXED) return 0;
-        if (b[GS_TB_DAMP] != 0.0) return 0;
+        if (t->joint[i] == GS_J_HINGE || t->joint[i] == GS_J_FIXED || t->joint[i] == GS_J_SLIDER) return 0;
+        if (b[GS_TB_DAMP] != 0.0 || ball_sprung(b)) return 0;
+        if (b[GS_TB_CB] != 0.0 || b[GS_TB_CB + 1] != 0.0 || b[GS_TB_CB + 2] != 0.0) return 0;
         if (t->joint[i] == GS_J_BALL &&
             (b[GS_TB_POS] != 0.0 || b[GS_TB_POS + 1] != 0.0 || b[GS_TB_POS + 2] != 0.0)) return 0;
+    }
+    if (t->n_frc > 0) return 0;   /* a force input (its value may change) */
+    for (int e = 0; e < t->n_spr; e++) {   /* a spring between two bodies pulls along their points' line: no torque */
+        if (t->spr_a[e] < 0 || t->spr_b[e] < 0) return 0;
     }
     return p[GS_TP_G] * mass == 0.0;
 }
@@ -1381,11 +1670,16 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
     double qw[GS_TREE_MAX][4];
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *s = y + t->yi[i];
-        double qr[4] = {1.0, 0.0, 0.0, 0.0};
+        double qj[4] = {1.0, 0.0, 0.0, 0.0}, qr[4];
         if (t->joint[i] == GS_J_BALL || t->joint[i] == GS_J_FREE) {
-            memcpy(qr, s, sizeof(qr));
+            memcpy(qj, s, sizeof(qj));
         } else if (t->joint[i] == GS_J_HINGE) {
-            hinge_quat(b + GS_TB_AXIS, s[0], qr);
+            hinge_quat(b + GS_TB_AXIS, s[0], qj);
+        }
+        if (pre->rot0[i]) {   /* the joint's placement, then its own rotation */
+            memcpy(qr, qj, sizeof(qr));
+        } else {
+            quat_mul(b + GS_TB_ROT, qj, qr);
         }
         const int par = t->parent[i];
         if (par < 0) {
@@ -1483,7 +1777,14 @@ static int conservative(const gs_tree *t, const double *p) {
         const double *b = body_p(p, i);
         if (b[GS_TB_TAU] != 0.0 || b[GS_TB_TAU + 1] != 0.0 || b[GS_TB_TAU + 2] != 0.0) return 0;
         if (b[GS_TB_DAMP] != 0.0) return 0;
-        if (t->joint[i] == GS_J_HINGE && b[GS_TB_MOTOR] != 0.0) return 0;
+        if (one_dof(t->joint[i]) && (b[GS_TB_MOTOR] != 0.0 || (b[GS_TB_LIM] != 0.0 && b[GS_TB_STOP_C] != 0.0))) return 0;
+        if (t->joint[i] == GS_J_BALL && (b[GS_TB_CB] != 0.0 || b[GS_TB_CB + 1] != 0.0 || b[GS_TB_CB + 2] != 0.0)) {
+            return 0;
+        }
+    }
+    if (t->n_frc > 0) return 0;
+    for (int e = 0; e < t->n_spr; e++) {
+        if (p[t->p_spr + GS_SPR_NP * e + GS_SPR_C] != 0.0) return 0;
     }
     return 1;
 }
@@ -1496,7 +1797,7 @@ static void invariants_pre(const gs_tree *t, const double *y, const double *p, c
                            double L[3]) {
     Kin kin;
     kinematics(t, y, p, pre, &kin, 1);
-    const double g = p[GS_TP_G];
+    const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     double T = 0.0, V = 0.0;
     L[0] = L[1] = L[2] = 0.0;
     for (int i = 0; i < t->n; i++) {
@@ -1511,22 +1812,13 @@ static void invariants_pre(const gs_tree *t, const double *y, const double *p, c
         ha[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cxh[2];
         T += 0.5 * (dot3(w, ha) + dot3(v, hl));
         mv3(kin.Rw[i], c, cw);
-        V += m * g * (kin.ow[i][2] + cw[2]);
-        if (t->joint[i] == GS_J_HINGE) {
-            const double e = y[t->yi[i]] - b[GS_TB_REST];
-            V += 0.5 * b[GS_TB_STIFF] * e * e;
-        }
+        V -= m * g * (gd[0] * (kin.ow[i][0] + cw[0]) + gd[1] * (kin.ow[i][1] + cw[1]) + gd[2] * (kin.ow[i][2] + cw[2]));
         mv3(kin.Rw[i], ha, nw);
         mv3(kin.Rw[i], hl, fw);
         cross3(kin.ow[i], fw, oxf);
         for (int a = 0; a < 3; a++) L[a] += nw[a] + oxf[a];
     }
-    const double *kc = p + GS_TP_HEAD + GS_TB_NP * t->n;
-    for (int c = 0; c < t->n_cpl; c++) {
-        const double e = y[t->yi[t->cpl_a[c]]] - y[t->yi[t->cpl_b[c]]];
-        V += 0.5 * kc[c] * e * e;
-    }
-    *E = T + V;
+    *E = T + V + elastic(t, y, p, &kin);
 }
 
 /* energy_momentum's invariants, scaled as the health monitor scales them: the energy against the balance's
@@ -1571,6 +1863,7 @@ static void lie_view(const gs_tree *t, Ctx *ctx, gs_lie *L) {
                 for (int a = 0; a < 3; a++) L->vel[L->nvel++] = at + 4 + a;
                 break;
             case GS_J_HINGE:
+            case GS_J_SLIDER:
                 L->pos[L->npos++] = at;
                 L->vel[L->nvel++] = at + 1;
                 break;

@@ -22,6 +22,15 @@
 
 typedef double treal;   /* a value tree.c only compares: real here too */
 static inline double cs_fabs(_Complex double x) { return __builtin_fabs(__real__ x); }
+/* atan2 over complex numbers to first order in the imaginary parts (all the complex step needs): the real angle,
+ * and Im = (x Im y - y Im x) / (x^2 + y^2), its derivative */
+static inline _Complex double cs_atan2(_Complex double y, _Complex double x) {
+    const double xr = __real__ x, yr = __real__ y;
+    _Complex double r = __builtin_atan2(yr, xr);
+    __imag__ r = (xr * __imag__ y - yr * __imag__ x) / (xr * xr + yr * yr);
+    return r;
+}
+#define tree_atan2 cs_atan2
 
 #define GS_TREE_CS 1
 #define double _Complex double

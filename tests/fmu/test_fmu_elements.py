@@ -1,0 +1,102 @@
+"""FMUs of scenes with the joints and elements of DESIGN 4b's turn 4 (a slider with stops and a motor force, a
+placed hinge, a ball spring per axis, a force input at a point, a sideways gravity; springs between bodies): the one
+glue runs them to gyrosim.simulate's bits in co-simulation (FMI 2.0 and 3.0, FMPy) and within 1e-6 of a tight
+model run under CVode in model exchange; the force inputs and spring parameters are FMU variables."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from fmpy import read_model_description, simulate_fmu
+from fmpy.validation import validate_fmu
+
+import gyrosim
+from gyrosim.fmu import build_fmu
+from gyrosim.kernel_tree import tree_output_names
+from gyrosim.scene import load_scene
+
+DYADIC = 2.0 ** -7   # s: FMPy's step sizes are exactly dt (tests/fmu/test_fmu_tree.py)
+VERSIONS = (2, 3)
+
+#: the example of docs/scenes.md "A thruster, a stop, a placed joint and a sideways gravity", with rk4
+ARM = """[scene]
+name = "arm_on_cart"
+integrator = "rk4"
+max_step = 0.001
+gravity = [0.0, 2.0, -9.6]          # g is its magnitude
+
+[[body]]
+name = "cart"
+joint = "slider"
+axis = [1.0, 0.0, 0.0]
+mass = 5.0
+inertia = { principal = [0.1, 0.1, 0.1] }
+lower = -0.5                        # stops at +-0.5 m
+upper = 0.5
+motor_input = true                  # cart.motor_force (N)
+
+[[body]]
+name = "arm"
+parent = "cart"
+joint = "hinge"
+axis = [0.0, 1.0, 0.0]              # in the cart's frame
+rotation = { zyz = [0.0, 0.0, 0.5] } # the arm's frame turned 0.5 rad about z at angle 0
+mass = 1.0
+cm = [0.0, 0.0, -0.5]
+inertia = { principal = [0.02, 0.02, 0.001] }
+angle = 0.3
+stiffness = 2.0
+
+[[body]]
+name = "wrist"
+parent = "arm"
+joint = "ball"
+position = [0.0, 0.0, -1.0]
+mass = 0.2
+cm = [0.0, 0.0, -0.1]
+inertia = { principal = [1e-3, 1e-3, 5e-4] }
+stiffness = [0.5, 0.5, 0.1]         # a torsion bar: per body axis
+joint_damping = [0.01, 0.01, 0.002]
+
+[[force]]
+name = "jet"                        # inputs arm.jet.f_x..f_z
+body = "arm"
+point = [0.0, 0.0, -1.0]
+frame = "body"
+"""
+
+
+@pytest.mark.parametrize("v", VERSIONS)
+def test_elements_scene_runs_to_the_bits_in_co_simulation_and_meets_me(tmp_path, v):
+    toml = tmp_path / "arm.toml"
+    toml.write_text(ARM)
+    names = tree_output_names(load_scene(str(toml)))
+    start = {"cart.motor_force": 3.0, "arm.jet.f_x": 0.5, "arm.jet.f_z": -0.2, "wrist.stiffness_z": 0.2,
+             "cart.upper": 0.2, "g": 9.0}
+    ref = gyrosim.simulate(str(toml), stop_time=1.0, output_interval=DYADIC, start_values=start)
+    assert ref["cart.displacement"].max() > 0.2   # the cart reached its (moved) stop
+    path = build_fmu(str(toml), v, tmp_path / f"fmi{v}", fmi_type="both", windows=False)
+    assert validate_fmu(str(path)) == []
+    md = {x.name: x for x in read_model_description(str(path)).modelVariables}
+    assert md["arm.jet.f_x"].causality == "input" and md["cart.motor_force"].causality == "input"
+    assert md["wrist.stiffness_x"].causality == "parameter" and md["cart.lower"].causality == "parameter"
+    r = simulate_fmu(str(path), stop_time=1.0, output_interval=DYADIC, start_values=start, output=names)
+    for n in names:
+        assert np.array_equal(r[n], ref[n]), n
+    tight = gyrosim.simulate(str(toml), stop_time=1.0, output_interval=0.01, start_values=start,
+                             integrator="dop853", relative_tolerance=1e-12, max_step=1.0)
+    r = simulate_fmu(str(path), fmi_type="ModelExchange", stop_time=1.0, output_interval=0.01,
+                     relative_tolerance=1e-10, start_values=start, output=names)
+    for n in names:
+        assert np.abs(r[n] - tight[n]).max() < 1e-6 * max(1.0, np.abs(tight[n]).max()), n
+
+
+def test_spring_scene_parameters_reach_their_springs_in_the_fmu(tmp_path):
+    """mass_spring_chain's scene parameter k sets the four springs' stiffness inside the FMU as in the model."""
+    path = build_fmu("mass_spring_chain", 2, tmp_path, windows=False)
+    names = tree_output_names(load_scene("mass_spring_chain"))
+    start = {"k": 2.5, "m": 0.5, "s12.damping": 0.1}
+    ref = gyrosim.simulate("mass_spring_chain", stop_time=2.0, output_interval=DYADIC, start_values=start)
+    r = simulate_fmu(str(path), stop_time=2.0, output_interval=DYADIC, start_values=start, output=names)
+    for n in names:
+        assert np.array_equal(r[n], ref[n]), n
