@@ -26,7 +26,7 @@ from .core.tree import (
     TreeLayout,
 )
 from .errors import ConfigError, IntegrationError
-from .ranges import ANY, NONNEGATIVE, POSITIVE
+from .ranges import ANY, NONNEGATIVE, POSITIVE, Range
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean
 from .scene_tree import (
     BALL_DAMPING_PARAMS,
@@ -188,12 +188,16 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
             params["lower"] = (unit, "lower stop")
         if b.upper is not None:
             params["upper"] = (unit, "upper stop")
-        if b.lower is not None or b.upper is not None:
+        if (b.lower is not None or b.upper is not None) and b.stop == "impact":
+            params["restitution"] = ("1", "coefficient of restitution of the impact stops (rate after / rate "
+                                     "before)")
+        elif b.lower is not None or b.upper is not None:
             params["stop_stiffness"] = (stiff, "stiffness of the stops' spring-damper")
             params["stop_damping"] = (stiff.replace("/", ".s/"), "damping of the stops' spring-damper (in contact)")
         for n, (unit_n, desc) in params.items():
+            rng = Range(0.0, 1.0) if n == "restitution" else NONNEGATIVE if n in NONNEGATIVE_PARAMS else ANY
             V.append(Variable(pre + n, "parameter", "fixed", "Real", unit_n, desc, _body_param_value(b, n),
-                              **(NONNEGATIVE if n in NONNEGATIVE_PARAMS else ANY).fields()))
+                              **rng.fields()))
         if b.motor_input and b.joint == "slider":
             V.append(Variable(pre + "motor_force", "input", "continuous", "Real", "N",
                               "motor force along the slider axis (on this body; its reaction on the parent)", 0.0))

@@ -107,7 +107,7 @@ BALL_SPRING_PARAMS = {f"stiffness_{c}": ("N.m/rad", f"ball spring stiffness abou
                       for c in "xyz"}
 BALL_DAMPING_PARAMS = {f"joint_damping_{c}": ("N.m.s/rad", f"ball viscous damping about body {c}") for c in "xyz"}
 #: A hinge's or slider's stops (where the scene gives them); units (rad or m) set per joint.
-STOP_PARAMS = ("lower", "upper", "stop_stiffness", "stop_damping")
+STOP_PARAMS = ("lower", "upper", "stop_stiffness", "stop_damping", "restitution")
 #: The body parameters that must be >= 0 (point masses and massless gimbals are allowed: a tree body may have 0).
 NONNEGATIVE_PARAMS = ("mass", "I1", "I2", "I3", "stiffness", "joint_damping", "damping", "stiffness_x", "stiffness_y",
                       "stiffness_z", "joint_damping_x", "joint_damping_y", "joint_damping_z", "stop_stiffness",
@@ -357,10 +357,19 @@ def _stops(tbl, joint, where) -> dict:
     stop = tbl.get("stop", "spring")
     if stop not in ("spring", "impact"):
         raise ConfigError("stop", stop, "'spring' (a stiff spring-damper) or 'impact'", where=where)
-    if stop == "impact" or "restitution" in tbl:
-        raise ConfigError("stop", stop if stop == "impact" else tbl.get("restitution"),
-                          "'spring': impact stops (an event located to round-off, with a coefficient of "
-                          "restitution) are not built yet", where=where)
+    if stop == "impact":
+        for k in ("stop_stiffness", "stop_damping"):
+            if k in tbl:
+                raise ConfigError(k, tbl[k], "left out of an impact stop (its law is the restitution's)", where=where)
+        out["stop"] = "impact"
+        out["restitution"] = s._num(tbl, "restitution", where, 1.0, lo=0.0)
+        if out["restitution"] > 1.0:
+            raise ConfigError("restitution", out["restitution"], "a number in [0, 1] (the rate after an impact over "
+                              "the rate before)", where=where)
+        return out
+    if "restitution" in tbl:
+        raise ConfigError("restitution", tbl["restitution"], 'left out of a spring stop (or stop = "impact")',
+                          where=where)
     for k in ("stop_stiffness", "stop_damping"):
         if k in tbl:
             out[k] = s._num(tbl, k, where, None, lo=0.0)
@@ -373,7 +382,7 @@ def stop_defaults(bodies: list) -> list:
     axis through the joint point; a slider: the subtree's mass)."""
     out = list(bodies)
     for i, b in enumerate(bodies):
-        if b.lower is None and b.upper is None:
+        if (b.lower is None and b.upper is None) or b.stop == "impact":
             continue
         M = _joint_inertia(bodies, i)
         k, c = M / STOP_TIME ** 2, 2.0 * M / STOP_TIME

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from gyrosim.core import _engine
-from gyrosim.core.tree import TreeLayout
+from gyrosim.kernel_tree import tree_layout
 from gyrosim.scene import load_scene
 
 ENGINE = Path(__file__).resolve().parents[2] / "src" / "gyrosim" / "core" / "engine"
@@ -146,7 +146,7 @@ def test_body_kernel_gives_the_one_body_engine_bits(lib, scene, method):
 
 def test_tree_kernel_gives_the_tree_engine_bits(lib):
     sc = load_scene("double_pendulum")
-    lay = TreeLayout(sc.tree, sc.couplings, sc.orbit)
+    lay = tree_layout(sc)
     p, y0 = lay.params(float(sc.g), float(sc.max_drift)), lay.state()
     s = System(lib, [SYSTEM["KERNEL_TREE"], *lay.desc])
     assert (s.units, s.ny, s.np, s.nout, s.ncoord, s.nwork) == (1, lay.ny, lay.np, lay.nout, lay.nx, 1)

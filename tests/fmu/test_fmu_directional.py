@@ -225,10 +225,10 @@ def _python_reference(scene, f, states, ders, outs, inputs, known):
     sc = load_scene(scene)
     names = [f.name[vr] for vr in outs]
     if sc.kernel == "tree":
-        from gyrosim.core.tree import TreeLayout
         from gyrosim.fmu.layout import fmu_rows
+        from gyrosim.kernel_tree import tree_layout
 
-        lay = TreeLayout(sc.tree, sc.couplings, sc.orbit)
+        lay = tree_layout(sc)
         rows = fmu_rows(sc)
         p = lay.params(float(sc.g), float(sc.max_drift)).copy()
         in_slot = {vr: r.index for vr, r in enumerate(rows, start=1) if r.kind == "input"}

@@ -34,7 +34,7 @@ from gyrosim.errors import ConfigError, IntegrationError
 from gyrosim.fmu import build_fmu, model_identifier
 from gyrosim.fmu.build import binary_path, fmi_include_dir, windows_compiler
 from gyrosim.fmu.layout import WORK_STATE
-from gyrosim.kernel_tree import tree_output_names, tree_variables
+from gyrosim.kernel_tree import tree_layout, tree_output_names, tree_variables
 from gyrosim.model import Model
 from gyrosim.scene import load_scene
 
@@ -125,7 +125,7 @@ def test_variables_are_the_tree_variables_and_validate(tree_fmu, scene, v):
             assert x.start is None and x.initial == "calculated", name
         else:
             assert float(x.start) == var.start, name
-    lay = TreeLayout(sc.tree, sc.couplings)
+    lay = tree_layout(sc)
     me = got[len(want):]
     states = [n for n in tree_output_names(sc)[:lay.nx]] + [WORK_STATE]
     assert [x.name for x in me] == [WORK_STATE] + [f"der({s})" for s in states]

@@ -435,7 +435,9 @@ def test_ball_spring_keeps_the_energy_of_a_free_oscillation():
 @pytest.mark.parametrize("body, field", [
     ('joint = "free"\nrotation = { zyz = [0.1, 0.2, 0.3] }', "rotation"),
     ('joint = "ball"\ndamping = 0.1\njoint_damping = 0.2', "joint_damping"),
-    ('joint = "hinge"\nupper = 0.1\nstop = "impact"', "stop"),
+    ('joint = "hinge"\nupper = 0.1\nstop = "impact"\nrestitution = 1.5', "restitution"),
+    ('joint = "hinge"\nupper = 0.1\nstop = "impact"\nstop_stiffness = 5.0', "stop_stiffness"),
+    ('joint = "hinge"\nupper = 0.1\nstop = "bounce"', "stop"),
     ('joint = "hinge"\nlower = 0.3\nupper = 0.1', "upper"),
     ('joint = "slider"\nangle = 0.1', "angle"),
     ('joint = "ball"\nstiffness = [1.0, -2.0, 3.0]', "stiffness"),
@@ -483,3 +485,129 @@ def test_simulate_runs_the_new_scenes():
     for name in ("mass_spring_chain", "triatomic"):
         r = simulate(name, stop_time=2.0)
         assert np.all(np.isfinite(r["energy"])) and abs(r["energy_error"]).max() < 1e-9
+
+
+# ------------------------------------------------------------------------------------------ impact stops
+DROP = """
+[scene]
+name = "drop"
+gravity = [0.0, 0.0, -9.81]
+integrator = "{integrator}"
+max_step = 0.01
+tolerance = 1e-12
+[[body]]
+name = "ball"
+joint = "slider"
+axis = [0.0, 0.0, 1.0]
+mass = 1.0
+inertia = {{ principal = [0.0, 0.0, 0.0] }}
+displacement = 1.0
+lower = 0.0
+stop = "impact"
+restitution = 0.8
+"""
+
+
+def _bounce(t, h0=1.0, g=9.81, e=0.8):
+    """The bouncing mass's height and velocity at t: free fall from h0, each impact v -> -e v."""
+    v = np.sqrt(2 * g * h0)
+    t1 = v / g
+    if t < t1:
+        return h0 - 0.5 * g * t * t, -g * t
+    t -= t1
+    while True:
+        v *= e
+        if t < 2 * v / g:
+            return v * t - 0.5 * g * t * t, v - g * t
+        t -= 2 * v / g
+
+
+@pytest.mark.parametrize("integrator, tol", [("rk4", 1e-13), ("euler", None), ("midpoint", 1e-12),
+                                             ("dop853", 1e-9)])
+def test_impact_stop_bounces_at_the_closed_form_times(integrator, tol):
+    """A mass dropped from 1 m onto an impact stop (restitution 0.8) under g: its height and velocity follow the
+    closed form over two bounces. rk4 and the implicit midpoint integrate a constant acceleration exactly, so the
+    event (the root of the one-step map in the step size) is the closed form's impact time to round-off: the state
+    within 1e-13 (rk4) / 1e-12 (midpoint's Newton tolerance) of it after 1.6 s. dop853 at 1e-12 locates it to its
+    tolerance's order (1e-9). Euler's own steps (1 ms) are off by O(h) but its events still fire: it bounces (its
+    error is checked only to 0.1). The energy after each bounce is e^2 times the energy before, and the balance
+    (which books the loss as work) keeps energy_error at round-off."""
+    m = Model(_scene(DROP.format(integrator=integrator)))
+    if integrator == "euler":   # its energy error at 0.01 s is 2 % by the first impact: the monitor's bound
+        m.set("max_step", 0.001)
+    E0 = m.get("energy")
+    for k in range(1, 161):
+        m.step(0.01)
+        x, v = _bounce(0.01 * k)
+        if tol is not None:
+            assert abs(m.get("displacement") - x) < tol and abs(m.get("velocity") - v) < 10 * tol, k
+        else:
+            assert abs(m.get("displacement") - x) < 0.1
+        assert m.get("displacement") >= 0.0
+    assert m.get("energy") == pytest.approx(E0 * 0.8 ** 4, rel=1e-9 if tol else 0.2)   # two bounces by 1.6 s
+    assert abs(m.get("energy_error")) < (1e-12 if tol else 1e-2) * E0   # euler: its own O(h) energy error
+
+
+def test_impact_in_a_run_reverses_the_cart_and_keeps_the_energy():
+    """A cart on a slider carrying a pendulum hits an impact stop (restitution 1) at 1 m/s with the pendulum at an
+    angle: in a run (rk4 steps, the event located inside a step) the cart turns back from the stop without passing
+    it, and the kinetic energy is kept (e = 1: energy and energy_error within 1e-12 of it)."""
+    sc = _scene("""
+[scene]
+name = "cart"
+g = 0.0
+integrator = "rk4"
+max_step = 0.001
+[[body]]
+name = "cart"
+joint = "slider"
+axis = [1.0, 0.0, 0.0]
+mass = 2.0
+inertia = { principal = [0.0, 0.0, 0.0] }
+velocity = 1.0
+upper = 0.05
+stop = "impact"
+[[body]]
+name = "pend"
+parent = "cart"
+joint = "hinge"
+axis = [0.0, 1.0, 0.0]
+mass = 0.5
+cm = [0.0, 0.0, -1.0]
+inertia = { principal = [0.0, 0.0, 0.0] }
+angle = 0.7
+""")
+    m = Model(sc)
+    E0 = m.get("energy")
+    top = 0.0
+    for _ in range(200):
+        m.step(0.001)
+        top = max(top, m.get("cart.displacement"))
+    assert m.get("cart.velocity") < 0 and top <= 0.05
+    assert abs(m.get("energy") - E0) < 1e-12 * E0 and abs(m.get("energy_error")) < 1e-12 * E0
+
+
+def test_impact_stop_in_the_cart_keeps_the_pendulum_momentum_to_round_off():
+    """The impact applied directly (the engine's gs_tree_impact at a state on the stop): the impulse acts on the
+    cart's coordinate alone, so the pendulum's generalized momentum p_th = -m L cos th x' + m L^2 th' (the bob at
+    the cart plus L (-sin th, 0, -cos th)) is the same before and after (to 1e-14), and the cart's rate is -e times
+    its rate before, for e = 1 and 0.3."""
+    from gyrosim.core.tree import TreeBody, TreeLayout
+
+    for e in (1.0, 0.3):
+        lay = TreeLayout([TreeBody("cart", joint="slider", axis=np.array([1.0, 0, 0]), mass=2.0,
+                                   inertia=np.zeros((3, 3)), angle0=0.05, rate0=1.0, upper=0.05, stop="impact",
+                                   restitution=e),
+                          TreeBody("pend", parent=0, joint="hinge", axis=np.array([0.0, 1, 0]), mass=0.5,
+                                   cm=np.array([0.0, 0, -1]), inertia=np.zeros((3, 3)), angle0=0.7, rate0=-0.4)])
+        p, y = lay.params(0.0, 0.0), lay.state()
+        _engine.tree_start(lay.desc, y.reshape(1, -1), p.reshape(1, -1))
+        th = y[2]
+
+        def pth(yy, th=th):
+            return -0.5 * np.cos(th) * yy[1] + 0.5 * yy[3]
+
+        before = pth(y)
+        assert _engine.tree_impact(lay.desc, y, p) == 1
+        assert y[1] == -e * 1.0
+        assert abs(pth(y) - before) < 1e-14

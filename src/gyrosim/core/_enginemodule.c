@@ -779,7 +779,40 @@ static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_
     return res;
 }
 
+/* tree_impact(desc, y, p) -> the impacts applied to the first system (gs_tree_impact; y changed in place);
+ * tree_indicators(desc, y, p, z) -> the impact stops' event indicators of the first system into z */
+static PyObject *py_tree_impact(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 3 && nargs != 4) {
+        PyErr_SetString(PyExc_TypeError, "tree_impact() takes 3 arguments, tree_indicators() 4");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    Buf b[3] = {{0}};
+    PyObject *res = NULL;
+    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, nargs == 3);
+    if (n < 1) {
+        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
+        goto done;
+    }
+    if (nargs == 3) {
+        res = PyLong_FromLong(gs_tree_impact(&t, (double *)b[0].view.buf, (const double *)b[1].view.buf));
+        goto done;
+    }
+    const int nz = gs_tree_n_indicators(&t, (const double *)b[1].view.buf);
+    if (get_buf(args[3], &b[2], "z", 'd', nz, 1) < 0) goto done;
+    gs_tree_indicators(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf, (double *)b[2].view.buf);
+    res = PyLong_FromLong(nz);
+done:
+    release(b, 3);
+    return res;
+}
+
 static PyMethodDef methods[] = {
+    {"tree_impact", (PyCFunction)(void (*)(void))py_tree_impact, METH_FASTCALL,
+     "tree_impact(desc, y, p) -> the impacts applied to the first system (y changed in place); "
+     "tree_impact(desc, y, p, z) -> the number of event indicators, written into z"},
     {"tree_info", (PyCFunction)(void (*)(void))py_tree_info, METH_FASTCALL,
      "tree_info(desc) -> (nx, ny, np, nout) of a tree description (int32: n, n_cpl, (parent, joint)*, (a, b)*, "
      "[orbit])"},
@@ -850,7 +883,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
             {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
             {"J_SLIDER", GS_J_SLIDER}, {"TB_ROT", GS_TB_ROT}, {"TB_KB", GS_TB_KB}, {"TB_CB", GS_TB_CB},
             {"TB_LIM", GS_TB_LIM}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
-            {"TB_STOP_C", GS_TB_STOP_C}, {"TP_GDIR", GS_TP_GDIR}, {"SPR_PA", GS_SPR_PA}, {"SPR_PB", GS_SPR_PB},
+            {"TB_STOP_C", GS_TB_STOP_C}, {"TB_RESTITUTION", GS_TB_RESTITUTION}, {"TP_GDIR", GS_TP_GDIR}, {"SPR_PA", GS_SPR_PA}, {"SPR_PB", GS_SPR_PB},
             {"SPR_K", GS_SPR_K}, {"SPR_L0", GS_SPR_L0}, {"SPR_C", GS_SPR_C}, {"SPR_NP", GS_SPR_NP},
             {"FRC_P", GS_FRC_P}, {"FRC_F", GS_FRC_F}, {"FRC_NP", GS_FRC_NP},
             {"TB_POS", GS_TB_POS}, {"TB_AXIS", GS_TB_AXIS}, {"TB_MASS", GS_TB_MASS}, {"TB_CM", GS_TB_CM},

@@ -38,7 +38,7 @@ BODY_SLOTS = {"mass": _engine.TB_MASS, "I1": _engine.TB_I, "I2": _engine.TB_I + 
               "joint_damping_x": _engine.TB_CB, "joint_damping_y": _engine.TB_CB + 1,
               "joint_damping_z": _engine.TB_CB + 2,
               "lower": _engine.TB_LO, "upper": _engine.TB_HI, "stop_stiffness": _engine.TB_STOP_K,
-              "stop_damping": _engine.TB_STOP_C}
+              "stop_damping": _engine.TB_STOP_C, "restitution": _engine.TB_RESTITUTION}
 #: A body's inputs by short name: their slot in its block.
 INPUT_SLOTS = {"motor_torque": _engine.TB_MOTOR, "motor_force": _engine.TB_MOTOR, "tau_x": _engine.TB_TAU,
                "tau_y": _engine.TB_TAU + 1, "tau_z": _engine.TB_TAU + 2}
@@ -150,7 +150,7 @@ class TreeBody:
         body axis (N*m*s/rad), besides ``damping``.
     lower, upper : float or None
         A hinge's or slider's stops (rad, m); ``stop_stiffness`` and ``stop_damping`` the spring-damper that acts
-        beyond them.
+        beyond them, or with ``stop = "impact"`` an impact with the coefficient of ``restitution`` (events).
     """
 
     name: str
@@ -179,6 +179,8 @@ class TreeBody:
     upper: float | None = None
     stop_stiffness: float = 0.0
     stop_damping: float = 0.0
+    stop: str = "spring"
+    restitution: float = 1.0
 
     @property
     def coords(self) -> tuple[str, ...]:
@@ -327,7 +329,8 @@ class TreeLayout:
             p[o + _engine.TB_DAMP] = b.damping
             p[o + _engine.TB_KB:o + _engine.TB_KB + 3] = _vec(b.ball_stiffness)
             p[o + _engine.TB_CB:o + _engine.TB_CB + 3] = _vec(b.ball_damping)
-            p[o + _engine.TB_LIM] = (b.lower is not None) + 2 * (b.upper is not None)
+            p[o + _engine.TB_LIM] = (b.lower is not None) + 2 * (b.upper is not None) + 4 * (b.stop == "impact")
+            p[o + _engine.TB_RESTITUTION] = b.restitution
             p[o + _engine.TB_LO] = b.lower if b.lower is not None else 0.0
             p[o + _engine.TB_HI] = b.upper if b.upper is not None else 0.0
             p[o + _engine.TB_STOP_K] = b.stop_stiffness

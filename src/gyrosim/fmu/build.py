@@ -187,7 +187,7 @@ def _c_string(s: str) -> str:
 
 _KIND_C = {"time": "GS_K_TIME", "param": "GS_K_PARAM", "max_drift": "GS_K_MAX_DRIFT", "input": "GS_K_INPUT",
            "alias": "GS_K_ALIAS", "state": "GS_K_STATE", "output": "GS_K_OUTPUT", "integrator": "GS_K_INTEGRATOR",
-           "max_step": "GS_K_MAX_STEP", "work": "GS_K_WORK", "der": "GS_K_DER"}
+           "max_step": "GS_K_MAX_STEP", "work": "GS_K_WORK", "der": "GS_K_DER", "indicator": "GS_K_INDICATOR"}
 
 
 def _unit_of(rows: list[FmuRow], row: FmuRow) -> str:
@@ -288,6 +288,7 @@ def _config_header(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: str,
         f"#define GS_SYS_UNITS {lay.units}   /* units of hint, stats, anchors */",
         f"#define GS_SYS_NEX {lay.nex}   /* anchor values per unit */",
         f"#define GS_SYS_NX {lay.nx}   /* model exchange's continuous states */",
+        f"#define GS_NZ {len(lay.indicators)}   /* model exchange's event indicators (impact stops) */",
         f"#define GS_ME_WORK_STATES {int(lay.work_states)}   /* the work integrals are continuous states */",
         f"#define GS_ME_STATES_TEXT {_c_string(lay.states_text)}",
         "#define GS_UNIT_NAMES " + arr(lay.unit_names, _c_string), "",
@@ -344,7 +345,7 @@ def content_token(*parts: str) -> str:
 
 
 def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: str, sources, fmi_type: str,
-                     units) -> ET.Element:
+                     units, n_indicators: int = 0) -> ET.Element:
     """The root of a model description up to its variables: the attributes, the interfaces (co-simulation, model
     exchange), the units (``units``, and ``s``), log categories and the default experiment of scene ``sc``."""
     from .. import __version__
@@ -358,7 +359,7 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
     root.set("generationTool", f"gyrosim {__version__}")
     root.set("variableNamingConvention", "flat")
     if fmi_version == 2:
-        root.set("numberOfEventIndicators", "0")
+        root.set("numberOfEventIndicators", str(n_indicators))
     if has_me:
         me = ET.SubElement(root, "ModelExchange")
         me.set("modelIdentifier", ident)
@@ -475,14 +476,15 @@ def _model_description(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: 
     extra = me_rows(lay, rows) if has_me else []
     all_rows = rows + extra
     units = {_unit_of(rows, r) for r in all_rows} - {""}
-    root = description_head(sc, ident, token, fmi_version, desc, sources, fmi_type, units)
+    root = description_head(sc, ident, token, fmi_version, desc, sources, fmi_type, units,
+                            len(lay.indicators) if has_me else 0)
     mv = ET.SubElement(root, "ModelVariables")
     if fmi_version == 3:
         ET.SubElement(mv, "Float64", name="time", valueReference="0", causality="independent",
                       variability="continuous", unit="s", description="simulation time")
     state_vr = {r.aux: vr for vr, r in enumerate(rows, start=1) if r.kind == "state"}
     state_vr.update({r.index: vr for vr, r in enumerate(extra, start=len(rows) + 1) if r.kind == "work"})
-    outputs, initial_unknowns, derivatives = [], [], []
+    outputs, initial_unknowns, derivatives, indicators = [], [], [], []
     for vr, r in enumerate(all_rows, start=1):   # the value reference is also the 1-based index (FMI 2.0)
         v = r.var
         start, nominal, derivative = None, None, None
@@ -500,6 +502,8 @@ def _model_description(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: 
             elif v.causality == "parameter":
                 attrs["initial"] = "exact"
                 start = integrator if v.type == "String" else v.start
+            elif r.kind == "indicator":
+                indicators.append(vr)
             else:
                 start = v.start
             if has_me and r.kind == "state" and lay.nominals[r.aux] != 1.0:
@@ -551,12 +555,14 @@ def _model_description(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: 
             se = ET.SubElement(mv, "String", attrs)
             ET.SubElement(se, "Start", value=str(start))
     initial_unknowns.sort()
-    model_structure(root, fmi_version, outputs, derivatives, initial_unknowns, dependencies(lay, rows, has_me))
+    model_structure(root, fmi_version, outputs, derivatives, initial_unknowns, dependencies(lay, rows, has_me),
+                    indicators)
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def model_structure(root: ET.Element, fmi_version: int, outputs, derivatives, initial_unknowns, deps) -> None:
+def model_structure(root: ET.Element, fmi_version: int, outputs, derivatives, initial_unknowns, deps,
+                    indicators=()) -> None:
     """The ModelStructure of value references ``outputs``, ``derivatives`` and ``initial_unknowns`` (in FMI 2.0 the
     1-based index in ModelVariables, which is the value reference here: FMI 2.0 has no variable at 0); ``deps``
     gives the outputs' and derivatives' ``dependencies`` (value references of the knowns: continuous states and
@@ -587,6 +593,8 @@ def model_structure(root: ET.Element, fmi_version: int, outputs, derivatives, in
             ET.SubElement(ms, "ContinuousStateDerivative", dep({"valueReference": str(vr)}, vr))
         for vr in initial_unknowns:
             ET.SubElement(ms, "InitialUnknown", valueReference=str(vr))
+        for vr in indicators:   # FMI 3.0 names its event indicators (FMI 2.0: numberOfEventIndicators)
+            ET.SubElement(ms, "EventIndicator", valueReference=str(vr))
 
 
 def _build_description(ident: str, sources) -> str:

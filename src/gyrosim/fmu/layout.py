@@ -79,6 +79,7 @@ class SystemLayout:
     nonneg: frozenset = frozenset()
     energy_error: list[int] = field(default_factory=list)   # the energy_error column of each work integral
     head_inputs: dict[str, int] = field(default_factory=dict)   # inputs outside a body's block (force elements)
+    indicators: list[str] = field(default_factory=list)   # model exchange's event indicators (impact stops)
     pattern: object = None   # (rows) -> (ddy, dout) where the derivatives can be nonzero
 
     @property
@@ -206,6 +207,9 @@ def _tree_layout(sc: Scene) -> SystemLayout:
         nonneg=frozenset({"g", "orbit_mu", "orbit_radius", *NONNEGATIVE_PARAMS, *sc.coupling_names,
                           *(n for n, (kind, _, _) in elements.items() if kind == "spring")}),
         head_inputs=head_inputs,
+        indicators=[(sc.var_name(b.name, f"{side}_stop_distance"), "m" if b.joint == "slider" else "rad")
+                    for b in sc.tree if b.stop == "impact"
+                    for side, lim in (("lower", b.lower), ("upper", b.upper)) if lim is not None],
         energy_error=[lay.nx + 4 * len(sc.tree) + 1], pattern=pattern)
 
 
@@ -324,14 +328,21 @@ def fmu_rows(sc: Scene, lay: SystemLayout | None = None) -> list[FmuRow]:
 
 def me_rows(lay: SystemLayout, rows: list[FmuRow]) -> list[FmuRow]:
     """Model exchange's local variables after ``rows``: the work integrals' balances where they are states
-    (``energy_expected``), then the derivatives ``der(...)`` of the continuous states in their order."""
+    (``energy_expected``), the derivatives ``der(...)`` of the continuous states in their order, then the event
+    indicators (``<body>.lower_stop_distance``, ``upper_...``: an impact stop's distance, >= 0 within the stops)."""
     states = {r.aux: r.name for r in rows if r.kind == "state"}
     out = []
     if lay.work_states:
         for u in range(lay.nwork):
             states[lay.ncoord + u] = WORK_STATE
             out.append(FmuRow(WORK_STATE, None, "work", lay.ncoord + u, lay.energy_error[u]))
-    return out + [FmuRow(f"der({states[i]})", None, "der", i) for i in range(lay.nx)]
+    from ..variables import Variable
+
+    return out + [FmuRow(f"der({states[i]})", None, "der", i) for i in range(lay.nx)] + \
+        [FmuRow(name, Variable(name, "local", "continuous", "Real", unit,
+                               f"event indicator: the distance to the {name.rsplit('.', 1)[-1].split('_')[0]} impact "
+                               "stop (>= 0 within the stops; an impact where it reaches 0)", None), "indicator", k)
+         for k, (name, unit) in enumerate(lay.indicators)]
 
 
 def jacobian_pattern(lay: SystemLayout, rows: list[FmuRow]):

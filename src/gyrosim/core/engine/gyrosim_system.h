@@ -137,6 +137,12 @@ double gs_sys_fastest_rate(const gs_system *s, const double *y, const double *p)
 /* 1 when no torque acts with parameters p (every unit). */
 int gs_sys_torque_free(const gs_system *s, const double *p);
 
+/* Impact stops (a tree's; none elsewhere): the event indicators (gs_tree_indicators), and the impacts at a state on
+ * a stop (gs_tree_impact: the impacts applied). */
+int gs_sys_n_indicators(const gs_system *s, const double *p);
+void gs_sys_indicators(const gs_system *s, const double *y, const double *p, double *z);
+int gs_sys_impact(const gs_system *s, double *y, const double *p);
+
 /* The right-hand side dy[ndy] (the coordinates' derivatives, quaternions as given, then the work integrals' power). */
 void gs_sys_derivatives(const gs_system *s, const double *y, const double *p, double *dy);
 

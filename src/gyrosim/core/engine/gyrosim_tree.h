@@ -41,7 +41,10 @@
  *   force   a force input f (N) at a point of a body (body frame), f in the body's frame or the world's; its work
  *           in W.
  * Joint stops (hinge, slider; GS_TB_LIM): beyond `lower` or `upper` a spring-damper pushes back: -k_s delta -
- * c_s x' (delta the penetration), its energy 1/2 k_s delta^2 in the balance.
+ * c_s x' (delta the penetration), its energy 1/2 k_s delta^2 in the balance. Impact stops (GS_TB_LIM + 4) act
+ * as events instead: gs_tree_advance locates the time the coordinate reaches the stop (to round-off for the
+ * fixed-step methods: the one-step map's root in the step size) and applies the impulse of the restitution law
+ * there (gs_tree_impact), the energy it takes off in the balance's W.
  * Ball springs: the torque of the potential 1/2 phi^T K phi (phi = log q, the rotation vector of the joint's
  * rotation from its zero, K = diag(GS_TB_KB)): tau = -Jr(phi)^-T K phi with Jr the right Jacobian of the
  * exponential map (omega = Jr(phi) phi'), conservative for any K (-K phi is not when K is anisotropic). Ball
@@ -94,12 +97,13 @@ extern "C" {
                          * quaternion w, x, y, z; (1, 0, 0, 0): none) */
 #define GS_TB_KB 27     /* 3: ball spring stiffness about the body axes (N*m/rad) */
 #define GS_TB_CB 30     /* 3: ball damping about the body axes (N*m*s/rad), besides the isotropic GS_TB_DAMP */
-#define GS_TB_LIM 33    /* the stops in use (hinge, slider): 0 none, 1 lower, 2 upper, 3 both */
+#define GS_TB_LIM 33    /* the stops in use (hinge, slider): 0 none, 1 lower, 2 upper, 3 both; + 4: impact stops */
 #define GS_TB_LO 34     /* lower stop (rad, m) */
 #define GS_TB_HI 35     /* upper stop (rad, m) */
 #define GS_TB_STOP_K 36 /* the stops' stiffness (N*m/rad, N/m) */
 #define GS_TB_STOP_C 37 /* the stops' damping (N*m*s/rad, N*s/m), while in contact */
-#define GS_TB_NP 38
+#define GS_TB_RESTITUTION 38   /* impact stops: the rate after an impact is -restitution times the rate before */
+#define GS_TB_NP 39
 
 #define GS_TP_G 0
 #define GS_TP_DRIFT 1
@@ -207,6 +211,16 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
 size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out);
+
+/* Impact stops: the number of event indicators (one per impact stop: lower, upper), their values (the distance
+ * to the stop, x - lower and upper - x: >= 0 while the joint is within them), and the impact at a state on or
+ * beyond a stop and moving out: the coordinate put on the stop and the velocities changed by the generalized
+ * impulse lambda e_j at that joint, lambda = -(1 + e) x' / (M^-1)_jj (the joint's rate becomes -e x' and every
+ * other joint's moves by lambda M^-1 e_j, M^-1 e_j from the articulated-body algorithm at rest); the energy it
+ * takes off moves the balance's expected energy y[nx]. gs_tree_impact returns the impacts applied. */
+int gs_tree_n_indicators(const gs_tree *t, const double *p);
+void gs_tree_indicators(const gs_tree *t, const double *y, const double *p, double *z);
+int gs_tree_impact(const gs_tree *t, double *y, const double *p);
 
 /* Directional derivatives by the complex step (tree_cs.c): along vy (nx values: the joint coordinates; NULL: 0) and
  * vp (np values: the parameters and inputs; NULL: 0), ddy[0:nx+1] = the derivative of gs_tree_derivatives and

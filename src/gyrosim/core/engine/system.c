@@ -312,6 +312,18 @@ double gs_sys_fastest_rate(const gs_system *s, const double *y, const double *p)
     return rate;
 }
 
+int gs_sys_n_indicators(const gs_system *s, const double *p) {
+    return s->kernel == GS_KERNEL_TREE ? gs_tree_n_indicators(&s->tree, p) : 0;
+}
+
+void gs_sys_indicators(const gs_system *s, const double *y, const double *p, double *z) {
+    if (s->kernel == GS_KERNEL_TREE) gs_tree_indicators(&s->tree, y, p, z);
+}
+
+int gs_sys_impact(const gs_system *s, double *y, const double *p) {
+    return s->kernel == GS_KERNEL_TREE ? gs_tree_impact(&s->tree, y, p) : 0;
+}
+
 int gs_sys_torque_free(const gs_system *s, const double *p) {
     if (s->kernel == GS_KERNEL_TREE) return gs_tree_torque_free(&s->tree, p);
     for (int b = 0; b < s->units; b++) {

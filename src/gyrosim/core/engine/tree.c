@@ -5,6 +5,7 @@
  */
 #include "gyrosim_tree.h"   /* first: the engine header's FP_CONTRACT pragma */
 
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -273,6 +274,7 @@ typedef struct {
     M3 Q[GS_TREE_MAX];         /* else its rotation matrix (child at the joint's zero -> parent) */
     double ap[GS_TREE_MAX][3]; /* a slider's axis in the parent frame (Q times the child frame's) */
     int elements;              /* springs or forces: the world kinematics is needed */
+    int impacts;               /* impact stops: gs_tree_advance locates their events */
     double U[GS_TREE_MAX][6][6];   /* ia_fixed: U = IA S (k columns) */
     double Di[GS_TREE_MAX][6][6];  /* ia_fixed: D^-1 (k x k) */
     M6 Ia[GS_TREE_MAX];            /* ia_fixed, not a root: IA - U D^-1 U^T */
@@ -286,11 +288,16 @@ static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int 
 static void precompute(const gs_tree *t, const double *p, Pre *d) {
     d->g0 = p[GS_TP_G] == 0.0;
     d->elements = t->n_spr > 0 || t->n_frc > 0;
+    d->impacts = 0;
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *r = b + GS_TB_POS;
         const int par = t->parent[i];
         body_inertia(b, d->IAbase[i]);
         d->rot0[i] = placed_plain(t, b, i);
+        if (one_dof(t->joint[i])) {
+            const treal lim = b[GS_TB_LIM];
+            d->impacts |= ((int)lim & 4) != 0;
+        }
         if (!d->rot0[i]) quat_to_mat(b + GS_TB_ROT, d->Q[i]);
         if (d->rot0[i]) {
             memcpy(d->ap[i], a, sizeof(d->ap[i]));
@@ -630,6 +637,7 @@ static double stop_force(const double *b, double x, double xd, double *fe, doubl
     const int l = (int)lim;
     double d = 0.0;
     *fe = *fd = 0.0;
+    if (l & 4) return 0.0;   /* impact stops: events (gs_tree_impact), no force */
     if ((l & 1) && xr < lo) {
         d = x - b[GS_TB_LO];
     } else if ((l & 2) && xr > hi) {
@@ -975,11 +983,17 @@ static TREE_INLINE void joint_qdd(const int k, const double (*U)[6], const doubl
  * skipped: the joint factors of the bodies whose IA is constant, c's and v's linear halves where they vanish, the
  * world's acceleration without gravity, the accelerations of leaves (no child needs them). */
 static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
-                const double (*fx)[6], double qdd[GS_TREE_MAX][6]) {
+                const double (*fx)[6], const double (*tau_in)[6], double qdd[GS_TREE_MAX][6]) {
     M6 IA[GS_TREE_MAX];   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
     double pA[GS_TREE_MAX][6], c[GS_TREE_MAX][6], U[GS_TREE_MAX][6][6], Di[GS_TREE_MAX][6][6], u[GS_TREE_MAX][6];
     double tau[GS_TREE_MAX][6];
-    joint_forces(t, y, p, tau);
+    /* tau_in (impulses): the joint forces given, no body torque, the world at rest (M^-1 tau_in at rest) */
+    const int still = pre->g0 || tau_in != NULL;
+    if (tau_in != NULL) {
+        memcpy(tau, tau_in, (size_t)t->n * sizeof(tau[0]));
+    } else {
+        joint_forces(t, y, p, tau);
+    }
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i);
         const double *w = kin->v[i], *vl = kin->v[i] + 3, *J = b + GS_TB_I;
@@ -1012,7 +1026,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
             cross3(w, vc, f + 3);
         }
         for (int a = 0; a < 3; a++) {
-            pA[i][a] = f[a] - b[GS_TB_TAU + a];
+            pA[i][a] = f[a] - (tau_in != NULL ? 0.0 : b[GS_TB_TAU + a]);
             pA[i][3 + a] = f[3 + a];
         }
         if (fx != NULL) {   /* the orbit's forces */
@@ -1077,7 +1091,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
         const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
         double ap[6];
-        if (par < 0 && pre->g0) {   /* the world at rest: ap = 0, qdd = D^-1 u */
+        if (par < 0 && still) {   /* the world at rest: ap = 0, qdd = D^-1 u */
             for (int a = 0; a < 6; a++) ap[a] = 0.0;
             if (k == 1) {
                 qdd[i][0] = Dii[0][0] * u[i][0];
@@ -1436,7 +1450,7 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
         memset(fx, 0, (size_t)t->n * sizeof(fx[0]));
     }
     if (pre->elements) P_el = element_forces(t, p, &kin, fx);
-    aba(t, y, p, pre, &kin, ext ? (const double (*)[6])fx : NULL, qdd);
+    aba(t, y, p, pre, &kin, ext ? (const double (*)[6])fx : NULL, NULL, qdd);
     for (int i = 0; i < t->n; i++) {
         const double *s = y + t->yi[i];
         double *d = dy + t->yi[i];
@@ -1535,9 +1549,14 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
         const double m = b[GS_TB_MASS];
         s->V -= m * g * (gd[0] * (kin.ow[i][0] + cw[0]) + gd[1] * (kin.ow[i][1] + cw[1]) + gd[2] * (kin.ow[i][2] + cw[2]));
         const int r = root_of(t, i);
-        double d[3];
-        for (int a = 0; a < 3; a++) d[a] = kin.ow[i][a] + cw[a] - kin.ow[r][a];
-        s->pot_scale += m * g * sqrt(dot3(d, d));
+        double d[3], dw[3];
+        for (int a = 0; a < 3; a++) {
+            d[a] = kin.ow[i][a] + cw[a] - kin.ow[r][a];
+            dw[a] = kin.ow[i][a] + cw[a];
+        }
+        /* a root that translates (free, slider) carries its bodies' height: their distance from the world origin */
+        const int moves = t->joint[r] == GS_J_FREE || t->joint[r] == GS_J_SLIDER;
+        s->pot_scale += m * g * sqrt(moves ? dot3(dw, dw) : dot3(d, d));
         s->inertia += 0.5 * (b[GS_TB_I] + b[GS_TB_I + 1] + b[GS_TB_I + 2]) + m * dot3(d, d);
         mv3(kin.Rw[i], h, nw);
         mv3(kin.Rw[i], h + 3, fw);
@@ -1648,6 +1667,105 @@ double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double 
     Totals s;
     totals(t, y, p, &s);
     return drift_of(t, y, p, &s, d);
+}
+
+/* ---------------------------------------------------------------------------------------------- impact stops */
+
+/* the impact stops of body i: bit 0 lower, bit 1 upper (0: none, or spring stops) */
+static int impact_stops(const gs_tree *t, const double *b, int i) {
+    if (!one_dof(t->joint[i])) return 0;
+    const int l = (int)b[GS_TB_LIM];
+    return (l & 4) ? (l & 3) : 0;
+}
+
+int gs_tree_n_indicators(const gs_tree *t, const double *p) {
+    int n = 0;
+    for (int i = 0; i < t->n; i++) {
+        const int s = impact_stops(t, body_p(p, i), i);
+        n += (s & 1) + ((s >> 1) & 1);
+    }
+    return n;
+}
+
+void gs_tree_indicators(const gs_tree *t, const double *y, const double *p, double *z) {
+    int k = 0;
+    for (int i = 0; i < t->n; i++) {
+        const double *b = body_p(p, i), x = y[t->yi[i]];
+        const int s = impact_stops(t, b, i);
+        if (s & 1) z[k++] = x - b[GS_TB_LO];
+        if (s & 2) z[k++] = b[GS_TB_HI] - x;
+    }
+}
+
+/* the velocity coordinates' change per unit generalized impulse at joint j: M^-1 e_j (the articulated-body
+ * algorithm with the velocities zero, no gravity and no force but a unit one at joint j), as a change of the state
+ * (a free joint's v in world axes) into dy[0:nx] (zero for the positions) */
+static void unit_response(const gs_tree *t, const double *y, const double *p, const Pre *pre, int j, double *dy) {
+    double ys[GS_ODE_MAX], tau[GS_TREE_MAX][6], qdd[GS_TREE_MAX][6];
+    Kin kin;
+    memcpy(ys, y, (size_t)t->nx * sizeof(double));
+    for (int i = 0; i < t->n; i++) {
+        double *s = ys + t->yi[i];
+        switch (t->joint[i]) {
+            case GS_J_BALL: s[4] = s[5] = s[6] = 0.0; break;
+            case GS_J_HINGE: case GS_J_SLIDER: s[1] = 0.0; break;
+            case GS_J_FREE: for (int a = 7; a < 13; a++) s[a] = 0.0; break;
+            default: break;
+        }
+    }
+    memset(tau, 0, (size_t)t->n * sizeof(tau[0]));
+    tau[j][0] = 1.0;
+    kinematics(t, ys, p, pre, &kin, 1);
+    aba(t, ys, p, pre, &kin, NULL, (const double (*)[6])tau, qdd);
+    memset(dy, 0, (size_t)t->nx * sizeof(double));
+    for (int i = 0; i < t->n; i++) {
+        double *d = dy + t->yi[i];
+        switch (t->joint[i]) {
+            case GS_J_BALL: memcpy(d + 4, qdd[i], 3 * sizeof(double)); break;
+            case GS_J_HINGE: case GS_J_SLIDER: d[1] = qdd[i][0]; break;
+            case GS_J_FREE:
+                memcpy(d + 7, qdd[i], 3 * sizeof(double));
+                mv3(kin.Rw[i], qdd[i] + 3, d + 10);
+                break;
+            default: break;
+        }
+    }
+}
+
+static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *pre) {
+    int hits = 0;
+    for (int j = 0; j < t->n; j++) {
+        const double *b = body_p(p, j);
+        const int s = impact_stops(t, b, j);
+        double *x = y + t->yi[j];
+        double stop;
+        if ((s & 1) && x[0] <= b[GS_TB_LO] && x[1] < 0.0) {
+            stop = b[GS_TB_LO];
+        } else if ((s & 2) && x[0] >= b[GS_TB_HI] && x[1] > 0.0) {
+            stop = b[GS_TB_HI];
+        } else {
+            continue;
+        }
+        Totals before, after;
+        totals_pre(t, y, p, pre, &before);
+        double dy[GS_ODE_MAX];
+        x[0] = stop;
+        unit_response(t, y, p, pre, j, dy);
+        const double e = b[GS_TB_RESTITUTION], v = x[1];
+        const double lambda = -(1.0 + e) * v / dy[t->yi[j] + 1];
+        for (int k = 0; k < t->nx; k++) y[k] += lambda * dy[k];
+        x[1] = -e * v;   /* the law itself, not its round-off */
+        totals_pre(t, y, p, pre, &after);
+        y[t->nx] += (after.T + after.V) - (before.T + before.V);   /* the energy the impact took off: in W */
+        hits++;
+    }
+    return hits;
+}
+
+int gs_tree_impact(const gs_tree *t, double *y, const double *p) {
+    static _Thread_local Pre pre;
+    precompute(t, p, &pre);
+    return impact_pre(t, y, p, &pre);
 }
 
 double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) {
@@ -1897,6 +2015,87 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
     return (int32_t)(k > 2147483647 ? 2147483647 : k);
 }
 
+/* advance_system with the impact stops' events: each step (of H / n_sub; adaptive and dop853: over H) is taken, and
+ * where an indicator went from >= 0 to < 0 (the earliest, by linear interpolation, when several did) the step is
+ * taken again from its start with the step size tau at which that joint reaches its stop: the root of
+ * g(tau) = z_j(step(y0, tau)) by the Illinois variant of regula falsi (Dowell and Jarratt, BIT 11 (1971) 168),
+ * to a bracket of 4 ulp of the step or g = 0: for euler, rk4 and the implicit methods the one-step map is smooth in
+ * tau, so the event time is the method's own to round-off. The impact (impact_pre) is applied at the bracket's end
+ * on or beyond the stop, and the rest of the step follows. A joint that starts a step on its stop (resting against
+ * it, or after 64 events in one step: a bouncing that converges in finite time) gets the impact at the step's end
+ * instead (a projection onto the stop). Returns as advance_system. */
+static int32_t advance_events(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
+                              int64_t n_sub, double rtol, double atol, double max_step, double *hint,
+                              int64_t *stats) {
+    if (!pre->impacts) return advance_system(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats);
+    const int nz = gs_tree_n_indicators(t, p);
+    const size_t ny = (size_t)t->ny * sizeof(double);
+    double y0[GS_ODE_MAX + GS_TREE_NMON], z0[2 * GS_TREE_MAX], z1[2 * GS_TREE_MAX];
+    const double h = H / (double)n_sub;
+    for (int64_t k = 0; k < n_sub; k++) {
+        double rem = k == n_sub - 1 ? H - h * (double)(n_sub - 1) : h;
+        int events = 0;
+        while (rem > 0.0) {
+            const double hint0 = *hint;
+            memcpy(y0, y, ny);
+            if (advance_system(t, method, y, p, pre, rem, 1, rtol, atol, max_step, hint, stats)) {
+                return (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+            }
+            gs_tree_indicators(t, y0, p, z0);
+            gs_tree_indicators(t, y, p, z1);
+            int j = -1;
+            double first = 2.0;
+            for (int c = 0; c < nz; c++) {
+                if (z0[c] >= 0.0 && z1[c] < 0.0 && z0[c] / (z0[c] - z1[c]) < first) {
+                    first = z0[c] / (z0[c] - z1[c]);
+                    j = c;
+                }
+            }
+            if (j < 0) break;
+            if (z0[j] == 0.0 || ++events > 64) {
+                impact_pre(t, y, p, pre);
+                break;
+            }
+            double a = 0.0, ga = z0[j], b = rem, gb = z1[j], tau = rem, g = gb;
+            int side = 0;
+            for (int it = 0; it < 200 && b - a > 4.0 * DBL_EPSILON * rem; it++) {
+                tau = (a * gb - b * ga) / (gb - ga);
+                if (!(tau > a && tau < b)) tau = 0.5 * (a + b);
+                memcpy(y, y0, ny);
+                *hint = hint0;
+                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
+                    return (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                }
+                gs_tree_indicators(t, y, p, z1);
+                g = z1[j];
+                if (g == 0.0) break;
+                if (g > 0.0) {
+                    a = tau;
+                    ga = g;
+                    if (side == 1) gb *= 0.5;
+                    side = 1;
+                } else {
+                    b = tau;
+                    gb = g;
+                    if (side == -1) ga *= 0.5;
+                    side = -1;
+                }
+            }
+            if (g > 0.0) {   /* the state on or beyond the stop: the bracket's far end */
+                tau = b;
+                memcpy(y, y0, ny);
+                *hint = hint0;
+                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
+                    return (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                }
+            }
+            impact_pre(t, y, p, pre);
+            rem -= tau;
+        }
+    }
+    return 0;
+}
+
 static int tree_method(int method) {
     return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853 ||
            implicit_method(method);
@@ -1924,7 +2123,7 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
     for (long long b = 0; b < nn; b++) {
         static _Thread_local Pre pre;
         precompute(t, p + (size_t)b * t->np, &pre);
-        status[b] = advance_system(t, method, y + (size_t)b * t->ny, p + (size_t)b * t->np, &pre, H, n_sub, rtol,
+        status[b] = advance_events(t, method, y + (size_t)b * t->ny, p + (size_t)b * t->np, &pre, H, n_sub, rtol,
                                    atol, max_step, hint + b, stats + (size_t)b * GS_NSTATS);
         failed += status[b] != 0;
     }
@@ -1991,7 +2190,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         status[b] = 0;
         static _Thread_local Pre pre;
         precompute(t, pb, &pre);
-        if (method == GS_ADAPTIVE || method == GS_DOP853) {
+        if ((method == GS_ADAPTIVE || method == GS_DOP853) && !pre.impacts) {
             const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, rtol, atol, max_step, hint + b,
                                                stats + b * GS_NSTATS, out + b * no, n * no);
             if (k) {
@@ -2004,7 +2203,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         Ctx ctx = {t, pb, &pre};
         gs_lie L;
         gs_lie_run_t *run = NULL;
-        if (implicit_method(method)) {
+        if (implicit_method(method) && !pre.impacts) {   /* impacts: a loop of steps with their events */
             lie_view(t, &ctx, &L);
             run = gs_lie_begin(method, &L);
         }
@@ -2026,7 +2225,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                 const int64_t f = gs_lie_run(run, yb, dt, n_sub, stats + b * GS_NSTATS);
                 s = (int32_t)(f > 2147483647 ? 2147483647 : f);
             } else {
-                s = advance_system(t, method, yb, pb, &pre, dt, n_sub, rtol, atol, max_step, hint + b,
+                s = advance_events(t, method, yb, pb, &pre, dt, n_sub, rtol, atol, max_step, hint + b,
                                    stats + b * GS_NSTATS);
             }
             if (s) {

@@ -481,14 +481,9 @@ fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx
 }
 
 fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
-    (void)eventIndicators;
     CHECK_ME(ME_STATES, "fmi2GetEventIndicators");
-    if (ni != 0) {
-        gs_log_error(M, "ni = %zu is not allowed: this FMU has no event indicators (numberOfEventIndicators=\"0\"; "
-                     "its events are step events)", ni);
-        return fmi2Error;
-    }
-    return fmi2OK;
+    if (ni > 0) NOT_NULL(eventIndicators, "fmi2GetEventIndicators", "eventIndicators");
+    return st(gs_me_indicators(M, eventIndicators, ni));
 }
 
 fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {

@@ -578,14 +578,9 @@ fmi3Status fmi3GetContinuousStateDerivatives(fmi3Instance instance, fmi3Float64 
 }
 
 fmi3Status fmi3GetEventIndicators(fmi3Instance instance, fmi3Float64 eventIndicators[], size_t nEventIndicators) {
-    (void)eventIndicators;
     CHECK_ME(ME_STATES, "fmi3GetEventIndicators");
-    if (nEventIndicators != 0) {
-        gs_log_error(M, "nEventIndicators = %zu is not allowed: this FMU has no event indicators (its events are "
-                     "step events)", nEventIndicators);
-        return fmi3Error;
-    }
-    return fmi3OK;
+    if (nEventIndicators > 0) NOT_NULL(eventIndicators, "fmi3GetEventIndicators", "eventIndicators");
+    return st(gs_me_indicators(M, eventIndicators, nEventIndicators));
 }
 
 fmi3Status fmi3GetContinuousStates(fmi3Instance instance, fmi3Float64 continuousStates[],
@@ -603,7 +598,7 @@ fmi3Status fmi3GetNominalsOfContinuousStates(fmi3Instance instance, fmi3Float64 
 fmi3Status fmi3GetNumberOfEventIndicators(fmi3Instance instance, size_t *nEventIndicators) {
     CHECK_ME(ALL_STATES, "fmi3GetNumberOfEventIndicators");
     NOT_NULL(nEventIndicators, "fmi3GetNumberOfEventIndicators", "nEventIndicators");
-    *nEventIndicators = 0;
+    *nEventIndicators = GS_NZ;
     return fmi3OK;
 }
 

@@ -53,6 +53,8 @@ int gs_me_nominals(GsInstance *m, double x[], size_t nx);
 int gs_me_completed_step(GsInstance *m, int *enter_event_mode, int *terminate);
 void gs_me_enter_event_mode(GsInstance *m);
 int gs_me_update(GsInstance *m, int *values_changed);
+/* the event indicators (nz must be GS_NZ: one per impact stop, its distance to the stop) */
+int gs_me_indicators(GsInstance *m, double *z, size_t nz);
 
 /* Directional derivatives (providesDirectionalDerivative(s)="true"): sensitivity[i] = sum over j of
  * d unknowns[i] / d knowns[j] * seed[j], by the engine's complex step (gs_sys_directional), one evaluation per known

@@ -254,6 +254,12 @@ int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
             *value = dy[v->index];
             return GS_OK;
         }
+        case GS_K_INDICATOR: {
+            double z[GS_NZ + 1] = {0.0};
+            if (gs_me_indicators(m, z, GS_NZ) != GS_OK) return GS_ERROR;
+            *value = z[v->index];
+            return GS_OK;
+        }
         default:
             return unknown_vr(m, vr, "Real");
     }
@@ -565,9 +571,27 @@ void gs_me_enter_event_mode(GsInstance *m) {
     m->outputs_valid = 0;
 }
 
+int gs_me_indicators(GsInstance *m, double *z, size_t nz) {
+    if (nz != GS_NZ) {
+        gs_log_error(m, "the number of event indicators %zu is not allowed: this FMU has %d (one per impact stop)",
+                     nz, GS_NZ);
+        return GS_ERROR;
+    }
+    if (gs_initialize(m) != GS_OK) return GS_ERROR;
+    if (GS_NZ > 0) gs_sys_indicators(&m->sys, m->d.y, m->d.p, z);
+    return GS_OK;
+}
+
 int gs_me_update(GsInstance *m, int *values_changed) {
     GsData *d = &m->d;
     *values_changed = 0;
+    if (GS_NZ > 0) {   /* the impact stops reached: the restitution law's jump (gs_tree_impact) */
+        const int hits = gs_sys_impact(&m->sys, d->y, d->p);
+        if (hits > 0) {
+            *values_changed = 1;
+            gs_log_event(m, "t = %s s: %d impact%s at a stop", num(gs_time(m)).s, hits, hits == 1 ? "" : "s");
+        }
+    }
     for (int k = 0; k < m->sys.nquat; k++) {
         const int q = gs_sys_quat_slot(&m->sys, k);
         if (!norm_drifted(d, q)) continue;
@@ -642,9 +666,11 @@ static void dd_column(GsInstance *m, uint32_t known, double col[GS_DD_COLUMN]) {
         gs_sys_directional(&m->sys, d->y, d->p, vy, vp, dx, out);
         return;
     }
-    double y[GS_SYS_NY], vn[GS_SYS_NDY];
+    /* at least a quaternion's 4 (a system without one, of fewer coordinates, never writes them) */
+    double y[GS_SYS_NY], vn[GS_SYS_NDY < 4 ? 4 : GS_SYS_NDY];
     normalised(m, y);
-    memcpy(vn, vy, sizeof(vn));
+    memset(vn, 0, sizeof(vn));
+    memcpy(vn, vy, GS_SYS_NDY * sizeof(double));
     const int q = v->kind == GS_K_STATE ? m->in_quat[v->aux] : -1;
     if (q >= 0) {   /* the quaternion's coordinates: the slot's offset from q_w */
         const int a = v->index - q, c0 = v->aux - a;

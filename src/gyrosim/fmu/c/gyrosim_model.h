@@ -37,7 +37,8 @@ enum {
     GS_K_MAX_STEP,    /* s */
     GS_K_WORK,        /* model exchange: a work integral's balance as a state: index = its state index, aux = the
                        * output column of the energy_error it moves */
-    GS_K_DER          /* model exchange: the derivative of continuous state index */
+    GS_K_DER,         /* model exchange: the derivative of continuous state index */
+    GS_K_INDICATOR    /* model exchange: event indicator index (an impact stop's distance, gs_sys_indicators) */
 };
 #define GS_F_NONNEG 1  /* flags: the value must be >= 0 */
 
