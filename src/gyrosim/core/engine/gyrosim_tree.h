@@ -180,7 +180,8 @@ int gs_tree_ld_mant_dig(void);
  * dy_lo (NULL: not wanted) what rounding left (dy + dy_lo is the long double value). */
 void gs_tree_derivatives_ld(const gs_tree *t, const double *y, const double *p, double *dy, double *dy_lo);
 
-/* A trajectory in long double of n systems (y: n * ny, p: n * np; not changed) with euler or rk4 over n_out intervals
+/* A trajectory in long double of n systems (y: n * ny, p: n * np; not changed) with euler, rk4 or GS_DOP853 (here:
+ * Dormand-Prince 8(5,3)'s 8th-order method in equal steps, its coefficients in long double) over n_out intervals
  * of dt, each in gs_substeps(dt, max_step) steps of h = dt / n_sub (computed in double: the steps of the double run
  * gs_tree_trajectory takes), quaternions normalised after every step: the joint coordinates at every output point
  * (k = 0..n_out) into out[(k * n + b) * nx + .] rounded to double, and what the rounding left into out_lo (NULL: not

@@ -15,9 +15,13 @@
  * gs_tree_trajectory computes it, n_sub = gs_substeps(dt, max_step), the same stages (Hairer, Norsett, Wanner I,
  * II.1, table 1.2) and the quaternions normalised after every step. The two runs then differ only by the rounding
  * of their arithmetic, and their separation is the double run's round-off as the dynamics amplify it (the long
- * double run's own is 2^-11 of it, or less).
+ * double run's own is 2^-11 of it, or less). GS_DOP853 here means the same equal steps of Dormand-Prince 8(5,3)'s
+ * 8th-order method, its coefficients in long double (rk_tables_ld.h): a reference for the solution itself, whose
+ * truncation error at small steps lies below double's round-off (the engine's dop853 is adaptive: no double run has
+ * these steps).
  */
 #include "gyrosim_tree.h"
+#include "rk_tables_ld.h"
 
 #include <float.h>
 #include <math.h>
@@ -121,12 +125,42 @@ static void ld_project(const gs_tree *t, long double *y) {
     }
 }
 
+/* one step of h of Dormand-Prince 8(5,3)'s 8th-order method on v[0:nx] (its 12 stages; no error estimate: the
+ * steps are fixed), the coefficients in long double (rk_tables_ld.h) */
+static void ld_step8(const gs_tree *t, const long double *p, const Pre *pre, long double *v, long double h) {
+    static _Thread_local long double K[12][GS_ODE_MAX + 1], s[GS_ODE_MAX + GS_TREE_NMON];
+    const int nx = t->nx;
+    derivs(t, v, p, pre, K[0]);
+    for (int st = 1; st < 12; st++) {
+        for (int i = 0; i < nx; i++) {
+            long double acc = 0.0L;
+            for (int j = 0; j < st; j++) {
+                if (D8L_A[st][j] != 0.0L) acc += D8L_A[st][j] * K[j][i];
+            }
+            s[i] = v[i] + h * acc;
+        }
+        derivs(t, s, p, pre, K[st]);
+    }
+    for (int i = 0; i < nx; i++) {
+        long double acc = 0.0L;
+        for (int j = 0; j < 12; j++) {
+            if (D8L_B[j] != 0.0L) acc += D8L_B[j] * K[j][i];
+        }
+        v[i] += h * acc;
+    }
+    ld_project(t, v);
+}
+
 /* one step of h of euler or rk4 on v[0:nx] (rk_driver.h's fixed_step, in long double) */
 static void ld_step(const gs_tree *t, int method, const long double *p, const Pre *pre, long double *v,
                     long double h) {
     static _Thread_local long double k1[GS_ODE_MAX + 1], k2[GS_ODE_MAX + 1], k3[GS_ODE_MAX + 1],
         k4[GS_ODE_MAX + 1], s[GS_ODE_MAX + GS_TREE_NMON];
     const int nx = t->nx;
+    if (method == GS_DOP853) {
+        ld_step8(t, p, pre, v, h);
+        return;
+    }
     derivs(t, v, p, pre, k1);
     if (method == GS_EULER) {
         for (int i = 0; i < nx; i++) v[i] += h * k1[i];
@@ -158,7 +192,7 @@ size_t gs_tree_trajectory_ld(const gs_tree *t, int method, size_t n, const doubl
     static _Thread_local Pre pre;
     const size_t nx = (size_t)t->nx;
     const int64_t n_sub = gs_substeps(dt, max_step);
-    const int ok_method = method == GS_EULER || method == GS_RK4;
+    const int ok_method = method == GS_EULER || method == GS_RK4 || method == GS_DOP853;
     const int fits = t->ny <= GS_ODE_MAX + GS_TREE_NMON && t->np <= GS_TREE_NPMAX;
     size_t failed = 0;
     for (size_t b = 0; b < n; b++) {
