@@ -3,6 +3,8 @@ fixed-step reference run. The same source as the double build: at the same state
 build's round-off, and a first output interval of rk4 agrees with the engine's own to a few ulp."""
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -129,3 +131,18 @@ def test_the_eighth_order_reference_converges():
     errors = [float(np.max(np.abs(end("dop853", h) - ref))) for h in (0.1, 0.05, 0.025)]
     assert errors[0] / errors[1] > 128 and errors[1] / errors[2] > 128, errors
     assert float(np.max(np.abs(end("rk4", 0.005) - ref))) == pytest.approx(2e-7, rel=0.5)   # 4th order: far off
+
+
+def test_every_math_function_tree_c_calls_is_mapped():
+    """tree_ld.c compiles tree.c with `double` = long double: a libm function tree.c calls that is not mapped to its
+    `l` variant would still compile, silently in double. Every one it calls (now or after an edit) must be mapped."""
+    engine = Path(__file__).resolve().parents[2] / "src" / "gyrosim" / "core" / "engine"
+    libm = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "asinh", "acosh", "atanh",
+            "exp", "exp2", "expm1", "log", "log2", "log10", "log1p", "pow", "sqrt", "cbrt", "hypot", "fabs", "fmin",
+            "fmax", "fma", "fmod", "remainder", "copysign", "floor", "ceil", "round", "trunc", "nearbyint", "rint",
+            "lround", "ldexp", "frexp", "modf", "erf", "erfc", "tgamma", "lgamma", "gs_floor"}
+    source = re.sub(r"/\*.*?\*/", "", (engine / "tree.c").read_text(), flags=re.S)
+    called = {f for f in re.findall(r"\b([a-z_0-9]+)\s*\(", source) if f in libm}
+    mapped = set(re.findall(r"^#define (\w+) \1l$", (engine / "tree_ld.c").read_text(), flags=re.M))
+    assert {"sin", "cos", "sqrt", "fabs"} <= called
+    assert called <= mapped, f"tree.c calls {sorted(called - mapped)}: map them in tree_ld.c"
