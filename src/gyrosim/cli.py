@@ -1,7 +1,7 @@
 """The ``gyrosim`` command line (argparse only here and in the ``register`` hooks of fmu/, service/, telemetry/).
 
 Subcommands: ``simulate`` (CSV), ``info`` (variables of a scene or FMU), ``bench`` (the speed/accuracy study),
-``chaos`` (the largest Lyapunov exponent and a Poincare section),
+``chaos`` (the largest Lyapunov exponent, a Poincare section and with --trust the trust horizon),
 ``fmu build``, ``sweep``, ``serve``, ``record``, ``replay``, ``plot``, ``mcap info|recover``. Exit codes: 0
 success, 1 runtime failure, 2 bad usage or input, 130 interrupted, 141 closed pipe.
 """
@@ -550,22 +550,32 @@ CHAOS_TIME = 100.0
 
 
 def cmd_chaos(args) -> int:
-    """The largest Lyapunov exponent (1/s, and per oscillation period) and a Poincare section of a run, printed;
-    a PNG of the exponent's convergence and the section written beside --plot and renamed into place. Every argument
-    is checked before anything runs or is written."""
+    """The largest Lyapunov exponent (1/s, and per oscillation period), a Poincare section of a run and with
+    --trust the trust horizon (the double run against a long double one), printed; a PNG of the exponent's
+    convergence, the section and the separation written beside --plot and renamed into place. Every argument is
+    checked before anything runs or is written."""
     import time
 
     from ._atomic import check_writable
-    from .analysis.chaos import default_section, lyapunov, parse_section, plot_chaos, poincare
+    from .analysis.chaos import (
+        check_trust,
+        default_section,
+        lyapunov,
+        parse_section,
+        plot_chaos,
+        poincare,
+        trust_horizon,
+    )
     from .model import Model
     from .scene import did_you_mean
     from .trajectory import _apply_start_values, field_names
 
     v = verbosity(args)
     for flag, value in (("--stop-time", args.stop_time), ("--output-interval", args.output_interval),
-                        ("--max-step", args.max_step), ("--interval", args.interval), ("--d0", args.d0)):
+                        ("--max-step", args.max_step), ("--interval", args.interval), ("--d0", args.d0),
+                        ("--trust", args.trust)):
         if value is not None and not (math.isfinite(value) and value > 0):
-            raise ConfigError(flag, value, "a finite number > 0" + ("" if flag == "--d0" else " in s"))
+            raise ConfigError(flag, value, "a finite number > 0" + ("" if flag in ("--d0", "--trust") else " in s"))
     if args.d0 is not None and args.d0 > 1e-3:
         raise ConfigError("--d0", args.d0, "at most 1e-3 (scaled state units: the neighbour must stay in the linear "
                           "regime; the default 1e-8 suits double precision)")
@@ -592,6 +602,11 @@ def cmd_chaos(args) -> int:
     if args.interval is not None and args.interval < dt * (1 - 1e-9):
         raise ConfigError("--interval", args.interval, f"at least the output interval, {dt!r} s (the neighbour is "
                           "renormalised at output points)")
+    if args.trust is not None:
+        try:
+            check_trust(model)
+        except ConfigError as e:
+            raise ConfigError({"integrator": "--integrator"}.get(e.field, e.field), e.value, e.allowed) from None
     model.initialize()  # the checks of the first step (moments, quaternion, 'exact' under a torque, work per call)
     model._check_call(dt, "output interval")
     if want_section:  # the section's names, checked before the run
@@ -604,7 +619,8 @@ def cmd_chaos(args) -> int:
     if v > 0:
         print(f"scene {model.scene.name}, integrator {model.integrator}, max_step {model.max_step:g} s, "
               f"t = 0 .. {T:g} s every {dt:g} s", file=sys.stderr)
-    bar, t_wall, total = None, time.perf_counter(), (2.0 if want_section else 1.0) * T
+    bar, t_wall = None, time.perf_counter()
+    total = (1.0 + want_section + (args.trust is not None)) * T
     base = [0.0]
 
     def progress(t_done, t_total):
@@ -625,6 +641,11 @@ def cmd_chaos(args) -> int:
             base[0] = T
             sec = poincare(model, section=section, direction=args.direction, record=args.record, time=T,
                            output_interval=dt, progress=progress)
+        trust = None
+        if args.trust is not None:
+            base[0] = (1.0 + want_section) * T
+            trust = trust_horizon(model, time=T, tolerance=args.trust, output_interval=dt,
+                                  exponent=float(res.exponent), progress=progress)
     finally:
         if bar is not None:
             bar.close()
@@ -633,11 +654,13 @@ def cmd_chaos(args) -> int:
         rt = sec.return_time
         print(f"Poincare section: {sec.text}: {len(sec)} crossings"
               + (f", every {rt:.6g} s on average" if rt else "") + f"; recorded {', '.join(sec.names)}")
+    if trust is not None:
+        print(trust.format())
     if res.max_growth > 1e3:
         print(f"gyrosim chaos: warning: a neighbour grew by {res.max_growth:.3g} in one interval (the intervals after "
               "it were halved); a shorter --interval keeps it linear", file=sys.stderr)
     if plot is not None:
-        plot_chaos(plot, res, sec)
+        plot_chaos(plot, res, sec, trust=trust)
         if v >= 0:
             print(f"wrote {plot}", file=sys.stderr)
     return 0
@@ -652,7 +675,9 @@ def _chaos_parser(sub) -> None:
                     "value: --section) and write a PNG of the exponent's convergence and the section. Both run on "
                     "the engine with the scene's integrator and steps. See docs/chaos.md.",
         epilog="Examples: 'gyrosim chaos double_pendulum --start-values upper.angle 1.5708 lower.angle 0 "
-               "--stop-time 200 --plot dp.png', 'gyrosim chaos heavy_top --stop-time 500 --section none'.")
+               "--stop-time 200 --plot dp.png', 'gyrosim chaos heavy_top --stop-time 500 --section none', "
+               "'gyrosim chaos double_pendulum --start-values upper.angle 1.5708 lower.angle 0 --integrator rk4 "
+               "--max-step 0.001 --stop-time 60 --trust 1e-3'.")
     c.add_argument("scene", help=SCENE_HELP)
     c.add_argument("--set", action="append", metavar="NAME=VALUE",
                    help="set a parameter or start value (repeatable)")
@@ -684,6 +709,10 @@ def _chaos_parser(sub) -> None:
                    help="count crossings with VAR increasing (default), decreasing or both")
     c.add_argument("--record", nargs="+", metavar="NAME", help="the outputs recorded at each crossing (the first "
                    "two are plotted; default: the scene's pair)")
+    c.add_argument("--trust", type=float, metavar="TOL", help="also run the scene in long double precision with "
+                   "the same steps and print the trust horizon: the time the double run separates from it by TOL "
+                   "(scaled state units, as --d0), beside the Lyapunov estimate ln(TOL / eps) / lambda; needs "
+                   "a tree scene and --integrator euler or rk4")
     out = c.add_mutually_exclusive_group()
     out.add_argument("--plot", metavar="FILE.png", help="the PNG to write (default: <scene>_chaos.png)")
     out.add_argument("--no-plot", action="store_true", help="write no PNG")

@@ -7,7 +7,8 @@ importing numpy or the engine. One line per module in ``_LAZY``.
 from __future__ import annotations
 
 _LAZY: dict[str, str] = {}
-_LAZY.update(dict.fromkeys(("lyapunov", "poincare", "plot_chaos", "LyapunovResult", "PoincareSection"), ".chaos"))
+_LAZY.update(dict.fromkeys(("lyapunov", "poincare", "plot_chaos", "trust_horizon", "LyapunovResult", "PoincareSection",
+                            "TrustHorizon"), ".chaos"))
 _LAZY.update(dict.fromkeys(("canonical_momenta", "hamiltonian", "mass_matrix", "symplecticity_error",
                             "symplecticity_errors", "CanonicalChart", "Symplecticity"), ".hamilton"))
 

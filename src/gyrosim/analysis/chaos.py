@@ -33,8 +33,8 @@ from ..core.tree import ORBIT_COORD
 from ..errors import ConfigError, IntegrationError
 from ..model import Model
 
-__all__ = ["lyapunov", "poincare", "plot_chaos", "LyapunovResult", "PoincareSection", "default_section",
-           "lyapunov_copies"]
+__all__ = ["lyapunov", "poincare", "plot_chaos", "trust_horizon", "LyapunovResult", "PoincareSection",
+           "TrustHorizon", "default_section", "lyapunov_copies"]
 
 #: The default distance of the neighbour (scaled state units, see :func:`lyapunov`).
 D0 = 1e-8
@@ -530,6 +530,253 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
     return res
 
 
+# ------------------------------------------------------------------------------------------------ the trust horizon
+#: The unit round-off of double (2^-53): the relative error of one rounding.
+EPS_DOUBLE = 2.0 ** -53
+#: The integrators the trust horizon compares: equal steps, copied exactly by the long double reference.
+TRUST_INTEGRATORS = ("euler", "rk4")
+
+
+@dataclass(frozen=True, eq=False)
+class TrustHorizon:
+    """How long a run in double can be trusted: its separation from the same run in extended precision.
+
+    Attributes
+    ----------
+    times : (m,) ndarray
+        s from the start: the output points.
+    separation : (m,) ndarray
+        The largest separation over the coordinates between the double run and the long double one, in the scaled
+        units of :func:`lyapunov`'s distance (angles in rad, rates times ``tau``, positions over 1 m, attitudes by
+        the rotation between them).
+    tolerance : float
+        The separation (scaled units) beyond which the run is not trusted.
+    horizon : float or None
+        s: the first time the separation exceeds the tolerance (interpolated in its logarithm between the output
+        points), None when it does not within the run.
+    eps : float
+        The unit round-off of double, 2^-53.
+    precision : int
+        Mantissa bits of the reference (LDBL_MANT_DIG: 64 for x86-64's x87 format, 113 for IEEE quad).
+    exponent : float or None
+        1/s: the Lyapunov exponent of the estimate (given, or measured by :func:`lyapunov` on the same model).
+    estimate : float or None
+        s: ``ln(tolerance / eps) / exponent``, the horizon of an error of one rounding growing at the exponent's
+        rate from the start (None without a positive exponent).
+    growth : float or None
+        1/s: the least-squares slope of ``ln(separation)`` where it lies between 1e3 eps and the tolerance (the
+        measured rate of the round-off's growth; None with fewer than 10 points there).
+    tau : float
+        s: the time scale of the rates in the distance.
+    worst : str or None
+        The coordinate that is furthest apart at the horizon (at the end without one).
+    integrator, max_step, output_interval, time, scene : the run's settings.
+    """
+
+    times: np.ndarray
+    separation: np.ndarray
+    tolerance: float
+    horizon: float | None
+    eps: float
+    precision: int
+    exponent: float | None
+    estimate: float | None
+    growth: float | None
+    tau: float
+    worst: str | None
+    integrator: str
+    max_step: float
+    output_interval: float
+    time: float
+    scene: str = ""
+
+    @property
+    def ratio(self) -> float | None:
+        """horizon / estimate (None without both)."""
+        if self.horizon is None or not self.estimate:
+            return None
+        return self.horizon / self.estimate
+
+    def format(self) -> str:
+        """The result in a few lines, as ``gyrosim chaos --trust`` prints it."""
+        h = (f"{self.horizon:.6g} s (first separation above {self.tolerance:g} at {self.worst})"
+             if self.horizon is not None else f"none within {self.time:g} s (largest separation "
+             f"{float(np.nanmax(self.separation)):.3g} at {self.worst})")
+        lines = [f"trust horizon: {h}; double against long double ({self.precision}-bit mantissa), integrator "
+                 f"{self.integrator}, max_step {self.max_step:g} s"]
+        if self.estimate is not None:
+            r = f" (measured / estimate = {self.ratio:.3g})" if self.ratio is not None else ""
+            lines.append(f"Lyapunov estimate ln(tol / eps) / lambda: {self.estimate:.6g} s with lambda = "
+                         f"{self.exponent:.6g} 1/s, eps = 2^-53{r}")
+        elif self.exponent is not None:
+            lines.append(f"Lyapunov estimate: none (lambda = {self.exponent:.3g} 1/s: no exponential growth)")
+        if self.growth is not None:
+            lines.append(f"measured growth of the separation: {self.growth:.6g} 1/s")
+        return "\n".join(lines)
+
+
+def check_trust(model: Model) -> None:
+    """Raise :class:`ConfigError` when :func:`trust_horizon` cannot compare ``model``'s run: not a tree of
+    bodies, an integrator other than euler or rk4, several copies, or no extended precision on this platform."""
+    from ..core import _engine
+
+    if model.scene.kernel != "tree":
+        raise ConfigError("scene", model.scene.name, "a tree of bodies (a scene with `joint`s, e.g. double_pendulum, "
+                          "gimbal_gyroscope, spacecraft): the long double reference is the tree's engine compiled "
+                          "over long double, and a one-body scene runs on the one-body kernel")
+    if model.integrator not in TRUST_INTEGRATORS:
+        raise ConfigError("integrator", model.integrator, "euler or rk4 for the trust horizon: it compares the double "
+                          "run with a long double run of the same equal steps (adaptive and dop853 choose their "
+                          "steps from their own round-off, the implicit methods iterate to a tolerance); e.g. "
+                          "integrator 'rk4' with max_step 0.001")
+    if model.n_systems > 1:
+        raise ConfigError("scene", model.scene.name, "one system: the trust horizon follows one run")
+    if _engine.LD_MANT_DIG <= _engine.DBL_MANT_DIG:
+        raise ConfigError("reference", "long double", f"a long double with more bits than double: this build's has "
+                          f"{_engine.LD_MANT_DIG} mantissa bits, as double (MSVC, some ARM ABIs): no extended "
+                          "precision to compare with")
+
+
+def trust_horizon(model_or_scene, *, time, tolerance: float = 1e-3, exponent: float | None = None,
+                  estimate: bool = True, lyapunov_time: float | None = None, output_interval=None,
+                  start_values: dict | None = None, integrator: str | None = None, max_step: float | None = None,
+                  progress=None) -> TrustHorizon:
+    """How long the engine's double run of a model can be trusted: the time at which it separates from the same
+    run in extended precision by ``tolerance``, beside the Lyapunov estimate ``ln(tolerance / eps) / lambda``.
+
+    The model runs twice from the same start: on the engine as always (double), and on the tree's engine compiled
+    over long double (engine/tree_ld.c) with the same integrator and exactly the same steps. The two differ only by
+    the rounding of their arithmetic; the long double run's own rounding is 2^-11 of the double one's (x86-64), so
+    their separation is the double run's round-off as the dynamics amplify it. On a chaotic orbit it grows as
+    ``e^(lambda t)`` from a few units of round-off, and reaches the tolerance near ``ln(tol / eps) / lambda``; on a
+    regular one it grows as a power of t. The separation is measured as :func:`lyapunov` measures distances: the
+    largest over the coordinates of angles (rad), rates times ``tau`` (s, 1 / the fastest rate of the start, at
+    least 1 rad/s), positions over 1 m and the rotation between attitudes (rad).
+
+    Only equal steps can be copied: the integrator must be euler or rk4 (set ``integrator="rk4"`` and a
+    ``max_step``); trees of bodies only (the one-body kernel has no long double build).
+
+    Parameters
+    ----------
+    model_or_scene : Model, or str, Path, Scene
+        As :func:`lyapunov` (a model is copied in its present state, not advanced).
+    time : float
+        s: the length of the run.
+    tolerance : float
+        The separation (scaled units) that ends the trust.
+    exponent : float, optional
+        1/s: the Lyapunov exponent of the estimate; default: measured by :func:`lyapunov` on the same model, with
+        its integrator and steps, over ``lyapunov_time`` (default ``time``).
+    estimate : bool
+        False: no Lyapunov run (``estimate`` None unless ``exponent`` is given).
+    output_interval : float, optional
+        s: the output grid where the runs are compared (default: the scene's).
+    start_values, integrator, max_step : optional
+        As :func:`lyapunov`.
+    progress : callable, optional
+        ``progress(t_done, t_total)`` during the double run (s).
+
+    Returns
+    -------
+    TrustHorizon
+
+    Raises
+    ------
+    ConfigError
+        Not a tree, an integrator other than euler or rk4, a tolerance or time that is not allowed, or no extended
+        precision on this platform.
+    IntegrationError
+        A run blew up.
+
+    Examples
+    --------
+    >>> r = trust_horizon("double_pendulum", time=40.0, integrator="rk4", max_step=1e-3, exponent=0.95,
+    ...                   start_values={"upper.angle": 1.5707963267948966, "lower.angle": 0.0})
+    >>> 15.0 < r.horizon < 40.0 and 0.5 < r.ratio < 1.5
+    True
+    """
+    from ..core import _engine
+    from ..kernel_tree import _METHOD_CODES
+
+    try:
+        tol = float(tolerance)
+    except (TypeError, ValueError):
+        tol = math.nan
+    if not (math.isfinite(tol) and tol > 0):
+        raise ConfigError("tolerance", tolerance, "a finite number > 0 (scaled state units: rad, rates times tau)")
+    if exponent is not None:
+        try:
+            lam = float(exponent)
+        except (TypeError, ValueError):
+            lam = math.nan
+        if not math.isfinite(lam):
+            raise ConfigError("exponent", exponent, "a finite number in 1/s")
+    model = _prepare(model_or_scene, start_values, integrator, max_step, None)
+    check_trust(model)
+    dt, n = _grid(model, time, output_interval)
+    model.initialize()
+    model._check_call(dt, "output interval")
+    if exponent is None and estimate:
+        lyap = lyapunov(model, time=lyapunov_time if lyapunov_time is not None else n * dt, output_interval=dt,
+                        period=False)
+        lam = float(lyap.exponent)
+    elif exponent is None:
+        lam = None
+    nx = model.n_coords
+    y0, p0 = model._y.copy(), model._p.copy()
+    tan = _Tangent(model)
+    tau = _rate_scale(model, [0])
+    w = tan.weights(tau)
+
+    hi = np.empty((n + 1, 1, nx))
+    lo = np.empty((n + 1, 1, nx))
+    status = np.zeros(1, dtype=np.int32)
+    if _engine.tree_trajectory_ld(model.layout.desc, _METHOD_CODES[model.integrator], y0, p0, dt, n,
+                                  model.max_step, status, hi, lo):
+        k = int(status[0])
+        raise IntegrationError(f"the long double reference run of integrator {model.integrator!r} became "
+                               f"non-finite in the output interval from t = {(k - 1) * dt!r} s to {k * dt!r} s")
+    hi, lo = hi[:, 0], lo[:, 0]
+    yd = np.empty((n + 1, nx))
+    block = max(1, min(n, (1 << 21) // max(1, model.layout.nout)))
+    done = 0
+    yd[0] = y0[0, :nx]
+    while done < n:
+        step = min(block, n - done)
+        yd[done + 1:done + step + 1] = model.trajectory(dt, step)[1:, 0, :nx]
+        done += step
+        if progress is not None:
+            progress(done * dt, n * dt)
+    sep = tan.diff(hi, yd, w)
+    nl = len(tan.lin)
+    sep[:, :nl] -= lo[:, tan.lin] * w
+    a = np.abs(sep)
+    dist = np.max(a, axis=1)
+    times = np.arange(n + 1) * dt
+    over = np.flatnonzero(dist > tol)
+    horizon = None
+    at = n
+    if len(over):
+        i = int(over[0])
+        at = i
+        horizon = float(times[i])
+        s0, s1 = dist[i - 1], dist[i]   # i >= 1: the separation starts at 0
+        if s0 > 0:  # between the output points: the separation grows exponentially
+            horizon = float(times[i - 1] + dt * (math.log(tol) - math.log(s0)) / (math.log(s1) - math.log(s0)))
+    worst = tan.names[int(np.argmax(a[at]))] if np.isfinite(a[at]).all() and a[at].any() else None
+    band = (dist > 1e3 * EPS_DOUBLE) & (dist < tol)
+    if len(over):
+        band[over[0]:] = False
+    growth = None
+    if band.sum() >= 10:
+        growth = float(np.polyfit(times[band], np.log(dist[band]), 1)[0])
+    est = math.log(tol / EPS_DOUBLE) / lam if lam is not None and lam > 0 else None
+    return TrustHorizon(times=times, separation=dist, tolerance=tol, horizon=horizon, eps=EPS_DOUBLE,
+                        precision=int(_engine.LD_MANT_DIG), exponent=lam, estimate=est, growth=growth,
+                        tau=float(tau[0]), worst=worst, integrator=model.integrator, max_step=model.max_step,
+                        output_interval=dt, time=n * dt, scene=model.scene.name)
+
+
 # ------------------------------------------------------------------------------------------------ Poincare sections
 def default_section(scene) -> tuple[str, float, int, tuple]:
     """The default section of a scene: (variable, value, direction, recorded variables). Embedded scenes have
@@ -805,10 +1052,11 @@ def _readable_axis(v: np.ndarray, name: str, unit: str) -> tuple[np.ndarray, str
 
 
 def plot_chaos(path, lyap: LyapunovResult | None = None, section: PoincareSection | None = None,
-               title: str | None = None):
+               title: str | None = None, trust: TrustHorizon | None = None):
     """A PNG of the exponent's running estimate (left: log time, with ``ln(t)/t`` for reference, the growth of a
-    regular orbit) and the Poincare section (right), written beside ``path`` and renamed into place. Returns the
-    figure."""
+    regular orbit), the Poincare section and the trust horizon (log10 of the separation of the double run from the
+    long double one against time, the tolerance, the horizon and the Lyapunov estimate marked), the panels given,
+    written beside ``path`` and renamed into place. Returns the figure."""
     import matplotlib
 
     if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg", "ps", "cairo", "template"):
@@ -817,9 +1065,9 @@ def plot_chaos(path, lyap: LyapunovResult | None = None, section: PoincareSectio
 
     from .._atomic import atomic_path
 
-    panels = [p for p in (lyap, section) if p is not None]
+    panels = [p for p in (lyap, section, trust) if p is not None]
     if not panels:
-        raise ConfigError("plot", None, "a Lyapunov result, a Poincare section or both")
+        raise ConfigError("plot", None, "a Lyapunov result, a Poincare section, a trust horizon or several")
     fig, axes = plt.subplots(1, len(panels), figsize=(6.0 * len(panels), 4.8), squeeze=False, dpi=100,
                              layout="constrained")
     k = 0
@@ -844,6 +1092,7 @@ def plot_chaos(path, lyap: LyapunovResult | None = None, section: PoincareSectio
         ax.legend(fontsize="small")
     if section is not None:
         ax = axes[0, k]
+        k += 1
         p = section.points
         if p.shape[1] >= 2:
             x, xlabel = _readable_axis(p[:, 0], section.names[0], section.units[0])
@@ -865,10 +1114,36 @@ def plot_chaos(path, lyap: LyapunovResult | None = None, section: PoincareSectio
         ax.grid(True, lw=0.3)
         if not len(section):
             ax.text(0.5, 0.5, "no crossings", transform=ax.transAxes, ha="center", va="center")
-    src = lyap or section
+    if trust is not None:
+        _plot_trust(axes[0, k], trust)
+    src = lyap or section or trust
     fig.suptitle(title or f"gyrosim chaos {src.scene} ({src.integrator}, t = {src.time:g} s)", fontsize="medium")
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)
     return fig
 
+
+def _plot_trust(ax, r: TrustHorizon) -> None:
+    """log10 of the separation against time; the tolerance, the horizon, the Lyapunov estimate and the line
+    ``eps e^(lambda t)`` it assumes."""
+    sep = np.asarray(r.separation, dtype=float)
+    pos = sep > 0
+    ax.plot(r.times[pos], np.log10(sep[pos]), lw=0.9, color="C0", label="|double - long double| (scaled)")
+    ax.axhline(math.log10(r.tolerance), color="C3", lw=0.8, ls="--", label=f"tolerance {r.tolerance:g}")
+    ax.axhline(math.log10(r.eps), color="0.5", lw=0.6, ls=":", label="eps = 2^-53")
+    if r.horizon is not None:
+        ax.axvline(r.horizon, color="C3", lw=1.0, label=f"horizon {r.horizon:.3g} s")
+    if r.estimate is not None:
+        ax.axvline(r.estimate, color="C1", lw=1.0, ls="-.",
+                   label=f"ln(tol/eps)/lambda = {r.estimate:.3g} s (lambda {r.exponent:.3g} 1/s)")
+        t = np.array([0.0, r.estimate])
+        ax.plot(t, np.log10(r.eps) + r.exponent * t / math.log(10.0), color="C1", lw=0.9, ls="--",
+                label="eps e^(lambda t)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("log10 separation")
+    top = max(math.log10(r.tolerance) + 1.0, float(np.log10(sep[pos]).max()) + 0.5 if pos.any() else 0.0)
+    ax.set_ylim(math.log10(r.eps) - 2.0, top)
+    ax.set_title(f"trust horizon of the double run ({r.precision}-bit reference)", fontsize="medium")
+    ax.grid(True, lw=0.3)
+    ax.legend(fontsize="small", loc="lower right")

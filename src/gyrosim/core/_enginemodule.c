@@ -754,6 +754,73 @@ done:
     return res;
 }
 
+/* tree_trajectory_ld(desc, method, y, p, dt, n_out, max_step, status, out, out_lo) -> failed systems: the long
+ * double reference run (gs_tree_trajectory_ld); out and out_lo (n_out + 1, n, nx); out_lo may be None */
+static PyObject *py_tree_trajectory_ld(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 10) {
+        PyErr_SetString(PyExc_TypeError, "tree_trajectory_ld() takes 10 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    const int method = (int)PyLong_AsLong(args[1]);
+    const double dt = PyFloat_AsDouble(args[4]);
+    const long long n_out = PyLong_AsLongLong(args[5]);
+    const double max_step = PyFloat_AsDouble(args[6]);
+    if (PyErr_Occurred()) return NULL;
+    if (n_out < 0) {
+        PyErr_SetString(PyExc_ValueError, "n_out: >= 0 is needed");
+        return NULL;
+    }
+    Buf b[5] = {{0}};
+    const int lo = args[9] != Py_None;
+    const Py_ssize_t n = get_systems(&t, args[2], args[3], b, 0);
+    if (n < 0) goto fail;
+    if (get_buf(args[7], &b[2], "status", 'i', n, 1) < 0) goto fail;
+    if (get_buf(args[8], &b[3], "out", 'd', (n_out + 1) * n * t.nx, 1) < 0) goto fail;
+    if (lo && get_buf(args[9], &b[4], "out_lo", 'd', (n_out + 1) * n * t.nx, 1) < 0) goto fail;
+    size_t failed;
+    Py_BEGIN_ALLOW_THREADS
+    failed = gs_tree_trajectory_ld(&t, method, (size_t)n, (const double *)b[0].view.buf,
+                                   (const double *)b[1].view.buf, dt, (int64_t)n_out, max_step,
+                                   (int32_t *)b[2].view.buf, (double *)b[3].view.buf,
+                                   lo ? (double *)b[4].view.buf : NULL);
+    Py_END_ALLOW_THREADS
+    release(b, 5);
+    return PyLong_FromSize_t(failed);
+fail:
+    release(b, 5);
+    return NULL;
+}
+
+/* tree_derivatives_ld(desc, y, p, dy, dy_lo): gs_tree_derivatives in long double at the first system's y and p */
+static PyObject *py_tree_derivatives_ld(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "tree_derivatives_ld() takes 5 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    Buf b[4] = {{0}};
+    PyObject *res = NULL;
+    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, 0);
+    if (n < 1) {
+        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
+        goto done;
+    }
+    if (get_buf(args[3], &b[2], "dy", 'd', t.nx + 1, 1) < 0 || get_buf(args[4], &b[3], "dy_lo", 'd', t.nx + 1, 1) < 0)
+        goto done;
+    gs_tree_derivatives_ld(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf, (double *)b[2].view.buf,
+                           (double *)b[3].view.buf);
+    res = Py_None;
+    Py_INCREF(res);
+done:
+    release(b, 4);
+    return res;
+}
+
 /* tree_scalar(desc, y, p, which) -> torque_free (0) or fastest_rate (1) of the first system */
 static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
@@ -832,6 +899,11 @@ static PyMethodDef methods[] = {
      "tree_accelerations(desc, y, p, qdd(dof))"},
     {"tree_directional", (PyCFunction)(void (*)(void))py_tree_directional, METH_FASTCALL,
      "tree_directional(desc, y, p, vy, vp, ddy, dout): complex-step directional derivatives"},
+    {"tree_trajectory_ld", (PyCFunction)(void (*)(void))py_tree_trajectory_ld, METH_FASTCALL,
+     "tree_trajectory_ld(desc, method, y, p, dt, n_out, max_step, status, out, out_lo) -> failed systems: the long "
+     "double reference run of euler or rk4 (the joint coordinates, hi and lo parts)"},
+    {"tree_derivatives_ld", (PyCFunction)(void (*)(void))py_tree_derivatives_ld, METH_FASTCALL,
+     "tree_derivatives_ld(desc, y, p, dy(nx + 1), dy_lo(nx + 1)): the derivatives in long double"},
     {"tree_scalar", (PyCFunction)(void (*)(void))py_tree_scalar, METH_FASTCALL,
      "tree_scalar(desc, y, p, which) -> torque-free (0) or the fastest rate (1)"},
     {"pack", (PyCFunction)(void (*)(void))py_pack, METH_FASTCALL,
@@ -876,6 +948,8 @@ PyMODINIT_FUNC PyInit__engine(void) {
     if (!m) return NULL;
     PyModule_AddIntConstant(m, "TREE_MAX", GS_TREE_MAX);
     PyModule_AddIntConstant(m, "TREE_NMON", GS_TREE_NMON);
+    PyModule_AddIntConstant(m, "LD_MANT_DIG", gs_tree_ld_mant_dig());
+    PyModule_AddIntConstant(m, "DBL_MANT_DIG", DBL_MANT_DIG);
     PyModule_AddIntConstant(m, "TB_NP", GS_TB_NP);
     PyModule_AddIntConstant(m, "TP_HEAD", GS_TP_HEAD);
     {

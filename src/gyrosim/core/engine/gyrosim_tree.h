@@ -69,6 +69,8 @@
 
 #include "gyrosim_ode.h"
 
+#include <float.h>
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -230,6 +232,27 @@ int gs_tree_impact(const gs_tree *t, double *y, const double *p);
 #define GS_TREE_NOUTMAX (GS_ODE_MAX + 8 * GS_TREE_MAX + 11)
 int gs_tree_directional(const gs_tree *t, const double *y, const double *p, const double *vy, const double *vp,
                         double *ddy, double *dout);
+
+/* Extended precision (tree_ld.c): tree.c's model compiled a second time over long double, and a reference run of
+ * it. GS_TREE_LD_EXTENDED is 1 where long double has more bits than double (x86-64: 64 of the x87 format; aarch64
+ * Linux: 113), 0 where it is double (MSVC): the functions still run there, but they are no reference.
+ * gs_tree_ld_mant_dig() is LDBL_MANT_DIG of the engine's build. */
+#define GS_TREE_LD_EXTENDED (LDBL_MANT_DIG > DBL_MANT_DIG)
+int gs_tree_ld_mant_dig(void);
+
+/* gs_tree_derivatives in long double at the double state y and parameters p: dy[0:nx+1] its value rounded to double,
+ * dy_lo (NULL: not wanted) what rounding left (dy + dy_lo is the long double value). */
+void gs_tree_derivatives_ld(const gs_tree *t, const double *y, const double *p, double *dy, double *dy_lo);
+
+/* A trajectory in long double of n systems (y: n * ny, p: n * np; not changed) with euler, rk4 or GS_DOP853 (here:
+ * Dormand-Prince 8(5,3)'s 8th-order method in equal steps, its coefficients in long double) over n_out intervals
+ * of dt, each in gs_substeps(dt, max_step) steps of h = dt / n_sub (computed in double: the steps of the double run
+ * gs_tree_trajectory takes), quaternions normalised after every step: the joint coordinates at every output point
+ * (k = 0..n_out) into out[(k * n + b) * nx + .] rounded to double, and what the rounding left into out_lo (NULL: not
+ * wanted). Returns the systems that failed: status[b] = the interval (1-based) where the state stopped being finite
+ * (NaN rows from there), -1 for another method or a tree beyond the limits, 1 for more than GS_MAX_WORK steps. */
+size_t gs_tree_trajectory_ld(const gs_tree *t, int method, size_t n, const double *y, const double *p, double dt,
+                             int64_t n_out, double max_step, int32_t *status, double *out, double *out_lo);
 
 #ifdef __cplusplus
 }
