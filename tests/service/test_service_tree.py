@@ -92,6 +92,72 @@ def free_chain(tmp_path):
     return str(path)
 
 
+#: docs/scenes.md's slider with stops, placed hinge and sprung ball (with a force input): translations along a
+#: slider's axis, placements in the transforms.
+ARM_ON_CART = """[scene]
+name = "arm_on_cart"
+integrator = "dop853"
+tolerance = 1e-10
+gravity = [0.0, 2.0, -9.6]          # g is its magnitude
+
+[[body]]
+name = "cart"
+joint = "slider"
+axis = [1.0, 0.0, 0.0]
+mass = 5.0
+inertia = { principal = [0.1, 0.1, 0.1] }
+lower = -0.5                        # stops at +-0.5 m
+upper = 0.5
+motor_input = true                  # cart.motor_force (N)
+
+[[body]]
+name = "arm"
+parent = "cart"
+joint = "hinge"
+axis = [0.0, 1.0, 0.0]              # in the cart's frame
+rotation = { zyz = [0.0, 0.0, 0.5] } # the arm's frame turned 0.5 rad about z at angle 0
+mass = 1.0
+cm = [0.0, 0.0, -0.5]
+inertia = { principal = [0.02, 0.02, 0.001] }
+angle = 0.3
+stiffness = 2.0
+
+[[body]]
+name = "wrist"
+parent = "arm"
+joint = "ball"
+position = [0.0, 0.0, -1.0]
+mass = 0.2
+cm = [0.0, 0.0, -0.1]
+inertia = { principal = [1e-3, 1e-3, 5e-4] }
+stiffness = [0.5, 0.5, 0.1]         # a torsion bar: per body axis
+joint_damping = [0.01, 0.01, 0.002]
+
+[[force]]
+name = "jet"                        # inputs arm.jet.f_x..f_z
+body = "arm"
+point = [0.0, 0.0, -1.0]
+frame = "body"
+"""
+
+
+@pytest.fixture
+def arm_on_cart(tmp_path):
+    path = tmp_path / "arm_on_cart.toml"
+    path.write_text(ARM_ON_CART)
+    return str(path)
+
+
+def _translation(model, out: dict, f_name: str) -> np.ndarray:
+    """A body's origin in its parent's frame: the joint point, plus a free joint's r or a slider's displacement."""
+    pos = np.array([model.get(f"{f_name}.pos_{c}") for c in "xyz"])
+    if f"{f_name}.r_x" in out:
+        pos = pos + [out[f"{f_name}.r_{c}"] for c in "xyz"]
+    if f"{f_name}.displacement" in out:
+        pos = pos + out[f"{f_name}.displacement"] * np.asarray(model.scene.tree[model.body_names.index(f_name)].axis)
+    return pos
+
+
 # ------------------------------------------------------------------------------------------- references
 def _parents(model) -> dict[str, str]:
     names = model.body_names
@@ -134,9 +200,9 @@ def _omega_by_differences(model, body: str, delta: float = 1e-5) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ frames without Zenoh
-@pytest.mark.parametrize("scene", TREE_SCENES + ("free_chain",))
-def test_tree_frames_are_the_models_relative_transforms_and_rates(scene, free_chain):
-    model = Model(free_chain if scene == "free_chain" else scene)
+@pytest.mark.parametrize("scene", TREE_SCENES + ("free_chain", "arm_on_cart", "mass_spring_chain"))
+def test_tree_frames_are_the_models_relative_transforms_and_rates(scene, free_chain, arm_on_cart):
+    model = Model({"free_chain": free_chain, "arm_on_cart": arm_on_cart}.get(scene, scene))
     frames = TreeFrames(model)
     parents = _parents(model)
     assert [(f.name, f.parent) for f in frames.bodies] == list(parents.items())
@@ -146,9 +212,7 @@ def test_tree_frames_are_the_models_relative_transforms_and_rates(scene, free_ch
         for f, s in zip(frames.bodies, frames.at(out)):
             assert _same_rotation(s.rotation, _relative(out, parents, f.name)), (scene, f.name)
             assert np.allclose(s.q_world, _q_world(out, f.name), rtol=0, atol=0)
-            pos = np.array([model.get(f"{f.name}.pos_{c}") for c in "xyz"])
-            if f.joint == "free":
-                pos = pos + [out[f"{f.name}.r_{c}"] for c in "xyz"]
+            pos = _translation(model, out, f.name)
             assert np.allclose(s.translation, pos, rtol=0, atol=1e-15), (scene, f.name)
             assert s.joint == {c: out[f"{f.name}.{c}"] for c in f.coords}
             ref = _omega_by_differences(model, f.name)
@@ -171,11 +235,11 @@ def _collect(sub, want: dict, got: dict):
     return all(len(got.get(kind, {}).get(b, ())) >= n for (kind, b), n in want.items())
 
 
-@pytest.mark.parametrize("scene", ["gimbal_gyroscope", "double_pendulum", "free_chain"])
-def test_served_tf_is_each_bodys_transform_from_its_parent(scene, free_chain):
+@pytest.mark.parametrize("scene", ["gimbal_gyroscope", "double_pendulum", "free_chain", "arm_on_cart"])
+def test_served_tf_is_each_bodys_transform_from_its_parent(scene, free_chain, arm_on_cart):
     rate, duration = 100.0, 0.3
     n = int(round(rate * duration)) + 1
-    source = free_chain if scene == "free_chain" else scene
+    source = {"free_chain": free_chain, "arm_on_cart": arm_on_cart}.get(scene, scene)
     reference = Model(source)
     bodies, parents = reference.body_names, _parents(reference)
     with Served(source, rate=rate, realtime_factor=0, duration=duration, wait_subscribers=20) as s:
@@ -214,9 +278,7 @@ def test_served_tf_is_each_bodys_transform_from_its_parent(scene, free_chain):
             assert stamp == round(k * 1e9 / rate)
             r = tr.transform.rotation
             assert _same_rotation((r.w, r.x, r.y, r.z), _relative(out, parents, b)), (scene, b, k)
-            pos = np.array([reference.get(f"{b}.pos_{c}") for c in "xyz"])
-            if f"{b}.r_x" in out:
-                pos = pos + [out[f"{b}.r_{c}"] for c in "xyz"]
+            pos = _translation(reference, out, b)
             t = tr.transform.translation
             assert np.allclose((t.x, t.y, t.z), pos, rtol=0, atol=1e-12), (scene, b, k)
             state = json.loads(got["state"][b][k][1])

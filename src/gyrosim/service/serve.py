@@ -301,7 +301,10 @@ class Service:
             from .ros2 import Ros2Bridge
 
             tree = model.scene.tree or ()
-            self._hinges = [b.name for b in tree if b.joint == "hinge"]
+            # the one-coordinate joints: hinges (rad) and sliders (m), as JointState's revolute and prismatic
+            self._hinges = [b.name for b in tree if b.joint in ("hinge", "slider")]
+            self._joint_coords = [("displacement", "velocity") if b.joint == "slider" else ("angle", "rate")
+                                  for b in tree if b.joint in ("hinge", "slider")]
             self.ros = Ros2Bridge(session, options.ros_domain, self.scene, self.bodies, self._hinges,
                                   fixed=any(b.joint == "fixed" for b in tree), distro=options.ros_distro)
 
@@ -436,7 +439,8 @@ class Service:
             joints = None
             if self._hinges:
                 out, name = m.outputs(), m.scene.var_name
-                joints = ([out[name(h, "angle")] for h in self._hinges], [out[name(h, "rate")] for h in self._hinges])
+                joints = ([out[name(h, c[0])] for h, c in zip(self._hinges, self._joint_coords)],
+                          [out[name(h, c[1])] for h, c in zip(self._hinges, self._joint_coords)])
             self.stats.published += self.ros.publish(t, ros_frames, joints)
 
     def _frames(self, t: float):

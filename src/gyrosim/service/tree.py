@@ -5,9 +5,10 @@ the parent body's name or ``world`` for a root), the body's attitude in the worl
 (``state``, ``imu``). :class:`TreeFrames` reads them off a tree :class:`gyrosim.model.Model`'s outputs:
 
 * translation: the joint point ``pos`` in the parent frame (the parameters ``<body>.pos_x..z``), plus the
-  position ``r`` of a ``free`` joint;
-* rotation (child -> parent, ``(w, x, y, z)``): a hinge's rotation about its axis by its angle, a ball's /
-  free_rotation's / free joint's quaternion ``q``, the identity for ``fixed``;
+  position ``r`` of a ``free`` joint or a slider's ``displacement`` along its axis;
+* rotation (child -> parent, ``(w, x, y, z)``): the joint's placement ``rotation`` Q, then a hinge's rotation about
+  its axis by its angle (Rot(axis, angle) Q, the axis in the parent frame), a ball's / free_rotation's quaternion
+  (Q q), a free joint's q; Q alone for ``fixed`` and ``slider``;
 * the world attitude: the model's ``<body>.q_world_*``;
 * the angular velocity relative to the world in the body's own frame (what a gyro on the body measures), composed
   down the tree: ``omega_i = R_rel^T omega_parent + the joint's rate`` (``axis * rate`` for a hinge, the joint's
@@ -59,9 +60,11 @@ class BodyFrame:
     coords : tuple of str
         The joint's variables (``angle``, ``rate``; ``q_w``.. ``omega_x``..; ``r_x``.. ``v_x``..).
     axis : (3,) tuple of float
-        Unit hinge axis (parent frame = child frame).
+        Unit hinge or slider axis, parent frame.
     pos : (3,) tuple of float
         The joint point in the parent frame, m.
+    placement : (4,) tuple of float
+        The joint's placement Q (the child's frame at the joint's zero in the parent's).
     """
 
     name: str
@@ -71,6 +74,7 @@ class BodyFrame:
     coords: tuple
     axis: tuple
     pos: tuple
+    placement: tuple = (1.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -109,6 +113,18 @@ def _rotate_inverse(q, v):
             v[2] + w * tz + (x * ty - y * tx))
 
 
+def _mul(a, b):
+    """The quaternion product a b (w, x, y, z); b itself where a is the identity (the bits of the joint alone)."""
+    if a == _IDENTITY:
+        return b
+    if b == _IDENTITY:
+        return a
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return (w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
+
+
 def _unit(q):
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     return tuple(v / n for v in q) if n > 0 else _IDENTITY
@@ -131,7 +147,8 @@ class TreeFrames:
             pos = tuple(float(model.get(model.scene.var_name(b.name, f"pos_{c}"))) for c in "xyz")
             self.bodies.append(BodyFrame(
                 name=b.name, parent=WORLD_FRAME if b.parent < 0 else names[b.parent], parent_index=int(b.parent),
-                joint=b.joint, coords=tuple(b.coords), axis=tuple(float(v) for v in b.axis), pos=pos))
+                joint=b.joint, coords=tuple(b.coords), axis=tuple(float(v) for v in b.axis), pos=pos,
+                placement=tuple(float(v) for v in b.rotation)))
         name = model.scene.var_name
         self._keys = [(tuple(name(f.name, c) for c in f.coords),
                        tuple(name(f.name, f"q_world_{c}") for c in "wxyz")) for f in self.bodies]
@@ -142,19 +159,26 @@ class TreeFrames:
         for f, (coord_keys, qw_keys) in zip(self.bodies, self._keys):
             joint = {c: outputs[k] for c, k in zip(f.coords, coord_keys)}
             translation = f.pos
+            Q = f.placement
             if f.joint == "hinge":
                 half = 0.5 * joint["angle"]
                 s = math.sin(half)
-                rotation = (math.cos(half), s * f.axis[0], s * f.axis[1], s * f.axis[2])
+                rotation = _mul((math.cos(half), s * f.axis[0], s * f.axis[1], s * f.axis[2]), Q)
                 rate = joint["rate"]
-                omega_joint = (f.axis[0] * rate, f.axis[1] * rate, f.axis[2] * rate)
+                a = _rotate_inverse(Q, f.axis)   # the axis in the child frame
+                omega_joint = (a[0] * rate, a[1] * rate, a[2] * rate)
             elif f.joint in ("ball", "free_rotation", "free"):
-                rotation = _unit((joint["q_w"], joint["q_x"], joint["q_y"], joint["q_z"]))
+                rotation = _mul(Q, _unit((joint["q_w"], joint["q_x"], joint["q_y"], joint["q_z"])))
                 omega_joint = (joint["omega_x"], joint["omega_y"], joint["omega_z"])
                 if f.joint == "free":
                     translation = (f.pos[0] + joint["r_x"], f.pos[1] + joint["r_y"], f.pos[2] + joint["r_z"])
+            elif f.joint == "slider":
+                rotation = Q
+                d = joint["displacement"]
+                translation = (f.pos[0] + d * f.axis[0], f.pos[1] + d * f.axis[1], f.pos[2] + d * f.axis[2])
+                omega_joint = (0.0, 0.0, 0.0)
             else:  # fixed
-                rotation = _IDENTITY
+                rotation = Q
                 omega_joint = (0.0, 0.0, 0.0)
             if f.parent_index < 0:
                 omega = omega_joint
