@@ -218,6 +218,9 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
         start = {"q": list(b.q0), "omega": list(b.omega0), "r": list(b.r0), "v": list(b.v0)}
         for c in b.coords:
             unit, desc = _COORD_META[c]
+            if b.parent >= 0 and c[:2] in ("r_", "v_"):   # a free joint below a body: relative to its parent
+                desc = (f"{'position' if c[0] == 'r' else 'velocity'} of the body's origin relative to its joint "
+                        f"point (velocity: to the parent), parent frame {c[-1]}")
             if c in ("angle", "rate", "displacement", "velocity"):
                 s = float(b.angle0 if c in ("angle", "displacement") else b.rate0)
             else:

@@ -218,8 +218,6 @@ def _tree_body(tbl, index, names, where):
     joint = tbl.get("joint", "ball" if "cm_distance" in tbl else "free_rotation")
     if not isinstance(joint, str) or joint not in JOINTS:
         raise ConfigError("joint", joint, s._suggest(str(joint), list(JOINTS)), where=where)
-    if joint == "free" and pi != -1:
-        raise ConfigError("joint", joint, "'free' on a root only (parent = 'world')", where=where)
     balls = ("ball", "free_rotation", "free")
     only = {"axis": ("hinge", "slider"), "stiffness": ("hinge", "slider", "ball", "free_rotation"),
             "rest_angle": ("hinge",), "joint_damping": ("hinge", "slider", "ball", "free_rotation"),

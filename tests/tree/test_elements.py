@@ -26,11 +26,11 @@ def _close(a, b, rtol=1e-10):
 
 def _tree(pr, rng, n):
     """A random tree of pin_reference (every joint kind) with sliders in place of some hinges, balls and
-    free_rotations, and random joint placements on every joint but a free one."""
+    free_rotations, free joints below bodies, and random joint placements on every joint but a free one."""
     bodies = pr.random_tree(rng, n)
     for b in bodies:
         if b["joint"] in ("hinge", "ball", "free_rotation") and rng.random() < 0.35:
-            b["joint"] = "slider"
+            b["joint"] = "slider" if rng.random() < 0.8 else "free"   # a free joint below a body too
         if b["joint"] != "free" and rng.random() < 0.6:
             b["rotation"] = pr.random_rotation(rng)
     return bodies, pr.random_state(bodies, rng)
@@ -72,7 +72,8 @@ def _unit(rng):
 
 
 def test_sliders_placements_springs_forces_and_gravity_vector_equal_pinocchio():
-    """200 random trees (1-7 bodies) with sliders, turned joint placements (hinge, ball, slider, fixed), a gravity
+    """200 random trees (1-7 bodies) with sliders, free joints below bodies (Pinocchio's free flyer with its
+    parent: r and v relative to the parent in its frame), turned joint placements (hinge, ball, slider, fixed), a gravity
     vector in a random direction, 0-3 spring elements between random points of random bodies or the world
     (stiffness, rest length, damping) and 0-2 forces at points (body or world frame). Accelerations equal
     Pinocchio's ABA with the springs' forces computed from Pinocchio's own kinematics and applied, with the forces,
@@ -81,7 +82,7 @@ def test_sliders_placements_springs_forces_and_gravity_vector_equal_pinocchio():
     algorithms in double precision; the differences seen are about 1e-13)."""
     pr = pytest.importorskip("pin_reference", reason="Pinocchio (pin) is a test dependency")
     rng = np.random.default_rng(35)
-    seen = {"slider": 0, "rotation": 0, "spring": 0, "force": 0}
+    seen = {"slider": 0, "rotation": 0, "spring": 0, "force": 0, "free below": 0}
     for _ in range(200):
         n = int(rng.integers(1, 8))
         bodies, state = _tree(pr, rng, n)
@@ -121,10 +122,11 @@ def test_sliders_placements_springs_forces_and_gravity_vector_equal_pinocchio():
         _engine.tree_outputs(lay.desc, y, p, out)
         _close(out[-5], pr.energy(bodies, g * gdir, state) + V_springs)
         seen["slider"] += sum(b["joint"] == "slider" for b in bodies)
+        seen["free below"] += sum(b["joint"] == "free" and b["parent"] >= 0 for b in bodies)
         seen["rotation"] += sum("rotation" in b for b in bodies)
         seen["spring"] += len(springs)
         seen["force"] += len(forces)
-    assert min(seen.values()) > 100, seen
+    assert min(seen.values()) > 30, seen
 
 
 # ------------------------------------------------------------------------------------------ closed forms

@@ -408,11 +408,35 @@ def test_tree_scene_errors_name_the_key(body, match):
         scene_from_dict({"scene": {"name": "t"}, "body": [body]})
 
 
-def test_free_joint_only_at_a_root():
-    with pytest.raises(ConfigError, match="root"):
-        scene_from_dict({"scene": {"name": "t"}, "body": [
-            {"name": "a", "joint": "hinge", "inertia": {"principal": [1, 1, 1]}},
-            {"name": "b", "parent": "a", "joint": "free", "inertia": {"principal": [1, 1, 1]}}]})
+def test_free_joint_below_a_turning_body_moves_freely_in_the_world():
+    """A free body below a hinged body that a motor spins up: nothing acts between them (a free joint), so the
+    child's centre of mass moves on a straight line at constant speed in the world, and its world attitude turns
+    as a torque-free body's whatever its parent does. Its r, v are relative to the parent, in the parent's frame:
+    the world position R_parent (pos + r) is a straight line to 1e-12 (rk4 at 1 ms keeps the free motion exact
+    to round-off: no force, constant velocity; the parent's rotation is a product of exact rotations)."""
+    from gyrosim.core.rotations import quat_rotate
+
+    sc = scene_from_dict({"scene": {"name": "t", "g": 0.0, "integrator": "rk4", "max_step": 0.001}, "body": [
+        {"name": "a", "joint": "hinge", "axis": [0, 0, 1], "mass": 1.0, "inertia": {"principal": [1, 1, 2]},
+         "motor_input": True},
+        {"name": "b", "parent": "a", "joint": "free", "position": [0.5, 0.0, 0.0], "mass": 2.0,
+         "inertia": {"principal": [0.1, 0.1, 0.1]}, "r": [0.1, 0.2, 0.0], "v": [0.3, -0.1, 0.2]}]}, "<test>")
+    m = Model(sc)
+    m.set("a.motor_torque", 3.0)
+
+    def world():
+        qa = np.array([m.get(f"a.q_world_{c}") for c in "wxyz"])
+        rel = np.array([0.5, 0.0, 0.0]) + [m.get(f"b.r_{c}") for c in "xyz"]
+        return quat_rotate(qa, rel)
+
+    pts = [world()]
+    for _ in range(100):
+        m.step(0.01)
+        pts.append(world())
+    pts = np.array(pts)
+    v = pts[1] - pts[0]
+    np.testing.assert_allclose(pts, pts[0] + np.outer(np.arange(101), v), rtol=0, atol=1e-12)
+    assert abs(m.get("a.rate")) > 1.0   # the parent did turn (3 N*m on I_z = 2 kg*m^2 for 1 s)
 
 
 # ------------------------------------------------------------------------------------------ the model

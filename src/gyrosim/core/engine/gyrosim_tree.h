@@ -11,7 +11,8 @@
  *               (rad/s, the child's angular velocity relative to the parent, in the child frame). free_rotation is
  *               a ball whose joint point is the centre of mass.
  *   GS_J_HINGE  1, about `axis` (unit, in the parent frame; equal in the child frame): angle (rad), rate (rad/s).
- *   GS_J_FREE   6, a root only: q, r (m, the origin from `pos`, world), omega (rad/s, child frame), v (m/s, world).
+ *   GS_J_FREE   6: q, r (m, the origin from `pos`, in the parent's frame: the world's for a root), omega (rad/s,
+ *               child frame), v (m/s, the origin's velocity relative to the parent, in the parent's frame).
  *   GS_J_FIXED  0: the child frame is the parent's, moved by `pos`.
  *   GS_J_SLIDER 1, along `axis`: displacement d (m), velocity (m/s); the child's origin at pos + d axis (parent
  *               frame), its frame not turned.
@@ -153,7 +154,7 @@ typedef struct {
 /* The description as a flat int32 array: n, n_cpl, then (parent, joint) per body, then (a, b) per coupling, then
  * optionally the orbit (GS_ORBIT_*; none when left out), then optionally n_spr, n_frc, (a, b) per spring (-1: the
  * world), (body, world) per force. Returns 0, or a nonzero code when it is not a valid tree (a parent not before its
- * child, a free joint that is not a root, an unknown joint, a coupling between bodies that are not hinges, sizes
+ * child, an unknown joint, a coupling between bodies that are not hinges, sizes
  * beyond GS_TREE_MAX, an unknown orbit, a Kepler orbit with a root that is not free, an element on no body). */
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
 
@@ -167,7 +168,8 @@ int gs_tree_ndof(int joint);
 void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy);
 
 /* Joint accelerations only (for tests against other multibody codes): qdd[sum of dof] in body order (ball:
- * domega/dt, child frame; hinge: angle''; free: domega/dt child frame, then dv/dt world). */
+ * domega/dt, child frame; hinge, slider: the coordinate's second derivative; free: domega/dt child frame, then dv/dt
+ * in the parent's frame (the world's for a root)). */
 void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd);
 
 /* Outputs of one system per row: y[0:nx], then every body's world attitude q_world (4 each), then energy (J),

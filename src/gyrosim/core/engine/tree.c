@@ -77,7 +77,6 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
         const int par = desc[2 + 2 * i], j = desc[3 + 2 * i];
         if (par < -1 || par >= i) return 4;                      /* parents before their children */
         if (j < GS_J_BALL || j > GS_J_SLIDER) return 5;
-        if (j == GS_J_FREE && par != -1) return 6;               /* a free joint is a root */
         t->parent[i] = par;
         t->joint[i] = j;
         t->leaf[i] = 1;
@@ -1046,6 +1045,11 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
             } else {
                 cross3(vl, wj, c[i] + 3);
             }
+            if (t->joint[i] == GS_J_FREE) {   /* a free joint below a body moves linearly too: + w x vl_j */
+                double wv[3];
+                cross3(w, kin->vj[i] + 3, wv);
+                for (int a = 0; a < 3; a++) c[i][3 + a] += wv[a];
+            }
         } else {
             for (int a = 0; a < 6; a++) c[i][a] = 0.0;
         }
@@ -1471,7 +1475,11 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
                 memcpy(d + 7, qdd[i], 3 * sizeof(double));
                 cross3(s + 7, kin.vj[i] + 3, wv);   /* the free joint's v in child coordinates */
                 for (int c = 0; c < 3; c++) a[c] = qdd[i][3 + c] + wv[c];
-                mv3(kin.Rw[i], a, d + 10);   /* the origin's acceleration, world */
+                if (t->parent[i] < 0) {
+                    mv3(kin.Rw[i], a, d + 10);   /* the origin's acceleration, world */
+                } else {
+                    mtv3(kin.E[i], a, d + 10);   /* relative to the parent, in its frame (E^T: child -> parent) */
+                }
                 break;
             }
             default:
@@ -1725,7 +1733,11 @@ static void unit_response(const gs_tree *t, const double *y, const double *p, co
             case GS_J_HINGE: case GS_J_SLIDER: d[1] = qdd[i][0]; break;
             case GS_J_FREE:
                 memcpy(d + 7, qdd[i], 3 * sizeof(double));
-                mv3(kin.Rw[i], qdd[i] + 3, d + 10);
+                if (t->parent[i] < 0) {
+                    mv3(kin.Rw[i], qdd[i] + 3, d + 10);
+                } else {
+                    mtv3(kin.E[i], qdd[i] + 3, d + 10);
+                }
                 break;
             default: break;
         }
