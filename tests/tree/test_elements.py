@@ -73,8 +73,8 @@ def _unit(rng):
 
 def test_sliders_placements_springs_forces_and_gravity_vector_equal_pinocchio():
     """200 random trees (1-7 bodies) with sliders, free joints below bodies (Pinocchio's free flyer with its
-    parent: r and v relative to the parent in its frame), turned joint placements (hinge, ball, slider, fixed), a gravity
-    vector in a random direction, 0-3 spring elements between random points of random bodies or the world
+    parent: r and v relative to the parent in its frame), turned joint placements (hinge, ball, slider, fixed), a
+    gravity vector in a random direction, 0-3 spring elements between random points of random bodies or the world
     (stiffness, rest length, damping) and 0-2 forces at points (body or world frame). Accelerations equal
     Pinocchio's ABA with the springs' forces computed from Pinocchio's own kinematics and applied, with the forces,
     as its external forces; the energy output equals Pinocchio's kinetic and potential energy plus the springs'
