@@ -257,9 +257,9 @@ static const char *craft_setup(const gs_tree *t, const double *p, Craft *C) {
 
 typedef struct {
     char name[64];
-    int32_t desc[2 + 4 * GS_TREE_MAX];
+    int32_t desc[2 + 4 * GS_TREE_SMALL];
     size_t ndesc;
-    double y[GS_ODE_MAX + 16], p[GS_TP_HEAD + GS_TB_NP * GS_TREE_MAX + GS_TREE_MAX];
+    double y[GS_ODE_MAX + 16], p[GS_TP_HEAD + GS_TB_NP * GS_TREE_SMALL + GS_TREE_SMALL];
     size_t ny, np;
 } Scene;
 

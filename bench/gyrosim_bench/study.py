@@ -78,9 +78,9 @@ TIMED = CLASSIC + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
 PARTS = ("accuracy", "cost", "long", "stability", "symplectic", "startup", "peers", "fmu", "service", "sweep",
-         "tree", "tree_targets")
+         "tree", "tree_targets", "tree_scaling")
 #: The parts run by a bench module of their own (``run(out_dir, quick)``, in its own process).
-EXTERNAL = ("fmu", "service", "sweep", "tree", "tree_targets")
+EXTERNAL = ("fmu", "service", "sweep", "tree", "tree_targets", "tree_scaling")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4, **EXACT_SPLIT_ORDER}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1321,7 +1321,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
     # (module, label): the label names the part's tables and files (fmu.md, tree_bench.md, ...)
     mods = {"fmu": (("gyrosim_bench.fmu_bench", "fmu"),), "service": (("gyrosim_bench.service_bench", "service"),),
             "sweep": (("gyrosim_bench.sweep_bench", "sweep"),), "tree": (("gyrosim_bench.tree_bench", "tree_bench"),),
-            "tree_targets": (("gyrosim_bench.tree_targets", "tree_targets"),)}
+            "tree_targets": (("gyrosim_bench.tree_targets", "tree_targets"),),
+            "tree_scaling": (("gyrosim_bench.tree_scaling", "tree_scaling"),)}
     bench_dir = str(Path(__file__).resolve().parents[1])  # the folder that holds gyrosim_bench
     msgs = []
     for name, label in mods[part]:
@@ -1366,7 +1367,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 #: results.json keys that each part writes (fmu and service leave their own files)
 PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
              "stability": ("stability",), "symplectic": ("symplectic",), "startup": ("startup",), "peers": ("peers",),
-             "fmu": (), "service": (), "sweep": (), "tree": (), "tree_targets": ()}
+             "fmu": (), "service": (), "sweep": (), "tree": (), "tree_targets": (),
+             "tree_scaling": ()}
 #: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
 SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
 

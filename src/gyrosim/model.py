@@ -101,6 +101,10 @@ class Model:
         """The integrator by name, one that the scene's system takes (``Scene.integrators``); a new one starts
         without the old one's history (the kernel's ``_forget``)."""
         allowed = self.scene.integrators
+        if value in ("midpoint", "energy_momentum") and value not in allowed and self.scene.tree is not None:
+            from .scene_tree import implicit_refusal
+
+            raise ConfigError("integrator", value, implicit_refusal(self.scene.tree, self.scene.orbit))
         if value not in allowed:
             why = (f"{value!r} solves one body; a tree of bodies takes one of " if value in INTEGRATORS
                    else f"{value!r} integrates a tree of bodies (a scene with a `joint`); one body takes one of "

@@ -183,7 +183,13 @@ class Scene:
         """The integrators this system takes, from the kernel picked for it at set-up (docs/trees.md): every
         integrator on the one-body kernel (Euler's equations, its exact flows and splittings), the Runge-Kutta
         methods on the articulated-body algorithm."""
-        return INTEGRATORS if self.tree is None else TREE_INTEGRATORS
+        if self.tree is None:
+            return INTEGRATORS
+        from .scene_tree import implicit_fits
+
+        if implicit_fits(self.tree, self.orbit):
+            return TREE_INTEGRATORS
+        return tuple(m for m in TREE_INTEGRATORS if m not in ("midpoint", "energy_momentum"))
 
     def variables(self) -> dict:
         """Every variable of the scene by its full name (name -> ``model.Variable``), under :meth:`var_name`'s
@@ -687,6 +693,15 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
     if integ not in TREE_INTEGRATORS:
         raise ConfigError("integrator", integ, f"one of {', '.join(TREE_INTEGRATORS)}: a tree of bodies is "
                           f"integrated by the tree engine ('{integ}' solves one body)", where=where)
+    for what, count in (("coupling", len(couplings)), ("spring", len(springs)), ("force", len(forces))):
+        if count > _engine.TREE_ELEM_MAX:
+            raise ConfigError(what, f"{count} [[{what}]] tables", f"at most {_engine.TREE_ELEM_MAX} in a tree",
+                              where=source)
+    if integ in ("midpoint", "energy_momentum"):
+        from .scene_tree import implicit_fits, implicit_refusal
+
+        if not implicit_fits(bodies, orbit):
+            raise ConfigError("integrator", integ, implicit_refusal(bodies, orbit), where=where)
     return Scene(
         name=name, bodies=(), gravity=g > 0, damping=any(b.damping > 0 for b in bodies),
         torque=any(b.torque_input or b.motor_input for b in bodies) or bool(forces), integrator=integ,

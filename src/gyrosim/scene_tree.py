@@ -538,8 +538,8 @@ def tree_from_dict(data: dict, source: str):
     from .core import _engine
 
     if len(bodies) > _engine.TREE_MAX:
-        raise ConfigError("body", f"{len(bodies)} bodies", f"at most {_engine.TREE_MAX} bodies in a tree",
-                          where=source)
+        raise ConfigError("body", f"{len(bodies)} bodies", f"at most {_engine.TREE_MAX} bodies in a tree (the "
+                          "engine's tree description holds that many)", where=source)
     couplings, cnames = [], []
     cl = data.get("coupling", [])
     if not isinstance(cl, list):
@@ -663,3 +663,29 @@ def orbit_from_dict(tbl, bodies, where: str) -> Orbit:
                                   f"a Kepler orbit (root {b.name!r}, m)", where=where)
         return Orbit(mu=mu)
     return Orbit(mu=mu, radius=radius, anomaly=s._num(tbl, "anomaly", where, 0.0))
+
+
+#: Joint coordinates per joint (the engine's gs_tree_ncoord).
+_NCOORD = {"ball": 7, "free_rotation": 7, "hinge": 2, "slider": 2, "free": 13, "fixed": 0}
+
+
+def tree_nx(bodies, orbit) -> int:
+    """The joint coordinates of a tree's state (nx: every body's, then a circular orbit's anomaly)."""
+    return sum(_NCOORD[b.joint] for b in bodies) + (1 if orbit is not None and orbit.radius is not None else 0)
+
+
+def implicit_fits(bodies, orbit) -> bool:
+    """The implicit methods (midpoint, energy_momentum) take the tree: their dense Newton matrix is sized by the
+    state, and the engine takes them up to _engine.IMPLICIT_MAX integrated components (nx and the work integral)."""
+    from .core import _engine
+
+    return tree_nx(bodies, orbit) + 1 <= _engine.IMPLICIT_MAX
+
+
+def implicit_refusal(bodies, orbit) -> str:
+    """Why a tree too large for the implicit methods is refused (the ConfigError's rule)."""
+    from .core import _engine
+
+    return (f"'rk4', 'euler', 'adaptive' or 'dop853' for this tree: 'midpoint' and 'energy_momentum' take at most "
+            f"{_engine.IMPLICIT_MAX - 1} joint coordinates (their Newton matrix is dense: its factorisation costs the "
+            f"cube of the state's size), and this tree has {tree_nx(bodies, orbit)} ({len(bodies)} bodies)")

@@ -51,7 +51,7 @@ class System:
 
     def __init__(self, lib, desc):
         self.lib = lib
-        self.buf = ctypes.create_string_buffer(1 << 16)
+        self.buf = ctypes.create_string_buffer(1 << 18)   # gs_system: its tree tables are fixed arrays (GS_TREE_MAX)
         d = np.asarray(desc, dtype=np.int32)
         assert lib.gs_sys_init(self.buf, d.ctypes.data_as(ctypes.POINTER(ctypes.c_int32)), ctypes.c_size_t(len(d))) == 0
         head = np.frombuffer(self.buf.raw[:4 * 14], dtype=np.int32)

@@ -947,6 +947,9 @@ PyMODINIT_FUNC PyInit__engine(void) {
     PyObject *m = PyModule_Create(&module);
     if (!m) return NULL;
     PyModule_AddIntConstant(m, "TREE_MAX", GS_TREE_MAX);
+    PyModule_AddIntConstant(m, "TREE_ELEM_MAX", GS_TREE_ELEM_MAX);
+    PyModule_AddIntConstant(m, "TREE_SMALL", GS_TREE_SMALL);
+    PyModule_AddIntConstant(m, "IMPLICIT_MAX", GS_ODE_MAX);
     PyModule_AddIntConstant(m, "TREE_NMON", GS_TREE_NMON);
     PyModule_AddIntConstant(m, "LD_MANT_DIG", gs_tree_ld_mant_dig());
     PyModule_AddIntConstant(m, "DBL_MANT_DIG", DBL_MANT_DIG);

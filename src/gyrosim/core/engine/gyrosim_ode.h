@@ -17,7 +17,9 @@
 extern "C" {
 #endif
 
-/* The most components one system integrates (a tree of GS_TREE_MAX free bodies and its work integral). */
+/* The components a stage row of the driver holds on the stack (a tree of GS_TREE_SMALL free bodies and its work
+ * integral): larger systems run the same driver over rows on the heap (rk.c), taken once per call. The implicit
+ * methods take at most this many (their Newton matrix is dense: its factorisation costs the cube of the size). */
 #define GS_ODE_MAX 424
 
 typedef struct {
@@ -29,7 +31,7 @@ typedef struct {
      * system does not conserve now (it is called only on accepted states) */
     int (*check)(const void *ctx, double *y);
     const void *ctx;
-    int nv;   /* integrated components, at most GS_ODE_MAX */
+    int nv;   /* integrated components (the implicit methods: at most GS_ODE_MAX) */
     int ne;   /* the first ne of them enter the adaptive methods' error norm (1 <= ne <= nv) */
     int ny;   /* the whole state (nv integrated, then constants the step carries along) */
 } gs_ode;

@@ -76,7 +76,14 @@
 extern "C" {
 #endif
 
-#define GS_TREE_MAX 32
+/* The largest tree: gs_tree's tables are fixed arrays of this size (no memory to free). The algorithms' per-body
+ * work space is not: trees of up to GS_TREE_SMALL bodies run tree.c's build over fixed arrays (static thread-local
+ * and on the stack, as small as they are), larger ones its second build (tree_big.c) over work space sized by the
+ * tree, taken from a thread-local arena (heap) and given back at the end of every call. GS_TREE_ELEM_MAX bounds
+ * the coupling springs, the spring elements and the force elements, each. */
+#define GS_TREE_MAX 4096
+#define GS_TREE_SMALL 32
+#define GS_TREE_ELEM_MAX 512
 
 #define GS_J_BALL 0
 #define GS_J_HINGE 1
@@ -140,10 +147,10 @@ typedef struct {
     int parent[GS_TREE_MAX];     /* index of the parent body (< the body's own), -1 = the world */
     int joint[GS_TREE_MAX];      /* GS_J_* */
     int yi[GS_TREE_MAX];         /* offset of the body's joint coordinates in y */
-    int cpl_a[GS_TREE_MAX], cpl_b[GS_TREE_MAX];   /* coupled hinge bodies */
+    int cpl_a[GS_TREE_ELEM_MAX], cpl_b[GS_TREE_ELEM_MAX];   /* coupled hinge bodies */
     int n_spr, n_frc;            /* spring and force elements */
-    int spr_a[GS_TREE_MAX], spr_b[GS_TREE_MAX];   /* a spring's bodies (-1: the world) */
-    int frc_b[GS_TREE_MAX], frc_w[GS_TREE_MAX];   /* a force's body; 1: the force in world axes */
+    int spr_a[GS_TREE_ELEM_MAX], spr_b[GS_TREE_ELEM_MAX];   /* a spring's bodies (-1: the world) */
+    int frc_b[GS_TREE_ELEM_MAX], frc_w[GS_TREE_ELEM_MAX];   /* a force's body; 1: the force in world axes */
     int p_spr, p_frc;            /* where the springs' and the forces' parameters start in p */
     int leaf[GS_TREE_MAX];       /* 1 when no body hangs from this one */
     int orbit;                   /* GS_ORBIT_* */
@@ -155,7 +162,7 @@ typedef struct {
  * optionally the orbit (GS_ORBIT_*; none when left out), then optionally n_spr, n_frc, (a, b) per spring (-1: the
  * world), (body, world) per force. Returns 0, or a nonzero code when it is not a valid tree (a parent not before its
  * child, an unknown joint, a coupling between bodies that are not hinges, sizes
- * beyond GS_TREE_MAX, an unknown orbit, a Kepler orbit with a root that is not free, an element on no body). */
+ * beyond GS_TREE_MAX or GS_TREE_ELEM_MAX, an unknown orbit, a Kepler orbit with a root that is not free, an element on no body). */
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
 
 /* Joint coordinates a body has (ball 7, hinge 2, free 13, fixed 0, slider 2) and velocity degrees of freedom (3, 1, 6,
@@ -229,9 +236,7 @@ int gs_tree_impact(const gs_tree *t, double *y, const double *p);
 /* Directional derivatives by the complex step (tree_cs.c): along vy (nx values: the joint coordinates; NULL: 0) and
  * vp (np values: the parameters and inputs; NULL: 0), ddy[0:nx+1] = the derivative of gs_tree_derivatives and
  * dout[0:GS_TREE_NOUT] = the derivative of gs_tree_outputs (either NULL: not computed). Exact to round-off: no
- * difference quotient. Returns 1 (0 when the sizes exceed the limits below). */
-#define GS_TREE_NPMAX (GS_TP_HEAD + (GS_TB_NP + 1 + GS_SPR_NP + GS_FRC_NP) * GS_TREE_MAX)
-#define GS_TREE_NOUTMAX (GS_ODE_MAX + 8 * GS_TREE_MAX + 11)
+ * difference quotient. Returns 1 (0 when its work space cannot be had). */
 int gs_tree_directional(const gs_tree *t, const double *y, const double *p, const double *vy, const double *vp,
                         double *ddy, double *dout);
 

@@ -7,6 +7,7 @@
 #include "gyrosim_ode.h"   /* first: the engine header's FP_CONTRACT pragma */
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* the monitor within a long call: every GS_ODE_MONITOR_PARTS-th of its fixed steps (as the one-body engine) */
@@ -23,11 +24,11 @@ static inline int finite_state(const gs_ode *o, const double *y) {
     return 1;
 }
 
-/* the sizes the driver takes */
-static int ode_valid(const gs_ode *o) {
-    return o->nv >= 1 && o->nv <= GS_ODE_MAX && o->ne >= 1 && o->ne <= o->nv && o->ny >= o->nv &&
-           o->ny <= GS_ODE_NY_MAX;
-}
+/* the sizes the driver takes (any: beyond the stack instance's, the large one) */
+static int ode_valid(const gs_ode *o) { return o->nv >= 1 && o->ne >= 1 && o->ne <= o->nv && o->ny >= o->nv; }
+
+/* the stack instance (rows of RK_NV = GS_ODE_MAX) takes the system */
+static int ode_small(const gs_ode *o) { return o->nv <= GS_ODE_MAX && o->ny <= GS_ODE_NY_MAX; }
 
 /* One run of the driver: the system, and for a trajectory (out not NULL) its output grid. In a step (gs_ode_advance)
  * the run ends at H and the health monitor checks the end; in a trajectory the run ends at T = n_out dt, and the
@@ -43,10 +44,14 @@ typedef struct {
     int64_t n_out, k_next;   /* the next output point to write */
     int method;
     int64_t *stats;
+    double *ws;    /* the large instance: its rows (BIG_NSLOTS of `row` doubles each) */
+    size_t row;
 } OdeRun;
 
 struct ode_step_s;
 static int ode_points_in_step(OdeRun *r, struct ode_step_s *s, double t, double t1);
+struct big_step_s;
+static int big_points_in_step(OdeRun *r, struct big_step_s *s, double t, double t1);
 
 /* The driver works on the system's state y in place (its first nv components; the constants after them ride
  * along), so that the health monitor sees the whole state. */
@@ -70,6 +75,36 @@ static int ode_points_in_step(OdeRun *r, struct ode_step_s *s, double t, double 
 #define RK_TLS 1
 #include "rk_driver.h"
 
+/* The large instance: the same driver for systems beyond GS_ODE_MAX components (trees of many bodies), every row a
+ * row of a work space of BIG_NSLOTS rows of ny doubles that gs_ode_advance and gs_ode_trajectory take from the heap
+ * once per call and free at its end (no stack arrays of the system's size: FMU hosts' and OpenMP threads may have
+ * small stacks). Slots 0-31 are the driver's (rk_driver.h, RK_HEAP), then the output point's and the call's. */
+#define BIG_SLOT_POINT 32   /* ode_points_in_step's state */
+#define BIG_SLOT_Y0 33      /* gs_ode_advance's copy; gs_ode_trajectory's v */
+#define BIG_SLOT_YP 34      /* gs_ode_trajectory's last point */
+#define BIG_NSLOTS 35
+#define RK_NAME(x) big_##x
+#define RK_NV 1
+#define RK_HEAP 1
+#define RK_ROW(c, slot) ((c)->ws + (size_t)(slot) * (c)->row)
+#define RK_CTX OdeRun
+#define RK_NVAR(c) ((c)->o->nv)
+#define RK_NERR(c) ((c)->o->ne)
+#define RK_RHS(c, y, k) (c)->o->rhs((c)->o->ctx, (y), (k))
+#define RK_PROJECT(c, v) \
+    do { \
+        if ((c)->o->project) (c)->o->project((c)->o->ctx, (v)); \
+    } while (0)
+#define RK_OK(c, v) finite_state((c)->o, (v))
+#define RK_MONITOR(c, v) ((c)->o->check && (c)->o->check((c)->o->ctx, (v)))
+#define RK_EVERY(c, v) ((void)0)
+#define RK_ON_STEP(c, s, t, t1, clipped) ((c)->out ? big_points_in_step((c), (s), (t), (t1)) : 0)
+#define RK_AFTER_STEP(c, s, v) ((void)0)
+#define RK_FINISH(c, v) (!(c)->out && RK_MONITOR(c, v))
+#define RK_TLS 0
+#include "rk_driver.h"
+#undef RK_ROW
+
 /* The output points in an accepted step from t to t1 of s (called before the step is committed: r->y still holds
  * the state at t). Each point's state: the constants after nv from the run's state, its nv integrated components
  * from the step's continuous extension at x = (t_k - t) / h, x in [0, 1] (ode_dense: Dormand-Prince 5(4)'s 4th-order
@@ -85,36 +120,77 @@ static int ode_points_in_step(OdeRun *r, struct ode_step_s *s, double t, double 
  * output interval: the same states to the interpolant's order); what it restarts (the momentum where a torque acts)
  * goes back into the run's constants. Returns 1 where a point is not finite or the monitor trips: r->k_next stays at
  * that point, the first one not written. */
-static int ode_points_in_step(OdeRun *r, struct ode_step_s *s, double t, double t1) {
-    const gs_ode *o = r->o;
-    const int nv = o->nv, ny = o->ny;
-    const size_t consts = (size_t)(ny - nv) * sizeof(double);
-    while (r->k_next <= r->n_out && (double)r->k_next * r->dt <= t1 * (1.0 + 1e-15)) {
-        const int64_t k = r->k_next;
-        const double tk = k == r->n_out ? r->T : (double)k * r->dt;
-        double yk[GS_ODE_NY_MAX];
-        if (tk == t1) {   /* the step ends on the point (the last one: clipped to T): its end, not interpolated */
-            memcpy(yk, s->y1, (size_t)nv * sizeof(double));
-        } else {
-            ode_dense(r->method, r, s, (tk - t) / s->h, yk, r->stats);
-        }
-        memcpy(yk + nv, r->y + nv, consts);
-        if (o->project) o->project(o->ctx, yk);
-        if (!finite_state(o, yk) || (o->check && o->check(o->ctx, yk))) return 1;
-        r->out(r->out_ctx, k, yk);
-        memcpy(r->y + nv, yk + nv, consts);
-        memcpy(r->y_point, yk, (size_t)ny * sizeof(double));
-        r->k_next = k + 1;
+#define ODE_POINTS_IN_STEP(P, YK) \
+static int P##points_in_step(OdeRun *r, struct P##step_s *s, double t, double t1) { \
+    const gs_ode *o = r->o; \
+    const int nv = o->nv, ny = o->ny; \
+    const size_t consts = (size_t)(ny - nv) * sizeof(double); \
+    while (r->k_next <= r->n_out && (double)r->k_next * r->dt <= t1 * (1.0 + 1e-15)) { \
+        const int64_t k = r->k_next; \
+        const double tk = k == r->n_out ? r->T : (double)k * r->dt; \
+        YK; \
+        if (tk == t1) {   /* the step ends on the point (the last one: clipped to T): its end, not interpolated */ \
+            memcpy(yk, s->y1, (size_t)nv * sizeof(double)); \
+        } else { \
+            P##dense(r->method, r, s, (tk - t) / s->h, yk, r->stats); \
+        } \
+        memcpy(yk + nv, r->y + nv, consts); \
+        if (o->project) o->project(o->ctx, yk); \
+        if (!finite_state(o, yk) || (o->check && o->check(o->ctx, yk))) return 1; \
+        r->out(r->out_ctx, k, yk); \
+        memcpy(r->y + nv, yk + nv, consts); \
+        memcpy(r->y_point, yk, (size_t)ny * sizeof(double)); \
+        r->k_next = k + 1; \
+    } \
+    return 0; \
+}
+ODE_POINTS_IN_STEP(ode_, double yk[GS_ODE_NY_MAX])
+ODE_POINTS_IN_STEP(big_, double *yk = r->ws + (size_t)BIG_SLOT_POINT * r->row)
+
+/* the large instance's work space for o: BIG_NSLOTS rows of ny doubles (NULL: out of memory) */
+static double *big_rows(const gs_ode *o, size_t *row) {
+    *row = ((size_t)o->ny + 7) & ~(size_t)7;   /* rows of whole cache lines */
+    return malloc((size_t)BIG_NSLOTS * *row * sizeof(double));
+}
+
+/* gs_ode_advance for a system beyond the stack instance's rows: the same steps (the driver's text) */
+static int64_t big_advance(int method, const gs_ode *o, double *y, double H, int64_t n_sub, double rtol, double atol,
+                           double max_step, double *hint, int64_t stats[GS_NSTATS]) {
+    size_t row;
+    double *ws = big_rows(o, &row);
+    if (!ws) return 1;
+    double *y0 = ws + (size_t)BIG_SLOT_Y0 * row;
+    memcpy(y0, y, (size_t)o->ny * sizeof(double));
+    OdeRun r = {o, NULL, NULL, y0, NULL, 0.0, H, 0, 1, method, stats, ws, row};
+    int64_t k;
+    if (method == GS_ADAPTIVE || method == GS_DOP853) {   /* on the copy: y and hint unchanged on a failure */
+        k = big_erk_run(method, &r, y0, H, rtol, atol, max_step, hint, stats, GS_MAX_WORK);
+        if (!k) memcpy(y, y0, (size_t)o->ny * sizeof(double));
+        free(ws);
+        return k;
     }
-    return 0;
+    if ((method != GS_EULER && method != GS_RK4) || n_sub < 1) {
+        free(ws);
+        return 1;
+    }
+    const int64_t cs = n_sub >= 2 * GS_ODE_MONITOR_PARTS ? n_sub / GS_ODE_MONITOR_PARTS : 0;
+    k = big_fixed_run(method, &r, y, H / (double)n_sub, n_sub, 1, cs, 0);
+    if (!k && !(cs && n_sub % cs == 0) && o->check && o->check(o->ctx, y)) k = n_sub;
+    const int64_t done = k ? k : n_sub;
+    stats[0] += done;
+    stats[2] += (method == GS_EULER ? 1 : 4) * done;
+    if (k) memcpy(y, y0, (size_t)o->ny * sizeof(double));
+    free(ws);
+    return k;
 }
 
 int64_t gs_ode_advance(int method, const gs_ode *o, double *y, double H, int64_t n_sub, double rtol, double atol,
                        double max_step, double *hint, int64_t stats[GS_NSTATS]) {
     if (!ode_valid(o)) return 1;
+    if (!ode_small(o)) return big_advance(method, o, y, H, n_sub, rtol, atol, max_step, hint, stats);
     double y0[GS_ODE_NY_MAX];
     memcpy(y0, y, (size_t)o->ny * sizeof(double));
-    OdeRun r = {o, NULL, NULL, y0, NULL, 0.0, H, 0, 1, method, stats};
+    OdeRun r = {o, NULL, NULL, y0, NULL, 0.0, H, 0, 1, method, stats, NULL, 0};
     if (method == GS_ADAPTIVE || method == GS_DOP853) {   /* on the copy: y and hint unchanged on a failure */
         const int64_t k = ode_erk_run(method, &r, y0, H, rtol, atol, max_step, hint, stats, GS_MAX_WORK);
         if (!k) memcpy(y, y0, (size_t)o->ny * sizeof(double));
@@ -138,11 +214,29 @@ int64_t gs_ode_trajectory(int method, const gs_ode *o, double *y, double dt, int
     if (n_out == 0) return 0;
     if ((method != GS_ADAPTIVE && method != GS_DOP853) || !ode_valid(o) || !out || !(dt > 0.0) || n_out < 0)
         return 1;
+    const double T = (double)n_out * dt;
+    if (!ode_small(o)) {   /* the large instance, its rows from the heap */
+        size_t row;
+        double *ws = big_rows(o, &row);
+        if (!ws) return 1;
+        double *v = ws + (size_t)BIG_SLOT_Y0 * row, *yp = ws + (size_t)BIG_SLOT_YP * row;
+        memcpy(v, y, (size_t)o->ny * sizeof(double));
+        memcpy(yp, y, (size_t)o->ny * sizeof(double));
+        OdeRun r = {o, out, out_ctx, v, yp, dt, T, n_out, 1, method, stats, ws, row};
+        int64_t k = 0;
+        if (big_erk_run(method, &r, v, T, rtol, atol, max_step, hint, stats, GS_ODE_TRAJECTORY_WORK)) {
+            memcpy(y, yp, (size_t)o->ny * sizeof(double));
+            k = r.k_next;
+        } else {
+            memcpy(y, v, (size_t)o->ny * sizeof(double));
+        }
+        free(ws);
+        return k;
+    }
     double v[GS_ODE_NY_MAX], yp[GS_ODE_NY_MAX];
     memcpy(v, y, (size_t)o->ny * sizeof(double));
     memcpy(yp, y, (size_t)o->ny * sizeof(double));
-    const double T = (double)n_out * dt;
-    OdeRun r = {o, out, out_ctx, v, yp, dt, T, n_out, 1, method, stats};
+    OdeRun r = {o, out, out_ctx, v, yp, dt, T, n_out, 1, method, stats, NULL, 0};
     if (ode_erk_run(method, &r, v, T, rtol, atol, max_step, hint, stats, GS_ODE_TRAJECTORY_WORK)) {
         memcpy(y, yp, (size_t)o->ny * sizeof(double));   /* the last point written: the failing interval's start */
         return r.k_next;

@@ -27,6 +27,11 @@
  *   RK_FINISH(c, v)          adaptive: the state at the end; nonzero fails the run
  *   RK_TLS                   1: the adaptive work space is thread-local (a large RK_NV: kept off the stacks of
  *                            the threads an FMU host gives us), 0: on the stack
+ *   RK_HEAP (optional)       defined: every row of components (stages, states) is RK_ROW(c, slot), a row of the
+ *                            caller's work space (for systems of any size: rk.c's large instance), not an array
+ *                            of RK_NV on the stack; RK_NV is then unused. Slots: 0-4 the fixed step's and the
+ *                            error estimate's rows, 5-6 the dense output's, 7-31 the adaptive step's (RK_NSLOTS
+ *                            in all).
  *
  * The order of every floating-point operation below is part of the product: the one-body engine's results are
  * compared bit for bit with those of earlier versions and of its FMUs. Do not reorder sums or products.
@@ -93,13 +98,24 @@ static RK_INLINE double rk_max(double a, double b) { return a > b ? a : b; }
 #define RK_PAIRS8 0
 #endif
 
+/* a row of components: on the stack, or the work space's row (RK_HEAP) */
+#ifdef RK_HEAP
+#define RK_ARRAY(name, slot) double *name = RK_ROW(c, slot)
+#define RK_ROWS(name, k) double *name[k]
+#define RK_ROW1(name) double *name
+#else
+#define RK_ARRAY(name, slot) double name[RK_NV]
+#define RK_ROWS(name, k) double name[k][RK_NV]
+#define RK_ROW1(name) double name[RK_NV]
+#endif
+
 /* One adaptive step: the stages K (dop853: 12, f(y1) as the 13th, and 3 more for the dense output), the states at
  * its ends and dop853's interpolation polynomial. */
 typedef struct RK_NAME(step_s) {
-    double K[16][RK_NV];
-    double y0[RK_NV];   /* the state at the start of the step */
-    double y1[RK_NV];   /* at its end (before RK_PROJECT) */
-    double F[7][RK_NV];
+    RK_ROWS(K, 16);
+    RK_ROW1(y0);   /* the state at the start of the step */
+    RK_ROW1(y1);   /* at its end (before RK_PROJECT) */
+    RK_ROWS(F, 7);
     double h;
     int dense_ready;   /* dop853's extra stages and F computed for this step */
 } RK_NAME(step);
@@ -114,7 +130,7 @@ typedef struct RK_NAME(step_s) {
  * the right-hand side reads. */
 static RK_INLINE void RK_NAME(fixed_step)(int method, RK_CTX *c, double *v, double h) {
     const int nv = RK_NVAR(c), ne = RK_NERR(c);
-    double k1[RK_NV];
+    RK_ARRAY(k1, 0);
     RK_RHS(c, v, k1);
     if (method == GS_EULER) {
         for (int i = 0; i < nv; i++) v[i] += h * k1[i];
@@ -122,7 +138,10 @@ static RK_INLINE void RK_NAME(fixed_step)(int method, RK_CTX *c, double *v, doub
         return;
     }
     /* the classical 4th-order method (Hairer, Norsett, Wanner I, II.1, table 1.2) */
-    double k2[RK_NV], k3[RK_NV], k4[RK_NV], s[RK_NV];
+    RK_ARRAY(k2, 1);
+    RK_ARRAY(k3, 2);
+    RK_ARRAY(k4, 3);
+    RK_ARRAY(s, 4);
     const double h2 = 0.5 * h;
     for (int i = 0; i < ne; i++) s[i] = v[i] + h2 * k1[i];
     RK_RHS(c, s, k2);
@@ -224,7 +243,7 @@ static RK_INLINE void RK_NAME(combine)(RK_CTX *c, const RK_NAME(step) *s, const 
  * the scaled error norm, err <= 1 accepting the step (Hairer, Norsett, Wanner I, II.4, (4.11)). */
 static double RK_NAME(erk_step)(int method, RK_CTX *c, RK_NAME(step) *s, double h, double rtol, double atol,
                                 int64_t *stats) {
-    double yt[RK_NV];
+    RK_ARRAY(yt, 0);
     const int nv = RK_NVAR(c), ne = RK_NERR(c);
     if (method == GS_ADAPTIVE) {
         /* Dormand-Prince 5(4): the 7th stage is f(y1) (first same as last), the error the difference of the 5th-
@@ -261,7 +280,8 @@ static double RK_NAME(erk_step)(int method, RK_CTX *c, RK_NAME(step) *s, double 
      * correction, err = |h| e5 / sqrt((e5 + 0.01 e3) ne), e5 and e3 the scaled sums of squares. E5 and E3 have
      * the same zeros: the sums skip those stages. */
     double e5 = 0.0, e3 = 0.0;
-    double a5v[RK_NV], a3v[RK_NV];
+    RK_ARRAY(a5v, 1);
+    RK_ARRAY(a3v, 2);
     RK_NAME(combine)(c, s, D8_E5, 13, 0.0, NULL, a5v);
     RK_NAME(combine)(c, s, D8_E3, 13, 0.0, NULL, a3v);
 #ifdef RK_PAIRS
@@ -305,7 +325,7 @@ RK_MAYBE_UNUSED static void RK_NAME(dense)(int method, RK_CTX *c, RK_NAME(step) 
         return;
     }
     if (!s->dense_ready) {
-        double yt[RK_NV];
+        RK_ARRAY(yt, 5);
         for (int st = 13; st < 16; st++) {
             RK_NAME(combine)(c, s, D8_A[st], st, h, s->y0, yt);
             RK_NAME(rhs_row)(c, yt, s->K[st]);
@@ -318,7 +338,7 @@ RK_MAYBE_UNUSED static void RK_NAME(dense)(int method, RK_CTX *c, RK_NAME(step) 
             s->F[2][i] = 2.0 * dy - h * (s->K[12][i] + s->K[0][i]);
         }
         for (int r = 0; r < 4; r++) {   /* the sums of the loop over the stages that skipped D's zeros */
-            double acc[RK_NV];
+            RK_ARRAY(acc, 6);
             RK_NAME(combine)(c, s, D8_D[r], 16, 0.0, NULL, acc);
             for (int i = 0; i < nv; i++) s->F[3 + r][i] = h * acc[i];
         }
@@ -349,7 +369,14 @@ RK_MAYBE_UNUSED static void RK_NAME(dense)(int method, RK_CTX *c, RK_NAME(step) 
  * was not clipped by T (or the step proposed after the last): the next call starts there. */
 static int64_t RK_NAME(erk_run)(int method, RK_CTX *c, double *v, double T, double rtol, double atol,
                                 double max_step, double *hint, int64_t *stats, int64_t max_steps) {
-#if RK_TLS
+#if defined(RK_HEAP)
+    RK_NAME(step) s_rows;
+    RK_NAME(step) *s = &s_rows;
+    for (int j = 0; j < 16; j++) s->K[j] = RK_ROW(c, 7 + j);
+    s->y0 = RK_ROW(c, 23);
+    s->y1 = RK_ROW(c, 24);
+    for (int j = 0; j < 7; j++) s->F[j] = RK_ROW(c, 25 + j);
+#elif RK_TLS
     static _Thread_local RK_NAME(step) s_tls;
     RK_NAME(step) *s = &s_tls;
 #else
@@ -430,6 +457,10 @@ static int64_t RK_NAME(erk_run)(int method, RK_CTX *c, double *v, double T, doub
 
 #undef RK_WIDTH
 #undef RK_PAIRS8
+#undef RK_ARRAY
+#undef RK_ROWS
+#undef RK_ROW1
+#undef RK_HEAP
 #undef RK_NAME
 #undef RK_NV
 #undef RK_CTX

@@ -431,8 +431,12 @@ int gs_sys_directional(const gs_system *s, const double *y, const double *p, con
                        double *ddy, double *dout) {
     if (s->kernel == GS_KERNEL_TREE) return gs_tree_directional(&s->tree, y, p, vy, vp, ddy, dout);
     static const int32_t ONE_BODY[4] = {1, 0, -1, GS_J_BALL};
-    gs_tree t;
-    if (gs_tree_init(&t, ONE_BODY, 4) != 0) return 0;
+    gs_tree *one = malloc(sizeof(gs_tree));   /* its tables are large (GS_TREE_MAX): off the stack */
+    if (!one || gs_tree_init(one, ONE_BODY, 4) != 0) {
+        free(one);
+        return 0;
+    }
+    const gs_tree *t = one;
     for (int b = 0; b < s->units; b++) {
         const double *vyb = vy ? vy + (size_t)b * GS_Y_NQW : NULL;
         const double *vpb = vp ? vp + GS_SP_HEAD + (size_t)b * GS_SB_NP : NULL;
@@ -445,9 +449,12 @@ int gs_sys_directional(const gs_system *s, const double *y, const double *p, con
         }
         double ty[GS_Y_NQW + GS_TREE_NMON + 1], tp[GS_TP_HEAD + GS_TB_NP], tv[GS_TP_HEAD + GS_TB_NP];
         double tdy[GS_Y_NQW + 1], tout[GS_Y_NQW + 4 + 5];
-        one_body_tree(p, b, y + (size_t)b * GS_NY, ty, tp, t.ny, t.np);
-        if (vp) one_body_seed(p, b, vp, tv, t.np);
-        if (!gs_tree_directional(&t, ty, tp, vyb, vp ? tv : NULL, tdy, tout)) return 0;
+        one_body_tree(p, b, y + (size_t)b * GS_NY, ty, tp, t->ny, t->np);
+        if (vp) one_body_seed(p, b, vp, tv, t->np);
+        if (!gs_tree_directional(t, ty, tp, vyb, vp ? tv : NULL, tdy, tout)) {
+            free(one);
+            return 0;
+        }
         if (db) {
             memcpy(db, tdy, GS_Y_NQW * sizeof(double));
             ddy[s->ncoord + b] = tdy[GS_Y_NQW];
@@ -458,8 +465,8 @@ int gs_sys_directional(const gs_system *s, const double *y, const double *p, con
             double qu[4];
             for (int i = 0; i < 4; i++) qu[i] = nq > 0.0 ? q[i] / nq : q[i];
             for (int i = 0; i < GS_Y_NQW; i++) ob[i] = tout[i];
-            euler_rates(qu, tout + t.nx, ob + GS_O_PHI);
-            const int e = t.nx + 4 * t.n;
+            euler_rates(qu, tout + t->nx, ob + GS_O_PHI);
+            const int e = t->nx + 4 * t->n;
             ob[GS_O_L] = tout[e + 2];
             ob[GS_O_L + 1] = tout[e + 3];
             ob[GS_O_L + 2] = tout[e + 4];
@@ -467,6 +474,7 @@ int gs_sys_directional(const gs_system *s, const double *y, const double *p, con
             ob[GS_O_ENERGY_ERROR] = tout[e + 1];
         }
     }
+    free(one);
     return 1;
 }
 
@@ -509,7 +517,12 @@ static void diagnose_tree(const gs_system *s, int method, const double *y0, cons
     const int64_t n_sub = method == GS_EULER || method == GS_RK4 || implicit ? gs_substeps(H, max_step) : 0;
     char at[80] = "", cause[320], advice[240];
     if (n_sub > 1) snprintf(at, sizeof(at), " at internal step %d of %lld", (int)k, (long long)n_sub);
-    double y[GS_ODE_MAX + GS_TREE_NMON], pp[GS_TREE_NPMAX], h1 = hint ? hint[0] : 0.0;
+    double h1 = hint ? hint[0] : 0.0;
+    double *y = malloc(((size_t)s->ny + (size_t)s->np) * sizeof(double)), *pp = y + s->ny;   /* any tree's size */
+    if (!y) {
+        snprintf(why, n, "out of memory");
+        return;
+    }
     int64_t stats[GS_NSTATS] = {0, 0, 0};
     int32_t status = 0;
     memcpy(y, y0, (size_t)s->ny * sizeof(double));
@@ -540,6 +553,7 @@ static void diagnose_tree(const gs_system *s, int method, const double *y0, cons
         snprintf(advice, sizeof(advice), "check the parameters, or try the integrator 'dop853'");
     }
     snprintf(why, n, "%s; %s", cause, advice);
+    free(y);
 }
 
 /* gyrosim.model.Model's cause and advice for body b */

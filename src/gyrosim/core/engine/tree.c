@@ -7,6 +7,8 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "quaternion.h"
@@ -23,6 +25,150 @@
 
 #ifndef GS_TREE_CS
 typedef double treal;   /* a value only compared, never differentiated (tree_cs.c keeps it real) */
+#endif
+
+/* ---------------------------------------------------------------------------------------------- work space
+ *
+ * The algorithms keep per-body tables (Kin, Pre, the articulated-body algorithm's inertias and forces). Two builds
+ * of this file lay them out differently, with the same code over them:
+ *
+ *   the small build (tree.c itself, TREE_HEAP undefined): fixed arrays of GS_TREE_SMALL rows, as they always were:
+ *   Pre static thread-local, the rest on the stack. Its public functions hand a larger tree to the large build.
+ *
+ *   the large build (TREE_HEAP: tree_big.c, and the complex-step and long double builds, tree_cs.c, tree_ld.c):
+ *   every table is a pointer to t->n rows taken from a thread-local arena. A function that takes rows marks the
+ *   arena on entry (WS_OPEN) and gives them back on exit (WS_CLOSE): what a right-hand side takes per stage is
+ *   reused by the next stage. Blocks are never moved once given (the arena grows by chaining a new block), so rows
+ *   stay put while they are in use; when the arena is given back empty (the outermost call returns) every block is
+ *   freed: no memory stays with a thread between calls and none is lost when the thread ends.
+ *
+ * TB(name) declares a table field (TB(E) is `E[GS_TREE_SMALL]` or `(*E)`), TLOC a local table: rows of the small
+ * build's capacity cap on the stack, or count rows from the arena. The row syntax (x[i][a]) is the same in both. */
+#ifdef TREE_HEAP
+#define TB(name) (*name)
+#define TLOC(type, name, dims, cap, count) type (*name) dims = ws_alloc((size_t)(count) * sizeof(type dims))
+#define WS_OPEN const WsMark ws_mark_ = ws_mark()
+#define WS_CLOSE ws_release(ws_mark_)
+
+typedef struct WsBlock {
+    struct WsBlock *prev;   /* the block before (older), NULL */
+    size_t cap, top;        /* bytes in data, bytes given */
+    _Alignas(64) unsigned char data[];
+} WsBlock;
+
+typedef struct {
+    WsBlock *b;
+    size_t top;
+} WsMark;
+
+static _Thread_local WsBlock *ws_head;   /* the newest block in use */
+static _Thread_local WsBlock *ws_spare;  /* blocks given back while older ones are in use: reused before malloc */
+
+static WsMark ws_mark(void) {
+    const WsMark m = {ws_head, ws_head ? ws_head->top : 0};
+    return m;
+}
+
+static WsBlock *ws_block(size_t cap) {
+    WsBlock *nb = malloc(sizeof(WsBlock) + cap);
+    if (!nb) {
+        fputs("gyrosim: out of memory for a tree's work space\n", stderr);
+        abort();
+    }
+    nb->cap = cap;
+    return nb;
+}
+
+/* bytes from the arena (64-byte aligned, not zeroed): from the newest block, else a spare one that holds them, else
+ * a new block (twice the newest, at least the request). Out of memory is fatal: the callers have no way to fail
+ * (a right-hand side). */
+static void *ws_alloc(size_t bytes) {
+    bytes = (bytes + 63) & ~(size_t)63;
+    if (!ws_head || ws_head->cap - ws_head->top < bytes) {
+        WsBlock *nb = NULL, **at = &ws_spare;
+        for (; *at; at = &(*at)->prev) {
+            if ((*at)->cap >= bytes) {
+                nb = *at;
+                *at = nb->prev;
+                break;
+            }
+        }
+        if (!nb) {
+            size_t cap = ws_head ? 2 * ws_head->cap : (size_t)1 << 16;
+            nb = ws_block(cap < bytes ? bytes : cap);
+        }
+        nb->prev = ws_head;
+        nb->top = 0;
+        ws_head = nb;
+    }
+    void *r = ws_head->data + ws_head->top;
+    ws_head->top += bytes;
+    return r;
+}
+
+/* The first block of an outermost call, sized for the tree (the pages are touched only as far as they are used):
+ * what one call keeps at once is a few kB per body, so that it runs in one block. */
+static void ws_reserve(int n) {
+    if (ws_head) return;
+    const size_t want = (size_t)n * 1024 * sizeof(double) + ((size_t)1 << 16);
+    if (ws_spare && ws_spare->cap >= want) return;
+    ws_head = ws_block(want);
+    ws_head->prev = NULL;
+    ws_head->top = 0;
+}
+
+/* give back what was taken after m: the blocks begun since go to the spares; given back empty (the outermost call
+ * returns), every block is freed */
+static void ws_release(WsMark m) {
+    while (ws_head && ws_head != m.b) {
+        WsBlock *prev = ws_head->prev;
+        ws_head->prev = ws_spare;
+        ws_spare = ws_head;
+        ws_head = prev;
+    }
+    if (ws_head) ws_head->top = m.top;
+    if (!ws_head || (!ws_head->prev && m.top == 0)) {
+        if (ws_head) {
+            ws_head->prev = ws_spare;
+            ws_spare = ws_head;
+            ws_head = NULL;
+        }
+        while (ws_spare) {
+            WsBlock *prev = ws_spare->prev;
+            free(ws_spare);
+            ws_spare = prev;
+        }
+    }
+}
+#else
+/* the small build hands a tree of more than GS_TREE_SMALL bodies to the large one (tree_big.c: the same functions
+ * named big_tree_*) */
+#ifndef GS_TREE_CS
+#define TREE_DISPATCH(...) \
+    if (t->n > GS_TREE_SMALL) { \
+        __VA_ARGS__; \
+    }
+void big_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy);
+void big_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd);
+void big_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out);
+int big_tree_start(const gs_tree *t, double *y, const double *p);
+void big_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new);
+double big_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]);
+int big_tree_impact(const gs_tree *t, double *y, const double *p);
+double big_tree_fastest_rate(const gs_tree *t, const double *y, const double *p);
+size_t big_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
+                        double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads);
+size_t big_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
+                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                           int32_t *status, int threads, double *out);
+#endif
+#define TB(name) name[GS_TREE_SMALL]
+#define TLOC(type, name, dims, cap, count) type name[cap] dims
+#define WS_OPEN ((void)0)
+#define WS_CLOSE ((void)0)
+#endif
+#ifndef TREE_DISPATCH
+#define TREE_DISPATCH(...) ((void)0)
 #endif
 
 typedef double M3[3][3];
@@ -45,14 +191,14 @@ static int one_dof(int joint) { return joint == GS_J_HINGE || joint == GS_J_SLID
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     if (len < 2) return 1;
     const int n = desc[0], nc = desc[1];
-    if (n < 1 || n > GS_TREE_MAX || nc < 0 || nc > GS_TREE_MAX) return 2;
+    if (n < 1 || n > GS_TREE_MAX || nc < 0 || nc > GS_TREE_ELEM_MAX) return 2;
     const size_t base = (size_t)(2 + 2 * n + 2 * nc);
     if (len != base && len != base + 1 && len < base + 3) return 3;
     t->orbit = len >= base + 1 ? desc[base] : GS_ORBIT_NONE;
     t->n_spr = t->n_frc = 0;
     if (len >= base + 3) {   /* the elements */
         const int ns = desc[base + 1], nf = desc[base + 2];
-        if (ns < 0 || ns > GS_TREE_MAX || nf < 0 || nf > GS_TREE_MAX) return 2;
+        if (ns < 0 || ns > GS_TREE_ELEM_MAX || nf < 0 || nf > GS_TREE_ELEM_MAX) return 2;
         if (len != base + 3 + 2 * (size_t)ns + 2 * (size_t)nf) return 3;
         for (int e = 0; e < ns; e++) {
             const int a = desc[base + 3 + 2 * e], b = desc[base + 4 + 2 * e];
@@ -103,7 +249,6 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     t->p_spr = GS_TP_HEAD + GS_TB_NP * n + nc;
     t->p_frc = t->p_spr + GS_SPR_NP * t->n_spr;
     t->np = t->p_frc + GS_FRC_NP * t->n_frc;
-    if (at + 1 > GS_ODE_MAX) return 9;
     return 0;
 }
 
@@ -197,17 +342,17 @@ static int placed_plain(const gs_tree *t, const double *b, int i) {
 }
 
 typedef struct {
-    M3 E[GS_TREE_MAX];        /* parent coordinates -> child coordinates (R_rel^T) */
-    double r[GS_TREE_MAX][3];  /* the child origin in parent coordinates */
-    M3 Rw[GS_TREE_MAX];       /* child -> world */
-    double ow[GS_TREE_MAX][3]; /* the child origin in the world */
-    double v[GS_TREE_MAX][6];  /* spatial velocity, child coordinates */
-    double vj[GS_TREE_MAX][6]; /* the joint's velocity */
-    int ident[GS_TREE_MAX];    /* E is the identity: a fixed joint, or a rotor computed in its parent's orientation */
-    int plane[GS_TREE_MAX];    /* 0, 1, 2: E turns about that coordinate axis by the angle of cs (a hinge along a
+    M3 TB(E);        /* parent coordinates -> child coordinates (R_rel^T) */
+    double TB(r)[3];  /* the child origin in parent coordinates */
+    M3 TB(Rw);       /* child -> world */
+    double TB(ow)[3]; /* the child origin in the world */
+    double TB(v)[6];  /* spatial velocity, child coordinates */
+    double TB(vj)[6]; /* the joint's velocity */
+    int TB(ident);    /* E is the identity: a fixed joint, or a rotor computed in its parent's orientation */
+    int TB(plane);    /* 0, 1, 2: E turns about that coordinate axis by the angle of cs (a hinge along a
                                 * body axis: 4 products instead of 9); -1: the general E */
-    double cs[GS_TREE_MAX][2]; /* cos, sin of that angle */
-    int r0[GS_TREE_MAX];       /* the joint point is the parent's origin (r = 0) */
+    double TB(cs)[2]; /* cos, sin of that angle */
+    int TB(r0);       /* the joint point is the parent's origin (r = 0) */
 } Kin;
 
 /* A rotor: a leaf on a hinge, axisymmetric about its axis (inertia about the centre of mass aa^T-isotropic, the
@@ -252,32 +397,84 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
  * them is constant too: a rotor (computed in its parent's orientation) and a body on a fixed joint whose own IA is
  * constant (a composite body). */
 typedef struct {
-    M6 IAbase[GS_TREE_MAX];    /* the body's spatial inertia I plus the (constant) articulated inertias of its folded
+    M6 TB(IAbase);    /* the body's spatial inertia I plus the (constant) articulated inertias of its folded
                                 * children */
-    int rotor[GS_TREE_MAX];
-    int fold[GS_TREE_MAX];     /* the body's Ia is in its parent's IAbase */
-    int axis_k[GS_TREE_MAX];   /* a hinge's axis is +e_k: k; else -1 */
-    int ia_fixed[GS_TREE_MAX]; /* IA = IAbase in every state: every child folded; U, Di, Ia below are made */
-    int vlin0[GS_TREE_MAX];    /* the body's linear velocity is zero in every state: not free, every joint point from
+    int TB(rotor);
+    int TB(fold);     /* the body's Ia is in its parent's IAbase */
+    int TB(axis_k);   /* a hinge's axis is +e_k: k; else -1 */
+    int TB(ia_fixed); /* IA = IAbase in every state: every child folded; U, Di, Ia below are made */
+    int TB(vlin0);    /* the body's linear velocity is zero in every state: not free, every joint point from
                                 * a non-free root on is its parent's origin (then the bias acceleration c = v x vj
                                 * has no linear part either) */
-    int cm0[GS_TREE_MAX];      /* the centre of mass at the joint point */
-    int nd[GS_TREE_MAX];       /* the joint's degrees of freedom (gs_tree_ndof) */
-    int ident[GS_TREE_MAX];    /* Kin.ident, Kin.plane and Kin.r0 where they do not depend on the state */
-    int plane[GS_TREE_MAX];
-    int r0[GS_TREE_MAX];
-    int ia_cols[GS_TREE_MAX];  /* the columns of IA the algorithm reads (bit j: column j): a root's only its joint's
+    int TB(cm0);      /* the centre of mass at the joint point */
+    int TB(nd);       /* the joint's degrees of freedom (gs_tree_ndof) */
+    int TB(ident);    /* Kin.ident, Kin.plane and Kin.r0 where they do not depend on the state */
+    int TB(plane);
+    int TB(r0);
+    int TB(ia_cols);  /* the columns of IA the algorithm reads (bit j: column j): a root's only its joint's
                                 * U = IA S and D = S^T U (it passes no inertia on), a fixed root's none */
     int g0;                    /* no uniform gravity: the world's acceleration is zero */
-    int rot0[GS_TREE_MAX];     /* the joint's placement is the identity */
-    M3 Q[GS_TREE_MAX];         /* else its rotation matrix (child at the joint's zero -> parent) */
-    double ap[GS_TREE_MAX][3]; /* a slider's axis in the parent frame (Q times the child frame's) */
+    int TB(rot0);     /* the joint's placement is the identity */
+    M3 TB(Q);         /* else its rotation matrix (child at the joint's zero -> parent) */
+    double TB(ap)[3]; /* a slider's axis in the parent frame (Q times the child frame's) */
     int elements;              /* springs or forces: the world kinematics is needed */
     int impacts;               /* impact stops: gs_tree_advance locates their events */
-    double U[GS_TREE_MAX][6][6];   /* ia_fixed: U = IA S (k columns) */
-    double Di[GS_TREE_MAX][6][6];  /* ia_fixed: D^-1 (k x k) */
-    M6 Ia[GS_TREE_MAX];            /* ia_fixed, not a root: IA - U D^-1 U^T */
+    double TB(U)[6][6];   /* ia_fixed: U = IA S (k columns) */
+    double TB(Di)[6][6];  /* ia_fixed: D^-1 (k x k) */
+    M6 TB(Ia);            /* ia_fixed, not a root: IA - U D^-1 U^T */
 } Pre;
+
+#ifdef TREE_HEAP
+#define WS_CARVE(ptr, n) (ptr) = ws_alloc((size_t)(n) * sizeof(*(ptr)))
+static void kin_alloc(Kin *k, int n) {
+    WS_CARVE(k->E, n);
+    WS_CARVE(k->r, n);
+    WS_CARVE(k->Rw, n);
+    WS_CARVE(k->ow, n);
+    WS_CARVE(k->v, n);
+    WS_CARVE(k->vj, n);
+    WS_CARVE(k->ident, n);
+    WS_CARVE(k->plane, n);
+    WS_CARVE(k->cs, n);
+    WS_CARVE(k->r0, n);
+}
+
+static void pre_alloc(Pre *d, int n) {
+    WS_CARVE(d->IAbase, n);
+    WS_CARVE(d->rotor, n);
+    WS_CARVE(d->fold, n);
+    WS_CARVE(d->axis_k, n);
+    WS_CARVE(d->ia_fixed, n);
+    WS_CARVE(d->vlin0, n);
+    WS_CARVE(d->cm0, n);
+    WS_CARVE(d->nd, n);
+    WS_CARVE(d->ident, n);
+    WS_CARVE(d->plane, n);
+    WS_CARVE(d->r0, n);
+    WS_CARVE(d->ia_cols, n);
+    WS_CARVE(d->rot0, n);
+    WS_CARVE(d->Q, n);
+    WS_CARVE(d->ap, n);
+    WS_CARVE(d->U, n);
+    WS_CARVE(d->Di, n);
+    WS_CARVE(d->Ia, n);
+}
+/* a Kin or a Pre of n rows (a Pre: in the small build static thread-local, 38 kB off the FMU hosts' stacks) */
+#define KIN_DECL(name, n) \
+    Kin name; \
+    kin_alloc(&name, (n))
+#define PRE_DECL(name, n) \
+    Pre name; \
+    pre_alloc(&name, (n))
+/* an outermost call: the arena's first block sized for the tree, and its mark */
+#define WS_ENTER(n) \
+    ws_reserve(n); \
+    WS_OPEN
+#else
+#define KIN_DECL(name, n) Kin name
+#define PRE_DECL(name, n) static _Thread_local Pre name
+#define WS_ENTER(n) ((void)0)
+#endif
 
 static void body_inertia(const double *b, M6 I);
 static void add_transformed_inertia(const Kin *kin, int i, const M6 Ia, M6 out, int cols);
@@ -327,7 +524,12 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
     /* children first (a child's index is above its parent's): when body i is reached, every child has been and
      * ia_fixed[i] is final; a folded child's Ia (a constant, in its parent's orientation: E = 1) is in IAbase[i]
      * before its own factor is made */
+#ifdef TREE_HEAP
+    WS_OPEN;
+    KIN_DECL(kt, 1);
+#else
     static _Thread_local Kin kt;
+#endif
     for (int i = t->n - 1; i >= 0; i--) {
         const int par = t->parent[i];
         d->fold[i] = d->rotor[i] || (t->joint[i] == GS_J_FIXED && par >= 0 && d->ia_fixed[i] && d->rot0[i]);
@@ -341,6 +543,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
         kt.r0[0] = kt.r[0][0] == 0.0 && kt.r[0][1] == 0.0 && kt.r[0][2] == 0.0;
         add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[par], 63);
     }
+    WS_CLOSE;
 }
 
 /* E v */
@@ -650,7 +853,7 @@ static double stop_force(const double *b, double x, double xd, double *fe, doubl
 }
 
 /* the joint generalized forces (springs, damping, motors, stops, couplings) */
-static void joint_forces(const gs_tree *t, const double *y, const double *p, double tau[GS_TREE_MAX][6]) {
+static void joint_forces(const gs_tree *t, const double *y, const double *p, double (*tau)[6]) {
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *s = y + t->yi[i];
         for (int a = 0; a < 6; a++) tau[i][a] = 0.0;
@@ -982,10 +1185,15 @@ static TREE_INLINE void joint_qdd(const int k, const double (*U)[6], const doubl
  * skipped: the joint factors of the bodies whose IA is constant, c's and v's linear halves where they vanish, the
  * world's acceleration without gravity, the accelerations of leaves (no child needs them). */
 static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
-                const double (*fx)[6], const double (*tau_in)[6], double qdd[GS_TREE_MAX][6]) {
-    M6 IA[GS_TREE_MAX];   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
-    double pA[GS_TREE_MAX][6], c[GS_TREE_MAX][6], U[GS_TREE_MAX][6][6], Di[GS_TREE_MAX][6][6], u[GS_TREE_MAX][6];
-    double tau[GS_TREE_MAX][6];
+                const double (*fx)[6], const double (*tau_in)[6], double (*qdd)[6]) {
+    WS_OPEN;
+    TLOC(M6, IA, , GS_TREE_SMALL, t->n);   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
+    TLOC(double, pA, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, c, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, U, [6][6], GS_TREE_SMALL, t->n);
+    TLOC(double, Di, [6][6], GS_TREE_SMALL, t->n);
+    TLOC(double, u, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, tau, [6], GS_TREE_SMALL, t->n);
     /* tau_in (impulses): the joint forces given, no body torque, the world at rest (M^-1 tau_in at rest) */
     const int still = pre->g0 || tau_in != NULL;
     if (tau_in != NULL) {
@@ -1088,7 +1296,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         if (!pre->fold[i]) add_transformed_inertia(kin, i, Ia, IA[par], pre->ia_cols[par]);   /* else in IAbase */
         add_xtf(kin, i, pa, pA[par]);
     }
-    double acc[GS_TREE_MAX][6];
+    TLOC(double, acc, [6], GS_TREE_SMALL, t->n);
     const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     for (int i = 0; i < t->n; i++) {
         const int par = t->parent[i], k = pre->nd[i], fixed = pre->ia_fixed[i];
@@ -1137,6 +1345,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
             for (int a = 0; a < k; a++) acc[i][a] += qdd[i][a];
         }
     }
+    WS_CLOSE;
 }
 
 /* ---------------------------------------------------------------------------------------------- the orbit */
@@ -1208,7 +1417,8 @@ static void orbit_point(const gs_tree *t, const double *y, const double *p, cons
         circular_point(t, y, p, r, v);
         return;
     }
-    Kin kin;
+    WS_OPEN;
+    KIN_DECL(kin, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     double M = 0.0;
     for (int a = 0; a < 3; a++) r[a] = v[a] = 0.0;
@@ -1234,6 +1444,7 @@ static void orbit_point(const gs_tree *t, const double *y, const double *p, cons
         memcpy(r, kin.ow[0], 3 * sizeof(double));
         mv3(kin.Rw[0], kin.v[0] + 3, v);
     }
+    WS_CLOSE;
 }
 
 /* the unit quaternion of a rotation matrix (Shepperd: from the largest of 4 w^2, 4 x^2, 4 y^2, 4 z^2, compared by
@@ -1440,8 +1651,11 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
 }
 
 static void derivs(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *dy) {
-    Kin kin;
-    double qdd[GS_TREE_MAX][6], fnc[GS_TREE_MAX][6], fx[GS_TREE_MAX][6];
+    WS_OPEN;
+    KIN_DECL(kin, t->n);
+    TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, fnc, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, fx, [6], GS_TREE_SMALL, t->n);
     const int orbit = t->orbit != GS_ORBIT_NONE, ext = orbit || pre->elements;
     double P_el = 0.0;
     kinematics(t, y, p, pre, &kin, ext);
@@ -1494,16 +1708,22 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
         const double a = p[GS_TP_ORBIT_R];
         dy[t->ya] = sqrt(p[GS_TP_MU] / (a * a * a));
     }
+    WS_CLOSE;
 }
 
 void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
-    static _Thread_local Pre pre;   /* 38 kB: off the stack of FMU hosts' threads */
+    TREE_DISPATCH(return big_tree_derivatives(t, y, p, dy));
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
     derivs(t, y, p, &pre, dy);
+    WS_CLOSE;
 }
 
 void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd_out) {
-    double dy[GS_ODE_MAX];
+    TREE_DISPATCH(return big_tree_accelerations(t, y, p, qdd_out));
+    WS_ENTER(t->n);
+    TLOC(double, dy, , GS_ODE_MAX, t->nx + 1);
     gs_tree_derivatives(t, y, p, dy);
     int at = 0;
     for (int i = 0; i < t->n; i++) {
@@ -1525,6 +1745,7 @@ void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, d
                 break;
         }
     }
+    WS_CLOSE;
 }
 
 /* ---------------------------------------------------------------------------------------------- energy, momentum */
@@ -1541,7 +1762,8 @@ static int root_of(const gs_tree *t, int i) {
 }
 
 static void totals_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, Totals *s) {
-    Kin kin;
+    WS_OPEN;
+    KIN_DECL(kin, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     s->T = s->V = s->pot_scale = s->inertia = 0.0;
@@ -1588,14 +1810,17 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
     const double Ve = elastic(t, y, p, &kin);
     s->V += Ve;
     s->pot_scale += Ve;
+    WS_CLOSE;
 }
 
 #ifndef GS_TREE_CS   /* the monitor: real arithmetic only (tree_cs.c includes the rest) */
 
 static void totals(const gs_tree *t, const double *y, const double *p, Totals *s) {
-    static _Thread_local Pre pre;
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
     totals_pre(t, y, p, &pre, s);
+    WS_CLOSE;
 }
 
 int gs_tree_torque_free(const gs_tree *t, const double *p) {
@@ -1622,6 +1847,7 @@ int gs_tree_torque_free(const gs_tree *t, const double *p) {
 static double norm3(const double a[3]) { return sqrt(dot3(a, a)); }
 
 int gs_tree_start(const gs_tree *t, double *y, const double *p) {
+    TREE_DISPATCH(return big_tree_start(t, y, p));
     for (int i = 0; i < t->nx; i++) {
         if (!isfinite(y[i])) return 0;
     }
@@ -1643,6 +1869,7 @@ int gs_tree_start(const gs_tree *t, double *y, const double *p) {
 }
 
 void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new) {
+    TREE_DISPATCH(big_tree_reparam(t, y, p_old, p_new); return);
     Totals a, b;
     totals(t, y, p_old, &a);
     totals(t, y, p_new, &b);
@@ -1672,6 +1899,7 @@ static double drift_of(const gs_tree *t, const double *y, const double *p, const
 }
 
 double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]) {
+    TREE_DISPATCH(return big_tree_drift(t, y, p, d));
     Totals s;
     totals(t, y, p, &s);
     return drift_of(t, y, p, &s, d);
@@ -1709,8 +1937,11 @@ void gs_tree_indicators(const gs_tree *t, const double *y, const double *p, doub
  * algorithm with the velocities zero, no gravity and no force but a unit one at joint j), as a change of the state
  * (a free joint's v in world axes) into dy[0:nx] (zero for the positions) */
 static void unit_response(const gs_tree *t, const double *y, const double *p, const Pre *pre, int j, double *dy) {
-    double ys[GS_ODE_MAX], tau[GS_TREE_MAX][6], qdd[GS_TREE_MAX][6];
-    Kin kin;
+    WS_OPEN;
+    TLOC(double, ys, , GS_ODE_MAX, t->nx);
+    TLOC(double, tau, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
+    KIN_DECL(kin, t->n);
     memcpy(ys, y, (size_t)t->nx * sizeof(double));
     for (int i = 0; i < t->n; i++) {
         double *s = ys + t->yi[i];
@@ -1742,10 +1973,13 @@ static void unit_response(const gs_tree *t, const double *y, const double *p, co
             default: break;
         }
     }
+    WS_CLOSE;
 }
 
 static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *pre) {
     int hits = 0;
+    WS_OPEN;
+    TLOC(double, dy, , GS_ODE_MAX, t->nx);
     for (int j = 0; j < t->n; j++) {
         const double *b = body_p(p, j);
         const int s = impact_stops(t, b, j);
@@ -1760,7 +1994,6 @@ static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *p
         }
         Totals before, after;
         totals_pre(t, y, p, pre, &before);
-        double dy[GS_ODE_MAX];
         x[0] = stop;
         unit_response(t, y, p, pre, j, dy);
         const double e = b[GS_TB_RESTITUTION], v = x[1];
@@ -1771,18 +2004,25 @@ static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *p
         y[t->nx] += (after.T + after.V) - (before.T + before.V);   /* the energy the impact took off: in W */
         hits++;
     }
+    WS_CLOSE;
     return hits;
 }
 
 int gs_tree_impact(const gs_tree *t, double *y, const double *p) {
-    static _Thread_local Pre pre;
+    TREE_DISPATCH(return big_tree_impact(t, y, p));
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
-    return impact_pre(t, y, p, &pre);
+    const int hits = impact_pre(t, y, p, &pre);
+    WS_CLOSE;
+    return hits;
 }
 
 double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) {
-    Kin kin;
-    static _Thread_local Pre pre;
+    TREE_DISPATCH(return big_tree_fastest_rate(t, y, p));
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
+    KIN_DECL(kin, t->n);
     precompute(t, p, &pre);
     kinematics(t, y, p, &pre, &kin, 0);
     double w = 0.0;
@@ -1790,6 +2030,7 @@ double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) 
         w = fmax(w, norm3(kin.v[i]));
         if (t->joint[i] == GS_J_HINGE) w = fmax(w, fabs(y[t->yi[i] + 1]));
     }
+    WS_CLOSE;
     return w;
 }
 
@@ -1797,7 +2038,8 @@ double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) 
 
 static void outputs_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *out) {
     memcpy(out, y, (size_t)t->nx * sizeof(double));
-    double qw[GS_TREE_MAX][4];
+    WS_OPEN;
+    TLOC(double, qw, [4], GS_TREE_SMALL, t->n);
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *s = y + t->yi[i];
         double qj[4] = {1.0, 0.0, 0.0, 0.0}, qr[4];
@@ -1839,12 +2081,16 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
         memcpy(oq + 4 * t->n, ro, sizeof(ro));
         memcpy(oq + 4 * t->n + 3, vo, sizeof(vo));
     }
+    WS_CLOSE;
 }
 
 void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out) {
-    static _Thread_local Pre pre;
+    TREE_DISPATCH(big_tree_outputs(t, y, p, out); return);
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
     outputs_pre(t, y, p, &pre, out);
+    WS_CLOSE;
 }
 
 #ifndef GS_TREE_CS
@@ -1894,10 +2140,12 @@ static int ode_check(const void *ctx, double *y) {
 /* J v by the complex step (tree_cs.c): exact, every gyroscopic term of every body in it */
 static int lie_jvp(const void *ctx, const double *y, const double *v, double *jv) {
     const Ctx *c = (const Ctx *)ctx;
-    double d[GS_ODE_MAX + 1];
-    if (!gs_tree_directional(c->t, y, c->p, v, NULL, d, NULL)) return 0;
-    memcpy(jv, d, (size_t)c->t->nx * sizeof(double));
-    return 1;
+    WS_OPEN;
+    TLOC(double, d, , GS_ODE_MAX + 1, c->t->nx + 1);
+    const int ok = gs_tree_directional(c->t, y, c->p, v, NULL, d, NULL);
+    if (ok) memcpy(jv, d, (size_t)c->t->nx * sizeof(double));
+    WS_CLOSE;
+    return ok;
 }
 
 /* 1 when nothing does work on the tree: no external torque, motor, damping or orbit (the energy is kept) */
@@ -1925,7 +2173,8 @@ static int conservative(const gs_tree *t, const double *p) {
  * than through its 6x6 inertia (energy_momentum's projection evaluates them several times a step). */
 static void invariants_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *E,
                            double L[3]) {
-    Kin kin;
+    WS_OPEN;
+    KIN_DECL(kin, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     double T = 0.0, V = 0.0;
@@ -1949,6 +2198,7 @@ static void invariants_pre(const gs_tree *t, const double *y, const double *p, c
         for (int a = 0; a < 3; a++) L[a] += nw[a] + oxf[a];
     }
     *E = T + V + elastic(t, y, p, &kin);
+    WS_CLOSE;
 }
 
 /* energy_momentum's invariants, scaled as the health monitor scales them: the energy against the balance's
@@ -2042,7 +2292,11 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
     if (!pre->impacts) return advance_system(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats);
     const int nz = gs_tree_n_indicators(t, p);
     const size_t ny = (size_t)t->ny * sizeof(double);
-    double y0[GS_ODE_MAX + GS_TREE_NMON], z0[2 * GS_TREE_MAX], z1[2 * GS_TREE_MAX];
+    WS_OPEN;
+    TLOC(double, y0, , GS_ODE_MAX + GS_TREE_NMON, t->ny);
+    TLOC(double, z0, , 2 * GS_TREE_SMALL, nz);
+    TLOC(double, z1, , 2 * GS_TREE_SMALL, nz);
+    int32_t rc = 0;
     const double h = H / (double)n_sub;
     for (int64_t k = 0; k < n_sub; k++) {
         double rem = k == n_sub - 1 ? H - h * (double)(n_sub - 1) : h;
@@ -2051,7 +2305,10 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
             const double hint0 = *hint;
             memcpy(y0, y, ny);
             if (advance_system(t, method, y, p, pre, rem, 1, rtol, atol, max_step, hint, stats)) {
-                return (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                {
+                    rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                    goto done;
+                }
             }
             gs_tree_indicators(t, y0, p, z0);
             gs_tree_indicators(t, y, p, z1);
@@ -2076,7 +2333,10 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 memcpy(y, y0, ny);
                 *hint = hint0;
                 if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
-                    return (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                    {
+                    rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                    goto done;
+                }
                 }
                 gs_tree_indicators(t, y, p, z1);
                 g = z1[j];
@@ -2098,19 +2358,25 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 memcpy(y, y0, ny);
                 *hint = hint0;
                 if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
-                    return (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                    {
+                    rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                    goto done;
+                }
                 }
             }
             impact_pre(t, y, p, pre);
             rem -= tau;
         }
     }
-    return 0;
+done:
+    WS_CLOSE;
+    return rc;
 }
 
-static int tree_method(int method) {
+/* the methods the tree takes: the implicit ones up to GS_ODE_MAX components (their Newton matrix is dense) */
+static int tree_method(const gs_tree *t, int method) {
     return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853 ||
-           implicit_method(method);
+           (implicit_method(method) && t->nx + 1 <= GS_ODE_MAX);
 }
 
 /* the methods that take equal steps of at most max_step */
@@ -2118,10 +2384,11 @@ static int fixed_method(int method) { return method == GS_EULER || method == GS_
 
 size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
                        double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads) {
+    TREE_DISPATCH(return big_tree_advance(t, method, n, y, p, H, rtol, atol, max_step, hint, stats, status, threads));
     int64_t n_sub = 1;
     if (fixed_method(method)) n_sub = gs_substeps(H, max_step);
-    if (!tree_method(method) || n_sub == 0) {
-        for (size_t b = 0; b < n; b++) status[b] = tree_method(method) ? 1 : -1;
+    if (!tree_method(t, method) || n_sub == 0) {
+        for (size_t b = 0; b < n; b++) status[b] = tree_method(t, method) ? 1 : -1;
         return n;
     }
     size_t failed = 0;
@@ -2133,11 +2400,13 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
     (void)threads;
 #endif
     for (long long b = 0; b < nn; b++) {
-        static _Thread_local Pre pre;
+        WS_ENTER(t->n);   /* every thread its own arena */
+        PRE_DECL(pre, t->n);
         precompute(t, p + (size_t)b * t->np, &pre);
         status[b] = advance_events(t, method, y + (size_t)b * t->ny, p + (size_t)b * t->np, &pre, H, n_sub, rtol,
                                    atol, max_step, hint + b, stats + (size_t)b * GS_NSTATS);
         failed += status[b] != 0;
+        WS_CLOSE;
     }
     return failed;
 }
@@ -2179,12 +2448,14 @@ static void failed_rows(size_t n, size_t b, size_t no, int64_t k, int64_t n_out,
 size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out) {
+    TREE_DISPATCH(return big_tree_trajectory(t, method, n, y, p, dt, n_out, rtol, atol, max_step, hint, stats, status,
+                                             threads, out));
     const size_t no = (size_t)GS_TREE_NOUT(t);
     int64_t n_sub = 1;
     if (fixed_method(method)) n_sub = gs_substeps(dt, max_step);
     for (size_t b = 0; b < n; b++) gs_tree_outputs(t, y + b * t->ny, p + b * t->np, out + b * no);
-    if (!tree_method(method) || (n_sub == 0 && n_out > 0)) {
-        for (size_t b = 0; b < n; b++) status[b] = tree_method(method) ? 1 : -1;
+    if (!tree_method(t, method) || (n_sub == 0 && n_out > 0)) {
+        for (size_t b = 0; b < n; b++) status[b] = tree_method(t, method) ? 1 : -1;
         return n;
     }
     size_t failed = 0;
@@ -2200,7 +2471,8 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         double *yb = y + b * t->ny;
         const double *pb = p + b * t->np;
         status[b] = 0;
-        static _Thread_local Pre pre;
+        WS_ENTER(t->n);   /* every thread its own arena */
+        PRE_DECL(pre, t->n);
         precompute(t, pb, &pre);
         if ((method == GS_ADAPTIVE || method == GS_DOP853) && !pre.impacts) {
             const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, rtol, atol, max_step, hint + b,
@@ -2209,6 +2481,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                 failed_rows(n, b, no, k, n_out, status, out);
                 failed += 1;
             }
+            WS_CLOSE;
             continue;
         }
         /* the implicit methods keep their Newton matrix over the run */
@@ -2229,6 +2502,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                 failed += 1;
             }
             gs_lie_end(run);
+            WS_CLOSE;
             continue;
         }
         for (int64_t k = 1; k <= n_out; k++) {
@@ -2248,6 +2522,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
             outputs_pre(t, yb, pb, &pre, out + ((size_t)k * n + b) * no);
         }
         gs_lie_end(run);
+        WS_CLOSE;
     }
     return failed;
 }

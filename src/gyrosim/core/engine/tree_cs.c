@@ -16,6 +16,8 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #undef I   /* tree.c names matrices I */
@@ -33,6 +35,7 @@ static inline _Complex double cs_atan2(_Complex double y, _Complex double x) {
 #define tree_atan2 cs_atan2
 
 #define GS_TREE_CS 1
+#define TREE_HEAP 1   /* tables sized by the tree, from tree.c's work space arena (this build's own) */
 #define double _Complex double
 #define sin csin
 #define cos ccos
@@ -61,10 +64,11 @@ int cs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
 
 int gs_tree_directional(const gs_tree *t, const double *y, const double *p, const double *vy, const double *vp,
                         double *ddy, double *dout) {
-    static _Thread_local _Complex double yc[GS_ODE_MAX + GS_TREE_NMON], dyc[GS_ODE_MAX + GS_TREE_NMON];
-    static _Thread_local _Complex double pc[GS_TREE_NPMAX];
-    static _Thread_local _Complex double oc[GS_TREE_NOUTMAX];
-    if (t->ny > GS_ODE_MAX + GS_TREE_NMON || t->np > GS_TREE_NPMAX || GS_TREE_NOUT(t) > GS_TREE_NOUTMAX) return 0;
+    WS_ENTER(t->n);
+    _Complex double *yc = ws_alloc((size_t)t->ny * sizeof(_Complex double));
+    _Complex double *dyc = ws_alloc((size_t)t->ny * sizeof(_Complex double));
+    _Complex double *pc = ws_alloc((size_t)t->np * sizeof(_Complex double));
+    _Complex double *oc = ws_alloc((size_t)GS_TREE_NOUT(t) * sizeof(_Complex double));
     for (int i = 0; i < t->ny; i++) {
         yc[i] = y[i];
         if (vy != NULL && i < t->nx) __imag__ yc[i] = CS_H * vy[i];
@@ -81,5 +85,6 @@ int gs_tree_directional(const gs_tree *t, const double *y, const double *p, cons
         cs_tree_outputs(t, yc, pc, oc);
         for (int i = 0; i < GS_TREE_NOUT(t); i++) dout[i] = __imag__ oc[i] / CS_H;
     }
+    WS_CLOSE;
     return 1;
 }

@@ -27,6 +27,8 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #ifdef _OPENMP
@@ -36,6 +38,7 @@
 typedef long double treal;   /* a value tree.c only compares: the build's own type here */
 
 #define GS_TREE_CS 1   /* tree.c's model and outputs only: its stepping and health monitor are the double build's */
+#define TREE_HEAP 1    /* tables sized by the tree, from tree.c's work space arena (this build's own) */
 #define double long double
 #define sin sinl
 #define cos cosl
@@ -104,14 +107,17 @@ static void ld_split(long double x, double *hi, double *lo) {
 }
 
 void gs_tree_derivatives_ld(const gs_tree *t, const double *y, const double *p, double *dy, double *dy_lo) {
-    static _Thread_local long double yl[GS_ODE_MAX + GS_TREE_NMON], dl[GS_ODE_MAX + 1], pl[GS_TREE_NPMAX];
-    static _Thread_local Pre pre;
-    if (t->ny > GS_ODE_MAX + GS_TREE_NMON || t->np > GS_TREE_NPMAX) return;
+    WS_ENTER(t->n);
+    long double *yl = ws_alloc((size_t)t->ny * sizeof(long double));
+    long double *dl = ws_alloc((size_t)(t->nx + 1) * sizeof(long double));
+    long double *pl = ws_alloc((size_t)t->np * sizeof(long double));
+    PRE_DECL(pre, t->n);
     for (int i = 0; i < t->ny; i++) yl[i] = y[i];
     for (int i = 0; i < t->np; i++) pl[i] = p[i];
     precompute(t, pl, &pre);
     derivs(t, yl, pl, &pre, dl);
     for (int i = 0; i <= t->nx; i++) ld_split(dl[i], dy + i, dy_lo ? dy_lo + i : NULL);
+    WS_CLOSE;
 }
 
 /* quaternions back to unit norm (tree.c's ode_project, in long double) */
@@ -129,8 +135,10 @@ static void ld_project(const gs_tree *t, long double *y) {
 /* one step of h of Dormand-Prince 8(5,3)'s 8th-order method on v[0:nx] (its 12 stages; no error estimate: the
  * steps are fixed), the coefficients in long double (rk_tables_ld.h) */
 static void ld_step8(const gs_tree *t, const long double *p, const Pre *pre, long double *v, long double h) {
-    static _Thread_local long double K[12][GS_ODE_MAX + 1], s[GS_ODE_MAX + GS_TREE_NMON];
     const int nx = t->nx;
+    WS_OPEN;
+    long double *K[12], *s = ws_alloc((size_t)t->ny * sizeof(long double));
+    for (int st = 0; st < 12; st++) K[st] = ws_alloc((size_t)(nx + 1) * sizeof(long double));
     derivs(t, v, p, pre, K[0]);
     for (int st = 1; st < 12; st++) {
         for (int i = 0; i < nx; i++) {
@@ -150,22 +158,26 @@ static void ld_step8(const gs_tree *t, const long double *p, const Pre *pre, lon
         v[i] += h * acc;
     }
     ld_project(t, v);
+    WS_CLOSE;
 }
 
 /* one step of h of euler or rk4 on v[0:nx] (rk_driver.h's fixed_step, in long double) */
 static void ld_step(const gs_tree *t, int method, const long double *p, const Pre *pre, long double *v,
                     long double h) {
-    static _Thread_local long double k1[GS_ODE_MAX + 1], k2[GS_ODE_MAX + 1], k3[GS_ODE_MAX + 1],
-        k4[GS_ODE_MAX + 1], s[GS_ODE_MAX + GS_TREE_NMON];
     const int nx = t->nx;
     if (method == GS_DOP853) {
         ld_step8(t, p, pre, v, h);
         return;
     }
+    WS_OPEN;
+    const size_t row = (size_t)(nx + 1) * sizeof(long double);
+    long double *k1 = ws_alloc(row), *k2 = ws_alloc(row), *k3 = ws_alloc(row), *k4 = ws_alloc(row);
+    long double *s = ws_alloc((size_t)t->ny * sizeof(long double));
     derivs(t, v, p, pre, k1);
     if (method == GS_EULER) {
         for (int i = 0; i < nx; i++) v[i] += h * k1[i];
         ld_project(t, v);
+        WS_CLOSE;
         return;
     }
     const long double h2 = 0.5L * h;
@@ -178,6 +190,7 @@ static void ld_step(const gs_tree *t, int method, const long double *p, const Pr
     const long double h6 = h / 6.0L;
     for (int i = 0; i < nx; i++) v[i] += h6 * (k1[i] + 2.0L * (k2[i] + k3[i]) + k4[i]);
     ld_project(t, v);
+    WS_CLOSE;
 }
 
 static int ld_finite(const gs_tree *t, const long double *v) {
@@ -189,13 +202,15 @@ static int ld_finite(const gs_tree *t, const long double *v) {
 
 size_t gs_tree_trajectory_ld(const gs_tree *t, int method, size_t n, const double *y, const double *p, double dt,
                              int64_t n_out, double max_step, int32_t *status, double *out, double *out_lo) {
-    static _Thread_local long double v[GS_ODE_MAX + GS_TREE_NMON], pl[GS_TREE_NPMAX];
-    static _Thread_local Pre pre;
     const size_t nx = (size_t)t->nx;
     const int64_t n_sub = gs_substeps(dt, max_step);
     const int ok_method = method == GS_EULER || method == GS_RK4 || method == GS_DOP853;
-    const int fits = t->ny <= GS_ODE_MAX + GS_TREE_NMON && t->np <= GS_TREE_NPMAX;
+    const int fits = 1;   /* any size: the work space is sized by the tree */
     size_t failed = 0;
+    WS_ENTER(t->n);
+    long double *v = ws_alloc((size_t)t->ny * sizeof(long double));
+    long double *pl = ws_alloc((size_t)t->np * sizeof(long double));
+    PRE_DECL(pre, t->n);
     for (size_t b = 0; b < n; b++) {
         const double *yb = y + b * (size_t)t->ny, *pb = p + b * (size_t)t->np;
         status[b] = 0;
@@ -229,5 +244,6 @@ size_t gs_tree_trajectory_ld(const gs_tree *t, int method, size_t n, const doubl
             for (size_t i = 0; i < nx; i++) ld_split(v[i], row + i, row_lo ? row_lo + i : NULL);
         }
     }
+    WS_CLOSE;
     return failed;
 }
