@@ -280,7 +280,13 @@ class Scene:
                               "pos": [float(x) for x in b.pos], "axis": [float(x) for x in b.axis],
                               "mass": float(b.mass), "cm": [float(x) for x in b.cm],
                               "inertia": [float(x) for x in np.asarray(b.inertia).ravel()]} for b in self.tree],
-                    "couplings": [list(c) for c in self.couplings]}
+                    "couplings": [list(c) for c in self.couplings],
+                    "gravity_dir": [float(x) for x in self.gravity_dir],
+                    "springs": [{"name": e.name, "a": e.a, "point_a": [float(x) for x in e.point_a], "b": e.b,
+                                 "point_b": [float(x) for x in e.point_b], "stiffness": e.stiffness,
+                                 "rest_length": e.rest_length, "damping": e.damping} for e in self.springs],
+                    "forces": [{"name": f.name, "body": f.body, "point": [float(x) for x in f.point],
+                                "world": f.world} for f in self.forces]}
         b = self.bodies[0]
         return {**head, "gravity": self.gravity, "damping": self.damping, "torque": self.torque,
                 "integrator": self.integrator, "max_step": self.max_step, "max_drift": self.max_drift,
