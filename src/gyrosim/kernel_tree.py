@@ -28,15 +28,7 @@ from .core.tree import (
 from .errors import ConfigError, IntegrationError
 from .ranges import ANY, NONNEGATIVE, POSITIVE, Range
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean
-from .scene_tree import (
-    BALL_DAMPING_PARAMS,
-    BALL_PARAMS,
-    BALL_SPRING_PARAMS,
-    BODY_PARAMS,
-    HINGE_PARAMS,
-    NONNEGATIVE_PARAMS,
-    SLIDER_PARAMS,
-)
+from .scene_tree import NONNEGATIVE_PARAMS, body_parameters
 from .variables import Variable
 
 __all__ = ["TreeKernel", "tree_variables", "tree_output_names"]
@@ -171,29 +163,7 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
                    "blown up (0: off)", float(scene.max_drift), **NONNEGATIVE.fields())]
     for b in scene.tree:
         pre = "" if len(scene.tree) == 1 else f"{b.name}."  # Scene.var_name's rule
-        params = dict(BODY_PARAMS)
-        if b.joint == "hinge":
-            params.update(HINGE_PARAMS)
-        elif b.joint == "slider":
-            params.update(SLIDER_PARAMS)
-        elif b.joint in ("ball", "free_rotation", "free"):
-            params.update(BALL_PARAMS)
-            if np.any(b.ball_stiffness):
-                params.update(BALL_SPRING_PARAMS)
-            if np.any(b.ball_damping):
-                params.update(BALL_DAMPING_PARAMS)
-        unit = "m" if b.joint == "slider" else "rad"
-        stiff = "N/m" if b.joint == "slider" else "N.m/rad"
-        if b.lower is not None:
-            params["lower"] = (unit, "lower stop")
-        if b.upper is not None:
-            params["upper"] = (unit, "upper stop")
-        if (b.lower is not None or b.upper is not None) and b.stop == "impact":
-            params["restitution"] = ("1", "coefficient of restitution of the impact stops (rate after / rate "
-                                     "before)")
-        elif b.lower is not None or b.upper is not None:
-            params["stop_stiffness"] = (stiff, "stiffness of the stops' spring-damper")
-            params["stop_damping"] = (stiff.replace("/", ".s/"), "damping of the stops' spring-damper (in contact)")
+        params = body_parameters(b)
         for n, (unit_n, desc) in params.items():
             rng = Range(0.0, 1.0) if n == "restitution" else NONNEGATIVE if n in NONNEGATIVE_PARAMS else ANY
             V.append(Variable(pre + n, "parameter", "fixed", "Real", unit_n, desc, _body_param_value(b, n),

@@ -672,7 +672,10 @@ def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -
     if b.cm[2] != 0.0 and ("cm" in tbl or b.joint != "ball"):  # `cm`: inertia about the centre of mass
         return None
     try:
-        (body,), terms = _body({k: v for k, v in tbl.items() if k in _BODY_KEYS}, 0, g, source)
+        keys = {k: v for k, v in tbl.items() if k in _BODY_KEYS}
+        if "joint_damping" in tbl:   # a ball's joint_damping is its damping (DESIGN 4b)
+            keys["damping"] = tbl["joint_damping"]
+        (body,), terms = _body(keys, 0, g, source)
     except ConfigError:  # a body the one-body kernel does not take (a flat body, a massless one)
         return None
     if not (np.array_equal(body.q0, b.q0) and np.array_equal(body.omega0, b.omega0)):

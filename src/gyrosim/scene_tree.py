@@ -364,6 +364,11 @@ def _stops(tbl, joint, where) -> dict:
         if out["restitution"] > 1.0:
             raise ConfigError("restitution", out["restitution"], "a number in [0, 1] (the rate after an impact over "
                               "the rate before)", where=where)
+        key = "displacement" if joint == "slider" else "angle"   # an impact stop holds the joint within them
+        x0 = s._num(tbl, key, where, 0.0)
+        if not out.get("lower", -math.inf) <= x0 <= out.get("upper", math.inf):
+            raise ConfigError(key, x0, f"a start within the impact stops [{out.get('lower', -math.inf)}, "
+                              f"{out.get('upper', math.inf)}] {unit}", where=where)
         return out
     if "restitution" in tbl:
         raise ConfigError("restitution", tbl["restitution"], 'left out of a spring stop (or stop = "impact")',
@@ -384,8 +389,8 @@ def stop_defaults(bodies: list) -> list:
             continue
         M = _joint_inertia(bodies, i)
         k, c = M / STOP_TIME ** 2, 2.0 * M / STOP_TIME
-        out[i] = replace(b, stop_stiffness=b.stop_stiffness if b.stop_stiffness else k,
-                         stop_damping=b.stop_damping if b.stop_damping else c)
+        out[i] = replace(b, stop_stiffness=k if b.stop_stiffness is None else b.stop_stiffness,
+                         stop_damping=c if b.stop_damping is None else b.stop_damping)
     return out
 
 
@@ -489,7 +494,38 @@ def _element_name(nm, bodies, taken, where):
         raise ConfigError("name", nm, "a name no body, spring or force of the scene has", where=where)
 
 
-_ALIAS_TARGETS = tuple(BODY_PARAMS) + tuple(HINGE_PARAMS) + tuple(SLIDER_PARAMS) + tuple(BALL_PARAMS)
+def body_parameters(b: TreeBody) -> dict:
+    """The parameters body ``b`` has, by short name -> (unit, description): every body's, its joint's, a ball's
+    spring and per-axis damping where the scene gives them, its stops' where it has stops. The one list the
+    variables (kernel_tree.tree_variables) and the scene parameters' targets are checked against."""
+    params = dict(BODY_PARAMS)
+    if b.joint == "hinge":
+        params.update(HINGE_PARAMS)
+    elif b.joint == "slider":
+        params.update(SLIDER_PARAMS)
+    elif b.joint in ("ball", "free_rotation", "free"):
+        params.update(BALL_PARAMS)
+        if np.any(b.ball_stiffness):
+            params.update(BALL_SPRING_PARAMS)
+        if np.any(b.ball_damping):
+            params.update(BALL_DAMPING_PARAMS)
+    unit = "m" if b.joint == "slider" else "rad"
+    stiff = "N/m" if b.joint == "slider" else "N.m/rad"
+    if b.lower is not None:
+        params["lower"] = (unit, "lower stop")
+    if b.upper is not None:
+        params["upper"] = (unit, "upper stop")
+    if (b.lower is not None or b.upper is not None) and b.stop == "impact":
+        params["restitution"] = ("1", "coefficient of restitution of the impact stops (rate after / rate before)")
+    elif b.lower is not None or b.upper is not None:
+        params["stop_stiffness"] = (stiff, "stiffness of the stops' spring-damper")
+        params["stop_damping"] = (stiff.replace("/", ".s/"), "damping of the stops' spring-damper (in contact)")
+    return params
+
+
+#: The parameter names a scene parameter may set (each checked against its target body's own: body_parameters).
+_ALIAS_TARGETS = (tuple(BODY_PARAMS) + tuple(HINGE_PARAMS) + tuple(SLIDER_PARAMS) + tuple(BALL_PARAMS) +
+                  tuple(BALL_SPRING_PARAMS) + tuple(BALL_DAMPING_PARAMS) + STOP_PARAMS)
 
 
 def body_with(b: TreeBody, param: str, x: float) -> TreeBody:
@@ -510,6 +546,11 @@ def body_with(b: TreeBody, param: str, x: float) -> TreeBody:
         return replace(b, damping=x)
     if param == "rest_displacement":
         return replace(b, rest_angle=x)
+    if param.startswith(("stiffness_", "joint_damping_")):
+        field_ = "ball_stiffness" if param.startswith("stiffness_") else "ball_damping"
+        v = np.array(getattr(b, field_), dtype=float)
+        v["xyz".index(param[-1])] = x
+        return replace(b, **{field_: v})
     return replace(b, **{param: x})
 
 
@@ -589,24 +630,34 @@ def tree_from_dict(data: dict, source: str):
                 raise ConfigError("sets", tgt, f"<body>.<parameter> with a body of the scene and a parameter of "
                                   f"{', '.join(_ALIAS_TARGETS)}, or <spring>.<parameter> with a parameter of "
                                   f"{', '.join(_SPRING_TARGETS)}", where=w)
+            elif pn not in body_parameters(bodies[names.index(bn)]):
+                raise ConfigError("sets", tgt, f"a parameter body {bn!r} has: "
+                                  f"{', '.join(body_parameters(bodies[names.index(bn)]))}", where=w)
             else:
                 target = (names.index(bn), pn)
             if isinstance(f, bool) or not isinstance(f, (int, float)) or not math.isfinite(f):
                 raise ConfigError(str(tgt), f, "a finite factor", where=w)
             targets.append((*target, float(f)))
         rng = declared
+
+        def nonneg(pn):   # every spring parameter is >= 0
+            return pn in NONNEGATIVE_PARAMS or pn.startswith("spring.")
+
+        def label(i, pn):
+            return f"{snames[i]}.{pn[7:]}" if pn.startswith("spring.") else f"{names[i]}.{pn}"
+
         for _, pn, f in targets:  # a target that must be >= 0: the parameter on the side its factor allows
-            if (pn in NONNEGATIVE_PARAMS or pn.startswith("spring.")) and f != 0.0:
+            if nonneg(pn) and f != 0.0:
                 rng = rng.intersect(NONNEGATIVE if f > 0 else Range(max=0.0))
         if rng.empty:
-            rules = ", ".join(f"{names[bi]}.{pn} >= 0" for bi, pn, _ in targets if pn in NONNEGATIVE_PARAMS)
+            rules = ", ".join(f"{label(bi, pn)} >= 0" for bi, pn, _ in targets if nonneg(pn))
             raise ConfigError("sets", sets, f"targets that a value {declared.text(unit)} keeps within their rules "
                               f"({rules})", where=w)
         if value not in declared:
             raise ConfigError("value", value, f"{declared.text(unit)} (the range its min/max give)", where=w)
         if value not in rng:
-            bad = next(f"{names[bi]}.{pn} = {f!r} * value" for bi, pn, f in targets
-                       if pn in NONNEGATIVE_PARAMS and not f * value >= 0)
+            bad = next(f"{label(bi, pn)} = {f!r} * value" for bi, pn, f in targets
+                       if nonneg(pn) and not f * value >= 0)
             raise ConfigError("value", value, f"{rng.text(unit)}: it sets {bad}, which must be >= 0", where=w)
         aliases.append(Alias(an, value, unit, str(spec.get("description", "")), tuple(targets), rng))
         for bi, pn, f in targets:

@@ -177,8 +177,8 @@ class TreeBody:
     ball_damping: np.ndarray = field(default_factory=lambda: np.zeros(3))
     lower: float | None = None
     upper: float | None = None
-    stop_stiffness: float = 0.0
-    stop_damping: float = 0.0
+    stop_stiffness: float | None = None   # None: the default the scene loader sets (scene_tree.stop_defaults)
+    stop_damping: float | None = None
     stop: str = "spring"
     restitution: float = 1.0
 
@@ -333,8 +333,8 @@ class TreeLayout:
             p[o + _engine.TB_RESTITUTION] = b.restitution
             p[o + _engine.TB_LO] = b.lower if b.lower is not None else 0.0
             p[o + _engine.TB_HI] = b.upper if b.upper is not None else 0.0
-            p[o + _engine.TB_STOP_K] = b.stop_stiffness
-            p[o + _engine.TB_STOP_C] = b.stop_damping
+            p[o + _engine.TB_STOP_K] = b.stop_stiffness or 0.0
+            p[o + _engine.TB_STOP_C] = b.stop_damping or 0.0
         ko = self.body_offset(len(self.bodies))
         for c, (_, _, k) in enumerate(self.couplings):
             p[ko + c] = k

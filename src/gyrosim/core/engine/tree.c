@@ -1998,7 +1998,9 @@ static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *p
         unit_response(t, y, p, pre, j, dy);
         const double e = b[GS_TB_RESTITUTION], v = x[1];
         const double lambda = -(1.0 + e) * v / dy[t->yi[j] + 1];
-        for (int k = 0; k < t->nx; k++) y[k] += lambda * dy[k];
+        if (isfinite(lambda)) {   /* (M^-1)_jj = 0 (nothing moves behind the joint): its own rate only */
+            for (int k = 0; k < t->nx; k++) y[k] += lambda * dy[k];
+        }
         x[1] = -e * v;   /* the law itself, not its round-off */
         totals_pre(t, y, p, pre, &after);
         y[t->nx] += (after.T + after.V) - (before.T + before.V);   /* the energy the impact took off: in W */
@@ -2277,52 +2279,73 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
     return (int32_t)(k > 2147483647 ? 2147483647 : k);
 }
 
-/* advance_system with the impact stops' events: each step (of H / n_sub; adaptive and dop853: over H) is taken, and
- * where an indicator went from >= 0 to < 0 (the earliest, by linear interpolation, when several did) the step is
- * taken again from its start with the step size tau at which that joint reaches its stop: the root of
- * g(tau) = z_j(step(y0, tau)) by the Illinois variant of regula falsi (Dowell and Jarratt, BIT 11 (1971) 168),
- * to a bracket of 4 ulp of the step or g = 0: for euler, rk4 and the implicit methods the one-step map is smooth in
- * tau, so the event time is the method's own to round-off. The impact (impact_pre) is applied at the bracket's end
- * on or beyond the stop, and the rest of the step follows. A joint that starts a step on its stop (resting against
- * it, or after 64 events in one step: a bouncing that converges in finite time) gets the impact at the step's end
- * instead (a projection onto the stop). Returns as advance_system. */
+/* advance_system with the impact stops' events. The interval is taken in pieces: the fixed-step methods' own steps
+ * (H / n_sub), and for adaptive and dop853 pieces no longer than the controller's next step (its hint; max_step at
+ * most), so that a crossing and its return within one call are not missed. A joint found beyond its stop and
+ * moving out at a piece's start (a start value, or a stop set into it) is put on it first (impact_pre). Where an
+ * indicator went from > 0 to < 0 (the earliest, by linear interpolation, when several did) the piece is taken again
+ * from its start with the step size tau at which that joint reaches its stop: the root of g(tau) =
+ * z_j(step(y0, tau)) by the Illinois variant of regula falsi (Dowell and Jarratt, BIT 11 (1971) 168), to a bracket
+ * of 4 ulp of the piece or g = 0: for euler, rk4 and the implicit methods the one-step map is smooth in tau, so the
+ * event time is the method's own to round-off (adaptive, dop853: to their tolerance). The impact (impact_pre) is
+ * applied at the bracket's end on or beyond the stop, and the rest of the piece follows. A joint that starts a piece
+ * on its stop (resting against it) and goes beyond gets the impact at the piece's end (a projection onto the stop),
+ * as does every crossing after 64 events in one piece (a bouncing that converges in finite time). Returns as
+ * advance_system. */
 static int32_t advance_events(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                               int64_t n_sub, double rtol, double atol, double max_step, double *hint,
                               int64_t *stats) {
     if (!pre->impacts) return advance_system(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats);
     const int nz = gs_tree_n_indicators(t, p);
     const size_t ny = (size_t)t->ny * sizeof(double);
+    const int fixed = method == GS_EULER || method == GS_RK4 || implicit_method(method);
     WS_OPEN;
     TLOC(double, y0, , GS_ODE_MAX + GS_TREE_NMON, t->ny);
     TLOC(double, z0, , 2 * GS_TREE_SMALL, nz);
     TLOC(double, z1, , 2 * GS_TREE_SMALL, nz);
     int32_t rc = 0;
     const double h = H / (double)n_sub;
-    for (int64_t k = 0; k < n_sub; k++) {
-        double rem = k == n_sub - 1 ? H - h * (double)(n_sub - 1) : h;
+    double done_t = 0.0;
+    for (int64_t k = 0; fixed ? k < n_sub : done_t < H; k++) {
+        double piece;
+        if (fixed) {
+            piece = k == n_sub - 1 ? H - h * (double)(n_sub - 1) : h;
+        } else {
+            piece = fmin(H - done_t, fmin(max_step, *hint > 0.0 ? *hint : max_step));
+            if (!(piece > 0.0) || H - done_t - piece <= 4.0 * DBL_EPSILON * H) piece = H - done_t;
+            done_t += piece;
+        }
+        double rem = piece;
         int events = 0;
+        gs_tree_indicators(t, y, p, z0);
+        for (int c = 0; c < nz; c++) {
+            if (z0[c] < 0.0) {   /* beyond a stop at the start: put on it where it moves out */
+                impact_pre(t, y, p, pre);
+                break;
+            }
+        }
         while (rem > 0.0) {
             const double hint0 = *hint;
             memcpy(y0, y, ny);
             if (advance_system(t, method, y, p, pre, rem, 1, rtol, atol, max_step, hint, stats)) {
-                {
-                    rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
-                    goto done;
-                }
+                rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                goto done;
             }
             gs_tree_indicators(t, y0, p, z0);
             gs_tree_indicators(t, y, p, z1);
-            int j = -1;
+            int j = -1, resting = 0;
             double first = 2.0;
             for (int c = 0; c < nz; c++) {
-                if (z0[c] >= 0.0 && z1[c] < 0.0 && z0[c] / (z0[c] - z1[c]) < first) {
+                if (!(z1[c] < 0.0)) continue;
+                if (!(z0[c] > 0.0)) {
+                    resting = 1;
+                } else if (z0[c] / (z0[c] - z1[c]) < first) {
                     first = z0[c] / (z0[c] - z1[c]);
                     j = c;
                 }
             }
-            if (j < 0) break;
-            if (z0[j] == 0.0 || ++events > 64) {
-                impact_pre(t, y, p, pre);
+            if (j < 0 || ++events > 64) {   /* no crossing to locate: the resting ones projected at the end */
+                if (j >= 0 || resting) impact_pre(t, y, p, pre);
                 break;
             }
             double a = 0.0, ga = z0[j], b = rem, gb = z1[j], tau = rem, g = gb;
@@ -2333,10 +2356,8 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 memcpy(y, y0, ny);
                 *hint = hint0;
                 if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
-                    {
                     rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
                     goto done;
-                }
                 }
                 gs_tree_indicators(t, y, p, z1);
                 g = z1[j];
@@ -2358,10 +2379,8 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 memcpy(y, y0, ny);
                 *hint = hint0;
                 if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
-                    {
                     rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
                     goto done;
-                }
                 }
             }
             impact_pre(t, y, p, pre);
