@@ -428,16 +428,7 @@ def springs_from_dict(data: dict, names: list, source: str) -> tuple:
 
     s = _h()
     out = []
-    tl = data.get("spring", [])
-    if not isinstance(tl, list):
-        raise ConfigError("spring", tl, "[[spring]] tables", where=source)
-    for i, t in enumerate(tl):
-        w = f"{source} spring[{i}]"
-        if not isinstance(t, dict):
-            raise ConfigError("spring", t, "a table ([[spring]])", where=w)
-        s._check_keys(t, _SPRING_KEYS, w)
-        nm = t.get("name", "spring" if i == 0 else f"spring_{i}")
-        _element_name(nm, names, [x.name for x in out], w)
+    for t, w, nm in _element_tables(data, "spring", _SPRING_KEYS, names, [], source):
         ends = []
         for side in ("a", "b"):
             bn = t.get(f"body_{side}", "world")
@@ -463,16 +454,7 @@ def forces_from_dict(data: dict, names: list, taken: list, source: str) -> tuple
 
     s = _h()
     out = []
-    tl = data.get("force", [])
-    if not isinstance(tl, list):
-        raise ConfigError("force", tl, "[[force]] tables", where=source)
-    for i, t in enumerate(tl):
-        w = f"{source} force[{i}]"
-        if not isinstance(t, dict):
-            raise ConfigError("force", t, "a table ([[force]])", where=w)
-        s._check_keys(t, _FORCE_KEYS, w)
-        nm = t.get("name", "force" if i == 0 else f"force_{i}")
-        _element_name(nm, names, taken + [x.name for x in out], w)
+    for t, w, nm in _element_tables(data, "force", _FORCE_KEYS, names, taken, source):
         bn = t.get("body")
         if bn not in names:
             raise ConfigError("body", bn, f"a body of the scene ({', '.join(names)})"
@@ -486,12 +468,28 @@ def forces_from_dict(data: dict, names: list, taken: list, source: str) -> tuple
     return tuple(out)
 
 
-def _element_name(nm, bodies, taken, where):
-    if not isinstance(nm, str) or not nm or not all(c.isalnum() or c in "_-" for c in nm):
-        raise ConfigError("name", nm, "a non-empty name of letters, digits, '_' and '-' (it names variables)",
-                          where=where)
-    if nm in bodies or nm in taken:
-        raise ConfigError("name", nm, "a name no body, spring or force of the scene has", where=where)
+def _element_tables(data: dict, kind: str, keys: tuple, bodies: list, taken: list, source: str):
+    """The ``[[kind]]`` tables of an element kind, checked as tables with known keys and a name (default ``kind``,
+    ``kind_1``, ...) no body, earlier element (``taken``) or earlier table of this kind has: ``(table, where,
+    name)`` each."""
+    s = _h()
+    tl = data.get(kind, [])
+    if not isinstance(tl, list):
+        raise ConfigError(kind, tl, f"[[{kind}]] tables", where=source)
+    seen = list(taken)
+    for i, t in enumerate(tl):
+        w = f"{source} {kind}[{i}]"
+        if not isinstance(t, dict):
+            raise ConfigError(kind, t, f"a table ([[{kind}]])", where=w)
+        s._check_keys(t, keys, w)
+        nm = t.get("name", kind if i == 0 else f"{kind}_{i}")
+        if not isinstance(nm, str) or not nm or not all(c.isalnum() or c in "_-" for c in nm):
+            raise ConfigError("name", nm, "a non-empty name of letters, digits, '_' and '-' (it names variables)",
+                              where=w)
+        if nm in bodies or nm in seen:
+            raise ConfigError("name", nm, "a name no body, spring or force of the scene has", where=w)
+        seen.append(nm)
+        yield t, w, nm
 
 
 def body_parameters(b: TreeBody) -> dict:

@@ -554,6 +554,13 @@ static Py_ssize_t get_systems(const gs_tree *t, PyObject *y, PyObject *p, Buf *b
     return n;
 }
 
+/* get_systems for a call on the first system only: 0, or -1 with the exception set (none given: "one is needed") */
+static int first_system(const gs_tree *t, PyObject *y, PyObject *p, Buf *b, int y_writable) {
+    const Py_ssize_t n = get_systems(t, y, p, b, y_writable);
+    if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
+    return n < 1 ? -1 : 0;
+}
+
 /* tree_info(desc) -> (nx, ny, np, nout) */
 static PyObject *py_tree_info(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
@@ -733,11 +740,7 @@ static PyObject *py_tree_directional(PyObject *self, PyObject *const *args, Py_s
     if (get_tree(args[0], &t) < 0) return NULL;
     Buf b[6] = {{0}};
     PyObject *res = NULL;
-    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, 0);
-    if (n < 1) {
-        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
-        goto done;
-    }
+    if (first_system(&t, args[1], args[2], b, 0) < 0) goto done;
     if (get_buf(args[3], &b[2], "vy", 'd', t.nx, 0) < 0 || get_buf(args[4], &b[3], "vp", 'd', t.np, 0) < 0 ||
         get_buf(args[5], &b[4], "ddy", 'd', t.nx + 1, 1) < 0 || get_buf(args[6], &b[5], "dout", 'd', GS_TREE_NOUT(&t), 1) < 0)
         goto done;
@@ -805,11 +808,7 @@ static PyObject *py_tree_derivatives_ld(PyObject *self, PyObject *const *args, P
     if (get_tree(args[0], &t) < 0) return NULL;
     Buf b[4] = {{0}};
     PyObject *res = NULL;
-    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, 0);
-    if (n < 1) {
-        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
-        goto done;
-    }
+    if (first_system(&t, args[1], args[2], b, 0) < 0) goto done;
     if (get_buf(args[3], &b[2], "dy", 'd', t.nx + 1, 1) < 0 || get_buf(args[4], &b[3], "dy_lo", 'd', t.nx + 1, 1) < 0)
         goto done;
     gs_tree_derivatives_ld(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf, (double *)b[2].view.buf,
@@ -834,9 +833,7 @@ static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_
     if (PyErr_Occurred()) return NULL;
     Buf b[2] = {{0}};
     PyObject *res = NULL;
-    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, 0);
-    if (n < 1) {
-        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
+    if (first_system(&t, args[1], args[2], b, 0) < 0) {
         release(b, 2);
         return NULL;
     }
@@ -858,11 +855,7 @@ static PyObject *py_tree_impact(PyObject *self, PyObject *const *args, Py_ssize_
     if (get_tree(args[0], &t) < 0) return NULL;
     Buf b[3] = {{0}};
     PyObject *res = NULL;
-    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, nargs == 3);
-    if (n < 1) {
-        if (n == 0) PyErr_SetString(PyExc_ValueError, "y: one system is needed");
-        goto done;
-    }
+    if (first_system(&t, args[1], args[2], b, nargs == 3) < 0) goto done;
     if (nargs == 3) {
         res = PyLong_FromLong(gs_tree_impact(&t, (double *)b[0].view.buf, (const double *)b[1].view.buf));
         goto done;
