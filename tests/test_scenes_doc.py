@@ -6,16 +6,13 @@ from __future__ import annotations
 
 import re
 import tomllib
-from pathlib import Path
 
 import pytest
 
 from gyrosim.cli import main
 from gyrosim.model import Model
 from gyrosim.scene import scene_from_dict
-
-PAGE = Path(__file__).resolve().parents[1] / "docs" / "scenes.md"
-BLOCKS = re.findall(r"^```toml\n(.*?)^```", PAGE.read_text(), re.S | re.M)
+from scene_examples import BLOCKS, PAGE
 
 
 def test_the_page_has_an_example_of_each_kind():

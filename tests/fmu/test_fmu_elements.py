@@ -14,56 +14,15 @@ import gyrosim
 from gyrosim.fmu import build_fmu
 from gyrosim.kernel_tree import tree_output_names
 from gyrosim.scene import load_scene
+from scene_examples import DROP, bounce, doc_scene
 
 DYADIC = 2.0 ** -7   # s: FMPy's step sizes are exactly dt (tests/fmu/test_fmu_tree.py)
 VERSIONS = (2, 3)
 
 #: the example of docs/scenes.md "A thruster, a stop, a placed joint and a sideways gravity", with rk4
-ARM = """[scene]
-name = "arm_on_cart"
-integrator = "rk4"
-max_step = 0.001
-gravity = [0.0, 2.0, -9.6]          # g is its magnitude
-
-[[body]]
-name = "cart"
-joint = "slider"
-axis = [1.0, 0.0, 0.0]
-mass = 5.0
-inertia = { principal = [0.1, 0.1, 0.1] }
-lower = -0.5                        # stops at +-0.5 m
-upper = 0.5
-motor_input = true                  # cart.motor_force (N)
-
-[[body]]
-name = "arm"
-parent = "cart"
-joint = "hinge"
-axis = [0.0, 1.0, 0.0]              # in the cart's frame
-rotation = { zyz = [0.0, 0.0, 0.5] } # the arm's frame turned 0.5 rad about z at angle 0
-mass = 1.0
-cm = [0.0, 0.0, -0.5]
-inertia = { principal = [0.02, 0.02, 0.001] }
-angle = 0.3
-stiffness = 2.0
-
-[[body]]
-name = "wrist"
-parent = "arm"
-joint = "ball"
-position = [0.0, 0.0, -1.0]
-mass = 0.2
-cm = [0.0, 0.0, -0.1]
-inertia = { principal = [1e-3, 1e-3, 5e-4] }
-stiffness = [0.5, 0.5, 0.1]         # a torsion bar: per body axis
-joint_damping = [0.01, 0.01, 0.002]
-
-[[force]]
-name = "jet"                        # inputs arm.jet.f_x..f_z
-body = "arm"
-point = [0.0, 0.0, -1.0]
-frame = "body"
-"""
+ARM = doc_scene("arm_on_cart").replace('integrator = "dop853"\ntolerance = 1e-10\n',
+                                      'integrator = "rk4"\nmax_step = 0.001\n')
+assert 'integrator = "rk4"' in ARM   # the bits below are a loop of rk4 steps
 
 
 @pytest.mark.parametrize("v", VERSIONS)
@@ -102,37 +61,6 @@ def test_spring_scene_parameters_reach_their_springs_in_the_fmu(tmp_path):
         assert np.array_equal(r[n], ref[n]), n
 
 
-DROP = """
-[scene]
-name = "drop"
-gravity = [0.0, 0.0, -9.81]
-integrator = "rk4"
-max_step = 0.001
-[[body]]
-name = "ball"
-joint = "slider"
-axis = [0.0, 0.0, 1.0]
-mass = 1.0
-inertia = { principal = [0.0, 0.0, 0.0] }
-displacement = 1.0
-lower = 0.0
-stop = "impact"
-restitution = 0.8
-"""
-
-
-def _bounce(t, h0=1.0, g=9.81, e=0.8):
-    v = np.sqrt(2 * g * h0)
-    if t < v / g:
-        return h0 - 0.5 * g * t * t
-    t -= v / g
-    while True:
-        v *= e
-        if t < 2 * v / g:
-            return v * t - 0.5 * g * t * t
-        t -= 2 * v / g
-
-
 @pytest.mark.parametrize("v", VERSIONS)
 def test_impact_stop_is_an_event_in_model_exchange_and_inside_do_step(tmp_path, v):
     """A mass bouncing on an impact stop (restitution 0.8). Co-simulation: the event is located inside doStep, the
@@ -141,7 +69,7 @@ def test_impact_stop_is_an_event_in_model_exchange_and_inside_do_step(tmp_path, 
     EventIndicator variable), FMPy's CVode finds its root and the event update applies the impact: the heights meet
     the closed form within 1e-6 over three bounces (CVode at 1e-10, its root finding to its own tolerance)."""
     toml = tmp_path / "drop.toml"
-    toml.write_text(DROP)
+    toml.write_text(DROP.format(integrator="rk4", max_step=0.001))
     path = build_fmu(str(toml), v, tmp_path / f"fmi{v}", fmi_type="both", windows=False)
     assert validate_fmu(str(path)) == []
     md = read_model_description(str(path))
@@ -152,9 +80,9 @@ def test_impact_stop_is_an_event_in_model_exchange_and_inside_do_step(tmp_path, 
     ref = gyrosim.simulate(str(toml), stop_time=2.0, output_interval=DYADIC)
     r = simulate_fmu(str(path), stop_time=2.0, output_interval=DYADIC, output=["displacement", "velocity"])
     assert np.array_equal(r["displacement"], ref["displacement"])
-    assert max(abs(x - _bounce(t)) for t, x in zip(r["time"], r["displacement"])) < 1e-12
+    assert max(abs(x - bounce(t)[0]) for t, x in zip(r["time"], r["displacement"])) < 1e-12
     r = simulate_fmu(str(path), fmi_type="ModelExchange", solver="CVode", stop_time=2.0, output_interval=0.01,
                      relative_tolerance=1e-10, output=["displacement", "energy", "energy_error"])
-    assert max(abs(x - _bounce(t)) for t, x in zip(r["time"], r["displacement"])) < 1e-6
+    assert max(abs(x - bounce(t)[0]) for t, x in zip(r["time"], r["displacement"])) < 1e-6
     assert r["displacement"].min() > -1e-6
     assert r["energy"][-1] == pytest.approx(9.81 * 0.8 ** 6, rel=1e-5)   # three bounces by 2 s

@@ -42,6 +42,7 @@ from gyrosim.service.tree import TreeFrames
 from gyrosim.telemetry import messages as msg
 from gyrosim.telemetry.foxglove_schema import check_foxglove_schema_data
 from gyrosim.telemetry.plot import plot_recording, read_states
+from scene_examples import doc_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 TREE_SCENES = ("gimbal_gyroscope", "spacecraft", "cmg_spacecraft", "double_pendulum", "coupled_pendula")
@@ -94,51 +95,7 @@ def free_chain(tmp_path):
 
 #: docs/scenes.md's slider with stops, placed hinge and sprung ball (with a force input): translations along a
 #: slider's axis, placements in the transforms.
-ARM_ON_CART = """[scene]
-name = "arm_on_cart"
-integrator = "dop853"
-tolerance = 1e-10
-gravity = [0.0, 2.0, -9.6]          # g is its magnitude
-
-[[body]]
-name = "cart"
-joint = "slider"
-axis = [1.0, 0.0, 0.0]
-mass = 5.0
-inertia = { principal = [0.1, 0.1, 0.1] }
-lower = -0.5                        # stops at +-0.5 m
-upper = 0.5
-motor_input = true                  # cart.motor_force (N)
-
-[[body]]
-name = "arm"
-parent = "cart"
-joint = "hinge"
-axis = [0.0, 1.0, 0.0]              # in the cart's frame
-rotation = { zyz = [0.0, 0.0, 0.5] } # the arm's frame turned 0.5 rad about z at angle 0
-mass = 1.0
-cm = [0.0, 0.0, -0.5]
-inertia = { principal = [0.02, 0.02, 0.001] }
-angle = 0.3
-stiffness = 2.0
-
-[[body]]
-name = "wrist"
-parent = "arm"
-joint = "ball"
-position = [0.0, 0.0, -1.0]
-mass = 0.2
-cm = [0.0, 0.0, -0.1]
-inertia = { principal = [1e-3, 1e-3, 5e-4] }
-stiffness = [0.5, 0.5, 0.1]         # a torsion bar: per body axis
-joint_damping = [0.01, 0.01, 0.002]
-
-[[force]]
-name = "jet"                        # inputs arm.jet.f_x..f_z
-body = "arm"
-point = [0.0, 0.0, -1.0]
-frame = "body"
-"""
+ARM_ON_CART = doc_scene("arm_on_cart")
 
 
 @pytest.fixture

@@ -11,17 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_tree_engine import _close, _flat, _layout
 
 from gyrosim import Model, simulate
 from gyrosim.core import _engine
 from gyrosim.core.tree import Force, Spring, TreeBody, TreeLayout
 from gyrosim.errors import ConfigError
 from gyrosim.scene import scene_from_dict
-
-
-def _close(a, b, rtol=1e-10):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    np.testing.assert_allclose(a, b, rtol=0, atol=rtol * max(1.0, float(np.max(np.abs(b)))))
+from scene_examples import DROP, bounce
 
 
 def _tree(pr, rng, n):
@@ -34,36 +31,6 @@ def _tree(pr, rng, n):
         if b["joint"] != "free" and rng.random() < 0.6:
             b["rotation"] = pr.random_rotation(rng)
     return bodies, pr.random_state(bodies, rng)
-
-
-def _layout(bodies, state, springs=(), forces=(), gdir=(0.0, 0.0, -1.0)):
-    tb = []
-    for i, (b, s) in enumerate(zip(bodies, state)):
-        kw = dict(name=f"b{i}", parent=b["parent"], joint=b["joint"], pos=b["pos"], axis=b.get("axis", [0, 0, 1]),
-                  mass=b["mass"], cm=b["cm"], inertia=b["inertia"],
-                  rotation=np.asarray(b.get("rotation", [1.0, 0, 0, 0]), float))
-        if b["joint"] in ("ball", "free_rotation", "free"):
-            kw.update(q0=s["q"], omega0=s["omega"])
-        if b["joint"] == "free":
-            kw.update(r0=s["r"], v0=s["v"])
-        if b["joint"] in ("hinge", "slider"):
-            kw.update(angle0=s["angle"], rate0=s["rate"])
-        tb.append(TreeBody(**kw))
-    return TreeLayout(tb, (), None, springs=springs, forces=forces, gravity_dir=gdir)
-
-
-def _flat(ref, bodies):
-    out = []
-    for r, b in zip(ref, bodies):
-        if b["joint"] == "fixed":
-            continue
-        if b["joint"] == "free":
-            out += list(r[0]) + list(r[1])
-        elif b["joint"] in ("hinge", "slider"):
-            out.append(r)
-        else:
-            out += list(r)
-    return np.array(out)
 
 
 def _unit(rng):
@@ -96,7 +63,7 @@ def test_sliders_placements_springs_forces_and_gravity_vector_equal_pinocchio():
                                   damping=float(rng.uniform(0, 3))))
         for e in range(int(rng.integers(0, 3))):
             forces.append(Force(f"f{e}", int(rng.integers(0, n)), rng.uniform(-0.5, 0.5, 3), bool(rng.random() < 0.5)))
-        lay = _layout(bodies, state, springs, forces, gdir)
+        lay = _layout(bodies, state, springs=springs, forces=forces, gdir=gdir)
         p = lay.params(g, 0.0)
         for e, f in enumerate(forces):
             F = rng.normal(size=3) * 5
@@ -490,40 +457,6 @@ def test_simulate_runs_the_new_scenes():
 
 
 # ------------------------------------------------------------------------------------------ impact stops
-DROP = """
-[scene]
-name = "drop"
-gravity = [0.0, 0.0, -9.81]
-integrator = "{integrator}"
-max_step = 0.01
-tolerance = 1e-12
-[[body]]
-name = "ball"
-joint = "slider"
-axis = [0.0, 0.0, 1.0]
-mass = 1.0
-inertia = {{ principal = [0.0, 0.0, 0.0] }}
-displacement = 1.0
-lower = 0.0
-stop = "impact"
-restitution = 0.8
-"""
-
-
-def _bounce(t, h0=1.0, g=9.81, e=0.8):
-    """The bouncing mass's height and velocity at t: free fall from h0, each impact v -> -e v."""
-    v = np.sqrt(2 * g * h0)
-    t1 = v / g
-    if t < t1:
-        return h0 - 0.5 * g * t * t, -g * t
-    t -= t1
-    while True:
-        v *= e
-        if t < 2 * v / g:
-            return v * t - 0.5 * g * t * t, v - g * t
-        t -= 2 * v / g
-
-
 @pytest.mark.parametrize("integrator, tol", [("rk4", 1e-13), ("euler", None), ("midpoint", 1e-12),
                                              ("dop853", 1e-9)])
 def test_impact_stop_bounces_at_the_closed_form_times(integrator, tol):
@@ -534,13 +467,13 @@ def test_impact_stop_bounces_at_the_closed_form_times(integrator, tol):
     tolerance's order (1e-9). Euler's own steps (1 ms) are off by O(h) but its events still fire: it bounces (its
     error is checked only to 0.1). The energy after each bounce is e^2 times the energy before, and the balance
     (which books the loss as work) keeps energy_error at round-off."""
-    m = Model(_scene(DROP.format(integrator=integrator)))
+    m = Model(_scene(DROP.format(integrator=integrator, max_step=0.01)))
     if integrator == "euler":   # its energy error at 0.01 s is 2 % by the first impact: the monitor's bound
         m.set("max_step", 0.001)
     E0 = m.get("energy")
     for k in range(1, 161):
         m.step(0.01)
-        x, v = _bounce(0.01 * k)
+        x, v = bounce(0.01 * k)
         if tol is not None:
             assert abs(m.get("displacement") - x) < tol and abs(m.get("velocity") - v) < 10 * tol, k
         else:

@@ -24,23 +24,24 @@ G = 9.81
 TREE_SCENES = ("gimbal_gyroscope", "spacecraft", "cmg_spacecraft", "double_pendulum", "coupled_pendula")
 
 
-def _layout(bodies, state, couplings=()):
-    """Our TreeLayout from a pin_reference tree (dicts, with their springs and damping if any), its state and its
-    couplings."""
+def _layout(bodies, state, couplings=(), springs=(), forces=(), gdir=(0.0, 0.0, -1.0)):
+    """Our TreeLayout from a pin_reference tree (dicts, with their springs, damping and joint placements if any), its
+    state, its couplings, spring and force elements and gravity's direction."""
     tb = []
     for i, b in enumerate(bodies):
         s = state[i]
         kw = dict(name=f"b{i}", parent=b["parent"], joint=b["joint"], pos=b["pos"], axis=b.get("axis", [0, 0, 1]),
                   mass=b["mass"], cm=b["cm"], inertia=b["inertia"], stiffness=b.get("stiffness", 0.0),
-                  rest_angle=b.get("rest_angle", 0.0), damping=b.get("damping", 0.0))
+                  rest_angle=b.get("rest_angle", 0.0), damping=b.get("damping", 0.0),
+                  rotation=np.asarray(b.get("rotation", [1.0, 0.0, 0.0, 0.0]), float))
         if b["joint"] in ("ball", "free_rotation", "free"):
             kw.update(q0=s["q"], omega0=s["omega"])
         if b["joint"] == "free":
             kw.update(r0=s["r"], v0=s["v"])
-        if b["joint"] == "hinge":
+        if b["joint"] in ("hinge", "slider"):
             kw.update(angle0=s["angle"], rate0=s["rate"])
         tb.append(TreeBody(**kw))
-    return TreeLayout(tb, couplings)
+    return TreeLayout(tb, couplings, None, springs=springs, forces=forces, gravity_dir=gdir)
 
 
 def _flat(ref, bodies):
@@ -50,7 +51,7 @@ def _flat(ref, bodies):
             continue
         if b["joint"] == "free":
             out += list(r[0]) + list(r[1])
-        elif b["joint"] == "hinge":
+        elif b["joint"] in ("hinge", "slider"):
             out.append(r)
         else:
             out += list(r)
