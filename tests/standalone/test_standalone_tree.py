@@ -88,3 +88,35 @@ def test_tree_fmu_in_the_c_host_is_the_model_to_the_bit(version, tree_standalone
     np.testing.assert_array_equal(rows[4, 2:], cont)
     np.testing.assert_array_equal(rows[7, 1:], ref[0])   # reset: the start values, the same run again
     assert np.abs(rows[:4, 2 + names.index("hub.omega_x")]).max() > 1e-5   # the wheels turn the hub
+
+
+@pytest.mark.parametrize("version", (2, 3))
+def test_joints_and_elements_in_the_c_host_are_the_model_to_the_bit(version, tree_standalone, host, tmp_path):
+    """docs/scenes.md's arm on a cart (a slider with stops and a motor force, a placed hinge, a sprung ball, a force
+    input at a point, a sideways gravity), with rk4: in the C host, the motor force and the force input driven by
+    the host's schedule each step, the outputs every 100 steps are the model's bits with the same inputs held."""
+    from scene_examples import doc_scene
+
+    text = doc_scene("arm_on_cart").replace('integrator = "dop853"\ntolerance = 1e-10\n',
+                                           'integrator = "rk4"\nmax_step = 0.001\n')
+    assert 'integrator = "rk4"' in text
+    toml = tmp_path / "arm.toml"
+    toml.write_text(text)
+    inputs = ("cart.motor_force", "arm.jet.f_x", "arm.jet.f_z")
+    fmu = tree_standalone(version, str(toml))
+    names = tree_output_names(load_scene(str(toml)))
+    outs = " ".join(str(fmu.vr[o]) for o in names)
+    script = "\n".join(["instantiate arm", "setup 0 -", "enter_init", "exit_init",
+                        f"run 400 0.005 100 {outs} -- " + " ".join(str(fmu.vr[n]) for n in inputs),
+                        "terminate", "free", ""])
+    out = host(fmu, script)
+    assert step_failure(out) is None
+    m = Model(str(toml))
+    ref = []
+    for k in range(400):
+        for name, u in zip(inputs, torque(k)):
+            m.set(name, u)
+        m.step(0.005)
+        if (k + 1) % 100 == 0:
+            ref.append([m.time, *m.outputs_array()[0]])
+    np.testing.assert_array_equal(parse_rows(out)[:, 1:], np.array(ref))
