@@ -812,6 +812,9 @@ class BodyKernel:
         """None: a body of this kernel has principal moments > 0 (checked when it is initialised)."""
         return []
 
+    def dynamics_kernel(self, system: int = 0) -> str:
+        return "rigid_body"
+
     def fastest_rate(self, system: int = 0) -> float:
         """The fastest rate (rad/s) in system ``system``'s state: the step-size scale of its dynamics."""
         return float(_engine.fastest_rate(self.scene.flags, self._y[system], self._p[system]))

@@ -36,6 +36,8 @@ __all__ = ["TreeKernel", "tree_variables", "tree_output_names"]
 _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 #: The tree's methods of equal steps of at most max_step.
 _FIXED = ("euler", "rk4", "midpoint", "energy_momentum")
+#: The right-hand side's kernels the engine picks for a tree at set-up (core/engine/tree_kernels.h), by code.
+TREE_KERNELS = ("articulated_body", "gyrostat", "gimbal")
 #: The implicit methods (implicit.c): their trajectories keep the Newton matrix from interval to interval, so they
 #: are not the bits of a loop of steps (each step builds its own).
 _IMPLICIT = ("midpoint", "energy_momentum")
@@ -561,6 +563,11 @@ class TreeKernel:
     def fastest_rate(self, system: int = 0) -> float:
         return float(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1], self._p[system:system + 1],
                                          1))
+
+    def dynamics_kernel(self, system: int = 0) -> str:
+        p = self._p if self._p is not None else self._pp   # before initialize: the parameters set so far
+        return TREE_KERNELS[int(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1],
+                                                    p[system:system + 1], 2))]
 
     def _forget(self) -> None:
         """A new integrator: no step-size history."""

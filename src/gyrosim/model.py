@@ -186,6 +186,13 @@ class Model:
         """
         return self._k.trajectory(self, dt, n, angles=angles, momentum=momentum, status=status)
 
+    def dynamics_kernel(self, system: int = 0) -> str:
+        """The right-hand side the engine runs for system ``system`` with its parameters now: ``"rigid_body"`` (a
+        one-body scene's engine), or for a tree ``"articulated_body"`` (Featherstone's algorithm, any tree),
+        ``"gyrostat"`` (a hub on a ball joint carrying rotors) or ``"gimbal"`` (a rotor in two gimbals), the closed
+        forms the engine picks at set-up where a tree has their shape (docs/engine.md)."""
+        return self._k.dynamics_kernel(self, system)
+
     def fastest_rate(self, system: int = 0) -> float:
         """The fastest rate (rad/s) in system ``system``'s state: the step-size scale of its dynamics."""
         return self._k.fastest_rate(self, system)

@@ -820,7 +820,7 @@ done:
     return res;
 }
 
-/* tree_scalar(desc, y, p, which) -> torque_free (0) or fastest_rate (1) of the first system */
+/* tree_scalar(desc, y, p, which) -> torque_free (0), fastest_rate (1) or the kernel (2) of the first system */
 static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
     (void)self;
     gs_tree t;
@@ -838,7 +838,9 @@ static PyObject *py_tree_scalar(PyObject *self, PyObject *const *args, Py_ssize_
         return NULL;
     }
     const double *y = (const double *)b[0].view.buf, *p = (const double *)b[1].view.buf;
-    res = which == 0 ? PyLong_FromLong(gs_tree_torque_free(&t, p)) : PyFloat_FromDouble(gs_tree_fastest_rate(&t, y, p));
+    res = which == 0   ? PyLong_FromLong(gs_tree_torque_free(&t, p))
+          : which == 2 ? PyLong_FromLong(gs_tree_kernel(&t, p))
+                       : PyFloat_FromDouble(gs_tree_fastest_rate(&t, y, p));
     release(b, 2);
     return res;
 }
@@ -898,7 +900,7 @@ static PyMethodDef methods[] = {
     {"tree_derivatives_ld", (PyCFunction)(void (*)(void))py_tree_derivatives_ld, METH_FASTCALL,
      "tree_derivatives_ld(desc, y, p, dy(nx + 1), dy_lo(nx + 1)): the derivatives in long double"},
     {"tree_scalar", (PyCFunction)(void (*)(void))py_tree_scalar, METH_FASTCALL,
-     "tree_scalar(desc, y, p, which) -> torque-free (0) or the fastest rate (1)"},
+     "tree_scalar(desc, y, p, which) -> torque-free (0), the fastest rate (1) or the kernel (2)"},
     {"pack", (PyCFunction)(void (*)(void))py_pack, METH_FASTCALL,
      "pack(out(rows, width), columns int64, t0, dt, res(rows, 1 + k)): res[r] = (t0 + r*dt, out[r, columns])"},
     {"advance", (PyCFunction)(void (*)(void))py_advance, METH_FASTCALL,

@@ -202,6 +202,10 @@ double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double 
 /* 1 when the tree keeps its angular momentum with these parameters (see gs_tree_drift; 0 where an orbit acts). */
 int gs_tree_torque_free(const gs_tree *t, const double *p);
 
+/* The right-hand side's kernel for these parameters (tree_kernels.h): 0 the articulated-body algorithm, 1 the
+ * gyrostat (a hub on a ball joint with rotors), 2 the rotor in two gimbals. */
+int gs_tree_kernel(const gs_tree *t, const double *p);
+
 /* The fastest rate in the state (rad/s): the largest body angular speed and hinge rate. */
 double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p);
 

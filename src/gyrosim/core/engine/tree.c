@@ -384,6 +384,8 @@ static int rotor_frame(const gs_tree *t, const double *b, int i) {
     return fabs(cxa[0]) <= ctol && fabs(cxa[1]) <= ctol && fabs(cxa[2]) <= ctol;
 }
 
+#include "tree_kernels.h"   /* the closed-form kernels for a gyrostat and a gimbaled rotor */
+
 /* What stays constant over a call (the parameters do), made once by precompute: the bodies' spatial inertias, the
  * rotors, the hinges along a coordinate axis, which terms of the right-hand side vanish in every state, and the
  * joint factors of the bodies whose articulated inertia does not change.
@@ -422,6 +424,7 @@ typedef struct {
     double TB(U)[6][6];   /* ia_fixed: U = IA S (k columns) */
     double TB(Di)[6][6];  /* ia_fixed: D^-1 (k x k) */
     M6 TB(Ia);            /* ia_fixed, not a root: IA - U D^-1 U^T */
+    TreeKernel kern;           /* the right-hand side's kernel: the algorithm's, or a closed form (tree_kernels.h) */
 } Pre;
 
 #ifdef TREE_HEAP
@@ -544,6 +547,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
         add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[par], 63);
     }
     WS_CLOSE;
+    kern_setup(t, p, d->rotor, d->elements || d->impacts, &d->kern);
 }
 
 /* E v */
@@ -1651,6 +1655,7 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
 }
 
 static void derivs(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *dy) {
+    if (kern_derivs(t, &pre->kern, y, p, dy)) return;
     WS_OPEN;
     KIN_DECL(kin, t->n);
     TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
@@ -1821,6 +1826,16 @@ static void totals(const gs_tree *t, const double *y, const double *p, Totals *s
     precompute(t, p, &pre);
     totals_pre(t, y, p, &pre, s);
     WS_CLOSE;
+}
+
+int gs_tree_kernel(const gs_tree *t, const double *p) {
+    if (t->n > GS_TREE_SMALL) return TREE_KERNEL_ABA;
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
+    precompute(t, p, &pre);
+    const int kind = pre.kern.kind;
+    WS_CLOSE;
+    return kind;
 }
 
 int gs_tree_torque_free(const gs_tree *t, const double *p) {

@@ -18,6 +18,7 @@
 #define gs_tree_reparam big_tree_reparam
 #define gs_tree_drift big_tree_drift
 #define gs_tree_torque_free big_tree_torque_free
+#define gs_tree_kernel big_tree_kernel
 #define gs_tree_fastest_rate big_tree_fastest_rate
 #define gs_tree_advance big_tree_advance
 #define gs_tree_trajectory big_tree_trajectory
@@ -35,6 +36,7 @@ int big_tree_start(const gs_tree *t, double *y, const double *p);
 void big_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new);
 double big_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]);
 int big_tree_torque_free(const gs_tree *t, const double *p);
+int big_tree_kernel(const gs_tree *t, const double *p);
 double big_tree_fastest_rate(const gs_tree *t, const double *y, const double *p);
 size_t big_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
                         double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads);

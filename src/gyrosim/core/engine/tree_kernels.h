@@ -1,0 +1,322 @@
+/*
+ * gyrosim engine: the kernels a tree picks at set-up (tree.c's precompute) in place of the articulated-body
+ * algorithm, for two shapes of system whose equations have a closed form. Each is the same model as the
+ * algorithm's (the same bodies, joints, motors, springs, damping and gravity; the tests hold them to it and to
+ * Pinocchio), written for its shape: what is constant is made once per call, and a right-hand side is a few dozen
+ * products. Included by tree.c (after its vector helpers, before Pre), so every build of it (tree_big.c,
+ * tree_cs.c's complex step, tree_ld.c's long double) has them; comparisons on parameters go through treal.
+ *
+ * GYROSTAT: a hub on a ball joint (the root: it turns about its joint point O, which stays put) carrying rotors:
+ *   leaves on hinges, each axisymmetric about its axis with its centre of mass on it (rotor_frame). A wheel turning
+ *   about its axis leaves the mass distribution unchanged, so the whole tree's inertia about O in the hub frame, J,
+ *   is a constant, and the system is a gyrostat (Hughes, Spacecraft Attitude Dynamics, 1986, ch. 9). With omega
+ *   the hub's angular velocity (hub frame), a_k, Js_k, Omega_k a wheel's axis (hub frame), axial inertia and rate
+ *   relative to the hub, and u_k the torque on it about its axis (motor - stiffness (angle - rest) - damping rate):
+ *     H = J omega + sum Js_k Omega_k a_k                          (the angular momentum about O, hub frame)
+ *     J omega' + sum Js_k a_k Omega_k' = tau - omega x H          (Euler's equation about O in the hub frame)
+ *     Js_k (a_k . omega' + Omega_k') = u_k                        (each wheel about its own axis)
+ *   and eliminating Omega_k':  Je omega' = tau - omega x H - sum a_k u_k,  Je = J - sum Js_k a_k a_k^T,
+ *   Omega_k' = u_k / Js_k - a_k . omega'.  tau is the hub's external torque, its joint damping and gravity's torque
+ *   about O: (sum m c) x (g R^T ghat), sum m c the bodies' first mass moment about O (hub frame). Je^-1 is made once.
+ *
+ * GIMBAL: a rotor in two gimbals: an outer hinge on the world (axis e1), an inner hinge on it at its origin O
+ *   (axis e2, outer frame) and a rotor on the inner (axis e3, inner frame; rotor_frame's conditions). With psi,
+ *   theta, phi the three angles, b = R2(theta)^T e1 the outer axis in the inner frame and w = psi' b + theta' e2 the
+ *   inner gimbal's angular velocity (inner frame), the inner gimbal and rotor have the angular momentum about O
+ *     h = K w + C phi' e3
+ *   with K their inertia about O (inner frame, constant: the rotor is axisymmetric) and C the rotor's axial
+ *   inertia. Three scalar equations, each the change of a momentum component along a joint's axis, where the
+ *   joint's constraint torques have none:
+ *     the whole tree about e1 (fixed in the world):  d/dt (Io psi' + b . h) = u1 + gravity's torque . e1
+ *     the inner gimbal and rotor about e2:           e2 . (dh/dt|inner + w x h) = u2 + tau_g . e2
+ *     the rotor about e3:                            C (e3 . w' + phi'') = u3
+ *   with w' = psi'' b + theta'' e2 + psi' theta' (b x e2) (db/dt = theta' b x e2), Io = e1^T Jo e1 (the outer's
+ *   inertia about O), tau_g = (sum m c) x (g ghat) in the inner frame. They are M(theta) (psi'', theta'', phi'') = f,
+ *   M symmetric 3x3, solved by its cofactors. (bench/tree_baseline.c's closed form is its case e1 = z, e2 = x,
+ *   e3 = z with diagonal inertias.)
+ *
+ * The work integral y[nx] gets the power of the motors, the damping and the hub's torque, as power() gives it.
+ */
+
+#define TREE_KERNEL_ABA 0        /* the articulated-body algorithm: every tree */
+#define TREE_KERNEL_GYROSTAT 1
+#define TREE_KERNEL_GIMBAL 2
+
+typedef struct {
+    int kind;
+    int grav;                    /* gravity acts with a torque (g != 0 and a first mass moment) */
+    double mc[3];                /* the first mass moment about O (kg*m): hub frame (GYROSTAT), inner (GIMBAL) */
+    double gw[3];                /* g ghat, world (m/s^2); GYROSTAT: turned into the ball's placement, Q^T g ghat */
+    /* GYROSTAT: wheels are bodies 1..nw */
+    int nw;
+    double Jo[3][3];             /* the tree's inertia about O, hub frame */
+    double Jei[3][3];            /* (J - sum Js a a^T)^-1 */
+    double a[GS_TREE_SMALL][3];  /* the wheels' axes, hub frame */
+    double Js[GS_TREE_SMALL];    /* their axial inertias */
+    double Jsi[GS_TREE_SMALL];   /* 1 / Js */
+    /* GIMBAL */
+    double e1[3], e2[3], e3[3];
+    double e21, e2x1[3];         /* e2 . e1, e2 x e1 (b from theta by Rodrigues' formula) */
+    double K[3][3], Ke2[3], C, Io;
+    double e2Ke2, Ce23;          /* e2^T K e2, C e2 . e3 */
+    int grav_o, turn1;           /* the outer's own gravity torque about e1; gravity not along e1 (psi turns it) */
+    double mco[3];               /* the outer's first mass moment about O (outer frame) */
+} TreeKernel;
+
+/* I_O = I_cm + m (|d|^2 1 - d d^T): an inertia about a point at -d from the centre of mass, added to S */
+static void kern_add_inertia(double S[3][3], const double *J, double m, const double d[3]) {
+    const double I[3][3] = {{J[0], J[3], J[4]}, {J[3], J[1], J[5]}, {J[4], J[5], J[2]}};
+    const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    for (int r = 0; r < 3; r++) {
+        for (int c = 0; c < 3; c++) S[r][c] += I[r][c] + m * ((r == c ? dd : 0.0) - d[r] * d[c]);
+    }
+}
+
+/* B = A^-1 of a symmetric 3x3 by its cofactors; 0 when it is not positive definite (det <= 0) */
+static int kern_inverse3(const double A[3][3], double B[3][3]) {
+    const double c00 = A[1][1] * A[2][2] - A[1][2] * A[2][1], c01 = A[1][2] * A[2][0] - A[1][0] * A[2][2],
+                 c02 = A[1][0] * A[2][1] - A[1][1] * A[2][0];
+    const double det = A[0][0] * c00 + A[0][1] * c01 + A[0][2] * c02;
+    if (!((treal)det > 0.0)) return 0;
+    B[0][0] = c00 / det;
+    B[1][0] = c01 / det;
+    B[2][0] = c02 / det;
+    B[0][1] = (A[0][2] * A[2][1] - A[0][1] * A[2][2]) / det;
+    B[1][1] = (A[0][0] * A[2][2] - A[0][2] * A[2][0]) / det;
+    B[2][1] = (A[0][1] * A[2][0] - A[0][0] * A[2][1]) / det;
+    B[0][2] = (A[0][1] * A[1][2] - A[0][2] * A[1][1]) / det;
+    B[1][2] = (A[0][2] * A[1][0] - A[0][0] * A[1][2]) / det;
+    B[2][2] = (A[0][0] * A[1][1] - A[0][1] * A[1][0]) / det;
+    return 1;
+}
+
+static int kern_zero3(const double *v) { return (treal)v[0] == 0.0 && (treal)v[1] == 0.0 && (treal)v[2] == 0.0; }
+
+/* a hinge the kernels take: no stops, no body torque, no placement */
+static int kern_plain_hinge(const gs_tree *t, const double *b, int i) {
+    return t->joint[i] == GS_J_HINGE && (treal)b[GS_TB_LIM] == 0.0 && kern_zero3(b + GS_TB_TAU) &&
+           placed_plain(t, b, i);
+}
+
+/* the hub and its wheels: 1 and K filled, or 0 */
+static int kern_gyrostat(const gs_tree *t, const double *p, const int *rotor, TreeKernel *K) {
+    if (t->n < 2 || t->n > GS_TREE_SMALL || t->joint[0] != GS_J_BALL || t->parent[0] >= 0) return 0;
+    const double *h = body_p(p, 0);
+    if (!kern_zero3(h + GS_TB_KB)) return 0;   /* a ball spring: the algorithm's */
+    memset(K->Jo, 0, sizeof(K->Jo));
+    kern_add_inertia(K->Jo, h + GS_TB_I, h[GS_TB_MASS], h + GS_TB_CM);
+    for (int a = 0; a < 3; a++) K->mc[a] = h[GS_TB_MASS] * h[GS_TB_CM + a];
+    double Je[3][3];
+    K->nw = t->n - 1;
+    for (int i = 1; i < t->n; i++) {
+        const double *b = body_p(p, i), *ax = b + GS_TB_AXIS;
+        if (t->parent[i] != 0 || !rotor[i] || !kern_plain_hinge(t, b, i)) return 0;
+        double d[3], Ja[3];
+        for (int a = 0; a < 3; a++) d[a] = b[GS_TB_POS + a] + b[GS_TB_CM + a];
+        kern_add_inertia(K->Jo, b + GS_TB_I, b[GS_TB_MASS], d);
+        for (int a = 0; a < 3; a++) K->mc[a] += b[GS_TB_MASS] * d[a];
+        const double *J = b + GS_TB_I;
+        Ja[0] = J[0] * ax[0] + J[3] * ax[1] + J[4] * ax[2];
+        Ja[1] = J[3] * ax[0] + J[1] * ax[1] + J[5] * ax[2];
+        Ja[2] = J[4] * ax[0] + J[5] * ax[1] + J[2] * ax[2];
+        const double js = dot3(ax, Ja);
+        if (!((treal)js > 0.0)) return 0;
+        memcpy(K->a[i - 1], ax, 3 * sizeof(double));
+        K->Js[i - 1] = js;
+        K->Jsi[i - 1] = 1.0 / js;
+    }
+    memcpy(Je, K->Jo, sizeof(Je));
+    for (int k = 0; k < K->nw; k++) {
+        for (int r = 0; r < 3; r++) {
+            for (int c = 0; c < 3; c++) Je[r][c] -= K->Js[k] * K->a[k][r] * K->a[k][c];
+        }
+    }
+    if (!kern_inverse3((const double (*)[3])Je, K->Jei)) return 0;
+    const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
+    K->grav = (treal)g != 0.0 && !kern_zero3(K->mc);
+    double gw[3] = {g * gd[0], g * gd[1], g * gd[2]};
+    if (!placed_plain(t, h, 0)) {   /* the hub frame is R_w = Q R(q): gravity in the frame Q turns */
+        M3 Q;
+        quat_to_mat(h + GS_TB_ROT, Q);
+        mtv3((const double (*)[3])Q, gw, K->gw);
+    } else {
+        memcpy(K->gw, gw, sizeof(gw));
+    }
+    return 1;
+}
+
+/* two gimbals and a rotor: 1 and K filled, or 0 */
+static int kern_gimbal(const gs_tree *t, const double *p, const int *rotor, TreeKernel *K) {
+    if (t->n != 3 || t->parent[0] >= 0 || t->parent[1] != 0 || t->parent[2] != 1 || !rotor[2]) return 0;
+    const double *o = body_p(p, 0), *in = body_p(p, 1), *r = body_p(p, 2);
+    for (int i = 0; i < 3; i++) {
+        if (!kern_plain_hinge(t, body_p(p, i), i)) return 0;
+    }
+    if (!kern_zero3(in + GS_TB_POS)) return 0;   /* the inner joint at the outer's origin: O */
+    memcpy(K->e1, o + GS_TB_AXIS, sizeof(K->e1));
+    memcpy(K->e2, in + GS_TB_AXIS, sizeof(K->e2));
+    memcpy(K->e3, r + GS_TB_AXIS, sizeof(K->e3));
+    K->e21 = dot3(K->e2, K->e1);
+    cross3(K->e2, K->e1, K->e2x1);
+    double Jo[3][3] = {{0.0}}, d[3], Je1[3];
+    kern_add_inertia(Jo, o + GS_TB_I, o[GS_TB_MASS], o + GS_TB_CM);
+    mv3((const double (*)[3])Jo, K->e1, Je1);
+    K->Io = dot3(K->e1, Je1);
+    memset(K->K, 0, sizeof(K->K));
+    kern_add_inertia(K->K, in + GS_TB_I, in[GS_TB_MASS], in + GS_TB_CM);
+    for (int a = 0; a < 3; a++) d[a] = r[GS_TB_POS + a] + r[GS_TB_CM + a];
+    kern_add_inertia(K->K, r + GS_TB_I, r[GS_TB_MASS], d);
+    const double *J = r + GS_TB_I, *e3 = K->e3;
+    const double Je3[3] = {J[0] * e3[0] + J[3] * e3[1] + J[4] * e3[2], J[3] * e3[0] + J[1] * e3[1] + J[5] * e3[2],
+                           J[4] * e3[0] + J[5] * e3[1] + J[2] * e3[2]};
+    K->C = dot3(e3, Je3);
+    if (!((treal)K->C > 0.0)) return 0;
+    mv3((const double (*)[3])K->K, K->e2, K->Ke2);
+    K->e2Ke2 = dot3(K->e2, K->Ke2);
+    K->Ce23 = K->C * dot3(K->e2, e3);
+    for (int a = 0; a < 3; a++) {
+        K->mc[a] = in[GS_TB_MASS] * in[GS_TB_CM + a] + r[GS_TB_MASS] * d[a];
+        K->mco[a] = o[GS_TB_MASS] * o[GS_TB_CM + a];
+    }
+    const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
+    for (int a = 0; a < 3; a++) K->gw[a] = g * gd[a];
+    double gx1[3];
+    cross3(K->gw, K->e1, gx1);
+    K->turn1 = !kern_zero3(gx1);
+    K->grav = (treal)g != 0.0 && !kern_zero3(K->mc);
+    K->grav_o = (treal)g != 0.0 && K->turn1 && !kern_zero3(K->mco);   /* along e1 it has no torque about e1 */
+    return 1;
+}
+
+/* the kernel for a tree without orbit, springs, forces, impacts or couplings (else the algorithm's) */
+static void kern_setup(const gs_tree *t, const double *p, const int *rotor, int elements, TreeKernel *K) {
+    K->kind = TREE_KERNEL_ABA;
+    if (t->orbit != GS_ORBIT_NONE || elements || t->n_cpl > 0) return;
+    if (kern_gyrostat(t, p, rotor, K)) {
+        K->kind = TREE_KERNEL_GYROSTAT;
+    } else if (kern_gimbal(t, p, rotor, K)) {
+        K->kind = TREE_KERNEL_GIMBAL;
+    }
+}
+
+/* a hinge's torque from its motor, spring and damping, and the power of the motor and damping */
+static TREE_INLINE double kern_hinge_u(const double *b, const double *s, double *P) {
+    *P += (b[GS_TB_MOTOR] - b[GS_TB_DAMP] * s[1]) * s[1];
+    return b[GS_TB_MOTOR] - b[GS_TB_STIFF] * (s[0] - b[GS_TB_REST]) - b[GS_TB_DAMP] * s[1];
+}
+
+static void kern_gyrostat_derivs(const gs_tree *t, const TreeKernel *K, const double *y, const double *p,
+                                 double *dy) {
+    const double *h = body_p(p, 0), *q = y + t->yi[0], *w = q + 4, *tau = h + GS_TB_TAU;
+    double H[3], r[3], wd[3], u[GS_TREE_SMALL], P = dot3(tau, w);
+    mv3((const double (*)[3])K->Jo, w, H);
+    for (int k = 0; k < K->nw; k++) {
+        const double *s = y + t->yi[k + 1], hw = K->Js[k] * s[1];
+        for (int a = 0; a < 3; a++) H[a] += hw * K->a[k][a];
+        u[k] = kern_hinge_u(body_p(p, k + 1), s, &P);
+    }
+    cross3(w, H, r);
+    for (int a = 0; a < 3; a++) {
+        const double c = h[GS_TB_DAMP] + h[GS_TB_CB + a];
+        r[a] = tau[a] - c * w[a] - r[a];
+        P -= c * w[a] * w[a];
+    }
+    if (K->grav) {   /* (sum m c) x (g R^T ghat) */
+        M3 R;
+        double gb[3], tg[3];
+        quat_to_mat(q, R);
+        mtv3((const double (*)[3])R, K->gw, gb);
+        cross3(K->mc, gb, tg);
+        for (int a = 0; a < 3; a++) r[a] += tg[a];
+    }
+    for (int k = 0; k < K->nw; k++) {
+        for (int a = 0; a < 3; a++) r[a] -= K->a[k][a] * u[k];
+    }
+    mv3((const double (*)[3])K->Jei, r, wd);
+    double *d = dy + t->yi[0];
+    quat_rate(q, w, d);
+    memcpy(d + 4, wd, sizeof(wd));
+    for (int k = 0; k < K->nw; k++) {
+        const double *s = y + t->yi[k + 1];
+        d = dy + t->yi[k + 1];
+        d[0] = s[1];
+        d[1] = u[k] * K->Jsi[k] - dot3(K->a[k], wd);
+    }
+    dy[t->nx] = P;
+}
+
+/* v turned by R(e, angle)^T (cos c, sin s): v c - (e x v) s + e (e . v) (1 - c) */
+static TREE_INLINE void kern_turn_back(const double e[3], const double v[3], double c, double s, double out[3]) {
+    double exv[3];
+    cross3(e, v, exv);
+    const double ev = dot3(e, v) * (1.0 - c);
+    for (int a = 0; a < 3; a++) out[a] = v[a] * c - exv[a] * s + e[a] * ev;
+}
+
+static void kern_gimbal_derivs(const gs_tree *t, const TreeKernel *K, const double *y, const double *p, double *dy) {
+    const double *so = y + t->yi[0], *si = y + t->yi[1], *sr = y + t->yi[2];
+    const double pd = so[1], td = si[1], fd = sr[1];
+    const double c2 = cos(si[0]), s2 = sin(si[0]);
+    double P = 0.0;
+    const double u1 = kern_hinge_u(body_p(p, 0), so, &P), u2 = kern_hinge_u(body_p(p, 1), si, &P),
+                 u3 = kern_hinge_u(body_p(p, 2), sr, &P);
+    double b[3], w[3], h[3], bx2[3], Kb[3], wxh[3];
+    for (int a = 0; a < 3; a++) b[a] = K->e1[a] * c2 - K->e2x1[a] * s2 + K->e2[a] * K->e21 * (1.0 - c2);
+    for (int a = 0; a < 3; a++) w[a] = pd * b[a] + td * K->e2[a];
+    mv3((const double (*)[3])K->K, w, h);
+    for (int a = 0; a < 3; a++) h[a] += K->C * fd * K->e3[a];
+    cross3(b, K->e2, bx2);
+    mv3((const double (*)[3])K->K, b, Kb);
+    cross3(w, h, wxh);
+    const double pt = pd * td;   /* w' = psi'' b + theta'' e2 + psi' theta' (b x e2) */
+    double f1 = u1 - td * dot3(bx2, h) - pt * dot3(Kb, bx2);
+    double f2 = u2 - dot3(K->e2, wxh) - pt * dot3(K->Ke2, bx2);
+    const double f3 = u3 - K->C * pt * dot3(K->e3, bx2);
+    if (K->grav || K->grav_o) {
+        double go[3], gi[3], tg[3];
+        if (K->turn1) {
+            kern_turn_back(K->e1, K->gw, cos(so[0]), sin(so[0]), go);
+        } else {
+            memcpy(go, K->gw, sizeof(go));
+        }
+        if (K->grav_o) {
+            cross3(K->mco, go, tg);
+            f1 += dot3(K->e1, tg);
+        }
+        if (K->grav) {
+            kern_turn_back(K->e2, go, c2, s2, gi);
+            cross3(K->mc, gi, tg);
+            f1 += dot3(b, tg);
+            f2 += dot3(K->e2, tg);
+        }
+    }
+    /* M = [[Io + b.Kb, e2.Kb, C b.e3], [., e2.K e2, C e2.e3], [., ., C]] by its cofactors */
+    const double m11 = K->Io + dot3(b, Kb), m12 = dot3(K->e2, Kb), m13 = K->C * dot3(b, K->e3);
+    const double m22 = K->e2Ke2, m23 = K->Ce23, m33 = K->C;
+    const double c11 = m22 * m33 - m23 * m23, c12 = m13 * m23 - m12 * m33, c13 = m12 * m23 - m13 * m22;
+    const double c22 = m11 * m33 - m13 * m13, c23 = m12 * m13 - m11 * m23, c33 = m11 * m22 - m12 * m12;
+    const double det = m11 * c11 + m12 * c12 + m13 * c13;
+    double *d0 = dy + t->yi[0], *d1 = dy + t->yi[1], *d2 = dy + t->yi[2];
+    d0[0] = pd;
+    d0[1] = (c11 * f1 + c12 * f2 + c13 * f3) / det;
+    d1[0] = td;
+    d1[1] = (c12 * f1 + c22 * f2 + c23 * f3) / det;
+    d2[0] = fd;
+    d2[1] = (c13 * f1 + c23 * f2 + c33 * f3) / det;
+    dy[t->nx] = P;
+}
+
+/* the kernel's derivatives; 0 when the tree runs the algorithm */
+static TREE_INLINE int kern_derivs(const gs_tree *t, const TreeKernel *K, const double *y, const double *p,
+                                   double *dy) {
+    switch (K->kind) {
+        case TREE_KERNEL_GYROSTAT:
+            kern_gyrostat_derivs(t, K, y, p, dy);
+            return 1;
+        case TREE_KERNEL_GIMBAL:
+            kern_gimbal_derivs(t, K, y, p, dy);
+            return 1;
+        default:
+            return 0;
+    }
+}
