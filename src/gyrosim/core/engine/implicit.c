@@ -21,7 +21,10 @@
  * I - h/2 J_xx - h^2/4 J_x,theta E_omega, J the exact Jacobian (the complex step through the system's jvp: it has
  * every gyroscopic term of every articulated body, which is what keeps the iterations converging when h is far
  * beyond the nutation period), to round-off: the invariants are exact only for the exact solution of the equations.
- * The matrix is kept over steps and refreshed where the iterations slow down or fail.
+ * The matrix is kept over steps and refreshed where the iterations slow down or fail; its inverse carries Broyden's
+ * updates from step to step (the system turns, and the secants follow it without a new Jacobian). The first guess
+ * extrapolates the last three steps' slopes (O(h^3)). A quaternion no x-row of f reads (the hub of a spacecraft without
+ * gravity: its Jacobian columns are zero) is turned once, at the converged midpoint, not at every iteration.
  *
  * A component that nothing depends on (its Jacobian column is zero: the spin angle of an axisymmetric rotor, an
  * orbit's anomaly) is no unknown: its slope is its derivative at the midpoint and its value the quadrature x0 + h F
@@ -42,6 +45,7 @@
 #include "quaternion.h"
 
 #define LIE_EPS 2.220446049250313e-16
+#define LIE_MAX(a, b) ((a) > (b) ? (a) : (b))   /* fmax without its call (a NaN still reaches err below) */
 #define LIE_MAXIT 24          /* Newton iterations per step before it counts as not converging */
 /* a step that needed more iterations refreshes the matrix (a projection, its gradient) */
 #define LIE_SLOW 12
@@ -66,17 +70,23 @@ struct gs_lie_run_s {
     double *Ainv;             /* m x m, its inverse (row-major): a product per iteration, no triangular solves */
     double *H;                /* m x m, the step's inverse with its Broyden updates */
     double h_A;               /* the step A was built for */
+    int H_new;                /* Ainv is new: H starts from it (else H keeps its updates from the last step) */
     int have_J, refresh;
     double F[GS_ODE_MAX];     /* the slope: the last step's, the next one's first guess */
     int have_F;
-    double F1[GS_ODE_MAX];    /* the step's before that (the guess extrapolates the two) */
-    int n_F;                  /* converged slopes in F, F1 (0, 1, 2) */
+    double F1[GS_ODE_MAX];    /* the step's before that, and the one before it: the guess extrapolates the three */
+    double F2[GS_ODE_MAX];
+    int n_F;                  /* converged slopes in F, F1, F2 (0 to 3) */
     double h_F;               /* the step they were taken with */
     double G[GS_LIE_MAXINV][GS_ODE_MAX];   /* the projection's gradient */
     int have_G;
     double S[GS_LIE_MAXINV][GS_LIE_MAXINV];   /* d res / d lambda along G (kept over steps, Broyden-updated) */
     int have_S;
     int ni_G;                 /* the invariants G and S are for */
+    int qread[GS_LIE_MAXQ];   /* an x-row of f reads the quaternion (its Jacobian columns): Y turns it */
+    int nquad, quad[GS_ODE_MAX];   /* the LIE_QUAD components (made with kind by jacobian) */
+    int nlin;                 /* the components moved linearly, Y = y0 + h/2 F: every one but the quaternions' */
+    int lin[GS_ODE_MAX];
     double wmid[GS_LIE_MAXQ][3];           /* the last step's omega_mid per quaternion (the dense output's) */
     double comp[GS_ODE_MAX];               /* the compensated sum's carried rounding of each component */
 };
@@ -218,11 +228,13 @@ static int jacobian(gs_lie_run_t *r, const double *y) {
         col++;
     }
     for (int g = 0; g < L->nq; g++) {
+        r->qread[g] = 0;
         for (int k = 0; k < 3; k++, col++) {
             const double *Jc = r->J + (size_t)col * r->ne;
             for (int a = 0; a < r->ne; a++) {
                 if (r->kind[a] != LIE_QUAT && Jc[a] != 0.0) {
                     depends[L->omega[g] + k] = 1;
+                    r->qread[g] = 1;
                     break;
                 }
             }
@@ -237,6 +249,10 @@ static int jacobian(gs_lie_run_t *r, const double *y) {
         } else {
             r->kind[i] = LIE_QUAD;
         }
+    }
+    r->nquad = 0;
+    for (int i = 0; i < r->nv; i++) {
+        if (r->kind[i] == LIE_QUAD) r->quad[r->nquad++] = i;
     }
     r->have_J = 1;
     r->h_A = 0.0;   /* the matrix is rebuilt from the new J */
@@ -270,6 +286,7 @@ static int newton_matrix(gs_lie_run_t *r, double h) {
     }
     (void)c;
     r->h_A = h;
+    r->H_new = 1;
     if (!lu_factor(m, r->A, r->piv)) return 0;
     /* the inverse, a column at a time */
     double e[GS_ODE_MAX];
@@ -294,16 +311,46 @@ static int finite_state(const gs_lie_run_t *r, const double *y) {
 /* The midpoint state Y(F) of the step from y0 (the x-components and quadratures at x0 + h/2 F, the quaternions
  * turned by h/2 omega_mid); the constants after nv copied. */
 static void midpoint_state(const gs_lie_run_t *r, const double *y0, const double *F, double h, double *Y) {
-    for (int i = 0; i < r->nv; i++) {
-        if (r->kind[i] != LIE_QUAT) Y[i] = y0[i] + 0.5 * h * F[i];
+    for (int j = 0; j < r->nlin; j++) {
+        const int i = r->lin[j];
+        Y[i] = y0[i] + 0.5 * h * F[i];
     }
     turn_all(r->L, y0, Y, 0.5 * h, Y);
+}
+
+/* midpoint_state within the iterations: the quaternions no x-row of f reads are turned once they have converged */
+static void midpoint_iterate(const gs_lie_run_t *r, const double *y0, const double *F, double h, double *Y) {
+    const gs_lie *L = r->L;
+    for (int j = 0; j < r->nlin; j++) {
+        const int i = r->lin[j];
+        Y[i] = y0[i] + 0.5 * h * F[i];
+    }
+    for (int g = 0; g < L->nq; g++) {
+        if (!r->qread[g]) continue;
+        const double *om = Y + L->omega[g];
+        const double th[3] = {0.5 * h * om[0], 0.5 * h * om[1], 0.5 * h * om[2]};
+        double e[4];
+        quat_exp(th, e);
+        quat_mul(y0 + L->q[g], e, Y + L->q[g]);
+    }
 }
 
 /* out = H x (H the step's inverse Newton matrix with its Broyden updates, m x m row-major) */
 static void apply_h(const gs_lie_run_t *r, const double *x, double *out) {
     const int m = r->m;
-    for (int a = 0; a < m; a++) {
+    int a = 0;
+    for (; a + 1 < m; a += 2) {   /* two rows at a time share the loads of x (each row's sum in the same order) */
+        const double *r0 = r->H + (size_t)a * m, *r1 = r0 + m;
+        double s0 = 0.0, s1 = 0.0;
+        for (int b = 0; b < m; b++) {
+            const double xb = x[b];
+            s0 += r0[b] * xb;
+            s1 += r1[b] * xb;
+        }
+        out[a] = s0;
+        out[a + 1] = s1;
+    }
+    if (a < m) {
         const double *row = r->H + (size_t)a * m;
         double sum = 0.0;
         for (int b = 0; b < m; b++) sum += row[b] * x[b];
@@ -315,39 +362,43 @@ static void apply_h(const gs_lie_run_t *r, const double *x, double *out) {
  * not converge. *evals counts f.
  *
  * The residual R(F) = f(Y(F)) - F is solved by simplified Newton, dF = H R with H the inverse of the kept matrix
- * I - h/2 J - h^2/4 J_theta, improved within the step by Broyden's second ("bad") update H += (s - H y) y^T / y^T y
- * from each iteration's change s of F and y of -R (Broyden 1965; Dennis and Schnabel, Numerical Methods for
- * Unconstrained Optimization, 8.2): the matrix kept over steps drifts from the Jacobian as the system turns, and the
+ * I - h/2 J - h^2/4 J_theta, improved by Broyden's second ("bad") update H += (s - H y) y^T / y^T y from each
+ * iteration's change s of F and y of -R (Broyden 1965; Dennis and Schnabel, Numerical Methods for Unconstrained
+ * Optimization, 8.2), kept from step to step: the matrix drifts from the Jacobian as the system turns, and the
  * updates take up that drift without a new Jacobian, until the iterations reach round-off. */
 static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, int64_t *evals) {
     const gs_ode *o = &r->L->ode;
     double Gv[GS_ODE_MAX], d[GS_ODE_MAX], R[GS_ODE_MAX], Rp[GS_ODE_MAX], dp[GS_ODE_MAX], yv[GS_ODE_MAX];
     double prev = INFINITY;
     const int m = r->m;
-    memcpy(r->H, r->Ainv, (size_t)m * (size_t)m * sizeof(double));
+    if (r->H_new) memcpy(r->H, r->Ainv, (size_t)m * (size_t)m * sizeof(double));
+    r->H_new = 0;
     for (int it = 1; it <= LIE_MAXIT; it++) {
-        midpoint_state(r, y0, r->F, h, Y);
+        midpoint_iterate(r, y0, r->F, h, Y);
         o->rhs(o->ctx, Y, Gv);
         *evals += 1;
         for (int a = 0; a < m; a++) R[a] = Gv[r->act[a]] - r->F[r->act[a]];
+        apply_h(r, R, d);   /* H R */
         if (it > 1 && prev > 1e-10) {   /* a secant update from the last iteration (not in the round-off noise) */
-            double yy = 0.0;
+            /* Broyden's H+ = H + (s - H yv) yv^T / yv^T yv with s = dp = H Rp (this H made dp) and yv = Rp - R:
+             * s - H yv = H R, so H+ = H + (H R) yv^T / yv^T yv and H+ R = H R (1 + yv^T R / yv^T yv) */
+            double yy = 0.0, yr = 0.0;
             for (int a = 0; a < m; a++) {
                 yv[a] = Rp[a] - R[a];
                 yy += yv[a] * yv[a];
+                yr += yv[a] * R[a];
             }
-            if (yy > 0.0) {   /* H += (s - H y) y^T / y^T y */
-                double hy[GS_ODE_MAX];
-                apply_h(r, yv, hy);
-                for (int a = 0; a < m; a++) {
-                    const double u = (dp[a] - hy[a]) / yy;
-                    double *row = r->H + (size_t)a * m;
+            if (yy > 0.0) {
+                double *row = r->H;
+                for (int a = 0; a < m; a++, row += m) {
+                    const double u = d[a] / yy;
                     for (int b = 0; b < m; b++) row[b] += u * yv[b];
                 }
+                const double g = 1.0 + yr / yy;
+                for (int a = 0; a < m; a++) d[a] *= g;
             }
         }
         memcpy(Rp, R, (size_t)m * sizeof(double));
-        apply_h(r, R, d);
         memcpy(dp, d, (size_t)m * sizeof(double));
         /* the change of x1 = x0 + h F, relative to the component's size (at least 1e-8 of the largest: a
          * component at 0 converges to the others' round-off, not to its own) */
@@ -355,22 +406,26 @@ static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, in
         for (int a = 0; a < r->m; a++) {
             const int i = r->act[a];
             r->F[i] += d[a];
-            big = fmax(big, fabs(y0[i]) + fabs(h * r->F[i]));
+            big = LIE_MAX(big, fabs(y0[i]) + fabs(h * r->F[i]));
         }
         double err = 0.0;
         for (int a = 0; a < r->m; a++) {
             const int i = r->act[a];
-            const double s = fmax(fmax(fabs(y0[i]), fabs(h * r->F[i])), 1e-8 * big);
+            const double s = LIE_MAX(LIE_MAX(fabs(y0[i]), fabs(h * r->F[i])), 1e-8 * big);
             const double e = s > 0.0 ? fabs(h * d[a]) / s : (d[a] == 0.0 ? 0.0 : INFINITY);
             if (!(e <= err)) err = e;   /* NaN propagates */
         }
-        for (int i = 0; i < r->nv; i++) {
-            if (r->kind[i] == LIE_QUAD) r->F[i] = Gv[i];
-        }
+        for (int j = 0; j < r->nquad; j++) r->F[r->quad[j]] = Gv[r->quad[j]];
         if (!(err == err)) return 0;
-        if (err <= 4.0 * LIE_EPS) return it;
+        if (err <= 4.0 * LIE_EPS) {
+            turn_all(r->L, y0, Y, 0.5 * h, Y);
+            return it;
+        }
         /* converged to the noise of f's round-off: no more progress near it */
-        if (it >= 3 && err >= 0.5 * prev && err <= 1e-11) return it;
+        if (it >= 3 && err >= 0.5 * prev && err <= 1e-11) {
+            turn_all(r->L, y0, Y, 0.5 * h, Y);
+            return it;
+        }
         if (it >= 4 && err > 2.0 * prev) return 0;   /* diverging */
         prev = err;
     }
@@ -530,10 +585,18 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
             *evals += 1;
             r->have_F = 1;
             r->n_F = 0;
-        } else if (r->n_F >= 2) {   /* the last two steps' slopes extrapolated: an O(h^2) first guess */
+        } else if (r->n_F >= 3) {   /* the last three steps' slopes extrapolated: an O(h^3) first guess */
+            for (int i = 0; i < r->nv; i++) {
+                const double f = r->F[i];
+                r->F[i] = 3.0 * f - 3.0 * r->F1[i] + r->F2[i];
+                r->F2[i] = r->F1[i];
+                r->F1[i] = f;
+            }
+        } else if (r->n_F >= 2) {   /* the last two: O(h^2) */
             for (int i = 0; i < r->nv; i++) {
                 const double f = r->F[i];
                 r->F[i] = 2.0 * f - r->F1[i];
+                r->F2[i] = r->F1[i];
                 r->F1[i] = f;
             }
         } else {   /* the last step's slope */
@@ -559,7 +622,7 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
         if (it) {
             if (it > LIE_SLOW) r->refresh = 1;
             done = 1;
-            r->n_F = r->n_F < 2 ? r->n_F + 1 : 2;
+            r->n_F = r->n_F < 3 ? r->n_F + 1 : 3;
         }
     }
     if (!done) {
@@ -626,6 +689,11 @@ gs_lie_run_t *gs_lie_begin(int method, const gs_lie *L) {
     for (int g = 0; g < L->nq; g++) {
         for (int a = 0; a < 4; a++) r->kind[L->q[g] + a] = LIE_QUAT;
     }
+    r->nlin = 0;
+    for (int i = 0; i < o->nv; i++) {
+        if (r->kind[i] != LIE_QUAT) r->lin[r->nlin++] = i;
+    }
+    for (int g = 0; g < L->nq; g++) r->qread[g] = 1;
     r->ncol = 0;
     for (int i = 0; i < o->ne; i++) r->ncol += r->kind[i] != LIE_QUAT;
     r->ncol += 3 * L->nq;
