@@ -8,8 +8,8 @@ why it was skipped):
    ``rotor.q_world_*`` in the world) and the reference's, ``atan2(|a x b|, a.b)``. Reference: gyrosim's dop853 at
    rtol 1e-13, checked against rtol 1e-12 and against MuJoCo's RK4 at dt = 1e-5 over the first second. For the
    targets 1e-3, 1e-6 and 1e-9 rad: gyrosim's cheapest run over every tree integrator (fixed-step: a max_step
-   ladder from 2 s down, steps longer than the output interval only for ``midpoint`` and ``energy_momentum``,
-   which have dense output; ``adaptive`` and ``dop853``: a tolerance ladder), timed as ``gyrosim.simulate(...)``
+   ladder from 2 s down, steps longer than the output interval taking the outputs from each method's dense
+   output; ``adaptive`` and ``dop853``: a tolerance ladder), timed as ``gyrosim.simulate(...)``
    and as ``Model.trajectory`` of a prepared model (set-up excluded); MuJoCo's cheapest over ``mjINT_EULER``,
    ``mjINT_RK4``, ``mjINT_IMPLICIT`` and ``mjINT_IMPLICITFAST`` x a timestep ladder (``bench/mj_gimbal.py``, model
    compiled outside the timing, ``mj_step`` per output interval or one ``mujoco.rollout`` call, the faster).
@@ -87,7 +87,7 @@ E4_TARGET, AXIS4_TARGET = 1e-3, 1e-2
 FAST = {"rotor.rate": 2500.0}
 SPACECRAFT = {"hub.omega_x": 0.3, "hub.omega_y": 1.0, "hub.omega_z": 0.2, "wheel_x.rate": 100.0,
               "wheel_y.rate": 0.0, "wheel_z.rate": -50.0}
-DENSE = ("midpoint", "energy_momentum")        # fixed step with dense output: steps longer than the output interval
+DENSE = ("rk4", "euler", "midpoint", "energy_momentum")   # fixed steps with dense output: longer than the interval
 ADAPTIVE = ("adaptive", "dop853")
 ORDER = ("dop853", "rk4", "midpoint", "energy_momentum", "adaptive", "euler")   # cheap bounds first
 # fixed steps: up to 2 s, then dividing the output interval 0.01 s (about 1.25x apart)

@@ -739,9 +739,10 @@ class BodyKernel:
     #: the output points of a whole call with their own steps: with inputs they step per interval, as an FMU does).
     _SAME_BITS_AS_STEPS = ("euler", "rk4", "splitting", "splitting4", "exact")
 
-    def trajectory_is_steps(self) -> bool:
-        """Whether :meth:`trajectory` over several output intervals gives the bits of a loop of :meth:`step` with
-        the integrator set (inputs held over intervals may then be applied a block of intervals at a time)."""
+    def trajectory_is_steps(self, dt: float | None = None) -> bool:
+        """Whether :meth:`trajectory` over several output intervals (of any ``dt``) gives the bits of a loop of
+        :meth:`step` with the integrator set (inputs held over intervals may then be applied a block of intervals at
+        a time)."""
         return self.integrator in BodyKernel._SAME_BITS_AS_STEPS
 
     def input_names(self) -> list[str]:

@@ -523,13 +523,17 @@ class TreeKernel:
     #: interval as :meth:`step` does.
     _DENSE = ("adaptive", "dop853")
 
-    def trajectory_is_steps(self) -> bool:
-        """Whether :meth:`trajectory` over several output intervals gives the bits of a loop of :meth:`step` with
-        the integrator set: euler and rk4 do (each output interval stepped as :meth:`step` steps it); adaptive and
-        dop853 do not (their steps span the output points, which come from the dense output), nor do the implicit
-        methods (a trajectory keeps their Newton matrix over the run: equal to round-off, not in every bit; steps
-        longer than the output interval take the outputs from their collocation polynomial)."""
-        return self.integrator not in TreeKernel._DENSE and self.integrator not in _IMPLICIT
+    def trajectory_is_steps(self, dt: float | None = None) -> bool:
+        """Whether :meth:`trajectory` over several output intervals (of ``dt``; None: intervals no shorter than
+        max_step) gives the bits of a loop of :meth:`step` with the integrator set: euler and rk4 do where max_step
+        is no longer than the interval (each output interval stepped as :meth:`step` steps it; longer steps span
+        the output points, which come from their continuous extension); adaptive and dop853 do not (their steps
+        span the output points, which come from the dense output), nor do the implicit methods (a trajectory keeps
+        their Newton matrix over the run: equal to round-off, not in every bit; steps longer than the output
+        interval take the outputs from their collocation polynomial)."""
+        if self.integrator in TreeKernel._DENSE or self.integrator in _IMPLICIT:
+            return False
+        return dt is None or float(self.max_step) <= float(dt)
 
     def input_names(self) -> list[str]:
         """The inputs by full name (``<body>.motor_torque``, ``<body>.tau_x``; bare in a scene of one body)."""

@@ -227,6 +227,11 @@ class Model:
         the integrator set (inputs held over intervals may then be applied a block of intervals at a time)."""
         return self._k.trajectory_is_steps(self)
 
+    def trajectory_is_steps_for(self, dt: float) -> bool:
+        """:attr:`trajectory_is_steps` for output intervals of ``dt`` s: a tree's euler and rk4 take steps longer
+        than the interval where max_step is (their outputs then come from the continuous extension)."""
+        return self._k.trajectory_is_steps(self, dt)
+
     @property
     def ROWS_DIRECT(self) -> bool:  # noqa: N802 - the kernel's constant
         """Whether the engine writes a lone system's result rows itself (gyrosim.simulate's fast path)."""

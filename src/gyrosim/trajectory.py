@@ -231,7 +231,7 @@ class Run:
             return model.outputs_array()[None]
         apply(table[0])
         rows = None
-        grouped = model.trajectory_is_steps
+        grouped = model.trajectory_is_steps_for(dt)
         k = 0
         try:
             if grouped:

@@ -89,6 +89,15 @@ typedef void (*gs_lie_emit)(void *ec, int64_t k, const double *y);
 int64_t gs_lie_dense(gs_lie_run_t *r, double *y, double dt, int64_t n_out, int64_t n_steps,
                      int64_t stats[GS_NSTATS], gs_lie_emit emit, void *ec);
 
+/* A trajectory of GS_EULER or GS_RK4 over n_out output intervals of dt in n_steps equal steps over the whole run
+ * (fewer steps than intervals: the points between the steps' ends come from the method's continuous extension, rk4's
+ * of order 3, euler's linear), each projected (o->project), checked by the health monitor and passed to out(out_ctx,
+ * k, y) as gs_ode_trajectory does. Returns 0 (y the state at T), or the first output point not written (y the state
+ * at the last point written). Systems beyond the stack instance's size fail at point 1. */
+int64_t gs_ode_dense_fixed(int method, const gs_ode *o, double *y, double dt, int64_t n_out, int64_t n_steps,
+                           int64_t stats[GS_NSTATS], void (*out)(void *out_ctx, int64_t k, const double *y),
+                           void *out_ctx);
+
 /* The most steps (accepted or not) of one gs_ode_trajectory call: the one-body engine's trajectories' bound */
 #define GS_ODE_TRAJECTORY_WORK 50000000
 

@@ -244,3 +244,79 @@ int64_t gs_ode_trajectory(int method, const gs_ode *o, double *y, double dt, int
     memcpy(y, v, (size_t)o->ny * sizeof(double));
     return 0;
 }
+
+/* ------------------------------------------------------------------------------------------- fixed steps, dense */
+
+/* rk4's continuous extension of order 3 (Hairer, Norsett, Wanner I, II.6, for the classical method): y(t0 + theta h)
+ * = y0 + h (b1 k1 + b2 (k2 + k3) + b4 k4) with b1 = theta - 3 theta^2 / 2 + 2 theta^3 / 3, b2 = b3 = theta^2 -
+ * 2 theta^3 / 3, b4 = -theta^2 / 2 + 2 theta^3 / 3 (at theta = 1 the step's 1/6, 1/3, 1/6); euler's is the line. */
+int64_t gs_ode_dense_fixed(int method, const gs_ode *o, double *y, double dt, int64_t n_out, int64_t n_steps,
+                           int64_t stats[GS_NSTATS], void (*out)(void *out_ctx, int64_t k, const double *y),
+                           void *out_ctx) {
+    if (n_out == 0) return 0;
+    if ((method != GS_EULER && method != GS_RK4) || !ode_valid(o) || !ode_small(o) || !out || !(dt > 0.0) ||
+        n_out < 0 || n_steps < 1)
+        return 1;
+    const int nv = o->nv, ne = o->ne, ny = o->ny;
+    const size_t consts = (size_t)(ny - nv) * sizeof(double);
+    const double T = (double)n_out * dt, h = T / (double)n_steps;
+    double v[GS_ODE_NY_MAX], y1[GS_ODE_NY_MAX], yk[GS_ODE_NY_MAX], yp[GS_ODE_NY_MAX];
+    double k1[GS_ODE_MAX], k2[GS_ODE_MAX], k3[GS_ODE_MAX], k4[GS_ODE_MAX], s[GS_ODE_NY_MAX];
+    memcpy(v, y, (size_t)ny * sizeof(double));
+    memcpy(yp, y, (size_t)ny * sizeof(double));
+    memcpy(s, y, (size_t)ny * sizeof(double));
+    int64_t k_next = 1;
+    for (int64_t j = 0; j < n_steps; j++) {
+        const double t0 = (double)j * h, t1 = j + 1 == n_steps ? T : (double)(j + 1) * h;
+        o->rhs(o->ctx, v, k1);
+        if (method == GS_RK4) {
+            const double h2 = 0.5 * h, h6 = h / 6.0;
+            for (int i = 0; i < ne; i++) s[i] = v[i] + h2 * k1[i];
+            o->rhs(o->ctx, s, k2);
+            for (int i = 0; i < ne; i++) s[i] = v[i] + h2 * k2[i];
+            o->rhs(o->ctx, s, k3);
+            for (int i = 0; i < ne; i++) s[i] = v[i] + h * k3[i];
+            o->rhs(o->ctx, s, k4);
+            for (int i = 0; i < nv; i++) y1[i] = v[i] + h6 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i]);
+        } else {
+            for (int i = 0; i < nv; i++) y1[i] = v[i] + h * k1[i];
+        }
+        memcpy(y1 + nv, v + nv, consts);
+        if (o->project) o->project(o->ctx, y1);
+        stats[0] += 1;
+        stats[2] += method == GS_RK4 ? 4 : 1;
+        if (!finite_state(o, y1)) break;
+        while (k_next <= n_out && (double)k_next * dt <= t1 * (1.0 + 1e-15)) {
+            const double tk = k_next == n_out ? T : (double)k_next * dt;
+            if (tk == t1) {   /* the step ends on the point: its end */
+                memcpy(yk, y1, (size_t)nv * sizeof(double));
+            } else if (method == GS_RK4) {
+                const double th = (tk - t0) / h, t2 = th * th, t3 = t2 * th;
+                const double b1 = th - 1.5 * t2 + (2.0 / 3.0) * t3, b2 = t2 - (2.0 / 3.0) * t3,
+                             b4 = -0.5 * t2 + (2.0 / 3.0) * t3;
+                for (int i = 0; i < nv; i++) yk[i] = v[i] + h * (b1 * k1[i] + b2 * (k2[i] + k3[i]) + b4 * k4[i]);
+            } else {
+                const double th = (tk - t0) / h;
+                for (int i = 0; i < nv; i++) yk[i] = v[i] + th * h * k1[i];
+            }
+            memcpy(yk + nv, v + nv, consts);
+            if (o->project) o->project(o->ctx, yk);
+            if (!finite_state(o, yk) || (o->check && o->check(o->ctx, yk))) {
+                memcpy(y, yp, (size_t)ny * sizeof(double));
+                return k_next;
+            }
+            out(out_ctx, k_next, yk);
+            memcpy(v + nv, yk + nv, consts);   /* the monitor may restart the constants */
+            memcpy(y1 + nv, yk + nv, consts);
+            memcpy(yp, yk, (size_t)ny * sizeof(double));
+            k_next += 1;
+        }
+        memcpy(v, y1, (size_t)ny * sizeof(double));
+    }
+    if (k_next <= n_out) {   /* a step failed */
+        memcpy(y, yp, (size_t)ny * sizeof(double));
+        return k_next;
+    }
+    memcpy(y, v, (size_t)ny * sizeof(double));
+    return 0;
+}

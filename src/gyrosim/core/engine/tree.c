@@ -2518,6 +2518,24 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
             WS_CLOSE;
             continue;
         }
+        /* euler and rk4 with steps longer than the output interval: one run over the whole, the outputs from their
+         * continuous extension (gs_ode_dense_fixed) */
+        const int64_t n_fixed = (method == GS_EULER || method == GS_RK4) && !pre.impacts && t->nx < GS_ODE_MAX
+                                    ? gs_substeps((double)n_out * dt, max_step)
+                                    : 0;
+        if (n_fixed > 0 && n_fixed < n_out) {
+            Ctx fctx = {t, pb, &pre};
+            const gs_ode o = {ode_rhs, ode_project, ode_check, &fctx, t->nx + 1, t->nx, t->ny};
+            TreeRows rows = {t, pb, &pre, out + b * no, n * no};
+            const int64_t f = gs_ode_dense_fixed(method, &o, yb, dt, n_out, n_fixed, stats + b * GS_NSTATS, tree_row,
+                                                 &rows);
+            if (f) {
+                failed_rows(n, b, no, f, n_out, status, out);
+                failed += 1;
+            }
+            WS_CLOSE;
+            continue;
+        }
         /* the implicit methods keep their Newton matrix over the run */
         Ctx ctx = {t, pb, &pre};
         gs_lie L;
