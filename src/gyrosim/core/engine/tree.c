@@ -1761,6 +1761,14 @@ typedef struct {
     double inertia;     /* a moment of inertia of the whole tree about its roots (kg*m^2) */
 } Totals;
 
+/* The health monitor's totals of the state it checked last, kept for that state's output row (a trajectory checks a
+ * state and then writes its outputs: the totals are made once). */
+typedef struct {
+    int valid;
+    Totals s;
+    double x[GS_ODE_MAX];   /* the coordinates y[0:nx] they are of (kept where nx <= GS_ODE_MAX) */
+} TotalsMemo;
+
 static int root_of(const gs_tree *t, int i) {
     while (t->parent[i] >= 0) i = t->parent[i];
     return i;
@@ -1774,14 +1782,19 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
     s->T = s->V = s->pot_scale = s->inertia = 0.0;
     s->L[0] = s->L[1] = s->L[2] = 0.0;
     for (int i = 0; i < t->n; i++) {
-        const double *b = body_p(p, i);
-        M6 I;
-        double h[6], cw[3], nw[3], fw[3], oxf[3];
-        body_inertia(b, I);
-        mv6(I, kin.v[i], h);
-        s->T += 0.5 * (dot3(kin.v[i], h) + dot3(kin.v[i] + 3, h + 3));
-        mv3(kin.Rw[i], b + GS_TB_CM, cw);
+        const double *b = body_p(p, i), *c = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin.v[i], *v = kin.v[i] + 3;
         const double m = b[GS_TB_MASS];
+        /* the spatial momentum h = I v from the mass, centre of mass and inertia about it (Featherstone, RBDA
+         * 2.62): h_lin = m (v + w x c), h_ang = I_c w + c x h_lin */
+        double h[6], wc[3], cxh[3], cw[3], nw[3], fw[3], oxf[3];
+        cross3(w, c, wc);
+        for (int a = 0; a < 3; a++) h[3 + a] = m * (v[a] + wc[a]);
+        cross3(c, h + 3, cxh);
+        h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2] + cxh[0];
+        h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2] + cxh[1];
+        h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cxh[2];
+        s->T += 0.5 * (dot3(w, h) + dot3(v, h + 3));
+        mv3(kin.Rw[i], c, cw);
         s->V -= m * g * (gd[0] * (kin.ow[i][0] + cw[0]) + gd[1] * (kin.ow[i][1] + cw[1]) + gd[2] * (kin.ow[i][2] + cw[2]));
         const int r = root_of(t, i);
         double d[3], dw[3];
@@ -2053,7 +2066,9 @@ double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p) 
 
 #endif
 
-static void outputs_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *out) {
+/* the outputs of state y; memo: the monitor's totals, used where they are of y (NULL: none) */
+static void outputs_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, const TotalsMemo *memo,
+                        double *out) {
     memcpy(out, y, (size_t)t->nx * sizeof(double));
     WS_OPEN;
     TLOC(double, qw, [4], GS_TREE_SMALL, t->n);
@@ -2079,7 +2094,11 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
         memcpy(out + t->nx + 4 * i, qw[i], sizeof(qr));
     }
     Totals s;
-    totals_pre(t, y, p, pre, &s);
+    if (memo && memo->valid && t->nx <= GS_ODE_MAX && !memcmp(memo->x, y, (size_t)t->nx * sizeof(double))) {
+        s = memo->s;
+    } else {
+        totals_pre(t, y, p, pre, &s);
+    }
     double *o = out + t->nx + 4 * t->n;
     o[0] = s.T + s.V;
     o[1] = o[0] - y[t->nx];
@@ -2106,7 +2125,7 @@ void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double 
     WS_ENTER(t->n);
     PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
-    outputs_pre(t, y, p, &pre, out);
+    outputs_pre(t, y, p, &pre, NULL, out);
     WS_CLOSE;
 }
 
@@ -2118,6 +2137,7 @@ typedef struct {
     const gs_tree *t;
     const double *p;
     const Pre *pre;
+    TotalsMemo *memo;   /* where the monitor leaves the totals it made (NULL: nowhere) */
 } Ctx;
 
 static void ode_rhs(const void *ctx, const double *y, double *dy) {
@@ -2142,6 +2162,11 @@ static int ode_check(const void *ctx, double *y) {
     double d[2];
     Totals s;
     totals_pre(c->t, y, c->p, c->pre, &s);
+    if (c->memo && c->t->nx <= GS_ODE_MAX) {
+        c->memo->s = s;
+        memcpy(c->memo->x, y, (size_t)c->t->nx * sizeof(double));
+        c->memo->valid = 1;
+    }
     const double worst = drift_of(c->t, y, c->p, &s, d);
     const double bound = c->p[GS_TP_DRIFT];
     if (isnan(worst)) return 1;
@@ -2280,8 +2305,8 @@ static int implicit_method(int method) { return method == GS_MIDPOINT || method 
 
 static int32_t advance_system(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                               int64_t n_sub, double rtol, double atol, double max_step, double *hint,
-                              int64_t *stats) {
-    Ctx ctx = {t, p, pre};
+                              int64_t *stats, TotalsMemo *memo) {
+    Ctx ctx = {t, p, pre, memo};
     int64_t k;
     if (implicit_method(method)) {
         gs_lie L;
@@ -2309,8 +2334,8 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
  * advance_system. */
 static int32_t advance_events(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                               int64_t n_sub, double rtol, double atol, double max_step, double *hint,
-                              int64_t *stats) {
-    if (!pre->impacts) return advance_system(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats);
+                              int64_t *stats, TotalsMemo *memo) {
+    if (!pre->impacts) return advance_system(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats, memo);
     const int nz = gs_tree_n_indicators(t, p);
     const size_t ny = (size_t)t->ny * sizeof(double);
     const int fixed = method == GS_EULER || method == GS_RK4 || implicit_method(method);
@@ -2342,7 +2367,7 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
         while (rem > 0.0) {
             const double hint0 = *hint;
             memcpy(y0, y, ny);
-            if (advance_system(t, method, y, p, pre, rem, 1, rtol, atol, max_step, hint, stats)) {
+            if (advance_system(t, method, y, p, pre, rem, 1, rtol, atol, max_step, hint, stats, memo)) {
                 rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
                 goto done;
             }
@@ -2370,7 +2395,7 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 if (!(tau > a && tau < b)) tau = 0.5 * (a + b);
                 memcpy(y, y0, ny);
                 *hint = hint0;
-                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
+                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats, memo)) {
                     rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
                     goto done;
                 }
@@ -2393,7 +2418,7 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 tau = b;
                 memcpy(y, y0, ny);
                 *hint = hint0;
-                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats)) {
+                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats, memo)) {
                     rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
                     goto done;
                 }
@@ -2438,7 +2463,7 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
         PRE_DECL(pre, t->n);
         precompute(t, p + (size_t)b * t->np, &pre);
         status[b] = advance_events(t, method, y + (size_t)b * t->ny, p + (size_t)b * t->np, &pre, H, n_sub, rtol,
-                                   atol, max_step, hint + b, stats + (size_t)b * GS_NSTATS);
+                                   atol, max_step, hint + b, stats + (size_t)b * GS_NSTATS, NULL);
         failed += status[b] != 0;
         WS_CLOSE;
     }
@@ -2453,21 +2478,22 @@ typedef struct {
     const Pre *pre;
     double *row0;    /* system b's row 0 */
     size_t stride;   /* from one output point's row to the next: n * no */
+    const TotalsMemo *memo;   /* the monitor's totals of the point it has just checked */
 } TreeRows;
 
 static void tree_row(void *ctx, int64_t k, const double *y) {
     const TreeRows *r = (const TreeRows *)ctx;
-    outputs_pre(r->t, y, r->p, r->pre, r->row0 + (size_t)k * r->stride);
+    outputs_pre(r->t, y, r->p, r->pre, r->memo, r->row0 + (size_t)k * r->stride);
 }
 
 /* adaptive and dop853 over all n_out intervals at once, the output points from the dense output (rk.c,
  * gs_ode_trajectory): the first output point not written (the failing interval), or 0 */
 static int64_t dense_trajectory(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double dt,
                                 int64_t n_out, double rtol, double atol, double max_step, double *hint,
-                                int64_t *stats, double *row0, size_t stride) {
-    Ctx ctx = {t, p, pre};
+                                int64_t *stats, double *row0, size_t stride, TotalsMemo *memo) {
+    Ctx ctx = {t, p, pre, memo};
     const gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
-    TreeRows rows = {t, p, pre, row0, stride};
+    TreeRows rows = {t, p, pre, row0, stride, memo};
     return gs_ode_trajectory(method, &o, y, dt, n_out, rtol, atol, max_step, hint, stats, tree_row, &rows);
 }
 
@@ -2508,9 +2534,11 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         WS_ENTER(t->n);   /* every thread its own arena */
         PRE_DECL(pre, t->n);
         precompute(t, pb, &pre);
+        TotalsMemo memo;   /* the monitor checks each point before its row is written: the row takes its totals */
+        memo.valid = 0;
         if ((method == GS_ADAPTIVE || method == GS_DOP853) && !pre.impacts) {
             const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, rtol, atol, max_step, hint + b,
-                                               stats + b * GS_NSTATS, out + b * no, n * no);
+                                               stats + b * GS_NSTATS, out + b * no, n * no, &memo);
             if (k) {
                 failed_rows(n, b, no, k, n_out, status, out);
                 failed += 1;
@@ -2524,9 +2552,9 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                                     ? gs_substeps((double)n_out * dt, max_step)
                                     : 0;
         if (n_fixed > 0 && n_fixed < n_out) {
-            Ctx fctx = {t, pb, &pre};
+            Ctx fctx = {t, pb, &pre, &memo};
             const gs_ode o = {ode_rhs, ode_project, ode_check, &fctx, t->nx + 1, t->nx, t->ny};
-            TreeRows rows = {t, pb, &pre, out + b * no, n * no};
+            TreeRows rows = {t, pb, &pre, out + b * no, n * no, &memo};
             const int64_t f = gs_ode_dense_fixed(method, &o, yb, dt, n_out, n_fixed, stats + b * GS_NSTATS, tree_row,
                                                  &rows);
             if (f) {
@@ -2537,7 +2565,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
             continue;
         }
         /* the implicit methods keep their Newton matrix over the run */
-        Ctx ctx = {t, pb, &pre};
+        Ctx ctx = {t, pb, &pre, &memo};
         gs_lie L;
         gs_lie_run_t *run = NULL;
         if (implicit_method(method) && !pre.impacts) {   /* impacts: a loop of steps with their events */
@@ -2547,7 +2575,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         /* steps longer than the output interval: one run over the whole, the outputs from the dense output */
         const int64_t n_steps = run ? gs_substeps((double)n_out * dt, max_step) : 0;
         if (run && n_steps > 0 && n_steps < n_out) {
-            TreeRows rows = {t, pb, &pre, out + b * no, n * no};
+            TreeRows rows = {t, pb, &pre, out + b * no, n * no, &memo};
             const int64_t f = gs_lie_dense(run, yb, dt, n_out, n_steps, stats + b * GS_NSTATS, tree_row, &rows);
             if (f) {
                 failed_rows(n, b, no, f, n_out, status, out);
@@ -2564,14 +2592,14 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                 s = (int32_t)(f > 2147483647 ? 2147483647 : f);
             } else {
                 s = advance_events(t, method, yb, pb, &pre, dt, n_sub, rtol, atol, max_step, hint + b,
-                                   stats + b * GS_NSTATS);
+                                   stats + b * GS_NSTATS, &memo);
             }
             if (s) {
                 failed_rows(n, b, no, k, n_out, status, out);
                 failed += 1;
                 break;
             }
-            outputs_pre(t, yb, pb, &pre, out + ((size_t)k * n + b) * no);
+            outputs_pre(t, yb, pb, &pre, &memo, out + ((size_t)k * n + b) * no);
         }
         gs_lie_end(run);
         WS_CLOSE;
