@@ -251,12 +251,20 @@ def test_info_of_a_scene_lists_every_variable(capsys):
 
 
 def test_info_of_a_tree_names_its_kernel_and_integrators(capsys):
-    """What a system can do comes from what it is: a tree of hinges runs on the articulated-body algorithm with the
-    Runge-Kutta methods; the same one body written in the tree syntax keeps the one-body kernel's integrators."""
+    """What a system can do comes from what it is: a rotor in two gimbals runs its closed form with the Runge-Kutta
+    and implicit methods, a hub with wheels its gyrostat form with the splittings too, a double pendulum the
+    articulated-body algorithm; the same one body written in the tree syntax keeps the one-body kernel's
+    integrators."""
     assert main(["info", "gimbal_gyroscope"]) == 0
     out = capsys.readouterr().out
-    assert "Kernel             the articulated-body algorithm" in out
+    assert "Kernel             a rotor in two gimbals in closed form" in out
     assert "Integrators        euler, rk4, adaptive, dop853, midpoint, energy_momentum\n" in out
+    assert main(["info", "spacecraft"]) == 0
+    out = capsys.readouterr().out
+    assert "Kernel             a gyrostat (a hub carrying rotor wheels) in closed form" in out
+    assert "Integrators        euler, rk4, adaptive, dop853, midpoint, energy_momentum, splitting, splitting4\n" in out
+    assert main(["info", "double_pendulum"]) == 0
+    assert "Kernel             the articulated-body algorithm" in capsys.readouterr().out
 
 
 def test_info_of_an_fmu_reads_its_model_description(tmp_path, capsys):

@@ -35,7 +35,7 @@ __all__ = ["TreeKernel", "tree_variables", "tree_output_names"]
 
 _METHOD_CODES = {name: code for code, name in enumerate(_engine.METHODS)}
 #: The tree's methods of equal steps of at most max_step.
-_FIXED = ("euler", "rk4", "midpoint", "energy_momentum")
+_FIXED = ("euler", "rk4", "midpoint", "energy_momentum", "splitting", "splitting4")
 #: The right-hand side's kernels the engine picks for a tree at set-up (core/engine/tree_kernels.h), by code.
 TREE_KERNELS = ("articulated_body", "gyrostat", "gimbal")
 #: The implicit methods (implicit.c): their trajectories keep the Newton matrix from interval to interval, so they
@@ -571,7 +571,7 @@ class TreeKernel:
     def dynamics_kernel(self, system: int = 0) -> str:
         p = self._p if self._p is not None else self._pp   # before initialize: the parameters set so far
         return TREE_KERNELS[int(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1],
-                                                    p[system:system + 1], 2))]
+                                                    p[system:system + 1], 2)) & 7]
 
     def _forget(self) -> None:
         """A new integrator: no step-size history."""
@@ -675,8 +675,14 @@ class TreeKernel:
     def _blowup(self, b: int, y0: np.ndarray, t: float, h: float, k: int, where: str) -> str:
         """The message for copy ``b`` failing from state ``y0``: what drifted (the interval again with the monitor
         off), gimbal lock where the axes line up, and advice."""
-        lock = TreeKernel.gimbal_lock(self, y0, b)
         pb = self._p[b:b + 1]
+        if self.integrator in ("splitting", "splitting4") and not int(
+                _engine.tree_scalar(self.layout.desc, y0.reshape(1, -1), pb, 2)) & 8:
+            from .scene_tree import split_refusal
+
+            return (f"integrator {self.integrator!r} cannot step {where}: the parameters set since the start leave the "
+                    f"gyrostat's shape; use {split_refusal()}")
+        lock = TreeKernel.gimbal_lock(self, y0, b)
         rate = float(_engine.tree_scalar(self.layout.desc, y0.reshape(1, -1), pb, 1))
         n_sub = _engine.substeps(h, self.max_step) if self.integrator in _FIXED else 0
         at = f" at internal step {k} of {n_sub}" if n_sub > 1 else ""

@@ -105,6 +105,10 @@ class Model:
             from .scene_tree import implicit_refusal
 
             raise ConfigError("integrator", value, implicit_refusal(self.scene.tree, self.scene.orbit))
+        if value in ("splitting", "splitting4") and value not in allowed and self.scene.tree is not None:
+            from .scene_tree import split_refusal
+
+            raise ConfigError("integrator", value, split_refusal())
         if value not in allowed:
             why = (f"{value!r} solves one body; a tree of bodies takes one of " if value in INTEGRATORS
                    else f"{value!r} integrates a tree of bodies (a scene with a `joint`); one body takes one of "

@@ -185,11 +185,11 @@ class Scene:
         methods on the articulated-body algorithm."""
         if self.tree is None:
             return INTEGRATORS
-        from .scene_tree import implicit_fits
+        from .scene_tree import implicit_fits, split_fits
 
-        if implicit_fits(self.tree, self.orbit):
-            return TREE_INTEGRATORS
-        return tuple(m for m in TREE_INTEGRATORS if m not in ("midpoint", "energy_momentum"))
+        out = TREE_INTEGRATORS if implicit_fits(self.tree, self.orbit) else tuple(
+            m for m in TREE_INTEGRATORS if m not in ("midpoint", "energy_momentum"))
+        return out if split_fits(self) else tuple(m for m in out if m not in ("splitting", "splitting4"))
 
     def variables(self) -> dict:
         """Every variable of the scene by its full name (name -> ``model.Variable``), under :meth:`var_name`'s
@@ -210,8 +210,13 @@ class Scene:
     @property
     def kernel_description(self) -> str:
         """The kernel picked for the system, in words (``gyrosim info``)."""
-        return ("Euler's equations in closed form, with the exact flows and the splittings" if self.tree is None
-                else "the articulated-body algorithm")
+        if self.tree is None:
+            return "Euler's equations in closed form, with the exact flows and the splittings"
+        from .scene_tree import tree_kernel
+
+        return {"gyrostat": "a gyrostat (a hub carrying rotor wheels) in closed form",
+                "gimbal": "a rotor in two gimbals in closed form"}.get(tree_kernel(self),
+                                                                       "the articulated-body algorithm")
 
     def state_names(self) -> list[str]:
         """The continuous coordinates by full name: the outputs whose start values a user sets (the quaternion
@@ -644,9 +649,10 @@ def _tree_syntax(data: dict) -> bool:
             (isinstance(bodies, list) and any(isinstance(b, dict) and any(k in b for k in TREE_KEYS) for b in bodies)))
 
 
-#: The integrators of the tree engine (the splittings and exact solve one body; midpoint and energy_momentum, the
-#: implicit methods on the rotation group, solve trees).
-TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853", "midpoint", "energy_momentum")
+#: The integrators of the tree engine (exact and the exact-flow splittings solve one body; midpoint and
+#: energy_momentum, the implicit methods on the rotation group, solve trees; splitting and splitting4 solve a gyrostat
+#: tree by its exact flows).
+TREE_INTEGRATORS = ("euler", "rk4", "adaptive", "dop853", "midpoint", "energy_momentum", "splitting", "splitting4")
 
 
 def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -> tuple[BodySpec, set] | None:
@@ -711,7 +717,7 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
 
         if not implicit_fits(bodies, orbit):
             raise ConfigError("integrator", integ, implicit_refusal(bodies, orbit), where=where)
-    return Scene(
+    scene = Scene(
         name=name, bodies=(), gravity=g > 0, damping=any(b.damping > 0 for b in bodies),
         torque=any(b.torque_input or b.motor_input for b in bodies) or bool(forces), integrator=integ,
         max_step=_num(sc, "max_step", where, 1e-3, lo=0.0, lo_open=True),
@@ -721,6 +727,12 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source, tree=bodies, couplings=couplings,
         coupling_names=cnames, aliases=aliases, orbit=orbit, springs=springs, forces=forces, gravity_dir=gdir)
+    if integ in ("splitting", "splitting4"):
+        from .scene_tree import split_fits, split_refusal
+
+        if not split_fits(scene):
+            raise ConfigError("integrator", integ, split_refusal(), where=where)
+    return scene
 
 
 def full_scene() -> Scene:

@@ -731,6 +731,41 @@ def implicit_fits(bodies, orbit) -> bool:
     return tree_nx(bodies, orbit) + 1 <= _engine.IMPLICIT_MAX
 
 
+def _kernel_code(scene) -> int:
+    """The engine's kernel code for the tree with its scene's parameters (gs_tree_kernel: the kind, + 8 where the
+    gyrostat's splittings apply)."""
+    from .core import _engine
+    from .kernel_tree import tree_layout
+
+    lay = tree_layout(scene)
+    if len(lay.bodies) > _engine.TREE_SMALL:
+        return 0
+    y = lay.state().reshape(1, -1)
+    p = lay.params(scene.g, scene.max_drift).reshape(1, -1)
+    return int(_engine.tree_scalar(lay.desc, y, p, 2))
+
+
+def tree_kernel(scene) -> str:
+    """The right-hand side the engine picks for the tree with its scene's parameters (Model.dynamics_kernel)."""
+    from .kernel_tree import TREE_KERNELS
+
+    return TREE_KERNELS[_kernel_code(scene) & 7]
+
+
+def split_fits(scene) -> bool:
+    """The integrators 'splitting' and 'splitting4' take the tree with its scene's parameters: the engine's gyrostat
+    (a hub on a ball joint carrying rotors) without joint springs or damping, whose motion splits into exact flows
+    (core/engine/tree_kernels.h)."""
+    return bool(_kernel_code(scene) & 8)
+
+
+def split_refusal() -> str:
+    """Why a tree is refused the integrator 'splitting' (the ConfigError's rule)."""
+    return ("'rk4', 'dop853' or 'midpoint' for this tree: 'splitting' follows the exact flows of a gyrostat, a hub "
+            "on a ball joint carrying rotors (axisymmetric leaves on hinges) without joint springs or damping, "
+            "stops, couplings, springs, forces or an orbit")
+
+
 def implicit_refusal(bodies, orbit) -> str:
     """Why a tree too large for the implicit methods is refused (the ConfigError's rule)."""
     from .core import _engine

@@ -221,8 +221,8 @@ static void tree(const char *name, int32_t *desc, int len, int ny, int np, const
         pn[GS_TP_HEAD + GS_TB_MASS] *= 1.1;
         gs_tree_reparam(t, y, p, pn);
         /* a refused method */
-        CHECK(gs_tree_advance(t, GS_SPLITTING, n, y, p, 0.01, 1e-9, 1e-9, 1e-3, hint, stats, status, 1) == n,
-              "%s: splitting refused", name);
+        CHECK(gs_tree_advance(t, GS_EXACT, n, y, p, 0.01, 1e-9, 1e-9, 1e-3, hint, stats, status, 1) == n,
+              "%s: exact refused", name);
         free(o), free(dy), free(qdd), free(pn);
         free(y), free(p), free(hint), free(stats), free(status), free(out);
     }

@@ -80,7 +80,7 @@ def _system(bodies, rng, torque=False):
 
 
 def _kernel(lay, y, p):
-    return TREE_KERNELS[int(_engine.tree_scalar(lay.desc, y.reshape(1, -1), p.reshape(1, -1), 2))]
+    return TREE_KERNELS[int(_engine.tree_scalar(lay.desc, y.reshape(1, -1), p.reshape(1, -1), 2)) & 7]
 
 
 def _check_against_pinocchio(bodies, lay, state, p, motors, tau0):

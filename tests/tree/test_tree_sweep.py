@@ -36,7 +36,7 @@ def test_a_tree_sweep_refuses_bad_draws_before_any_work(tmp_path):
         run_sweep("spacecraft", samples=20, vary=["hub.I1=normal(0.1,1)"], stop_time=0.1, output=tmp_path / "x")
     assert not (tmp_path / "x").exists() or not any((tmp_path / "x").iterdir())
     with pytest.raises(ConfigError, match="rk4"):
-        run_sweep("spacecraft", samples=2, set=["integrator=splitting"], stop_time=0.1, output=tmp_path / "y")
+        run_sweep("spacecraft", samples=2, set=["integrator=exact"], stop_time=0.1, output=tmp_path / "y")
 
 
 def test_tree_sweep_copies_blow_up_alone(tmp_path):

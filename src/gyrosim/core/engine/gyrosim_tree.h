@@ -203,7 +203,8 @@ double gs_tree_drift(const gs_tree *t, const double *y, const double *p, double 
 int gs_tree_torque_free(const gs_tree *t, const double *p);
 
 /* The right-hand side's kernel for these parameters (tree_kernels.h): 0 the articulated-body algorithm, 1 the
- * gyrostat (a hub on a ball joint with rotors), 2 the rotor in two gimbals. */
+ * gyrostat (a hub on a ball joint with rotors), 2 the rotor in two gimbals; + 8 where GS_SPLITTING applies (a
+ * gyrostat without joint springs or damping: its exact flows). */
 int gs_tree_kernel(const gs_tree *t, const double *p);
 
 /* The fastest rate in the state (rad/s): the largest body angular speed and hinge rate. */

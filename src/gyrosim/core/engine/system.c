@@ -99,7 +99,7 @@ int gs_sys_method_allowed(const gs_system *s, int method) {
     if (method < 0 || method >= GS_N_METHODS) return 0;
     if (s->kernel == GS_KERNEL_BODY) return method < GS_N_BODY_METHODS;
     return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853 ||
-           method == GS_MIDPOINT || method == GS_ENERGY_MOMENTUM;
+           method == GS_MIDPOINT || method == GS_ENERGY_MOMENTUM || method == GS_SPLITTING || method == GS_SPLITTING4;
 }
 
 int gs_sys_method_applies(const gs_system *s, int method, const double *p, int *unit, char *why, size_t n) {
@@ -108,6 +108,14 @@ int gs_sys_method_applies(const gs_system *s, int method, const double *p, int *
         snprintf(why, n, method >= 0 && method < GS_N_BODY_METHODS ? "it solves one body; a tree of bodies takes"
                          : method >= 0 && method < GS_N_METHODS ? "it solves a tree of bodies; one body takes"
                                                                 : "the system takes");
+        return 0;
+    }
+    if (p && s->kernel == GS_KERNEL_TREE && (method == GS_SPLITTING || method == GS_SPLITTING4)) {
+        if (gs_tree_kernel(&s->tree, p) & 8) return 1;
+        *unit = 0;
+        snprintf(why, n, "it follows the exact flows of a gyrostat: a hub on a ball joint carrying rotors "
+                 "(axisymmetric leaves on hinges) without joint springs or damping, stops, couplings, springs, "
+                 "forces or an orbit; choose another integrator ('rk4', 'dop853', 'midpoint')");
         return 0;
     }
     if (!p || s->kernel != GS_KERNEL_BODY || method != GS_EXACT) return 1;

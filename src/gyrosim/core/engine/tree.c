@@ -1846,7 +1846,7 @@ int gs_tree_kernel(const gs_tree *t, const double *p) {
     WS_ENTER(t->n);
     PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
-    const int kind = pre.kern.kind;
+    const int kind = pre.kern.kind + (kern_splits(t, p, &pre.kern) ? 8 : 0);
     WS_CLOSE;
     return kind;
 }
@@ -2308,7 +2308,12 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
                               int64_t *stats, TotalsMemo *memo) {
     Ctx ctx = {t, p, pre, memo};
     int64_t k;
-    if (implicit_method(method)) {
+    if (method == GS_SPLITTING || method == GS_SPLITTING4) {   /* the gyrostat's exact flows (tree_kernels.h);
+                                                                 * refused elsewhere: step 1 fails */
+        k = kern_splits(t, p, &pre->kern) ? kern_split_advance(t, &pre->kern, p, method == GS_SPLITTING4, y, H, n_sub,
+                                                               stats, ode_check, &ctx)
+                                          : 1;
+    } else if (implicit_method(method)) {
         gs_lie L;
         lie_view(t, &ctx, &L);
         k = gs_lie_advance(method, &L, y, H, n_sub, stats);
@@ -2435,11 +2440,15 @@ done:
 /* the methods the tree takes: the implicit ones up to GS_ODE_MAX components (their Newton matrix is dense) */
 static int tree_method(const gs_tree *t, int method) {
     return method == GS_EULER || method == GS_RK4 || method == GS_ADAPTIVE || method == GS_DOP853 ||
+           ((method == GS_SPLITTING || method == GS_SPLITTING4) && t->n <= GS_TREE_SMALL) ||
            (implicit_method(method) && t->nx + 1 <= GS_ODE_MAX);
 }
 
 /* the methods that take equal steps of at most max_step */
-static int fixed_method(int method) { return method == GS_EULER || method == GS_RK4 || implicit_method(method); }
+static int fixed_method(int method) {
+    return method == GS_EULER || method == GS_RK4 || method == GS_SPLITTING || method == GS_SPLITTING4 ||
+           implicit_method(method);
+}
 
 size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
                        double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads) {

@@ -320,3 +320,203 @@ static TREE_INLINE int kern_derivs(const gs_tree *t, const TreeKernel *K, const 
             return 0;
     }
 }
+
+#ifndef GS_TREE_CS   /* the splitting runs in the real build only */
+
+/* ---------------------------------------------------------------------------------------- the gyrostat's splitting
+ *
+ * GS_SPLITTING on a gyrostat whose joints have no springs or damping (kern_splits): its motion splits into flows
+ * each integrated exactly (the tree's counterpart of the one body's splitting of the free rigid body; McLachlan,
+ * "Explicit Lie-Poisson integration and the Euler equations", Phys. Rev. Lett. 71 (1993); Touma and Wisdom, Astron.
+ * J. 107 (1994)). In the momenta L = J omega + sum Js_k Omega_k a_k (about O, hub frame) and p_k = Js_k (a_k . omega
+ * + Omega_k) (each wheel's about its axis), with h = sum p_k a_k and Je = J - sum Js a a^T = E diag(I) E^T:
+ *   T = 1/2 (L - h)^T Je^-1 (L - h) + 1/2 sum p_k^2 / Js_k = sum_i 1/2 l_i^2 / I_i + 1/2 sum p_k^2 / Js_k,
+ *   l = E^T (L - h), and omega = Je^-1 (L - h), Omega_k = p_k / Js_k - a_k . omega.
+ *   C_i (T's term along principal axis e_i of Je): l_i is constant; L turns about e_i by -theta and the hub by
+ *     +theta (q <- q exp(theta e_i)), theta = t l_i / I_i (L in the world does not move); each wheel angle moves by
+ *     -theta (e_i . a_k): the flow of L' = L x dT/dL, phi_k' = dT/dp_k.
+ *   B (the wheels' own term): phi_k += t p_k / Js_k.
+ *   A (the torques, the state's coordinates held): L += t (tau + (sum m c) x (g R^T ghat)), p_k += t u_k (the
+ *     motor's torque; its reaction on the hub is inside L); the work integral gets the power tau . omega + sum u_k
+ *     Omega_k, linear in t here: the trapezoid is exact.
+ * A step of h: A(h/2) C1(h/2) C2(h/2) C3(h) C2(h/2) C1(h/2) A(h/2), and B(h) (it commutes with the C_i). Symmetric:
+ * order 2. Without torques every flow is a rotation of L or a quadrature: |L| is kept to round-off and the energy
+ * error stays bounded (a Poisson map). GS_SPLITTING4 composes three of these steps, of w1 h, w0 h, w1 h with
+ * w1 = 1 / (2 - 2^(1/3)), w0 = 1 - 2 w1 (Yoshida, Phys. Lett. A 150 (1990)): order 4, as the one body's. */
+
+typedef struct {
+    double E[3][3];   /* the principal axes of Je (hub frame) as columns */
+    double Ii[3];     /* 1 / the principal moments */
+} KernSplit;
+
+/* 1 when GS_SPLITTING applies: the gyrostat kernel, no joint damping, no wheel springs */
+static int kern_splits(const gs_tree *t, const double *p, const TreeKernel *K) {
+    if (K->kind != TREE_KERNEL_GYROSTAT) return 0;
+    const double *h = body_p(p, 0);
+    if (h[GS_TB_DAMP] != 0.0 || !kern_zero3(h + GS_TB_CB)) return 0;
+    for (int i = 1; i < t->n; i++) {
+        const double *b = body_p(p, i);
+        if (b[GS_TB_DAMP] != 0.0 || b[GS_TB_STIFF] != 0.0) return 0;
+    }
+    return 1;
+}
+
+/* Je's principal axes and moments by cyclic Jacobi rotations (Golub and Van Loan, 8.5): to round-off in a few sweeps
+ * for a 3x3; 0 when a moment is not positive */
+static int kern_split_setup(const TreeKernel *K, KernSplit *S) {
+    double A[3][3];
+    for (int r = 0; r < 3; r++) {
+        for (int c = 0; c < 3; c++) A[r][c] = K->Jo[r][c];
+    }
+    for (int k = 0; k < K->nw; k++) {
+        for (int r = 0; r < 3; r++) {
+            for (int c = 0; c < 3; c++) A[r][c] -= K->Js[k] * K->a[k][r] * K->a[k][c];
+        }
+    }
+    double V[3][3] = {{1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}, {0.0, 0.0, 1.0}};
+    for (int sweep = 0; sweep < 50; sweep++) {
+        const double off = fabs(A[0][1]) + fabs(A[0][2]) + fabs(A[1][2]);
+        if (off <= 1e-300 || off <= 1e-17 * (fabs(A[0][0]) + fabs(A[1][1]) + fabs(A[2][2]))) break;
+        for (int pq = 0; pq < 3; pq++) {
+            const int a = pq == 2 ? 1 : 0, b = pq == 0 ? 1 : 2;
+            if (A[a][b] == 0.0) continue;
+            const double th = (A[b][b] - A[a][a]) / (2.0 * A[a][b]);
+            const double tn = (th >= 0.0 ? 1.0 : -1.0) / (fabs(th) + sqrt(th * th + 1.0));
+            const double c = 1.0 / sqrt(tn * tn + 1.0), s = tn * c;
+            for (int k = 0; k < 3; k++) {   /* A <- J^T A J, J the rotation in the (a, b) plane */
+                const double akp = A[k][a], akq = A[k][b];
+                A[k][a] = c * akp - s * akq;
+                A[k][b] = s * akp + c * akq;
+            }
+            for (int k = 0; k < 3; k++) {
+                const double apk = A[a][k], aqk = A[b][k];
+                A[a][k] = c * apk - s * aqk;
+                A[b][k] = s * apk + c * aqk;
+            }
+            for (int k = 0; k < 3; k++) {
+                const double vkp = V[k][a], vkq = V[k][b];
+                V[k][a] = c * vkp - s * vkq;
+                V[k][b] = s * vkp + c * vkq;
+            }
+        }
+    }
+    for (int i = 0; i < 3; i++) {
+        if (!(A[i][i] > 0.0)) return 0;
+        S->Ii[i] = 1.0 / A[i][i];
+        for (int r = 0; r < 3; r++) S->E[r][i] = V[r][i];
+    }
+    return 1;
+}
+
+/* the state's velocities from the momenta (omega, Omega) and back */
+static void kern_split_velocities(const gs_tree *t, const TreeKernel *K, const double L[3], const double *pk,
+                                  double *y) {
+    double *w = y + t->yi[0] + 4, hm[3] = {L[0], L[1], L[2]};
+    for (int k = 0; k < K->nw; k++) {
+        for (int a = 0; a < 3; a++) hm[a] -= pk[k] * K->a[k][a];
+    }
+    mv3((const double (*)[3])K->Jei, hm, w);
+    for (int k = 0; k < K->nw; k++) y[t->yi[k + 1] + 1] = pk[k] * K->Jsi[k] - dot3(K->a[k], w);
+}
+
+/* A(s): the torques over s (the coordinates held), the work integral by the trapezoid */
+static void kern_split_torques(const gs_tree *t, const TreeKernel *K, const double *p, double s, double L[3],
+                               double *pk, double *y) {
+    const double *tau = body_p(p, 0) + GS_TB_TAU, *q = y + t->yi[0];
+    double P0 = dot3(tau, q + 4), P1, tq[3] = {tau[0], tau[1], tau[2]};
+    for (int k = 0; k < K->nw; k++) P0 += body_p(p, k + 1)[GS_TB_MOTOR] * y[t->yi[k + 1] + 1];
+    if (K->grav) {
+        M3 R;
+        double gb[3], tg[3];
+        quat_to_mat(q, R);
+        mtv3((const double (*)[3])R, K->gw, gb);
+        cross3(K->mc, gb, tg);
+        for (int a = 0; a < 3; a++) tq[a] += tg[a];
+    }
+    for (int a = 0; a < 3; a++) L[a] += s * tq[a];
+    for (int k = 0; k < K->nw; k++) pk[k] += s * body_p(p, k + 1)[GS_TB_MOTOR];
+    kern_split_velocities(t, K, L, pk, y);
+    P1 = dot3(tau, q + 4);
+    for (int k = 0; k < K->nw; k++) P1 += body_p(p, k + 1)[GS_TB_MOTOR] * y[t->yi[k + 1] + 1];
+    y[t->nx] += 0.5 * s * (P0 + P1);
+}
+
+/* C_i(s): L and the hub turn about principal axis i, the wheel angles follow */
+static void kern_split_turn(const gs_tree *t, const TreeKernel *K, const KernSplit *S, int i, double s, double L[3],
+                            const double *pk, double *y) {
+    const double e[3] = {S->E[0][i], S->E[1][i], S->E[2][i]};
+    double hm[3] = {L[0], L[1], L[2]};
+    for (int k = 0; k < K->nw; k++) {
+        for (int a = 0; a < 3; a++) hm[a] -= pk[k] * K->a[k][a];
+    }
+    const double th = s * dot3(e, hm) * S->Ii[i], c = cos(th), sn = sin(th);
+    double Lr[3];
+    kern_turn_back(e, L, c, sn, Lr);   /* L <- R(e, theta)^T L */
+    memcpy(L, Lr, sizeof(Lr));
+    double *q = y + t->yi[0], qn[4];
+    const double ch = cos(0.5 * th), sh = sin(0.5 * th);
+    const double dq[4] = {ch, sh * e[0], sh * e[1], sh * e[2]};
+    quat_mul(q, dq, qn);
+    memcpy(q, qn, sizeof(qn));
+    for (int k = 0; k < K->nw; k++) y[t->yi[k + 1]] -= th * dot3(e, K->a[k]);
+}
+
+/* n_sub steps of H / n_sub; the velocities made from the momenta after each; the monitor as the other fixed-step
+ * methods ask it (every n_sub / 128 steps and at the end). Returns 0, or the failing step + 1 (y as before). */
+static int64_t kern_split_advance(const gs_tree *t, const TreeKernel *K, const double *p, int order4, double *y,
+                                  double H, int64_t n_sub, int64_t *stats,
+                                  int (*check)(const void *ctx, double *y), const void *ctx) {
+    KernSplit S;
+    if (n_sub < 1 || !kern_split_setup(K, &S)) return 1;
+    const double h = H / (double)n_sub;
+    double y0[GS_ODE_MAX + 16], L[3], pk[GS_TREE_SMALL];
+    memcpy(y0, y, (size_t)t->ny * sizeof(double));
+    const int64_t cs = n_sub >= 256 ? n_sub / 128 : 0;
+    int64_t mon = cs, fail = 0;
+    /* the momenta from the velocities once; then carried from step to step (the velocities are made from them) */
+    const double *w0 = y + t->yi[0] + 4;
+    mv3((const double (*)[3])K->Jo, w0, L);
+    for (int k = 0; k < K->nw; k++) {
+        const double Om = y[t->yi[k + 1] + 1];
+        pk[k] = K->Js[k] * (dot3(K->a[k], w0) + Om);
+        for (int a = 0; a < 3; a++) L[a] += K->Js[k] * Om * K->a[k][a];
+    }
+    const double c3 = cbrt(2.0), wa = 1.0 / (2.0 - c3), wb = 1.0 - 2.0 * wa;   /* Yoshida's w1, w0 */
+    const double sub[3] = {wa * h, wb * h, wa * h};
+    for (int64_t j = 0; j < n_sub && !fail; j++) {
+        for (int part = 0; part < (order4 ? 3 : 1); part++) {
+            const double hs = order4 ? sub[part] : h;
+            kern_split_torques(t, K, p, 0.5 * hs, L, pk, y);
+            const double n0 = sqrt(dot3(L, L));
+            kern_split_turn(t, K, &S, 0, 0.5 * hs, L, pk, y);
+            kern_split_turn(t, K, &S, 1, 0.5 * hs, L, pk, y);
+            kern_split_turn(t, K, &S, 2, hs, L, pk, y);
+            kern_split_turn(t, K, &S, 1, 0.5 * hs, L, pk, y);
+            kern_split_turn(t, K, &S, 0, 0.5 * hs, L, pk, y);
+            /* the turns keep |L|: their rounding (cos^2 + sin^2 = 1 to an ulp, the same each step) would walk it */
+            const double n1 = sqrt(dot3(L, L));
+            if (n1 > 0.0) {
+                for (int a = 0; a < 3; a++) L[a] *= n0 / n1;
+            }
+            for (int k = 0; k < K->nw; k++) y[t->yi[k + 1]] += hs * pk[k] * K->Jsi[k];
+            kern_split_velocities(t, K, L, pk, y);
+            kern_split_torques(t, K, p, 0.5 * hs, L, pk, y);
+        }
+        double *q = y + t->yi[0];
+        const double nq = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        for (int a = 0; a < 4; a++) q[a] /= nq;
+        stats[0] += 1;
+        for (int i = 0; i <= t->nx; i++) {
+            if (!isfinite(y[i]) || fabs(y[i]) > GS_OMEGA_LIMIT) fail = j + 1;
+        }
+        if (!fail && cs && --mon == 0) {
+            mon = cs;
+            if (check && check(ctx, y)) fail = j + 1;
+        }
+    }
+    if (!fail && !(cs && n_sub % cs == 0) && check && check(ctx, y)) fail = n_sub;
+    if (fail) memcpy(y, y0, (size_t)t->ny * sizeof(double));
+    return fail;
+}
+
+#endif   /* GS_TREE_CS */

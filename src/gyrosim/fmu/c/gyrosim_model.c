@@ -369,6 +369,21 @@ int gs_get_string(GsInstance *m, uint32_t vr, const char **value) {
     return GS_OK;
 }
 
+/* 1 when name is one of the scene's integrators (GS_INTEGRATOR_LIST, "a, b, c") */
+static int integrator_listed(const char *name) {
+    const char *s = GS_INTEGRATOR_LIST;
+    const size_t n = strlen(name);
+    while (*s) {
+        const char *e = strchr(s, ',');
+        const size_t len = e ? (size_t)(e - s) : strlen(s);
+        if (len == n && !strncmp(s, name, n)) return 1;
+        if (!e) break;
+        s = e + 1;
+        while (*s == ' ') s++;
+    }
+    return 0;
+}
+
 int gs_set_string(GsInstance *m, uint32_t vr, const char *value) {
     const GsVar *v = var_of(vr);
     if (!v || v->kind != GS_K_INTEGRATOR) return unknown_vr(m, vr, "String");
@@ -384,7 +399,15 @@ int gs_set_string(GsInstance *m, uint32_t vr, const char *value) {
     const int code = gs_method_code(value);
     int unit = 0;
     char why[160] = "";
-    if (code < 0 || !gs_sys_method_applies(&m->sys, code, NULL, &unit, why, sizeof(why))) {
+    /* the scene's own list (Scene.integrators: a tree takes the splittings where it is a gyrostat); whether a
+     * method applies to the parameters is checked at every doStep, once every start value is in */
+    const int ok = code >= 0 && gs_sys_method_applies(&m->sys, code, NULL, &unit, why, sizeof(why));
+    if (ok && !integrator_listed(value)) {
+        snprintf(why, sizeof(why), "%s", code == GS_SPLITTING || code == GS_SPLITTING4
+                 ? "the splittings solve one body or a gyrostat tree (a hub carrying rotor wheels, without joint "
+                   "springs or damping), and this tree is not one;" : "the scene's system does not take it;");
+    }
+    if (!ok || !integrator_listed(value)) {
         gs_log_error(m, "integrator = '%.64s' is not allowed: %s%sone of " GS_INTEGRATOR_LIST, value, why,
                      why[0] ? " " : "");
         return GS_ERROR;
