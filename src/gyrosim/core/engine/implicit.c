@@ -24,9 +24,10 @@
  * The matrix is kept over steps and refreshed where the iterations slow down or fail; its inverse carries Broyden's
  * updates from step to step (the system turns, and the secants follow it without a new Jacobian). The first guess
  * extrapolates the last three steps' slopes (O(h^3)), and the iterations stop where the next change, predicted
- * from their contraction, would be a twentieth of the rounding unit (F is converged: the invariants stay at round-off,
- * and a fast-contracting system saves its last iteration). A quaternion no x-row of f reads (the hub of a spacecraft without
- * gravity: its Jacobian columns are zero) is turned once, at the converged midpoint, not at every iteration.
+ * from their contraction, would be a twentieth of the rounding unit (F is converged: the invariants stay at
+ * round-off, and a fast-contracting system saves its last iteration). A quaternion no x-row of f reads (the hub of
+ * a spacecraft without gravity: its Jacobian columns are zero) is turned once, at the converged midpoint, not at
+ * every iteration.
  *
  * A component that nothing depends on (its Jacobian column is zero: the spin angle of an axisymmetric rotor, an
  * orbit's anomaly) is no unknown: its slope is its derivative at the midpoint and its value the quadrature x0 + h F
