@@ -50,7 +50,8 @@ typedef struct {
     /* GYROSTAT: wheels are bodies 1..nw */
     int nw;
     double Jo[3][3];             /* the tree's inertia about O, hub frame */
-    double Jei[3][3];            /* (J - sum Js a a^T)^-1 */
+    double Je[3][3];             /* J - sum Js a a^T */
+    double Jei[3][3];            /* its inverse */
     double a[GS_TREE_SMALL][3];  /* the wheels' axes, hub frame */
     double Js[GS_TREE_SMALL];    /* their axial inertias */
     double Jsi[GS_TREE_SMALL];   /* 1 / Js */
@@ -106,7 +107,6 @@ static int kern_gyrostat(const gs_tree *t, const double *p, const int *rotor, Tr
     memset(K->Jo, 0, sizeof(K->Jo));
     kern_add_inertia(K->Jo, h + GS_TB_I, h[GS_TB_MASS], h + GS_TB_CM);
     for (int a = 0; a < 3; a++) K->mc[a] = h[GS_TB_MASS] * h[GS_TB_CM + a];
-    double Je[3][3];
     K->nw = t->n - 1;
     for (int i = 1; i < t->n; i++) {
         const double *b = body_p(p, i), *ax = b + GS_TB_AXIS;
@@ -125,13 +125,13 @@ static int kern_gyrostat(const gs_tree *t, const double *p, const int *rotor, Tr
         K->Js[i - 1] = js;
         K->Jsi[i - 1] = 1.0 / js;
     }
-    memcpy(Je, K->Jo, sizeof(Je));
+    memcpy(K->Je, K->Jo, sizeof(K->Je));
     for (int k = 0; k < K->nw; k++) {
         for (int r = 0; r < 3; r++) {
-            for (int c = 0; c < 3; c++) Je[r][c] -= K->Js[k] * K->a[k][r] * K->a[k][c];
+            for (int c = 0; c < 3; c++) K->Je[r][c] -= K->Js[k] * K->a[k][r] * K->a[k][c];
         }
     }
-    if (!kern_inverse3((const double (*)[3])Je, K->Jei)) return 0;
+    if (!kern_inverse3((const double (*)[3])K->Je, K->Jei)) return 0;
     const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     K->grav = (treal)g != 0.0 && !kern_zero3(K->mc);
     double gw[3] = {g * gd[0], g * gd[1], g * gd[2]};
@@ -199,6 +199,16 @@ static void kern_setup(const gs_tree *t, const double *p, const int *rotor, int 
     }
 }
 
+/* out += gravity's torque about O on the gyrostat, hub frame: (sum m c) x (g R(q)^T ghat) */
+static TREE_INLINE void kern_gravity_torque(const TreeKernel *K, const double *q, double out[3]) {
+    M3 R;
+    double gb[3], tg[3];
+    quat_to_mat(q, R);
+    mtv3((const double (*)[3])R, K->gw, gb);
+    cross3(K->mc, gb, tg);
+    for (int a = 0; a < 3; a++) out[a] += tg[a];
+}
+
 /* a hinge's torque from its motor, spring and damping, and the power of the motor and damping */
 static TREE_INLINE double kern_hinge_u(const double *b, const double *s, double *P) {
     *P += (b[GS_TB_MOTOR] - b[GS_TB_DAMP] * s[1]) * s[1];
@@ -221,14 +231,7 @@ static void kern_gyrostat_derivs(const gs_tree *t, const TreeKernel *K, const do
         r[a] = tau[a] - c * w[a] - r[a];
         P -= c * w[a] * w[a];
     }
-    if (K->grav) {   /* (sum m c) x (g R^T ghat) */
-        M3 R;
-        double gb[3], tg[3];
-        quat_to_mat(q, R);
-        mtv3((const double (*)[3])R, K->gw, gb);
-        cross3(K->mc, gb, tg);
-        for (int a = 0; a < 3; a++) r[a] += tg[a];
-    }
+    if (K->grav) kern_gravity_torque(K, q, r);
     for (int k = 0; k < K->nw; k++) {
         for (int a = 0; a < 3; a++) r[a] -= K->a[k][a] * u[k];
     }
@@ -365,14 +368,7 @@ static int kern_splits(const gs_tree *t, const double *p, const TreeKernel *K) {
  * for a 3x3; 0 when a moment is not positive */
 static int kern_split_setup(const TreeKernel *K, KernSplit *S) {
     double A[3][3];
-    for (int r = 0; r < 3; r++) {
-        for (int c = 0; c < 3; c++) A[r][c] = K->Jo[r][c];
-    }
-    for (int k = 0; k < K->nw; k++) {
-        for (int r = 0; r < 3; r++) {
-            for (int c = 0; c < 3; c++) A[r][c] -= K->Js[k] * K->a[k][r] * K->a[k][c];
-        }
-    }
+    memcpy(A, K->Je, sizeof(A));
     double V[3][3] = {{1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}, {0.0, 0.0, 1.0}};
     for (int sweep = 0; sweep < 50; sweep++) {
         const double off = fabs(A[0][1]) + fabs(A[0][2]) + fabs(A[1][2]);
@@ -425,14 +421,7 @@ static void kern_split_torques(const gs_tree *t, const TreeKernel *K, const doub
     const double *tau = body_p(p, 0) + GS_TB_TAU, *q = y + t->yi[0];
     double P0 = dot3(tau, q + 4), P1, tq[3] = {tau[0], tau[1], tau[2]};
     for (int k = 0; k < K->nw; k++) P0 += body_p(p, k + 1)[GS_TB_MOTOR] * y[t->yi[k + 1] + 1];
-    if (K->grav) {
-        M3 R;
-        double gb[3], tg[3];
-        quat_to_mat(q, R);
-        mtv3((const double (*)[3])R, K->gw, gb);
-        cross3(K->mc, gb, tg);
-        for (int a = 0; a < 3; a++) tq[a] += tg[a];
-    }
+    if (K->grav) kern_gravity_torque(K, q, tq);
     for (int a = 0; a < 3; a++) L[a] += s * tq[a];
     for (int k = 0; k < K->nw; k++) pk[k] += s * body_p(p, k + 1)[GS_TB_MOTOR];
     kern_split_velocities(t, K, L, pk, y);
