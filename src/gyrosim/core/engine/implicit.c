@@ -313,29 +313,28 @@ static int finite_state(const gs_lie_run_t *r, const double *y) {
 
 /* The midpoint state Y(F) of the step from y0 (the x-components and quadratures at x0 + h/2 F, the quaternions
  * turned by h/2 omega_mid); the constants after nv copied. */
-static void midpoint_state(const gs_lie_run_t *r, const double *y0, const double *F, double h, double *Y) {
-    for (int j = 0; j < r->nlin; j++) {
-        const int i = r->lin[j];
-        Y[i] = y0[i] + 0.5 * h * F[i];
-    }
-    turn_all(r->L, y0, Y, 0.5 * h, Y);
-}
-
-/* midpoint_state within the iterations: the quaternions no x-row of f reads are turned once they have converged */
-static void midpoint_iterate(const gs_lie_run_t *r, const double *y0, const double *F, double h, double *Y) {
+/* Y's quaternions q0 exp(h/2 omega), omega read from Y: those an x-row of f reads (read = 1), or the others */
+static void turn_midpoint(const gs_lie_run_t *r, const double *y0, double h, int read, double *Y) {
     const gs_lie *L = r->L;
-    for (int j = 0; j < r->nlin; j++) {
-        const int i = r->lin[j];
-        Y[i] = y0[i] + 0.5 * h * F[i];
-    }
     for (int g = 0; g < L->nq; g++) {
-        if (!r->qread[g]) continue;
+        if (r->qread[g] != read) continue;
         const double *om = Y + L->omega[g];
         const double th[3] = {0.5 * h * om[0], 0.5 * h * om[1], 0.5 * h * om[2]};
         double e[4];
         quat_exp(th, e);
         quat_mul(y0 + L->q[g], e, Y + L->q[g]);
     }
+}
+
+/* Y(F), the midpoint state; within the iterations (all = 0) only the quaternions f reads are turned, the others once
+ * F has converged */
+static void midpoint_state(const gs_lie_run_t *r, const double *y0, const double *F, double h, int all, double *Y) {
+    for (int j = 0; j < r->nlin; j++) {
+        const int i = r->lin[j];
+        Y[i] = y0[i] + 0.5 * h * F[i];
+    }
+    turn_midpoint(r, y0, h, 1, Y);
+    if (all) turn_midpoint(r, y0, h, 0, Y);
 }
 
 /* out = H x (H the step's inverse Newton matrix with its Broyden updates, m x m row-major) */
@@ -377,7 +376,7 @@ static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, in
     if (r->H_new) memcpy(r->H, r->Ainv, (size_t)m * (size_t)m * sizeof(double));
     r->H_new = 0;
     for (int it = 1; it <= LIE_MAXIT; it++) {
-        midpoint_iterate(r, y0, r->F, h, Y);
+        midpoint_state(r, y0, r->F, h, 0, Y);
         o->rhs(o->ctx, Y, Gv);
         *evals += 1;
         for (int a = 0; a < m; a++) R[a] = Gv[r->act[a]] - r->F[r->act[a]];
@@ -421,18 +420,18 @@ static int solve_step(gs_lie_run_t *r, const double *y0, double h, double *Y, in
         for (int j = 0; j < r->nquad; j++) r->F[r->quad[j]] = Gv[r->quad[j]];
         if (!(err == err)) return 0;
         if (err <= 4.0 * LIE_EPS) {
-            turn_all(r->L, y0, Y, 0.5 * h, Y);
+            turn_midpoint(r, y0, h, 0, Y);
             return it;
         }
         /* contracting by rho = err / prev an iteration, the next change would be rho err: a twentieth of the
          * rounding unit or less, F is converged (Y is made again at it; no f needed) */
         if (it >= 3 && err < prev && err * (err / prev) <= 0.05 * LIE_EPS) {
-            midpoint_state(r, y0, r->F, h, Y);
+            midpoint_state(r, y0, r->F, h, 1, Y);
             return it;
         }
         /* converged to the noise of f's round-off: no more progress near it */
         if (it >= 3 && err >= 0.5 * prev && err <= 1e-11) {
-            turn_all(r->L, y0, Y, 0.5 * h, Y);
+            turn_midpoint(r, y0, h, 0, Y);
             return it;
         }
         if (it >= 4 && err > 2.0 * prev) return 0;   /* diverging */
@@ -616,7 +615,7 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
                 memcpy(base, Y, sizeof(base));
             } else if (attempt == 1) {
                 memcpy(base, y, (size_t)o->ny * sizeof(double));
-                midpoint_state(r, y, r->F, h, base);
+                midpoint_state(r, y, r->F, h, 1, base);
             } else {
                 memcpy(base, y, (size_t)o->ny * sizeof(double));
             }

@@ -2495,14 +2495,18 @@ static void tree_row(void *ctx, int64_t k, const double *y) {
     outputs_pre(r->t, y, r->p, r->pre, r->memo, r->row0 + (size_t)k * r->stride);
 }
 
-/* adaptive and dop853 over all n_out intervals at once, the output points from the dense output (rk.c,
- * gs_ode_trajectory): the first output point not written (the failing interval), or 0 */
+/* All n_out intervals at once, the output points from the dense output (rk.c): adaptive and dop853 with their own
+ * steps (gs_ode_trajectory), euler and rk4 with n_fixed equal steps (gs_ode_dense_fixed). The first output point
+ * not written (the failing interval), or 0. */
 static int64_t dense_trajectory(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double dt,
-                                int64_t n_out, double rtol, double atol, double max_step, double *hint,
-                                int64_t *stats, double *row0, size_t stride, TotalsMemo *memo) {
+                                int64_t n_out, int64_t n_fixed, double rtol, double atol, double max_step,
+                                double *hint, int64_t *stats, double *row0, size_t stride, TotalsMemo *memo) {
     Ctx ctx = {t, p, pre, memo};
     const gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
     TreeRows rows = {t, p, pre, row0, stride, memo};
+    if (method == GS_EULER || method == GS_RK4) {
+        return gs_ode_dense_fixed(method, &o, y, dt, n_out, n_fixed, stats, tree_row, &rows);
+    }
     return gs_ode_trajectory(method, &o, y, dt, n_out, rtol, atol, max_step, hint, stats, tree_row, &rows);
 }
 
@@ -2545,29 +2549,16 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
         precompute(t, pb, &pre);
         TotalsMemo memo;   /* the monitor checks each point before its row is written: the row takes its totals */
         memo.valid = 0;
-        if ((method == GS_ADAPTIVE || method == GS_DOP853) && !pre.impacts) {
-            const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, rtol, atol, max_step, hint + b,
-                                               stats + b * GS_NSTATS, out + b * no, n * no, &memo);
-            if (k) {
-                failed_rows(n, b, no, k, n_out, status, out);
-                failed += 1;
-            }
-            WS_CLOSE;
-            continue;
-        }
         /* euler and rk4 with steps longer than the output interval: one run over the whole, the outputs from their
-         * continuous extension (gs_ode_dense_fixed) */
+         * continuous extension, as adaptive and dop853 take theirs from their dense output */
         const int64_t n_fixed = (method == GS_EULER || method == GS_RK4) && !pre.impacts && t->nx < GS_ODE_MAX
                                     ? gs_substeps((double)n_out * dt, max_step)
                                     : 0;
-        if (n_fixed > 0 && n_fixed < n_out) {
-            Ctx fctx = {t, pb, &pre, &memo};
-            const gs_ode o = {ode_rhs, ode_project, ode_check, &fctx, t->nx + 1, t->nx, t->ny};
-            TreeRows rows = {t, pb, &pre, out + b * no, n * no, &memo};
-            const int64_t f = gs_ode_dense_fixed(method, &o, yb, dt, n_out, n_fixed, stats + b * GS_NSTATS, tree_row,
-                                                 &rows);
-            if (f) {
-                failed_rows(n, b, no, f, n_out, status, out);
+        if (((method == GS_ADAPTIVE || method == GS_DOP853) && !pre.impacts) || (n_fixed > 0 && n_fixed < n_out)) {
+            const int64_t k = dense_trajectory(t, method, yb, pb, &pre, dt, n_out, n_fixed, rtol, atol, max_step,
+                                               hint + b, stats + b * GS_NSTATS, out + b * no, n * no, &memo);
+            if (k) {
+                failed_rows(n, b, no, k, n_out, status, out);
                 failed += 1;
             }
             WS_CLOSE;
