@@ -1961,6 +1961,18 @@ void gs_tree_indicators(const gs_tree *t, const double *y, const double *p, doub
     }
 }
 
+/* the indicators' rates dz/dt at state y: the joint's rate towards the inside of each impact stop (x' at a lower
+ * stop, -x' at an upper one), in gs_tree_indicators' order */
+static void indicator_rates(const gs_tree *t, const double *y, const double *p, double *zd) {
+    int k = 0;
+    for (int i = 0; i < t->n; i++) {
+        const double v = y[t->yi[i] + 1];
+        const int s = impact_stops(t, body_p(p, i), i);
+        if (s & 1) zd[k++] = v;
+        if (s & 2) zd[k++] = -v;
+    }
+}
+
 /* the velocity coordinates' change per unit generalized impulse at joint j: M^-1 e_j (the articulated-body
  * algorithm with the velocities zero, no gravity and no force but a unit one at joint j), as a change of the state
  * (a free joint's v in world axes) into dy[0:nx] (zero for the positions) */
@@ -2004,7 +2016,9 @@ static void unit_response(const gs_tree *t, const double *y, const double *p, co
     WS_CLOSE;
 }
 
-static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *pre) {
+/* the impacts at state y (gs_tree_impact's law); plastic: restitution 0 for all of them, the joints coming to rest
+ * on their stops (the end of a sequence of impacts that accumulates in finite time) */
+static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *pre, int plastic) {
     int hits = 0;
     WS_OPEN;
     TLOC(double, dy, , GS_ODE_MAX, t->nx);
@@ -2024,7 +2038,7 @@ static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *p
         totals_pre(t, y, p, pre, &before);
         x[0] = stop;
         unit_response(t, y, p, pre, j, dy);
-        const double e = b[GS_TB_RESTITUTION], v = x[1];
+        const double e = plastic ? 0.0 : b[GS_TB_RESTITUTION], v = x[1];
         const double lambda = -(1.0 + e) * v / dy[t->yi[j] + 1];
         if (isfinite(lambda)) {   /* (M^-1)_jj = 0 (nothing moves behind the joint): its own rate only */
             for (int k = 0; k < t->nx; k++) y[k] += lambda * dy[k];
@@ -2043,7 +2057,7 @@ int gs_tree_impact(const gs_tree *t, double *y, const double *p) {
     WS_ENTER(t->n);
     PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
-    const int hits = impact_pre(t, y, p, &pre);
+    const int hits = impact_pre(t, y, p, &pre, 0);
     WS_CLOSE;
     return hits;
 }
@@ -2333,10 +2347,18 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
  * z_j(step(y0, tau)) by the Illinois variant of regula falsi (Dowell and Jarratt, BIT 11 (1971) 168), to a bracket
  * of 4 ulp of the piece or g = 0: for euler, rk4 and the implicit methods the one-step map is smooth in tau, so the
  * event time is the method's own to round-off (adaptive, dop853: to their tolerance). The impact (impact_pre) is
- * applied at the bracket's end on or beyond the stop, and the rest of the piece follows. A joint that starts a piece
- * on its stop (resting against it) and goes beyond gets the impact at the piece's end (a projection onto the stop),
- * as does every crossing after 64 events in one piece (a bouncing that converges in finite time). Returns as
- * advance_system. */
+ * applied at the bracket's end on or beyond the stop, and the rest of the piece follows.
+ *
+ * A joint that starts a (part of a) piece on its stop and ends it beyond has either bounced off and come back within
+ * it, or rests against the stop. A bounce is told by its rate leaving the stop at the start: the state at the apex
+ * of its flight (where the rate, interpolated linearly between the two ends, is zero) is then off the stop, and the
+ * return is located in [apex, end] as a crossing. Where there is no such state (the flight is shorter than the
+ * round-off of the step size, or the joint did not leave), the sequence of impacts has reached its accumulation
+ * point (a bouncing that converges in finite time: Zeno), and the joint comes to rest: a plastic impact
+ * (restitution 0) at the piece's end puts it on the stop with rate 0, the energy it takes in the balance's W (so
+ * that energy_error stays at the integrator's error). So does every crossing after 64 events in one piece. A joint
+ * at rest on its stop stays there while the forces press it on (every piece ends beyond and is projected back), and
+ * leaves when they pull it away. Returns as advance_system. */
 static int32_t advance_events(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                               int64_t n_sub, double rtol, double atol, double max_step, double *hint,
                               int64_t *stats, TotalsMemo *memo) {
@@ -2346,11 +2368,25 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
     const int fixed = method == GS_EULER || method == GS_RK4 || implicit_method(method);
     WS_OPEN;
     TLOC(double, y0, , GS_ODE_MAX + GS_TREE_NMON, t->ny);
+    TLOC(double, ya, , GS_ODE_MAX + GS_TREE_NMON, t->ny);
     TLOC(double, z0, , 2 * GS_TREE_SMALL, nz);
     TLOC(double, z1, , 2 * GS_TREE_SMALL, nz);
+    TLOC(double, za, , 2 * GS_TREE_SMALL, nz);
+    TLOC(double, zd0, , 2 * GS_TREE_SMALL, nz);
+    TLOC(double, zd1, , 2 * GS_TREE_SMALL, nz);
     int32_t rc = 0;
     const double h = H / (double)n_sub;
     double done_t = 0.0;
+/* advance from y0 over tau into dst (the hint as at y0), or fail the call */
+#define STEP_FROM_Y0(dst_, tau_)                                                                         \
+    do {                                                                                                 \
+        memcpy((dst_), y0, ny);                                                                          \
+        *hint = hint0;                                                                                   \
+        if (advance_system(t, method, (dst_), p, pre, (tau_), 1, rtol, atol, max_step, hint, stats, memo)) { \
+            rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);                                     \
+            goto done;                                                                                   \
+        }                                                                                                \
+    } while (0)
     for (int64_t k = 0; fixed ? k < n_sub : done_t < H; k++) {
         double piece;
         if (fixed) {
@@ -2365,45 +2401,66 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
         gs_tree_indicators(t, y, p, z0);
         for (int c = 0; c < nz; c++) {
             if (z0[c] < 0.0) {   /* beyond a stop at the start: put on it where it moves out */
-                impact_pre(t, y, p, pre);
+                impact_pre(t, y, p, pre, 0);
                 break;
             }
         }
         while (rem > 0.0) {
             const double hint0 = *hint;
             memcpy(y0, y, ny);
-            if (advance_system(t, method, y, p, pre, rem, 1, rtol, atol, max_step, hint, stats, memo)) {
-                rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
-                goto done;
-            }
+            STEP_FROM_Y0(y, rem);
+            const double hint1 = *hint;
             gs_tree_indicators(t, y0, p, z0);
             gs_tree_indicators(t, y, p, z1);
+            indicator_rates(t, y0, p, zd0);
+            indicator_rates(t, y, p, zd1);
+            /* the earliest crossing j, located in [a, rem] (g(a) = ga > 0); resting: a joint on its stop at the
+             * start whose return (or stay) cannot be told from round-off */
             int j = -1, resting = 0;
-            double first = 2.0;
+            double first = 2.0, a = 0.0, ga = 0.0;
             for (int c = 0; c < nz; c++) {
                 if (!(z1[c] < 0.0)) continue;
-                if (!(z0[c] > 0.0)) {
+                if (z0[c] > 0.0) {
+                    const double f = z0[c] / (z0[c] - z1[c]);
+                    if (f < first) {
+                        first = f;
+                        j = c;
+                        a = 0.0;
+                        ga = z0[c];
+                    }
+                    continue;
+                }
+                /* on its stop at the start: a bounce leaves it (zd0 > 0) and comes back (zd1 < 0) */
+                const double tau_a = zd0[c] > 0.0 && zd1[c] < 0.0 ? rem * zd0[c] / (zd0[c] - zd1[c]) : 0.0;
+                if (!(tau_a > 4.0 * DBL_EPSILON * rem && tau_a < rem)) {
                     resting = 1;
-                } else if (z0[c] / (z0[c] - z1[c]) < first) {
-                    first = z0[c] / (z0[c] - z1[c]);
+                    continue;
+                }
+                STEP_FROM_Y0(ya, tau_a);
+                gs_tree_indicators(t, ya, p, za);
+                if (!(za[c] > 0.0)) {
+                    resting = 1;
+                    continue;
+                }
+                const double f = (tau_a + (rem - tau_a) * za[c] / (za[c] - z1[c])) / rem;
+                if (f < first) {
+                    first = f;
                     j = c;
+                    a = tau_a;
+                    ga = za[c];
                 }
             }
-            if (j < 0 || ++events > 64) {   /* no crossing to locate: the resting ones projected at the end */
-                if (j >= 0 || resting) impact_pre(t, y, p, pre);
+            if (j < 0 || ++events > 64) {   /* nothing to locate: the resting joints (or a Zeno run) brought to rest */
+                *hint = hint1;   /* y is the state of the whole piece */
+                if (j >= 0 || resting) impact_pre(t, y, p, pre, 1);
                 break;
             }
-            double a = 0.0, ga = z0[j], b = rem, gb = z1[j], tau = rem, g = gb;
+            double b = rem, gb = z1[j], tau = rem, g = gb;
             int side = 0;
             for (int it = 0; it < 200 && b - a > 4.0 * DBL_EPSILON * rem; it++) {
                 tau = (a * gb - b * ga) / (gb - ga);
                 if (!(tau > a && tau < b)) tau = 0.5 * (a + b);
-                memcpy(y, y0, ny);
-                *hint = hint0;
-                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats, memo)) {
-                    rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
-                    goto done;
-                }
+                STEP_FROM_Y0(y, tau);
                 gs_tree_indicators(t, y, p, z1);
                 g = z1[j];
                 if (g == 0.0) break;
@@ -2421,17 +2478,13 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
             }
             if (g > 0.0) {   /* the state on or beyond the stop: the bracket's far end */
                 tau = b;
-                memcpy(y, y0, ny);
-                *hint = hint0;
-                if (advance_system(t, method, y, p, pre, tau, 1, rtol, atol, max_step, hint, stats, memo)) {
-                    rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
-                    goto done;
-                }
+                STEP_FROM_Y0(y, tau);
             }
-            impact_pre(t, y, p, pre);
+            impact_pre(t, y, p, pre, 0);
             rem -= tau;
         }
     }
+#undef STEP_FROM_Y0
 done:
     WS_CLOSE;
     return rc;

@@ -1,0 +1,63 @@
+"""Impact stops at the end of a bouncing: the accumulation (Zeno) point of a mass dropped onto a stop, and what a
+run reads there and after it (docs/engine.md, core/engine/tree.c advance_events)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from gyrosim.model import Model
+from scene_examples import DROP
+
+#: DROP's closed form: dropped from h0 = 1 m under g = 9.81 with restitution e = 0.8; the first impact at
+#: t1 = v1 / g (v1 = sqrt(2 g h0)), then flights of 2 e^k v1 / g, k = 1, 2, ...: the impacts accumulate at
+#: t1 + 2 e v1 / (g (1 - e)).
+G, E, H0 = 9.81, 0.8, 1.0
+V1 = math.sqrt(2 * G * H0)
+T_ZENO = V1 / G + 2 * E * V1 / (G * (1 - E))
+
+
+def _drop(tmp_path, integrator, max_step):
+    path = tmp_path / f"drop_{integrator}.toml"
+    path.write_text(DROP.format(integrator=integrator, max_step=max_step))
+    return Model(str(path))
+
+
+@pytest.mark.parametrize("integrator, max_step, window", [
+    # rk4 and the implicit midpoint rules integrate a constant acceleration exactly and locate each impact as the
+    # root of their one-step map: every bounce's time is the closed form's to round-off, and the flights shrink
+    # geometrically down to a few ulp of the step, so the joint comes to rest within 1e-6 s of the closed form.
+    ("rk4", 1e-3, 1e-6), ("midpoint", 1e-3, 1e-6), ("energy_momentum", 1e-3, 1e-6),
+    # adaptive and dop853 locate each impact to their tolerance (1e-12 here): each bounce time to ~1e-9 s and the
+    # accumulation to 1e-6 s (the errors of ~30 resolved bounces add up).
+    ("dop853", 0.1, 1e-6), ("adaptive", 0.1, 1e-6)])
+def test_a_bouncing_mass_comes_to_rest_at_the_accumulation_point(tmp_path, integrator, max_step, window):
+    """Before the closed form's accumulation time the mass still flies (a rate, a height above the stop); from it on
+    it rests on the stop: displacement = the limit and rate = 0, exactly, for the rest of the run, its energy 0 and
+    the energy the impacts (and the plastic end of the sequence) took off booked in the balance: energy_error at
+    the integrator's round-off (1e-12 of the start energy)."""
+    m = _drop(tmp_path, integrator, max_step)
+    E0 = m.get("energy")
+    m.step(T_ZENO - 10 * window)
+    assert m.get("velocity") != 0.0 or m.get("displacement") > 0.0
+    m.step(20 * window)
+    for _ in range(30):   # and it stays there, step after step
+        assert m.get("displacement") == 0.0 and m.get("velocity") == 0.0
+        assert m.get("energy") == 0.0
+        assert abs(m.get("energy_error")) < 1e-12 * E0
+        m.step(0.1)
+
+
+def test_before_the_accumulation_the_bounces_follow_the_closed_form(tmp_path):
+    """The resting rule does not touch a resolved bounce: rk4 at 1 ms steps reads the closed form's apex heights
+    e^(2k) h0 (k = 1..10, the last 1.2e-2 mm) to 1e-12 m, at the closed form's apex times."""
+    m = _drop(tmp_path, "rk4", 1e-3)
+    t = V1 / G
+    for k in range(1, 11):
+        v = E ** k * V1
+        apex = t + v / G
+        m.step(apex - m.time)
+        assert m.get("displacement") == pytest.approx(E ** (2 * k) * H0, abs=1e-12)
+        assert abs(m.get("velocity")) < 1e-11
+        t += 2 * v / G
