@@ -40,6 +40,27 @@ restitution = 0.8
 """
 
 
+#: A mass on a vertical slider between impact stops at 0 and 10 m, resting on nothing at 1 m (the issue's case).
+SLIDER = """
+[scene]
+name = "stops"
+gravity = [0.0, 0.0, -9.81]
+integrator = "rk4"
+max_step = 0.001
+[[body]]
+name = "ball"
+joint = "slider"
+axis = [0.0, 0.0, 1.0]
+mass = 1.0
+inertia = {{ principal = [0.0, 0.0, 0.0] }}
+displacement = {x0}
+lower = {lower}
+upper = {upper}
+stop = "impact"
+restitution = 0.8
+"""
+
+
 def bounce(t, h0=1.0, g=9.81, e=0.8):
     """The bouncing mass's height and velocity at t: free fall from h0, each impact v -> -e v."""
     v = np.sqrt(2 * g * h0)

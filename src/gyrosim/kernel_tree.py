@@ -326,6 +326,7 @@ class TreeKernel:
         self._stats = np.zeros((k, 3), dtype=np.int64)
         self._status = np.zeros(k, dtype=np.int32)
         self._p = None  # the parameters the running state was started or moved with
+        self._defer_together = False  # Model.set_values: several values set, then checked together
 
     def _replicable(self) -> bool:
         """Never: a tree model's rows are its own (gyrosim.trajectory.Run keeps no replica)."""
@@ -384,9 +385,50 @@ class TreeKernel:
         return v.range.text(v.unit) + (f" (the range of scene parameter {name})" if name in self._alias_names
                                        else "")
 
+    def _together(self) -> None:
+        """The values that must hold together, as the engine checks them wherever values enter (gs_tree_check: the
+        FMUs' initialisation too): a joint's stops in order and an impact-stopped joint within them. A ConfigError
+        with the scene file's message where they do not (scene_tree's stops)."""
+        bad = _engine.tree_check(self.layout.desc, self._y, self._pp)
+        if bad is None:
+            return
+        code, c, slot, lo_slot, hi_slot = bad
+        pp = self._pp[c]
+
+        def param(k: int) -> tuple[str, str]:
+            b = max(i for i in range(self.n_bodies) if self.layout.body_offset(i) <= k)
+            short = "lower" if k - self.layout.body_offset(b) == _engine.TB_LO else "upper"
+            full = self.scene.var_name(self.body_names[b], short)
+            return full, self.variables[full].unit
+
+        if code == _engine.TREE_BAD_STOPS:
+            (hi, unit), (lo, _) = param(slot), param(lo_slot)
+            raise ConfigError(hi, float(pp[slot]), f"a number above {lo} = {float(pp[lo_slot])!r} {unit}")
+        (b, short), = [key for key, k in self.layout.coord_slots.items() if k == slot]
+        coord = self.scene.var_name(self.body_names[b], short)
+        lo = float(pp[lo_slot]) if lo_slot >= 0 else -math.inf
+        hi = float(pp[hi_slot]) if hi_slot >= 0 else math.inf
+        raise ConfigError(coord, float(self._y[c, slot]), f"a start within the impact stops [{lo}, {hi}] "
+                          f"{self.variables[coord].unit}")
+
     def _assign(self, name: str, v: Variable, x: np.ndarray) -> None:
-        """Set parameter/input/start ``name`` to ``x`` (one value per system)."""
+        """Set parameter/input/start ``name`` to ``x`` (one value per system); values that must hold together
+        checked at once (:meth:`_together`), unless the model sets several together (``Model.set_values``): a
+        refused value leaves the model as it was."""
         TreeKernel._check_value(self, name, v, x)
+        if self._defer_together or (v.causality == "input" and name not in self._alias_names):
+            TreeKernel._assign_unchecked(self, name, v, x)
+            return
+        saved = (self._pp.copy(), self._y.copy(), self._alias_vals.copy(), self._initialized, self._state_dirty)
+        TreeKernel._assign_unchecked(self, name, v, x)
+        try:
+            TreeKernel._together(self)
+        except ConfigError:
+            self._pp, self._y, self._alias_vals, self._initialized, self._state_dirty = saved
+            self._out = None
+            raise
+
+    def _assign_unchecked(self, name: str, v: Variable, x: np.ndarray) -> None:
         if v.causality == "output":
             if v.start is None:
                 raise ConfigError(name, float(x[0]), "a parameter, an input or a joint's start state; "

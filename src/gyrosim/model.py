@@ -97,6 +97,40 @@ class Model:
         """
         return self._k.set(self, name, value, body)
 
+    def set_values(self, values: dict) -> None:
+        """Set several parameters, inputs and start states by name (as :meth:`set`; an array of one value per system
+        as :meth:`set_many`), then check the values that must hold together (a joint's stops in order, an
+        impact-stopped joint within them) once: the order of the names does not matter. A refused value leaves the
+        model as it was.
+
+        Raises
+        ------
+        ConfigError
+            As :meth:`set`; or the values together are not allowed (the scene file's message).
+        """
+        def set_all():
+            for k, v in values.items():
+                if isinstance(v, np.ndarray) and v.ndim == 1:
+                    self.set_many(k, v)
+                else:
+                    self.set(k, v)
+
+        together = getattr(self._k, "_together", None)
+        if together is None:
+            set_all()
+            return
+        state, integrator = self.get_state(), self.integrator
+        self._defer_together = True
+        try:
+            set_all()
+            together(self)
+        except BaseException:
+            self.set_state(state)
+            self.integrator = integrator
+            raise
+        finally:
+            self._defer_together = False
+
     def _set_integrator(self, value) -> None:
         """The integrator by name, one that the scene's system takes (``Scene.integrators``); a new one starts
         without the old one's history (the kernel's ``_forget``)."""
@@ -303,8 +337,8 @@ class Model:
         self._initialized = False
         self._state_dirty = True
         self._out = None
-        for k, v in (parameters or {}).items():
-            self.set(k, v)
+        if parameters:
+            self.set_values(dict(parameters))
 
     # ----------------------------------------------------------------------------------------------- variables
     @property

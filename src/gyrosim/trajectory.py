@@ -33,6 +33,7 @@ def output_intervals(span: float, dt: float, end: float) -> int:
 
 
 def _apply_start_values(model: Model, start_values: dict) -> None:
+    values = {}
     for name, value in start_values.items():
         key = str(name)  # a full name: <body>.<name> in a scene of several bodies, whichever kernel runs it
         var = model.variables.get(key) or model.variables.get(key.partition(".")[2])
@@ -41,7 +42,8 @@ def _apply_start_values(model: Model, start_values: dict) -> None:
                 value = float(value)
             except ValueError:
                 raise ConfigError(str(name), value, f"a real number in {var.unit or '1'}") from None
-        model.set(key, value)
+        values[key] = value
+    model.set_values(values)  # checked together: the order of --set's does not matter
 
 
 def apply_overrides(model, start_values=None, integrator=None, max_step=None) -> None:

@@ -871,10 +871,43 @@ done:
     return res;
 }
 
+/* tree_check(desc, y, p) -> None, or (code, system, s0, s1, s2) of the first system whose values do not hold
+ * together (gs_tree_check: GS_TREE_BAD_STOPS, GS_TREE_BAD_START and their slots) */
+static PyObject *py_tree_check(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "tree_check() takes 3 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    Buf b[2] = {{0}};
+    PyObject *res = NULL;
+    const Py_ssize_t n = get_systems(&t, args[1], args[2], b, 0);
+    if (n < 0) goto done;
+    for (Py_ssize_t i = 0; i < n; i++) {
+        int slot[3] = {-1, -1, -1};
+        const int code = gs_tree_check(&t, (const double *)b[0].view.buf + i * t.ny,
+                                       (const double *)b[1].view.buf + i * t.np, slot);
+        if (code != GS_TREE_OK) {
+            res = Py_BuildValue("(iniii)", code, i, slot[0], slot[1], slot[2]);
+            goto done;
+        }
+    }
+    res = Py_None;
+    Py_INCREF(res);
+done:
+    release(b, 2);
+    return res;
+}
+
 static PyMethodDef methods[] = {
     {"tree_impact", (PyCFunction)(void (*)(void))py_tree_impact, METH_FASTCALL,
      "tree_impact(desc, y, p) -> the impacts applied to the first system (y changed in place); "
      "tree_impact(desc, y, p, z) -> the number of event indicators, written into z"},
+    {"tree_check", (PyCFunction)(void (*)(void))py_tree_check, METH_FASTCALL,
+     "tree_check(desc, y, p) -> None, or (code, system, slot, lower_slot, upper_slot) of the first system whose "
+     "stops are out of order (code 1) or whose impact-stopped joint is beyond them (code 2)"},
     {"tree_info", (PyCFunction)(void (*)(void))py_tree_info, METH_FASTCALL,
      "tree_info(desc) -> (nx, ny, np, nout) of a tree description (int32: n, n_cpl, (parent, joint)*, (a, b)*, "
      "[orbit])"},
@@ -954,7 +987,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
         static const struct { const char *name; int value; } tc[] = {
             {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
             {"J_SLIDER", GS_J_SLIDER}, {"TB_ROT", GS_TB_ROT}, {"TB_KB", GS_TB_KB}, {"TB_CB", GS_TB_CB},
-            {"TB_LIM", GS_TB_LIM}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
+            {"TB_LIM", GS_TB_LIM}, {"TREE_BAD_STOPS", GS_TREE_BAD_STOPS}, {"TREE_BAD_START", GS_TREE_BAD_START}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
             {"TB_STOP_C", GS_TB_STOP_C}, {"TB_RESTITUTION", GS_TB_RESTITUTION}, {"TP_GDIR", GS_TP_GDIR}, {"SPR_PA", GS_SPR_PA}, {"SPR_PB", GS_SPR_PB},
             {"SPR_K", GS_SPR_K}, {"SPR_L0", GS_SPR_L0}, {"SPR_C", GS_SPR_C}, {"SPR_NP", GS_SPR_NP},
             {"FRC_P", GS_FRC_P}, {"FRC_F", GS_FRC_F}, {"FRC_NP", GS_FRC_NP},

@@ -228,6 +228,17 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
                           int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                           int32_t *status, int threads, double *out);
 
+/* The checks that tie values together, made wherever values enter (Model.initialize, the FMUs' initialisation; a
+ * scene file's loader says the same): a hinge's or slider's stops in order (lower < upper where both are set) and a
+ * joint with impact stops within them (lower <= x <= upper). Returns GS_TREE_OK, or GS_TREE_BAD_STOPS with
+ * slot[0] = the upper stop's slot in p and slot[1] = the lower's, or GS_TREE_BAD_START with slot[0] = the
+ * coordinate's slot in y and slot[1], slot[2] the lower and upper stops' slots in p (-1 where that stop is not
+ * set). The callers name the variables and print the message. */
+#define GS_TREE_OK 0
+#define GS_TREE_BAD_STOPS 1
+#define GS_TREE_BAD_START 2
+int gs_tree_check(const gs_tree *t, const double *y, const double *p, int slot[3]);
+
 /* Impact stops: the number of event indicators (one per impact stop: lower, upper), their values (the distance
  * to the stop, x - lower and upper - x: >= 0 while the joint is within them), and the impact at a state on or
  * beyond a stop and moving out: the coordinate put on the stop and the velocities changed by the generalized

@@ -49,7 +49,9 @@ static const double *engine_rows(const gs_system *s, size_t n, const double *p, 
 static const char *shortest(double x, char buf[40]) {
     for (int prec = 1; prec <= 17; prec++) {
         snprintf(buf, 40, "%.*g", prec, x);
-        if (!isfinite(x) || strtod(buf, NULL) == x) break;
+        /* plain digits where the magnitude allows (20, not 2e+01), as Python's repr chooses */
+        const double ax = fabs(x);
+        if (!isfinite(x) || (strtod(buf, NULL) == x && (!strchr(buf, 'e') || ax < 1e-4 || ax >= 1e16))) break;
     }
     return buf;
 }
@@ -158,6 +160,29 @@ int gs_sys_check(const gs_system *s, const double *p, int *slot, char *why, size
         }
     }
     return 1;
+}
+
+int gs_tree_check(const gs_tree *t, const double *y, const double *p, int slot[3]) {
+    for (int i = 0; i < t->n; i++) {
+        if (t->joint[i] != GS_J_HINGE && t->joint[i] != GS_J_SLIDER) continue;
+        const int base = GS_TP_HEAD + GS_TB_NP * i;
+        const double *b = p + base;
+        const int lim = (int)b[GS_TB_LIM];
+        if ((lim & 3) == 3 && !(b[GS_TB_LO] < b[GS_TB_HI])) {
+            slot[0] = base + GS_TB_HI;
+            slot[1] = base + GS_TB_LO;
+            return GS_TREE_BAD_STOPS;
+        }
+        if (!(lim & 4) || !y) continue;
+        const double x = y[t->yi[i]];
+        if (((lim & 1) && !(x >= b[GS_TB_LO])) || ((lim & 2) && !(x <= b[GS_TB_HI]))) {
+            slot[0] = t->yi[i];
+            slot[1] = (lim & 1) ? base + GS_TB_LO : -1;
+            slot[2] = (lim & 2) ? base + GS_TB_HI : -1;
+            return GS_TREE_BAD_START;
+        }
+    }
+    return GS_TREE_OK;
 }
 
 int gs_sys_uses_max_step(const gs_system *s, int method) {

@@ -27,7 +27,9 @@ static Num num(double x) {
     Num r;
     for (int prec = 1; prec <= 17; prec++) {
         snprintf(r.s, sizeof(r.s), "%.*g", prec, x);
-        if (!isfinite(x) || strtod(r.s, NULL) == x) break;
+        /* plain digits where the magnitude allows (20, not 2e+01), as Python's repr chooses */
+        const double ax = fabs(x);
+        if (!isfinite(x) || (strtod(r.s, NULL) == x && (!strchr(r.s, 'e') || ax < 1e-4 || ax >= 1e16))) break;
     }
     return r;
 }

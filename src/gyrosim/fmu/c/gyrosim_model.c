@@ -60,6 +60,34 @@ static const char *name_of(int kind, int index) {
     return NULL;
 }
 
+/* the variable of a kind at an index, or NULL */
+static const GsVar *var_at(int kind, int index) {
+    for (uint32_t vr = 0; vr < N_VR; vr++) {
+        if (VARS[vr].kind == kind && VARS[vr].index == index) return &VARS[vr];
+    }
+    return NULL;
+}
+
+/* The values that must hold together (gs_tree_check: a joint's stops in order, an impact-stopped joint within
+ * them), with the scene file's message; 1 when they hold. y: the state the run starts from, p: the parameters. */
+static int values_together(GsInstance *m, const double *y, const double *p) {
+    if (m->sys.kernel != GS_KERNEL_TREE) return 1;
+    int slot[3] = {-1, -1, -1};
+    const int code = gs_tree_check(&m->sys.tree, y, p, slot);
+    if (code == GS_TREE_OK) return 1;
+    if (code == GS_TREE_BAD_STOPS) {
+        const GsVar *hi = var_at(GS_K_PARAM, slot[0]), *lo = var_at(GS_K_PARAM, slot[1]);
+        gs_log_error(m, "%s = %s is not allowed: a number above %s = %s %s", hi ? hi->name : "upper",
+                     num(p[slot[0]]).s, lo ? lo->name : "lower", num(p[slot[1]]).s, hi && hi->unit[0] ? hi->unit : "1");
+        return 0;
+    }
+    const GsVar *x = var_at(GS_K_STATE, slot[0]);
+    gs_log_error(m, "%s = %s is not allowed: a start within the impact stops [%s, %s] %s", x ? x->name : "a joint",
+                 num(y[slot[0]]).s, slot[1] >= 0 ? num(p[slot[1]]).s : "-inf", slot[2] >= 0 ? num(p[slot[2]]).s : "inf",
+                 x && x->unit[0] ? x->unit : "1");
+    return 0;
+}
+
 /* " for body 'fast'" where the system has several units */
 typedef struct { char s[160]; } Where;
 
@@ -138,6 +166,7 @@ static const char *quat_name(const GsInstance *m, int q) {
 /* Model.initialize */
 int gs_initialize(GsInstance *m) {
     GsData *d = &m->d;
+    if ((!d->initialized || d->state_dirty) && !values_together(m, d->y, d->par)) return GS_ERROR;
     if (!d->initialized) {
         int slot = 0;
         char why[320];
