@@ -17,7 +17,7 @@ from .core import _engine
 from .core.inertia import TRIANGLE_RTOL, check_principal_moments
 from .core.rotations import quat_to_euler_zyz
 from .errors import ConfigError, IntegrationError
-from .ranges import NONNEGATIVE, POSITIVE
+from .ranges import BOUNDED, BOUNDED_NONNEGATIVE, NONNEGATIVE, POSITIVE
 from .scene import INTEGRATORS, Scene, did_you_mean
 from .variables import Variable
 
@@ -55,7 +55,7 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
                        "distance from the pivot to the centre of mass along body +z", float(b.cm_distance),
                        **NONNEGATIVE.fields()),
               Variable("g", "parameter", "fixed", "Real", "m/s2", "gravitational acceleration along -z",
-                       float(scene.g), **NONNEGATIVE.fields())]
+                       float(scene.g), **BOUNDED_NONNEGATIVE.fields())]
     if scene.damping:
         V.append(Variable("damping", "parameter", "fixed", "Real", "N.m.s", "viscous torque -damping*omega",
                           float(b.damping), **NONNEGATIVE.fields()))
@@ -75,11 +75,11 @@ def variables_for(scene: Scene, body: int = 0) -> dict[str, Variable]:
                           f"attitude quaternion, {d} part (body to world)", float(v)))
     for n, v in zip(("omega_x", "omega_y", "omega_z"), b.omega0):
         V.append(Variable(n, "output", "continuous", "Real", "rad/s",
-                          f"body-frame angular velocity about body {n[-1]}", float(v)))
+                          f"body-frame angular velocity about body {n[-1]}", float(v), **BOUNDED.fields()))
     if scene.torque:
         for n in ("tau_x", "tau_y", "tau_z"):
             V.append(Variable(n, "input", "continuous", "Real", "N.m",
-                              f"external torque about body {n[-1]}, held over each step", 0.0))
+                              f"external torque about body {n[-1]}, held over each step", 0.0, **BOUNDED.fields()))
     phi, theta, psi = (float(a) for a in quat_to_euler_zyz(b.q0))
     V += [Variable("phi", "output", "continuous", "Real", "rad", "ZYZ precession angle, unwrapped", phi),
           Variable("theta", "output", "continuous", "Real", "rad", "ZYZ nutation angle in [0, pi]", theta),
@@ -298,6 +298,8 @@ class BodyKernel:
             raise ConfigError(name, value, f"a real number in {v.unit or '1'}") from None
         if not math.isfinite(x):
             raise ConfigError(name, value, f"a finite number in {v.unit or '1'}")
+        if not v.range.contains(x):
+            raise ConfigError(name, value, v.range.text(v.unit))
         if name in ("I1", "I2", "I3"):
             self._check_positive(name, x)
             BodyKernel._own(self, "_moments")[i, int(name[1]) - 1] = x
@@ -341,7 +343,7 @@ class BodyKernel:
                 ok = x >= 0
             else:
                 ok = np.ones(x.shape, dtype=bool)
-            ok &= np.isfinite(x)
+            ok &= np.isfinite(x) & v.range.contains(x)
         if not ok.all():
             b = int(np.flatnonzero(~ok)[0])
             self.set(name, float(x[b]), body=b)  # raises with set's message
@@ -812,6 +814,21 @@ class BodyKernel:
     def inert_bodies(self, system: int = 0) -> list:
         """None: a body of this kernel has principal moments > 0 (checked when it is initialised)."""
         return []
+
+    def specific_force(self, system: int = 0) -> np.ndarray:
+        """(n_bodies, 3) (``system`` is the body's row here): a body of this kernel turns about a point at rest in
+        the world (its pivot, or its centre of mass), so its origin does not accelerate: an accelerometer there reads
+        -g, in the body's frame, held by the pivot (+g along the world's up), and 0 where there is no gravity."""
+        out = self._outputs_array()
+        f = np.zeros((self.n_bodies, 3))
+        for b in range(self.n_bodies):
+            if not (self.scene.flags & _engine.GRAVITY):
+                continue
+            w, x, y, z = (float(out[b, _engine.O_Q + k]) for k in range(4))
+            g = float(self._g[b])
+            # R^T (0, 0, g): the world's up in the body frame, times g
+            f[b] = g * np.array([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
+        return f
 
     def dynamics_kernel(self, system: int = 0) -> str:
         return "rigid_body"

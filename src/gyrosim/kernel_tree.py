@@ -26,7 +26,7 @@ from .core.tree import (
     TreeLayout,
 )
 from .errors import ConfigError, IntegrationError
-from .ranges import ANY, NONNEGATIVE, POSITIVE, Range
+from .ranges import ANY, BOUNDED, BOUNDED_NONNEGATIVE, NONNEGATIVE, POSITIVE, Range
 from .scene import TREE_INTEGRATORS, Scene, did_you_mean
 from .scene_tree import NONNEGATIVE_PARAMS, body_parameters
 from .variables import Variable
@@ -59,6 +59,12 @@ _COORD_META = {
     "rate": ("rad/s", "hinge rate"),
     "displacement": ("m", "slider displacement along its axis"),
     "velocity": ("m/s", "slider velocity along its axis"),
+}
+#: Every body's outputs (BODY_OUTPUTS) by stem: unit and description ({} the component).
+_BODY_OUT_META = {
+    "q_world": ("1", "attitude in the world, {} part (body to world)"),
+    "r_world": ("m", "position of the body frame's origin in the world, {}"),
+    "v_world": ("m/s", "velocity of the body frame's origin in the world, {}"),
 }
 _SPRING_META = {"stiffness": ("N/m", "spring stiffness"), "rest_length": ("m", "spring rest length"),
                 "damping": ("N.s/m", "spring damping (along the line between its points)")}
@@ -131,7 +137,7 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
     along = "along -z" if gdir == (0.0, 0.0, -1.0) else "along the scene's gravity direction " + \
         "(" + ", ".join(f"{x:.6g}" for x in gdir) + ")"
     V = [Variable("g", "parameter", "fixed", "Real", "m/s2", f"gravitational acceleration {along}", float(scene.g),
-                  **NONNEGATIVE.fields())]
+                  **BOUNDED_NONNEGATIVE.fields())]
     orbit = scene.orbit
     if orbit is not None:
         V.append(Variable("orbit_mu", "parameter", "fixed", "Real", "m3/s2",
@@ -172,21 +178,25 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
                               **rng.fields()))
         if b.motor_input and b.joint == "slider":
             V.append(Variable(pre + "motor_force", "input", "continuous", "Real", "N",
-                              "motor force along the slider axis (on this body; its reaction on the parent)", 0.0))
+                              "motor force along the slider axis (on this body; its reaction on the parent)", 0.0,
+                              **BOUNDED.fields()))
         elif b.motor_input:
             V.append(Variable(pre + "motor_torque", "input", "continuous", "Real", "N.m",
-                              "motor torque about the hinge axis (on this body; its reaction on the parent)", 0.0))
+                              "motor torque about the hinge axis (on this body; its reaction on the parent)", 0.0,
+                              **BOUNDED.fields()))
         for f in scene.forces:
             if scene.tree[f.body] is not b:
                 continue
             for c in "xyz":
                 V.append(Variable(pre + f"{f.name}.f_{c}", "input", "continuous", "Real", "N",
                                   f"force {f.name} at ({', '.join(f'{x:.6g}' for x in f.point)}) m of the body, "
-                                  f"{'world' if f.world else 'body'} {c}, held over each step", 0.0))
+                                  f"{'world' if f.world else 'body'} {c}, held over each step", 0.0,
+                                  **BOUNDED.fields()))
         if b.torque_input:
             for n in ("tau_x", "tau_y", "tau_z"):
                 V.append(Variable(pre + n, "input", "continuous", "Real", "N.m",
-                                  f"external torque about body {n[-1]}, held over each step", 0.0))
+                                  f"external torque about body {n[-1]}, held over each step", 0.0,
+                                  **BOUNDED.fields()))
         start = {"q": list(b.q0), "omega": list(b.omega0), "r": list(b.r0), "v": list(b.v0)}
         for c in b.coords:
             unit, desc = _COORD_META[c]
@@ -198,10 +208,11 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
             else:
                 head, tail = c.rsplit("_", 1)
                 s = float(start[head]["wxyz".index(tail) if head == "q" else "xyz".index(tail)])
-            V.append(Variable(pre + c, "output", "continuous", "Real", unit, desc, s))
+            bound = {} if c.startswith("q_") else BOUNDED.fields()   # a quaternion is normalised at the start
+            V.append(Variable(pre + c, "output", "continuous", "Real", unit, desc, s, **bound))
         for c in BODY_OUTPUTS:
-            V.append(Variable(pre + c, "output", "continuous", "Real", "1",
-                              f"attitude in the world, {c[-1]} part (body to world)", None))
+            unit, desc = _BODY_OUT_META[c[:-2]]
+            V.append(Variable(pre + c, "output", "continuous", "Real", unit, desc.format(c[-1]), None))
         if orbit is not None:
             for c in ORBIT_BODY_OUTPUTS:
                 V.append(Variable(pre + c, "output", "continuous", "Real", "1",
@@ -610,6 +621,27 @@ class TreeKernel:
         return float(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1], self._p[system:system + 1],
                                          1))
 
+    def specific_force(self, system: int = 0) -> np.ndarray:
+        """(n_bodies, 3) specific force at every body's origin, body frames (Model.specific_force)."""
+        out = self._outputs_array()[system]   # initialises
+        y, p = self._y[system], self._p[system]
+        nx, nb = self.layout.nx, len(BODY_OUTPUTS)
+        dy = np.zeros(nx + 1)
+        _engine.tree_derivatives(self.layout.desc, y, p, dy)
+        ddy, dout = np.zeros(nx + 1), np.zeros(self.layout.nout)
+        _engine.tree_directional(self.layout.desc, y, p, dy[:nx].copy(), np.zeros_like(p), ddy, dout)
+        g = float(p[_engine.TP_G]) * p[_engine.TP_GDIR:_engine.TP_GDIR + 3]
+        f = np.empty((self.n_bodies, 3))
+        for i in range(self.n_bodies):
+            at = nx + nb * i
+            w, x, yq, z = out[at:at + 4]
+            R = np.array([[1 - 2 * (yq * yq + z * z), 2 * (x * yq - w * z), 2 * (x * z + w * yq)],
+                          [2 * (x * yq + w * z), 1 - 2 * (x * x + z * z), 2 * (yq * z - w * x)],
+                          [2 * (x * z - w * yq), 2 * (yq * z + w * x), 1 - 2 * (x * x + yq * yq)]])
+            a = dout[at + BODY_OUTPUTS.index("v_world_x"):at + BODY_OUTPUTS.index("v_world_x") + 3]
+            f[i] = R.T @ (a - g)
+        return f
+
     def dynamics_kernel(self, system: int = 0) -> str:
         p = self._p if self._p is not None else self._pp   # before initialize: the parameters set so far
         return TREE_KERNELS[int(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1],
@@ -695,22 +727,29 @@ class TreeKernel:
 
         out = np.empty(self.layout.nout)
         _engine.tree_outputs(self.layout.desc, y.reshape(1, -1), self._p[system], out)
-        qw = {i: out[self.layout.nx + 4 * i:self.layout.nx + 4 * i + 4] for i in range(self.n_bodies)}
+        at = self.layout.nx + len(BODY_OUTPUTS) * np.arange(self.n_bodies) + BODY_OUTPUTS.index("q_world_w")
+        qw = {i: out[at[i]:at[i] + 4] for i in range(self.n_bodies)}
 
         def axis_world(i):
             b = self._bodies[i]
             R = np.eye(3) if b.parent < 0 else quat_to_matrix(qw[b.parent])
             return R @ np.asarray(b.axis)
 
+        def parallel(a, b):
+            return abs(float(np.dot(axis_world(a), axis_world(b)))) > math.cos(0.1)
+
         for i in hinges:
             j = self._bodies[i].parent
+            between = []   # the hinges between j and i: a lock needs one across the two lined-up axes (a gimbal)
             while j >= 0 and self._bodies[j].joint == "hinge":
-                if abs(float(np.dot(axis_world(i), axis_world(j)))) > math.cos(0.1):
+                # axes parallel with every hinge between them parallel too (a planar chain) are so by design
+                if parallel(i, j) and any(not parallel(k, i) for k in between):
                     ang = math.acos(min(1.0, abs(float(np.dot(axis_world(i), axis_world(j))))))
                     return (f"gimbal lock: the axes of {self._bodies[j].name!r} and {self._bodies[i].name!r} are "
                             f"{ang:.3g} rad from lining up, where the gimbals between them carry too little inertia "
                             "about the lost axis (massless gimbals make the motion singular there); give the gimbals "
                             "inertia, or keep the inner angle away from 0")
+                between.append(j)
                 j = self._bodies[j].parent
         return None
 

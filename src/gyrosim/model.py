@@ -231,6 +231,23 @@ class Model:
         forms the engine picks at set-up where a tree has their shape (docs/engine.md)."""
         return self._k.dynamics_kernel(self, system)
 
+    def specific_force(self, body=None, system: int = 0) -> np.ndarray:
+        """What an accelerometer at a body's frame origin reads: the specific force a - g (m/s^2, the origin's
+        acceleration in the world minus gravity), in the body's frame; a body at rest on a support reads +g along
+        the world's up. ``body``: a name or index (``None``: every body, ``(n_bodies, 3)``); of copy ``system``.
+
+        The acceleration is the time derivative of the origin's world velocity (``<body>.v_world_*``) along the
+        state's derivative, by the engine's complex step (exact to round-off, no difference quotient).
+        """
+        f = self._k.specific_force(self, system)
+        if body is None:
+            return f
+        if isinstance(body, str):
+            if body not in self.body_names:
+                raise ConfigError("body", body, f"one of {', '.join(self.body_names)}")
+            body = self.body_names.index(body)
+        return f[int(body)]
+
     def fastest_rate(self, system: int = 0) -> float:
         """The fastest rate (rad/s) in system ``system``'s state: the step-size scale of its dynamics."""
         return self._k.fastest_rate(self, system)

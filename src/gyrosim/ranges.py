@@ -24,13 +24,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Range", "NONNEGATIVE", "POSITIVE", "ANY"]
+__all__ = ["Range", "NONNEGATIVE", "POSITIVE", "ANY", "MAX_MAGNITUDE", "BOUNDED", "BOUNDED_NONNEGATIVE"]
 
 
 def _num(x: float) -> str:
     """A bound as messages write it: 0, 10, 0.5, 1e-06 (no trailing .0)."""
     x = float(x)
-    return str(int(x)) if x.is_integer() and abs(x) < 1e15 else repr(x)
+    if x.is_integer() and abs(x) < 1e6:
+        return str(int(x))
+    for digits in range(1, 18):   # the shortest form that reads back: 1e+12, not 1000000000000.0
+        s = f"{x:.{digits}g}"
+        if float(s) == x:
+            return s
+    return repr(x)
 
 
 @dataclass(frozen=True)
@@ -115,3 +121,12 @@ class Range:
 ANY = Range()
 NONNEGATIVE = Range(0.0)
 POSITIVE = Range(0.0, exclusive_min=True)
+
+#: The largest size of an input (N*m for a torque, N for a force), a start state (rad/s, m/s, m, rad) and a
+#: gravitational acceleration (m/s^2): the one rule of the model, the command line, input files, sweeps and the FMUs.
+#: The largest torques machines produce are about 1e7 N*m and the largest forces about 1e7 N; rotors spin at 1e4
+#: rad/s (1e9 for levitated nanorotors); 1e12 leaves orders of magnitude for any scene in SI units, while 1e200 only
+#: overflows the state and the energy at the first step.
+MAX_MAGNITUDE = 1e12
+BOUNDED = Range(-MAX_MAGNITUDE, MAX_MAGNITUDE)
+BOUNDED_NONNEGATIVE = Range(0.0, MAX_MAGNITUDE)

@@ -33,6 +33,7 @@ from fmpy.validation import validate_fmu
 
 from gyrosim.analysis.linear import one_body_tree
 from gyrosim.core import _engine
+from gyrosim.core.tree import BODY_OUTPUTS
 from gyrosim.fmu import build_fmu
 from gyrosim.scene import EMBEDDED_SCENES, load_scene
 
@@ -288,7 +289,8 @@ def _python_reference(scene, f, states, ders, outs, inputs, known):
         if f.name[vr].startswith(f"der({pre}"):
             k = j % 7
             ref[vr] = dr[k] if k < 4 or not (sc.flags & 1) else dn[k]
-    slots = {"energy": 11, "energy_error": 12, "L_x": 13, "L_y": 14, "L_z": 15}
+    e = 7 + len(BODY_OUTPUTS)   # the one-body tree's row: y[0:7], the body's outputs, then the scene's
+    slots = {"energy": e, "energy_error": e + 1, "L_x": e + 2, "L_y": e + 3, "L_z": e + 4}
     for vr, n in zip(outs, names):
         bn, _, s = n.rpartition(".")
         if (bn if multi else "") != (bname if multi else "") or s in EULER_ANGLES:

@@ -14,6 +14,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 
 import gyrosim
+from gyrosim.core.tree import BODY_OUTPUTS
 from gyrosim.fmu import build_fmu
 from gyrosim.kernel_tree import tree_output_names
 from gyrosim.scene import load_scene
@@ -40,7 +41,7 @@ def test_a_200_link_chain_fmu_runs_to_the_models_bits(tmp_path, v):
     toml = tmp_path / "chain.toml"
     toml.write_text(chain_toml(200))
     names = tree_output_names(load_scene(str(toml)))
-    assert len(names) == 200 * 6 + 5
+    assert len(names) == 200 * (2 + len(BODY_OUTPUTS)) + 5
     ref = gyrosim.simulate(str(toml), stop_time=12 * DYADIC, output_interval=DYADIC)
     path = build_fmu(str(toml), v, tmp_path / f"fmi{v}", windows=False)
     assert len(read_model_description(str(path)).modelVariables) > 1200

@@ -13,7 +13,7 @@ import pytest
 from gyrosim.cli import main
 from gyrosim.errors import ConfigError
 from gyrosim.model import Model
-from gyrosim.ranges import NONNEGATIVE, POSITIVE, Range
+from gyrosim.ranges import BOUNDED, BOUNDED_NONNEGATIVE, NONNEGATIVE, POSITIVE, Range
 from gyrosim.scene import load_scene, scene_from_dict
 
 PENDULUM = {
@@ -124,8 +124,10 @@ def test_the_embedded_scenes_parameters_have_their_ranges():
     v = Model("double_pendulum").variables
     for name, unit in (("m1", "kg"), ("m2", "kg"), ("L1", "m"), ("L2", "m")):
         assert (v[name].min, v[name].exclusive_min, v[name].max, v[name].unit) == (0.0, True, None, unit), name
-    for name in ("upper.mass", "lower.I1", "g", "upper.stiffness", "upper.joint_damping"):
+    for name in ("upper.mass", "lower.I1", "upper.stiffness", "upper.joint_damping"):
         assert v[name].range == NONNEGATIVE, name
+    # gravity, inputs and start states: the one magnitude rule (ranges.MAX_MAGNITUDE), as input files have it
+    assert v["g"].range == BOUNDED_NONNEGATIVE and v["upper.rate"].range == BOUNDED
     assert v["max_step"].range == POSITIVE
     # the coupling's stiffness: >= 0 at load and at every set
     c = Model("coupled_pendula")
@@ -138,7 +140,7 @@ def test_the_embedded_scenes_parameters_have_their_ranges():
     # the one-body parameters keep their rules (I > 0, mass > 0 where gravity, cm_distance and damping >= 0)
     top = Model("heavy_top").variables
     assert top["I1"].range == POSITIVE and top["mass"].range == POSITIVE
-    assert top["cm_distance"].range == NONNEGATIVE and top["g"].range == NONNEGATIVE
+    assert top["cm_distance"].range == NONNEGATIVE and top["g"].range == BOUNDED_NONNEGATIVE
 
 
 # ------------------------------------------------------------------------------------------------ command line

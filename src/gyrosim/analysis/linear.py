@@ -34,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..core import _engine
+from ..core.tree import BODY_OUTPUTS
 from ..errors import ConfigError, LinearAlgebraError
 
 __all__ = ["Jacobian", "Linearization", "Mode", "NormalModes", "jacobian", "linearize", "normal_modes",
@@ -274,7 +275,8 @@ def _blocks(model, system: int = 0) -> list:
                   and m.variables[n].causality == "input"]
         nx = 7
         outputs = [(s, k) for k, s in enumerate(states)]
-        outputs += [(pre + n, nx + 4 + k) for k, n in enumerate(("energy", "energy_error", "L_x", "L_y", "L_z"))
+        outputs += [(pre + n, nx + len(BODY_OUTPUTS) + k)   # the tree row: y, the body's outputs, the scene's
+                    for k, n in enumerate(("energy", "energy_error", "L_x", "L_y", "L_z"))
                     if n != "energy_error"]
         I1, I2, _ = m._moments[b]
         sym = 2 if I1 == I2 else None

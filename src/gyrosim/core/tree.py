@@ -54,7 +54,8 @@ JOINT_COORDS = {
 }
 
 #: The outputs every body has besides its joint's state, and the scene-wide outputs.
-BODY_OUTPUTS = ("q_world_w", "q_world_x", "q_world_y", "q_world_z")
+BODY_OUTPUTS = ("q_world_w", "q_world_x", "q_world_y", "q_world_z", "r_world_x", "r_world_y", "r_world_z",
+                "v_world_x", "v_world_y", "v_world_z")
 SCENE_OUTPUTS = ("energy", "energy_error", "L_x", "L_y", "L_z")
 #: On an orbit: the circular orbit's anomaly (a coordinate of the state, after the joints'), every body's attitude
 #: in the orbit frame, the orbit point's position and velocity (scene-wide, from the central body).

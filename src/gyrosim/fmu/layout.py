@@ -24,7 +24,7 @@ from importlib import resources
 import numpy as np
 
 from ..core import _engine
-from ..core.tree import BODY_SLOTS, INPUT_SLOTS
+from ..core.tree import BODY_OUTPUTS, BODY_SLOTS, INPUT_SLOTS
 from ..errors import ConfigError
 from ..kernel_body import STATE_NAMES
 from ..scene import Scene
@@ -210,7 +210,7 @@ def _tree_layout(sc: Scene) -> SystemLayout:
         indicators=[(sc.var_name(b.name, f"{side}_stop_distance"), "m" if b.joint == "slider" else "rad")
                     for b in sc.tree if b.stop == "impact"
                     for side, lim in (("lower", b.lower), ("upper", b.upper)) if lim is not None],
-        energy_error=[lay.nx + 4 * len(sc.tree) + 1], pattern=pattern)
+        energy_error=[lay.nx + len(BODY_OUTPUTS) * len(sc.tree) + 1], pattern=pattern)
 
 
 def _tree_pattern(sc: Scene, lay, rows, seed: int):
@@ -354,5 +354,6 @@ def jacobian_pattern(lay: SystemLayout, rows: list[FmuRow]):
 def range_rows(rows: list[FmuRow]) -> list[tuple[int, object]]:
     """The rows whose values the glue checks against a range at every set: ``(position, Variable)``."""
     return [(i, r.var) for i, r in enumerate(rows)
-            if r.kind in ("param", "alias", "max_drift", "max_step") and r.var is not None and r.var.type == "Real"
+            if r.kind in ("param", "alias", "max_drift", "max_step", "input", "state") and r.var is not None
+            and r.var.type == "Real"
             and r.var.range.bounded and (math.isfinite(r.var.range.min) or math.isfinite(r.var.range.max))]

@@ -179,12 +179,18 @@ void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, dou
  * in the parent's frame (the world's for a root)). */
 void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, double *qdd);
 
-/* Outputs of one system per row: y[0:nx], then every body's world attitude q_world (4 each), then energy (J),
+/* Outputs of one system per row: y[0:nx], then GS_TREE_BODY_NOUT per body: its world attitude q_world (4), the
+ * world position of its frame's origin r_world (3, m) and that point's velocity v_world (3, m/s, world), then energy (J),
  * energy_error (J), L_x, L_y, L_z (world, about the world origin); with an orbit then every body's attitude in the
  * orbit frame q_orbit (4 each; body -> local vertical/local horizontal: x along-track, z towards the centre, y = z x
  * x, the negative orbit normal; w >= 0), the orbit point's position (m) and velocity (m/s) from the central body,
  * world axes (circular: the orbit point; Kepler: the tree's centre of mass). GS_TREE_NOUT(t) values. */
-#define GS_TREE_NOUT(t) ((t)->nx + 4 * (t)->n + 5 + ((t)->orbit ? 4 * (t)->n + 6 : 0))
+#define GS_TREE_BODY_NOUT 10   /* q_world[4], r_world[3], v_world[3] */
+#define GS_TREE_OUT_QW 0
+#define GS_TREE_OUT_RW 4
+#define GS_TREE_OUT_VW 7
+#define GS_TREE_SCENE_OUT(t) ((t)->nx + GS_TREE_BODY_NOUT * (t)->n)   /* where energy is in a row */
+#define GS_TREE_NOUT(t) (GS_TREE_SCENE_OUT(t) + 5 + ((t)->orbit ? 4 * (t)->n + 6 : 0))
 void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out);
 
 /* Start a state: quaternions normalised (0 returned when one is zero or a value is not finite, else 1), the

@@ -492,14 +492,14 @@ int gs_sys_directional(const gs_system *s, const double *y, const double *p, con
             memcpy(db, tdy, GS_Y_NQW * sizeof(double));
             ddy[s->ncoord + b] = tdy[GS_Y_NQW];
         }
-        if (ob) {   /* the tree's row (n = 1): y[0:7], q_world[7:11], energy 11, energy_error 12, L 13..15 */
+        if (ob) {   /* the tree's row (n = 1): y[0:7], the body's outputs, then energy, energy_error, L */
             const double *q = y + (size_t)b * GS_NY + GS_Y_Q;
             const double nq = gs_norm4(q);
             double qu[4];
             for (int i = 0; i < 4; i++) qu[i] = nq > 0.0 ? q[i] / nq : q[i];
             for (int i = 0; i < GS_Y_NQW; i++) ob[i] = tout[i];
             euler_rates(qu, tout + t->nx, ob + GS_O_PHI);
-            const int e = t->nx + 4 * t->n;
+            const int e = GS_TREE_SCENE_OUT(t);
             ob[GS_O_L] = tout[e + 2];
             ob[GS_O_L + 1] = tout[e + 3];
             ob[GS_O_L + 2] = tout[e + 4];

@@ -2105,7 +2105,36 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
         } else {
             quat_mul(qw[par], qr, qw[i]);
         }
-        memcpy(out + t->nx + 4 * i, qw[i], sizeof(qr));
+        memcpy(out + t->nx + GS_TREE_BODY_NOUT * i + GS_TREE_OUT_QW, qw[i], sizeof(qr));
+    }
+    {   /* every body's origin in the world (kin.ow) and its velocity there: the parent's velocity at the point r_i
+         * (the origin in the parent's frame), v_p + w_p x r_i, plus the joint's own translation (a slider's axis
+         * times its rate, a free joint's velocity relative to its parent), turned into the world by the parent's
+         * rotation. Made from the parent's frame, not the body's own, so that it depends on the body's own rotation
+         * in no way, not even by round-off (the FMUs declare what each output depends on). */
+        KIN_DECL(kin, t->n);
+        kinematics(t, y, p, pre, &kin, 1);
+        for (int i = 0; i < t->n; i++) {
+            double *ob = out + t->nx + GS_TREE_BODY_NOUT * i;
+            const int par = t->parent[i];
+            const double *s = y + t->yi[i];
+            double vl[3] = {0.0, 0.0, 0.0};
+            if (par >= 0) {
+                cross3(kin.v[par], kin.r[i], vl);
+                for (int a = 0; a < 3; a++) vl[a] += kin.v[par][3 + a];
+            }
+            if (t->joint[i] == GS_J_SLIDER) {
+                for (int a = 0; a < 3; a++) vl[a] += pre->ap[i][a] * s[1];
+            } else if (t->joint[i] == GS_J_FREE) {
+                for (int a = 0; a < 3; a++) vl[a] += s[10 + a];
+            }
+            memcpy(ob + GS_TREE_OUT_RW, kin.ow[i], 3 * sizeof(double));
+            if (par >= 0) {
+                mv3(kin.Rw[par], vl, ob + GS_TREE_OUT_VW);
+            } else {
+                memcpy(ob + GS_TREE_OUT_VW, vl, 3 * sizeof(double));
+            }
+        }
     }
     Totals s;
     if (memo && memo->valid && t->nx <= GS_ODE_MAX && !memcmp(memo->x, y, (size_t)t->nx * sizeof(double))) {
@@ -2113,7 +2142,7 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
     } else {
         totals_pre(t, y, p, pre, &s);
     }
-    double *o = out + t->nx + 4 * t->n;
+    double *o = out + GS_TREE_SCENE_OUT(t);
     o[0] = s.T + s.V;
     o[1] = o[0] - y[t->nx];
     memcpy(o + 2, s.L, sizeof(s.L));

@@ -356,6 +356,7 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
             if (d->p_valid) d->p[v->index] = x;
             break;
         case GS_K_INPUT:
+            if (!in_range(m, v, x)) return GS_ERROR;
             d->par[v->index] = x;
             if (d->p_valid) d->p[v->index] = x;
             break;
@@ -380,6 +381,7 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
             d->max_step = x;
             break;
         case GS_K_STATE:
+            if (!in_range(m, v, x)) return GS_ERROR;
             d->y[v->index] = x;
             d->state_dirty = 1;
             gs_sys_forget(&m->sys, NULL, d->ex);
