@@ -122,3 +122,55 @@ def test_a_tolerance_double_precision_cannot_meet_is_refused(tmp_path, tol, ok):
     else:
         with pytest.raises(ConfigError, match=r"tolerance = .* is not allowed: a number from 1e-15 to 1"):
             load_scene(p)
+
+
+_PENDULUM = ('[scene]\nname = "{scene}"\n[[body]]\nname = "{body}"\njoint = "hinge"\naxis = [0.0, 1.0, 0.0]\n'
+             'mass = 1.0\ncm = [0.0, 0.0, -1.0]\ninertia = {{ principal = [0, 0, 0] }}\n'
+             '[[body]]\nname = "tip"\nparent = "world"\njoint = "hinge"\naxis = [1.0, 0.0, 0.0]\nmass = 1.0\n'
+             'cm = [0.0, 0.0, -1.0]\n'
+             'inertia = {{ principal = [0, 0, 0] }}\n')
+
+
+@pytest.mark.parametrize("text", [
+    _PENDULUM.format(scene="p", body="world"),  # a tree's body: parent = "world" would mean the world
+    '[scene]\nname = "p"\n[[body]]\nname = "world"\ninertia = {principal = [1, 2, 3]}\n',  # a one-body scene's
+])
+def test_a_body_named_world_is_refused(tmp_path, text):
+    with pytest.raises(ConfigError) as e:
+        load_scene(write(tmp_path, text))
+    assert (e.value.field, e.value.value) == ("name", "world") and e.value.where.endswith("body[0]")
+    assert e.value.allowed.startswith("a body name other than 'world': 'world' is the frame the roots hang from")
+
+
+@pytest.mark.parametrize("name, shown, extra", [
+    ("a" * 300, "a" * 24 + "..." + "a" * 8 + " (300 characters)", ""),
+    ("a" * 65, "a" * 24 + "..." + "a" * 8 + " (65 characters)", ""),
+    ("épée", "épée", "; it has 'é'"),
+    ("two words", "two words", "; it has ' '"),
+])
+def test_a_scene_name_beyond_the_allowed_length_or_characters_is_refused_at_load(tmp_path, capsys, name, shown,
+                                                                                  extra):
+    """The scene's name makes the FMU's model identifier (a C identifier; its .fmu and binary file names) and file
+    names such as <name>_out.csv: at most 64 ASCII letters, digits, '_' and '-', checked at load (a 300-character
+    name used to fail late, at the first file written: 'File name too long'). 64 is taken; so are body names."""
+    from gyrosim.cli import main
+    from gyrosim.fmu.build import model_identifier
+
+    path = write(tmp_path, _PENDULUM.format(scene=name, body="arm"))
+    allowed = ("a name of 1 to 64 characters: ASCII letters, digits, '_' and '-' (it makes the FMU's model "
+               "identifier, a C identifier, and file names such as <name>_out.csv)")
+    with pytest.raises(ConfigError) as e:
+        load_scene(path)
+    assert (e.value.field, e.value.value, e.value.allowed) == ("name", shown, allowed + extra)
+    assert e.value.where == f"{path} [scene]"
+    out = tmp_path / "x.csv"
+    for argv in (["simulate", str(path), "-o", str(out)], ["fmu", "build", str(path), "-o", str(tmp_path)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err == f"gyrosim {argv[0] if argv[0] != 'fmu' else 'fmu build'}: error: {e.value}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+    ok = write(tmp_path, _PENDULUM.format(scene="b" * 64, body="c" * 64))
+    assert model_identifier(ok) == "B" + "b" * 63
+    with pytest.raises(ConfigError) as e:
+        load_scene(write(tmp_path, _PENDULUM.format(scene="p", body="c" * 65)))
+    assert e.value.field == "name" and "(65 characters)" in e.value.value and "a Zenoh key" in e.value.allowed

@@ -65,7 +65,8 @@ from .core.rotations import (
 )
 from .errors import ConfigError
 
-__all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict"]
+__all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SCENES", "INTEGRATORS", "scene_from_dict",
+           "check_name", "MAX_NAME"]
 
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
                    "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels", "mass_spring_chain",
@@ -509,16 +510,47 @@ def _attitude_rates(tbl: dict, where: str) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(q, dtype=float), np.asarray(omega, dtype=float)
 
 
+#: The longest scene or body name (characters): a scene's names its FMU's model identifier (a C identifier, the
+#: FMU's and its binary's file names) and files such as ``<name>_out.csv``, a body's Zenoh keys, ROS 2 topics and
+#: plot files; every file name stays far below the 255 bytes a file system allows and Windows' 260-character paths.
+MAX_NAME = 64
+#: Body names that mean something else: ``world`` is the frame every root hangs from (``parent = "world"``, the
+#: ``frame_id`` of a root's transform).
+RESERVED_BODY_NAMES = ("world",)
+
+
+def check_name(name, where: str, kind: str = "scene") -> str:
+    """A scene's (``kind="scene"``) or a body's (``"body"``) name: 1 to :data:`MAX_NAME` ASCII letters, digits,
+    ``_`` and ``-``; a body's not ``world``. Returns the name.
+
+    Raises
+    ------
+    ConfigError
+        Naming the field ``name``, the value (a long one cut short, with its length) and what is allowed.
+    """
+    uses = ("it makes the FMU's model identifier, a C identifier, and file names such as <name>_out.csv"
+            if kind == "scene" else "it is a Zenoh key, a ROS 2 topic name and a part of variable and file names")
+    allowed = f"a name of 1 to {MAX_NAME} characters: ASCII letters, digits, '_' and '-' ({uses})"
+    if not isinstance(name, str) or not name:
+        raise ConfigError("name", name, allowed, where=where)
+    if len(name) > MAX_NAME:
+        raise ConfigError("name", f"{name[:24]}...{name[-8:]} ({len(name)} characters)", allowed, where=where)
+    bad = sorted({c for c in name if not (c.isascii() and (c.isalnum() or c in "_-"))})
+    if bad:
+        raise ConfigError("name", name, f"{allowed}; it has {', '.join(map(repr, bad))}", where=where)
+    if kind == "body" and name in RESERVED_BODY_NAMES:
+        raise ConfigError("name", name, "a body name other than 'world': 'world' is the frame the roots hang from "
+                          "(parent = \"world\" means it, and it is the frame_id of a root's transform)", where=where)
+    return name
+
+
 def _body(tbl: dict, index: int, scene_g: float, where: str) -> tuple[list[BodySpec], set[str]]:
     where = f"{where} body[{index}]"
     if not isinstance(tbl, dict):
         raise ConfigError("body", tbl, "a table ([[body]])", where=where)
     _check_keys(tbl, _BODY_KEYS, where)
     terms = set()
-    name = tbl.get("name", "body" if index == 0 else f"body_{index}")
-    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
-        raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-' (it is a Zenoh key)",
-                          where=where)
+    name = check_name(tbl.get("name", "body" if index == 0 else f"body_{index}"), where, "body")
     count = tbl.get("count", 1)
     if isinstance(count, bool) or not isinstance(count, int) or count < 1 or count > 10_000_000:
         raise ConfigError("count", count, "an integer from 1 to 10,000,000", where=where)
@@ -584,9 +616,7 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
         raise ConfigError("scene", sc, "a table [scene]", where=source)
     where = f"{source} [scene]"
     _check_keys(sc, _SCENE_KEYS, where)   # [scene.orbit]: a tree's orbit (scene_tree.orbit_from_dict)
-    name = sc.get("name")
-    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
-        raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-'", where=where)
+    name = check_name(sc.get("name"), where, "scene")
     integ = sc.get("integrator", "rk4")
     if integ not in INTEGRATORS and integ not in TREE_INTEGRATORS:
         every = INTEGRATORS + tuple(i for i in TREE_INTEGRATORS if i not in INTEGRATORS)
@@ -690,7 +720,7 @@ def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -
 
 
 def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) -> Scene:
-    from .scene_tree import orbit_from_dict, tree_from_dict
+    from .scene_tree import check_inert_joints, orbit_from_dict, tree_from_dict
 
     bodies, couplings, cnames, aliases, springs, forces = tree_from_dict(data, source)
     orbit = orbit_from_dict(sc["orbit"], bodies, f"{where}.orbit") if "orbit" in sc else None
@@ -698,6 +728,7 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
     for nm in cnames:
         if nm in names or nm in [e.name for e in springs + forces]:
             raise ConfigError("name", nm, "a coupling name no body, spring or force of the scene has", where=source)
+    check_inert_joints(bodies, source)   # after the format's checks: a joint that carries nothing, before any run
     # a tree-only integrator keeps a tree of one body on the tree engine; so do elements and a turned gravity
     plain = not springs and not forces and gdir == (0.0, 0.0, -1.0)
     one = (_one_body_kernel(data, bodies, couplings, aliases, orbit, g, source) if integ in INTEGRATORS and plain

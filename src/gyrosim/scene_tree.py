@@ -202,10 +202,7 @@ def _tree_body(tbl, index, names, where):
     if not isinstance(tbl, dict):
         raise ConfigError("body", tbl, "a table ([[body]])", where=where)
     s._check_keys(tbl, _TREE_BODY_KEYS, where)
-    name = tbl.get("name", "body" if index == 0 else f"body_{index}")
-    if not isinstance(name, str) or not name or not all(c.isalnum() or c in "_-" for c in name):
-        raise ConfigError("name", name, "a non-empty name of letters, digits, '_' and '-' (it is a Zenoh key)",
-                          where=where)
+    name = s.check_name(tbl.get("name", "body" if index == 0 else f"body_{index}"), where, "body")
     where = f"{where} ({name!r})"
     parent = tbl.get("parent", "world")
     if parent == "world":
@@ -664,6 +661,64 @@ def tree_from_dict(data: dict, source: str):
             else:
                 bodies[bi] = body_with(bodies[bi], pn, f * value)
     return tuple(stop_defaults(bodies)), tuple(couplings), tuple(cnames), tuple(aliases), tuple(springs), forces
+
+
+def check_inert_joints(bodies, source: str) -> None:
+    """Refuse a tree with a joint that carries nothing whatever the configuration (:func:`inert_joints`): its
+    equations of motion are singular everywhere, so no run can start."""
+    for i, name, value, what, advice in inert_joints(bodies):
+        raise ConfigError(name, value, f"a body with inertia at its joint: {what}, so nothing resists its joint's "
+                          f"acceleration and the equations of motion are singular; {advice}",
+                          where=f"{source} body[{i}] ({bodies[i].name!r})")
+
+
+def inert_joints(bodies) -> list:
+    """The joints that carry nothing whatever the configuration (the equations of motion singular everywhere), from
+    the bodies' values: a body with neither mass nor inertia and nothing below it that has any (any joint with a
+    coordinate; a fixed joint has none, so a massless fixed body, a sensor's frame, is fine), a hinge body whose mass
+    sits on its axis with no moment about it and nothing below with any inertia, and a slider (or a free joint)
+    whose subtree has no mass to move. As :meth:`gyrosim.kernel_tree.TreeKernel.inert_bodies` says it at run time.
+
+    Returns
+    -------
+    list of (body index, parameter, value, what it is, advice)
+        The parameter to name (``mass``; ``cm_x`` for a mass on a hinge's axis) and its value.
+    """
+    below = {i: [] for i in range(len(bodies))}
+    for i, b in enumerate(bodies):
+        j = b.parent
+        while j >= 0:
+            below[j].append(i)
+            j = bodies[j].parent
+
+    def moments(b):
+        return [float(x) for x in np.diag(np.asarray(b.inertia, dtype=float))]
+
+    massless = {i for i, b in enumerate(bodies) if b.mass == 0.0 and not any(moments(b))}
+    out = []
+    for i, b in enumerate(bodies):
+        if b.joint == "fixed":
+            continue
+        alone = all(c in massless for c in below[i])
+        if i in massless and alone:
+            out.append((i, "mass", 0.0, f"body {b.name!r} has neither mass nor inertia (mass and I1, I2, I3 all 0)",
+                        "give it mass or inertia"))
+        elif b.joint in ("slider", "free") and b.mass == 0.0 and all(bodies[c].mass == 0.0 for c in below[i]):
+            what = "its slider" if b.joint == "slider" else "its free joint's translation"
+            out.append((i, "mass", 0.0, f"body {b.name!r} has no mass for {what} to move (mass 0 kg, and none in "
+                        "the bodies below it)", "give it mass"))
+        elif b.joint == "hinge" and alone:
+            axis = np.asarray(b.axis, dtype=float)
+            cm = np.asarray(b.cm, dtype=float)
+            J = np.asarray(b.inertia, dtype=float)
+            if float(axis @ J @ axis) + b.mass * float(cm @ cm - (cm @ axis) ** 2) == 0.0:
+                across = [c for k, c in enumerate("xyz") if abs(axis[k]) < 1.0]
+                pick = next((c for c in across if float(cm["xyz".index(c)]) != 0.0), across[0])
+                out.append((i, f"cm_{pick}", float(cm["xyz".index(pick)]), f"body {b.name!r} has no moment of "
+                            f"inertia about its hinge axis (its mass {b.mass:g} kg on the axis, cm = "
+                            f"[{', '.join(f'{x:g}' for x in cm)}] m, and no moment of its own about it)",
+                            "move its centre of mass off the axis or give it a moment of inertia about it"))
+    return out
 
 
 def _declared_range(spec: dict, where: str, unit: str) -> Range:

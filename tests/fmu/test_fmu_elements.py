@@ -78,6 +78,17 @@ def test_impact_stop_is_an_event_in_model_exchange_and_inside_do_step(tmp_path, 
         assert md.numberOfEventIndicators == 1
     else:
         assert [x.variable.name for x in md.eventIndicators] == ["lower_stop_distance"]
+    # the description names the slider's coordinates as the continuous states and the event indicator it has
+    assert "1 body (ball) on a slider joint" in md.description
+    assert "the continuous states are the joints' coordinates (slider displacements and velocities)" in md.description
+    assert "1 event indicator (numberOfEventIndicators in FMI 2.0, EventIndicator in FMI 3.0): lower_stop_distance " \
+           "(m): the distance to an impact stop" in md.description and "No event indicators" not in md.description
+    var = {x.name: x for x in md.modelVariables}
+    assert (var["displacement"].unit, var["velocity"].unit) == ("m", "m/s")
+    assert var["displacement"].description == "slider displacement along its axis"
+    assert var["velocity"].description == "slider velocity along its axis"
+    assert (var["der(displacement)"].unit, var["der(velocity)"].unit) == ("m/s", "m/s2")
+    assert [d.variable.name for d in md.derivatives][:2] == ["der(displacement)", "der(velocity)"]
     ref = gyrosim.simulate(str(toml), stop_time=2.0, output_interval=DYADIC)
     r = simulate_fmu(str(path), stop_time=2.0, output_interval=DYADIC, output=["displacement", "velocity"])
     assert np.array_equal(r["displacement"], ref["displacement"])

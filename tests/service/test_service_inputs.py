@@ -109,14 +109,20 @@ def test_malformed_torque_is_rejected_counted_and_the_service_keeps_running(capl
     assert any("not valid JSON" in m for m in logged)
 
 
-def test_a_body_without_torque_inputs_rejects_commands_with_the_reason():
+def test_a_body_without_torque_inputs_has_no_command_subscribers():
+    """Subscribers only where the inputs are: a publisher's matching status says its commands go nowhere, and the
+    params reply lists no input (the service's own queryable on the same body answers)."""
     with Served("free_body", rate=100.0) as s:
         body = s.result["service"].bodies[0]
-        pub = s.session.declare_publisher(K.BodyKeys("free_body", body).torque)
-        _wait(lambda: pub.matching_status.matching, what="torque subscriber visible")
-        pub.put(msg.encode_torque(0.0, 0.0, 0.1))
-        _wait(lambda: s.params(body)["service"]["stats"]["torque_rejected"] == 1, what="rejection counted")
-        assert "has no torque input" in s.params(body)["service"]["stats"]["last_rejection"]
+        keys = K.BodyKeys("free_body", body)
+        pubs = [s.session.declare_publisher(keys.torque), s.session.declare_publisher(keys.motor)]
+        assert s.params(body)["inputs"] == {}  # the service is up and answers on this body's keys
+        sub = s.session.declare_subscriber(keys.torque)  # a subscriber of our own: matching works on this link
+        _wait(lambda: pubs[0].matching_status.matching, what="our own subscriber matched")
+        sub.undeclare()
+        _wait(lambda: not pubs[0].matching_status.matching, what="no torque subscriber but ours")
+        assert not pubs[1].matching_status.matching
+        assert (s.result["service"].torque_subs, s.result["service"].motor_subs) == ({}, {})
 
 
 def test_liveliness_token_comes_and_goes_with_the_service():

@@ -146,6 +146,35 @@ def test_ros2_commands_turn_a_wheel_and_the_hub(tmp_path):
     assert "only its torque is an input" in stderr
 
 
+def test_ros2_motor_drives_a_slider_and_only_existing_inputs_are_subscribed(tmp_path):
+    """A slider's motor_force from ROS 2: a std_msgs/Float64 of 4 N on /cart/cart/motor accelerates the cart and
+    its fixed load (2 kg) at 2 m/s^2 (its joint state's velocity; the joint states name the slider); the graph
+    lists the cart's motor subscription and no torque or motor topic of a body without that input (the cart has no
+    torque input, the fixed load none at all)."""
+    from test_service_tree import CART
+
+    scene = tmp_path / "cart.toml"
+    scene.write_text(CART)
+    port, domain = free_port(), 15
+    srv = start("serve", str(scene), "--ros-domain", str(domain), "-l", endpoint(port), "--duration", "8",
+                "--no-multicast-scouting")
+    lines = wait_for_line(srv, "stepping")
+    out = _peer(tmp_path, port, domain, 4.0, {
+        "subscribe": {"/cart/joint_states": msg.JOINT_STATE_TYPE},
+        "publish": [[0.5, "/cart/cart/motor", msg.FLOAT64_TYPE, {"data": 4.0}]]})
+    rc, stdout, stderr = finish(srv, timeout=60)
+    assert rc == 0, stderr[-2000:]
+    assert "motor commands: 1 accepted, 0 rejected" in stdout, stdout
+    assert any('commands taken: gyrosim/cart/cart/motor {"force"} N' in line for line in lines), lines
+    first, last = out["first"]["/cart/joint_states"], out["last"]["/cart/joint_states"]
+    assert last["name"] == ["cart"] and first["velocity"] == [0.0]
+    assert last["velocity"][0] > 2.0  # 2 m/s^2 for more than the 1.5 s after the command
+    assert last["position"][0] == pytest.approx(last["velocity"][0] ** 2 / 4.0, rel=1e-6)  # v^2 = 2 a x
+    topics = dict((n, t) for n, t in out["topics"])
+    assert topics["/cart/cart/motor"] == [msg.FLOAT64_TYPE]
+    assert not {"/cart/cart/torque", "/cart/load/torque", "/cart/load/motor"} & set(topics), topics
+
+
 def test_replay_republishes_a_recording_into_ros2(tmp_path):
     """``gyrosim replay --ros-domain``: a recording's frames, IMUs and simulation clock reach the ROS 2 side."""
     rec = tmp_path / "g.mcap"

@@ -343,19 +343,20 @@ def test_a_motor_command_spins_the_spacecrafts_wheel_and_a_torque_command_sets_t
         hub = s.session.declare_subscriber(keys["hub"].state, zenoh.handlers.FifoChannel(100_000))
         pubs = {(b, kind): s.session.declare_publisher(keys[b].key(kind), encoding=zenoh.Encoding("application/json"))
                 for b in keys for kind in ("motor", "torque")}
-        wait_until(lambda: all(p.matching_status.matching for p in pubs.values()), what="command subscribers")
+        # a body has the subscribers of the inputs it has: the hub's torque and the wheel's motor, not the others
+        taken = (("hub", "torque"), ("wheel_x", "motor"))
+        wait_until(lambda: all(pubs[k].matching_status.matching for k in taken), what="command subscribers")
         before = wait_until(lambda: _state(wheel), what="a wheel state")
+        assert not pubs[("hub", "motor")].matching_status.matching  # the hub is on a free_rotation joint: no motor
+        assert not pubs[("wheel_x", "torque")].matching_status.matching  # a wheel has no torque input
         assert before["inputs"] == {"motor_torque": 0.0} and before["joint"]["rate"] == pytest.approx(100.0)
         L0 = before["L"]
 
         # commands that are refused: each with its reason; nothing changes
-        pubs[("hub", "motor")].put(msg.encode_motor(0.1))  # the hub is on a free_rotation joint: no motor
-        wait_until(lambda: s.params("hub")["service"]["stats"]["motor_rejected"] == 1, what="hub motor rejected")
-        assert "'hub' of scene 'spacecraft' has no motor input" in s.params("hub")["service"]["stats"]["last_rejection"]
-        pubs[("wheel_x", "torque")].put(msg.encode_torque(0.0, 0.0, 0.1))
-        wait_until(lambda: s.params("wheel_x")["service"]["stats"]["torque_rejected"] == 1,
-                   what="wheel torque rejected")
-        assert "has no torque input" in s.params("wheel_x")["service"]["stats"]["last_rejection"]
+        pubs[("wheel_x", "motor")].put(b'{"force": 0.1}')  # a slider's command on a hinge
+        wait_until(lambda: s.params("wheel_x")["service"]["stats"]["motor_rejected"] == 1, what="a force refused")
+        assert ("'wheel_x' of scene 'spacecraft' is on a hinge: its motor command is {\"torque\": x} in N*m"
+                in s.params("wheel_x")["service"]["stats"]["last_rejection"])
         for bad in (b'{"torque": "x"}', b'{"torque": 1e3}', b'{"x": 0, "y": 0, "z": 0}', b"nope"):
             pubs[("wheel_x", "motor")].put(bad)
         wait_until(lambda: s.params("wheel_x")["service"]["stats"]["motor_rejected"] == 5, what="bad motor rejected")
@@ -385,7 +386,7 @@ def test_a_motor_command_spins_the_spacecrafts_wheel_and_a_torque_command_sets_t
                    what="the hub's torque set")
         wait_until(lambda: (st := _state(hub)) and st["inputs"]["tau_z"] == 0.01, what="a hub state with the torque")
     stats = s.result["stats"]
-    assert (stats.motor_accepted, stats.motor_rejected, stats.torque_accepted, stats.torque_rejected) == (1, 5, 1, 1)
+    assert (stats.motor_accepted, stats.motor_rejected, stats.torque_accepted, stats.torque_rejected) == (1, 5, 1, 0)
     assert "motor commands: 1 accepted, 5 rejected" in stats.format()
 
     # the accepted commands are in the recording, the motor command with its JSON schema
@@ -405,6 +406,79 @@ def test_a_motor_command_spins_the_spacecrafts_wheel_and_a_torque_command_sets_t
         stats = replay.main(loopback_config("producer", endpoint(free_port())), tmp_path / "sc.mcap",
                             options=replay.ReplayOptions(speed=0, include_torque=include), stop=threading.Event())
         assert {k for k in stats.topics if k.endswith(("/motor", "/torque"))} == expected
+
+
+#: A cart on a slider along x with its motor (cart.motor_force), a load fixed on it, no gravity: a force F moves
+#: both at F / (m_cart + m_load) (issue 43).
+CART = """
+[scene]
+name = "cart"
+g = 0.0
+integrator = "rk4"
+max_step = 0.001
+
+[[body]]
+name = "cart"
+joint = "slider"
+axis = [1.0, 0.0, 0.0]
+mass = 1.5
+inertia = { principal = [0.01, 0.01, 0.01] }
+motor_input = true
+
+[[body]]
+name = "load"
+parent = "cart"
+joint = "fixed"
+position = [0.0, 0.0, 0.2]
+mass = 0.5
+inertia = { principal = [0.01, 0.01, 0.01] }
+"""
+
+
+def test_a_sliders_motor_force_is_commanded_like_a_hinges_motor(tmp_path):
+    """The cart's ``.../motor`` takes ``{"force": F}`` (N): the cart accelerates at F / 2 kg (RK4 is exact for a
+    constant acceleration), its state carries the input; a hinge's ``{"torque"}`` and a force beyond the limit are
+    refused with their reasons; only the cart's motor key has a subscriber (the cart has no torque input, the
+    fixed load neither); the accepted command is recorded (a JSON channel without the hinge's motor schema)."""
+    scene = tmp_path / "cart.toml"
+    scene.write_text(CART)
+    force, mass = 4.0, 2.0
+    with Served(str(scene), rate=200.0, force_limit=10.0, record=str(tmp_path / "cart.mcap")) as s:
+        keys = {b: K.BodyKeys("cart", b) for b in ("cart", "load")}
+        cart = s.session.declare_subscriber(keys["cart"].state, zenoh.handlers.FifoChannel(100_000))
+        pubs = {(b, kind): s.session.declare_publisher(keys[b].key(kind), encoding=zenoh.Encoding("application/json"))
+                for b in keys for kind in ("motor", "torque")}
+        wait_until(lambda: pubs[("cart", "motor")].matching_status.matching, what="the cart's motor subscriber")
+        before = wait_until(lambda: _state(cart), what="a cart state")
+        assert before["inputs"] == {"motor_force": 0.0} and before["joint_type"] == "slider"
+        assert set(before["joint"]) == {"displacement", "velocity"}
+        assert not any(pubs[k].matching_status.matching for k in pubs if k != ("cart", "motor"))
+        assert s.result["service"].commands_text() == 'gyrosim/cart/cart/motor {"force"} N'
+
+        pubs[("cart", "motor")].put(msg.encode_motor(1.0))  # a hinge's command
+        wait_until(lambda: s.params("cart")["service"]["stats"]["motor_rejected"] == 1, what="a torque refused")
+        assert ("'cart' of scene 'cart' is on a slider: its motor command is {\"force\": x} in N, not {\"torque\"}"
+                == s.params("cart")["service"]["stats"]["last_rejection"].split("body ", 1)[1])
+        for bad in (b'{"force": 11}', b'{"force": "1"}', b'{"force": 1, "torque": 1}', b'{"force": NaN}'):
+            pubs[("cart", "motor")].put(bad)
+        wait_until(lambda: s.params("cart")["service"]["stats"]["motor_rejected"] == 5, what="bad forces refused")
+        assert s.params("cart")["inputs"] == {"motor_force": 0.0}  # nothing refused was applied
+
+        pubs[("cart", "motor")].put(b'{"force": 4.0}')
+        first = wait_until(lambda: (st := _state(cart)) and st["inputs"]["motor_force"] == force and st,
+                           what="a cart state with the motor force")
+        later = wait_until(lambda: (st := _state(cart)) and st["t"] >= first["t"] + 0.2 and st,
+                           what="0.2 s more of the cart")
+        dt = later["t"] - first["t"]
+        assert later["joint"]["velocity"] - first["joint"]["velocity"] == pytest.approx(force / mass * dt, rel=1e-9)
+        assert s.params("cart")["inputs"] == {"motor_force": force}
+    stats = s.result["stats"]
+    assert (stats.motor_accepted, stats.motor_rejected, stats.torque_accepted, stats.torque_rejected) == (1, 5, 0, 0)
+
+    with open(tmp_path / "cart.mcap", "rb") as f:
+        reader = make_reader(f)
+        [(schema, channel, message)] = list(reader.iter_messages(topics=["/gyrosim/cart/cart/motor"]))
+    assert schema is None and channel.message_encoding == "json" and json.loads(message.data) == {"force": force}
 
 
 def test_the_readme_motor_snippet_runs_against_a_live_spacecraft():

@@ -608,3 +608,42 @@ def test_review_fixes_in_the_scene_format():
         _scene('[scene]\nname = "a"\n[[body]]\nname = "p"\njoint = "hinge"\ninertia = { principal = [1, 1, 1] }\n'
                'lower = 0.3\nangle = 0.2\nstop = "impact"\n')
     assert e.value.field == "angle"
+
+
+# ------------------------------------------------------------------------------------------ joints that carry nothing
+_LONE = ('[scene]\nname = "lone"\n[[body]]\nname = "b"\njoint = "{joint}"\naxis = [0.0, 1.0, 0.0]\nmass = {mass}\n'
+         'inertia = {{ principal = [{moment}, {moment}, {moment}] }}\n')
+
+
+@pytest.mark.parametrize("joint", ["slider", "hinge"])
+def test_a_massless_slider_is_refused_at_load_as_a_massless_hinge_is(joint):
+    """A slider (or a hinge) with neither mass nor inertia and nothing below it: the equations of motion are singular
+    everywhere, so the scene is refused at load (before any run) in the words of a blow-up's diagnosis; a slider
+    with inertia but no mass moves nothing either. A massless slider that carries a massive body is fine."""
+    with pytest.raises(ConfigError) as e:
+        _scene(_LONE.format(joint=joint, mass=0.0, moment=0.0))
+    assert (e.value.field, e.value.value, e.value.where) == ("mass", 0.0, "<test> body[0] ('b')")
+    assert e.value.allowed == ("a body with inertia at its joint: body 'b' has neither mass nor inertia (mass and "
+                               "I1, I2, I3 all 0), so nothing resists its joint's acceleration and the equations of "
+                               "motion are singular; give it mass or inertia")
+    if joint == "slider":
+        with pytest.raises(ConfigError) as e:
+            _scene(_LONE.format(joint=joint, mass=0.0, moment=1.0))
+        assert e.value.field == "mass" and "body 'b' has no mass for its slider to move" in e.value.allowed
+        carrier = _LONE.format(joint=joint, mass=0.0, moment=0.0) + (
+            '[[body]]\nname = "c"\nparent = "b"\njoint = "fixed"\nmass = 1.0\ninertia = { principal = [0, 0, 0] }\n')
+        assert Model(_scene(carrier)).n_coords == 2
+
+
+def test_a_massless_slider_is_a_one_line_user_error_of_every_command(tmp_path, capsys):
+    from gyrosim.cli import main
+
+    path = tmp_path / "drop0.toml"
+    path.write_text(DROP.format(integrator="rk4", max_step=0.001).replace("mass = 1.0", "mass = 0.0"))
+    for argv in (["simulate", str(path)], ["chaos", str(path)], ["fmu", "build", str(path), "-o", str(tmp_path)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.endswith("drop0.toml body[0] ('ball'): mass = 0.0 is not allowed: a body with inertia at its "
+                            "joint: body 'ball' has neither mass nor inertia (mass and I1, I2, I3 all 0), so nothing "
+                            "resists its joint's acceleration and the equations of motion are singular; give it mass "
+                            "or inertia") and len(err.splitlines()) == 1, err

@@ -230,10 +230,10 @@ def _rate_scale(model: Model, rows) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------ the exponent
 def _period_candidates(model: Model) -> list[str]:
     """Variables whose oscillation period the exponent is given per: the nutation angle of one body (theta), a
-    tree's hinge angles, then the rates."""
+    tree's hinge angles, its sliders' displacements, then the rates."""
     coords = model.coordinates
     nutation = ["theta"] if "theta" in model.scene.output_names() else []  # the one-body kernel's ZYZ angle
-    return (nutation + [v for v, c, _ in coords if c == "angle"]
+    return (nutation + [v for v, c, _ in coords if c == "angle"] + [v for v, c, _ in coords if c == "displacement"]
             + [v for v, c, _ in coords if c.startswith("omega_")])
 
 
@@ -291,6 +291,10 @@ class LyapunovResult:
         s: the mean period of ``period_variable``'s oscillation (the nutation, a pendulum's swing), None where the
         reference does not oscillate.
     integrator, max_step, tolerance, output_interval : the run's settings.
+    merged : float, (k,) ndarray or None
+        s: the renormalisation by which the neighbour had met the reference (their separation exactly 0: nearby
+        starts ended in the same state, as a motion that comes to rest on an impact stop); the exponent is then
+        ``-inf``. None (NaN per copy) where they never met.
     """
 
     exponent: object
@@ -313,6 +317,7 @@ class LyapunovResult:
     max_growth: float = 1.0
     intervals: np.ndarray = field(default_factory=lambda: np.zeros(0))
     coordinates: list = field(default_factory=list)
+    merged: object = None
 
     @property
     def per_period(self):
@@ -335,6 +340,11 @@ class LyapunovResult:
             lines.append("per oscillation period: - (no variable oscillates)")
         if lam > 0 and abs(slope - lam) <= 0.2 * lam:  # converged: the two estimates agree
             lines.append(f"e-folding time 1/lambda: {1.0 / lam:.6g} s")
+        met = np.asarray(self.merged if self.merged is not None else math.nan, dtype=float).ravel()[0]
+        if math.isfinite(met):
+            lines.append(f"the neighbour had met the reference by t = {met:.6g} s (separation exactly 0): nearby "
+                         "starts end in the same state (the motion comes to rest, e.g. on an impact stop), so the "
+                         "exponent is -inf")
         return "\n".join(lines)
 
 
@@ -460,6 +470,7 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
     series_t, series = [], []
     status = np.zeros(2 * k, dtype=np.int32) if keep_going else None
     alive = np.ones(k, dtype=bool)
+    merged = np.full(k, np.nan)  # when a pair's separation became exactly 0 (the same state: exponent -inf)
     log_sum = np.zeros(k)
     times, hist, ivs = [], [], []
     max_growth = 1.0
@@ -483,7 +494,11 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
         with np.errstate(divide="ignore", invalid="ignore"):
             growth = d / d0
             ok = alive & np.isfinite(growth) & (growth > 0)
-        alive &= ok
+        met = alive & (growth == 0)  # both copies in the same (finite) state: ln(0) = -inf, for good
+        if met.any():
+            log_sum[met] = -np.inf
+            merged[met & np.isnan(merged)] = done * dt
+        alive &= ok | met
         log_sum[ok] += np.log(growth[ok])
         if ok.any():
             g = float(np.max(growth[ok]))
@@ -507,7 +522,9 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
     late = times >= 0.5 * times[-1]
     if late.sum() >= 2:
         tl = times[late] - times[late].mean()
-        slope = (tl @ (logs[late] - logs[late].mean(axis=0))) / (tl @ tl)
+        with np.errstate(invalid="ignore"):
+            slope = (tl @ (logs[late] - logs[late].mean(axis=0))) / (tl @ tl)
+        slope = np.where(np.isneginf(hist[-1]), -np.inf, slope)  # a pair that met: no slope but -inf
     else:
         slope = hist[-1].copy()
     exponent = hist[-1] if k > 1 else float(hist[-1, 0])
@@ -517,7 +534,8 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
                          interval=m * dt if not ivs else ivs[0], tau=tau if k > 1 else float(tau[0]),
                          integrator=big.integrator, max_step=big.max_step, tolerance=big.tolerance,
                          output_interval=dt, time=n * dt, scene=model.scene.name, max_growth=max_growth,
-                         intervals=np.array(ivs), coordinates=tan.names)
+                         intervals=np.array(ivs), coordinates=tan.names,
+                         merged=merged if k > 1 else (None if np.isnan(merged[0]) else float(merged[0])))
     if cols and series:
         t = np.concatenate(series_t)
         x = np.concatenate(series)
@@ -709,8 +727,10 @@ def trust_horizon(model_or_scene, *, time, tolerance: float = 1e-3, exponent: fl
             lam = float(exponent)
         except (TypeError, ValueError):
             lam = math.nan
-        if not math.isfinite(lam):
-            raise ConfigError("exponent", exponent, "a finite number in 1/s")
+        if lam == -math.inf:  # neighbours that meet (a motion coming to rest): no growth to estimate from
+            lam = None
+        elif not math.isfinite(lam):
+            raise ConfigError("exponent", exponent, "a finite number in 1/s, or -inf")
     model = _prepare(model_or_scene, start_values, integrator, max_step, None)
     check_trust(model)
     dt, n = _grid(model, time, output_interval)
@@ -795,7 +815,15 @@ def default_section(scene) -> tuple[str, float, int, tuple]:
         return (name(hinges[0], "angle"), 0.0, 1, (name(hinges[1], "angle"), name(hinges[1], "rate")))
     if hinges:
         return (name(hinges[0], "rate"), 0.0, 1, (name(hinges[0], "angle"), "energy"))
-    b = next(b.name for b in scene.tree if "omega_x" in b.coords)
+    sliders = [b.name for b in scene.tree if b.joint == "slider"]
+    if len(sliders) >= 2:  # the first slider's turning point (velocity 0 upward: its lowest displacement)
+        return (name(sliders[0], "velocity"), 0.0, 1, (name(sliders[1], "displacement"),
+                                                       name(sliders[1], "velocity")))
+    if sliders:
+        return (name(sliders[0], "velocity"), 0.0, 1, (name(sliders[0], "displacement"), "energy"))
+    b = next((b.name for b in scene.tree if "omega_x" in b.coords), None)
+    if b is None:  # no joint that moves (every body fixed): as the exponent says it
+        raise ConfigError("scene", scene.name, "a scene with a moving joint (this one has no coordinates)")
     return (name(b, "omega_x"), 0.0, 1, (name(b, "omega_y"), name(b, "omega_z")))
 
 
@@ -1078,9 +1106,13 @@ def plot_chaos(path, lyap: LyapunovResult | None = None, section: PoincareSectio
         h = np.asarray(lyap.history)
         ax.plot(t, h if h.ndim == 1 else h[:, 0], lw=1.2, color="C0", label="running estimate")
         lam = float(np.asarray(lyap.exponent).ravel()[0])
-        ax.axhline(lam, color="C0", lw=0.6, ls="--", label=f"lambda = {lam:.4g} 1/s")
         slope = float(np.asarray(lyap.slope).ravel()[0])
-        ax.axhline(slope, color="C1", lw=0.6, ls=":", label=f"slope of the second half = {slope:.4g} 1/s")
+        if math.isfinite(lam):
+            ax.axhline(lam, color="C0", lw=0.6, ls="--", label=f"lambda = {lam:.4g} 1/s")
+        else:  # the neighbour met the reference: the estimate ends where it did
+            ax.plot([], [], " ", label=f"lambda = {lam:.4g} 1/s")
+        if math.isfinite(slope):
+            ax.axhline(slope, color="C1", lw=0.6, ls=":", label=f"slope of the second half = {slope:.4g} 1/s")
         ax.axhline(0.0, color="k", lw=0.5)
         ax.set_xscale("log")
         ax.set_xlabel("time [s]")

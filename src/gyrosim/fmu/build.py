@@ -420,7 +420,13 @@ def _me_note(lay: SystemLayout) -> str:
                  f"integrator step finds | |q| - 1 | > {ME_NORM_TOL:g}, the FMU asks for a step event and "
                  "renormalises q in the event update (valuesOfContinuousStatesChanged); the derived outputs use q "
                  "normalised.")
-    return note + " No event indicators."
+    if not lay.indicators:
+        return note + " No event indicators."
+    n = len(lay.indicators)
+    return note + (f" {n} event indicator{'s' if n > 1 else ''} (numberOfEventIndicators in FMI 2.0, EventIndicator "
+                   "in FMI 3.0): " + ", ".join(f"{name} ({unit})" for name, unit in lay.indicators)
+                   + ": the distance to an impact stop (>= 0 within the stops); where one reaches 0 the FMU's event "
+                   "update applies the impact (the joint's rate reversed and scaled by its restitution).")
 
 
 def dependencies(lay: SystemLayout, rows: list[FmuRow], has_me: bool) -> dict[int, list[int]]:
@@ -470,7 +476,8 @@ def _model_description(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: 
     desc = (f"gyrosim {sc.name if sc.name != 'full' else 'rigid body (full model)'}: "
             f"{sc.description or 'rigid body'}. Native FMU (the gyrosim C engine, no Python), {kind}; "
             f"{len(names)} bod{'y' if len(names) == 1 else 'ies'}"
-            + (f" ({', '.join(names)}) joined by joints" if lay.work_states else "")
+            + ((f" ({', '.join(names)}) joined by joints" if len(names) > 1 else
+                f" ({names[0]}) on a {sc.tree[0].joint} joint") if lay.work_states else "")
             + "; integrators " + ", ".join(integ) + "." + (" " + _me_note(lay) if has_me else "") + " "
             + _platforms_note(platforms))
     extra = me_rows(lay, rows) if has_me else []

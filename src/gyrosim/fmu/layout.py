@@ -24,7 +24,7 @@ from importlib import resources
 import numpy as np
 
 from ..core import _engine
-from ..core.tree import BODY_OUTPUTS, BODY_SLOTS, INPUT_SLOTS
+from ..core.tree import BODY_OUTPUTS, BODY_SLOTS, INPUT_SLOTS, ORBIT_COORD
 from ..errors import ConfigError
 from ..kernel_body import STATE_NAMES
 from ..scene import Scene
@@ -186,13 +186,15 @@ def _tree_layout(sc: Scene) -> SystemLayout:
     by_slot = {k: short for (_, short), k in lay.coord_slots.items()}
     nominals = []
     for k in range(lay.nx):   # 1 for quaternions, angles, positions; the start rate (at least 1) for rates
-        fast = by_slot.get(k, "").startswith(("omega_", "v_")) or by_slot.get(k) == "rate"
+        fast = by_slot.get(k, "").startswith(("omega_", "v_")) or by_slot.get(k) in ("rate", "velocity")
         nominals.append(max(1.0, abs(float(y0[k]))) if fast else 1.0)
     nominals.append(max(1.0, abs(float(Model(sc).get("energy")))))
     joints = {b.joint for b in sc.tree}
     coords = [what for what, on in (("quaternions and angular velocities", joints & {"ball", "free_rotation", "free"}),
                                     ("hinge angles and rates", "hinge" in joints),
+                                    ("slider displacements and velocities", "slider" in joints),
                                     ("positions and velocities", "free" in joints)) if on]
+    anomaly = any(short == ORBIT_COORD for _, short in lay.coord_slots)   # a circular orbit's
 
     def pattern(rows):   # the complex step at two generic points: an entry zero at both is zero by the equations
         return tuple(a | b for a, b in zip(*(_tree_pattern(sc, lay, rows, seed) for seed in (1, 2))))
@@ -203,7 +205,8 @@ def _tree_layout(sc: Scene) -> SystemLayout:
         body_offset=[lay.body_offset(b) for b in range(len(sc.tree))], body_slots=_TREE_BODY_SLOTS,
         input_slots=_TREE_INPUT_SLOTS, coords=dict(lay.coord_slots), coord_index={k: k for k in range(lay.nx)},
         quats=quats, work_states=True, nominals=nominals,
-        states_text=f"the joints' coordinates ({', '.join(coords)}) and {WORK_STATE}",
+        states_text=f"the joints' coordinates ({', '.join(coords)}){', the orbit anomaly' if anomaly else ''} and "
+                    f"{WORK_STATE}",
         nonneg=frozenset({"g", "orbit_mu", "orbit_radius", *NONNEGATIVE_PARAMS, *sc.coupling_names,
                           *(n for n, (kind, _, _) in elements.items() if kind == "spring")}),
         head_inputs=head_inputs,

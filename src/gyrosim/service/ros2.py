@@ -19,14 +19,17 @@ wire protocol, from rmw_zenoh's released sources (ros2-gbp/rmw_zenoh-release, ``
 Topics: ``/tf`` (every body's frame from its parent's, the roots' from ``world``; reliable, keep last 100, as
 tf2's broadcaster), ``/tf_static`` (the frames of ``fixed`` joints, transient local: a late subscriber gets them),
 ``/<scene>/<body>/imu`` (``sensor_msgs/msg/Imu``, sensor-data QoS), ``/<scene>/joint_states``
-(``sensor_msgs/msg/JointState`` of the hinges), ``/clock`` (``rosgraph_msgs/msg/Clock``: the simulation time, for
-``use_sim_time``); subscribed ``/<scene>/<body>/torque`` (``geometry_msgs/msg/Wrench`` or ``WrenchStamped``: its
-torque, N*m, body frame) and ``/<scene>/<body>/motor`` (``std_msgs/msg/Float64``, N*m about the hinge).
+(``sensor_msgs/msg/JointState`` of the hinges and sliders), ``/clock`` (``rosgraph_msgs/msg/Clock``: the simulation
+time, for ``use_sim_time``); subscribed, on the bodies that have the input only: ``/<scene>/<body>/torque``
+(``geometry_msgs/msg/Wrench`` or ``WrenchStamped``: its torque, N*m, body frame; bodies with torque inputs) and
+``/<scene>/<body>/motor`` (``std_msgs/msg/Float64``: N*m about a hinge's axis, N along a slider's; bodies with a
+joint motor).
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import struct
 import threading
@@ -263,14 +266,20 @@ class Ros2Bridge:
     bodies : list of str
         The bodies in the service's order (commands name them by index).
     hinges : list of str
-        The hinge joints' names (``sensor_msgs/msg/JointState``); none: no joint_states topic.
+        The one-coordinate joints' names, hinges and sliders (``sensor_msgs/msg/JointState``); none: no
+        joint_states topic.
     fixed : bool
         Whether any body is on a fixed joint (``/tf_static``).
     distro : {"jazzy", "humble"}
+    torques : iterable of int, optional
+        The bodies (indices) with torque inputs: the only ones subscribed to ``.../torque``; default every body.
+    motors : dict {int: str}, optional
+        The bodies (indices) with a joint motor and the member of their JSON command: ``"torque"`` (a hinge, N*m)
+        or ``"force"`` (a slider, N); the only ones subscribed to ``.../motor``. Default every body, ``"torque"``.
     """
 
     def __init__(self, session, domain: int, scene: str, bodies: list[str], hinges: list[str], *,
-                 fixed: bool = False, distro: str = "jazzy"):
+                 fixed: bool = False, distro: str = "jazzy", torques=None, motors: dict | None = None):
         import collections
 
         self.scene = ros_name(scene)
@@ -284,12 +293,20 @@ class Ros2Bridge:
                              if hinges else None)
         self.clock = self.node.publisher("/clock", msg.CLOCK_TYPE, CLOCK_QOS)
         self.commands: collections.deque = collections.deque(maxlen=4096)  # (kind, body index, JSON payload)
+        torques = set(range(len(bodies)) if torques is None else torques)
+        self.motors = {i: "torque" for i in range(len(bodies))} if motors is None else dict(motors)
+        #: the topics subscribed (advertised to the ROS 2 graph): only those of inputs the bodies have
+        self.subscribed: list[str] = []
         for i, b in enumerate(bodies):
             base = f"/{self.scene}/{ros_name(b)}"
-            self.node.subscriber(f"{base}/torque", (msg.WRENCH_TYPE, msg.WRENCH_STAMPED_TYPE), COMMAND_QOS,
-                                 lambda t, data, i=i: self._torque(i, t, data))
-            self.node.subscriber(f"{base}/motor", (msg.FLOAT64_TYPE,), COMMAND_QOS,
-                                 lambda t, data, i=i: self._motor(i, data))
+            if i in torques:
+                self.node.subscriber(f"{base}/torque", (msg.WRENCH_TYPE, msg.WRENCH_STAMPED_TYPE), COMMAND_QOS,
+                                     lambda t, data, i=i: self._torque(i, t, data))
+                self.subscribed.append(f"{base}/torque")
+            if i in self.motors:
+                self.node.subscriber(f"{base}/motor", (msg.FLOAT64_TYPE,), COMMAND_QOS,
+                                     lambda t, data, i=i: self._motor(i, data))
+                self.subscribed.append(f"{base}/motor")
         self.received = 0
         self.undecodable = 0
 
@@ -309,13 +326,17 @@ class Ros2Bridge:
         self.commands.append(("torque", i, payload, force))
 
     def _motor(self, i: int, data: bytes) -> None:
+        """A Float64: the joint motor's torque (a hinge, N*m) or force (a slider, N) as the JSON command the
+        service checks."""
         try:
             value = msg.decode_cdr(msg.FLOAT64_TYPE, data).data
         except Exception:  # noqa: BLE001 - a payload that is not a Float64
             self.undecodable += 1
             return
         self.received += 1
-        self.commands.append(("motor", i, msg.encode_motor(value), None))
+        member = self.motors.get(i, "torque")
+        payload = msg.encode_motor(value) if member == "torque" else json.dumps({member: float(value)}).encode()
+        self.commands.append(("motor", i, payload, None))
 
     # ----------------------------------------------------------------------------------------------- state
     def publish(self, t: float, frames: list[Frame], joints: tuple | None = None) -> int:

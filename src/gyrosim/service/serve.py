@@ -6,11 +6,13 @@ session``. For every body of the scene it publishes, after each communication st
 * ``<prefix>/<scene>/<body>/state`` JSON BodyState, ``.../tf`` CDR TFMessage, ``.../imu`` CDR Imu
   (reliable, ``CongestionControl.BLOCK``: a slow subscriber slows the service down instead of losing data),
 
-subscribes ``.../torque`` (``{"x", "y", "z"}`` N*m, body frame, held until the next command) and ``.../motor``
-(``{"torque": x}`` N*m about a tree body's hinge axis, held likewise; malformed or out-of-limit commands, and
-commands to a body without that input, are logged, counted and ignored), answers ``.../params`` queries with
-the current parameters, inputs and counters, and holds the liveliness token ``<prefix>/<scene>/alive``. Zenoh's
-callbacks only queue (``FifoChannel``); all work happens in the stepping thread.
+subscribes ``.../torque`` (``{"x", "y", "z"}`` N*m, body frame, held until the next command) on the bodies with
+torque inputs and ``.../motor`` on the bodies with a joint motor (``{"torque": x}`` N*m about a hinge's axis,
+``{"force": x}`` N along a slider's axis, held likewise; malformed or out-of-limit commands, and a torque sent to a
+slider or a force to a hinge, are logged, counted and ignored; a body without such an input has no such
+subscriber), answers ``.../params`` queries with the current parameters, inputs and counters, and holds the
+liveliness token ``<prefix>/<scene>/alive``. Zenoh's callbacks only queue (``FifoChannel``); all work happens in
+the stepping thread.
 
 Tree scenes (bodies joined by joints, docs/trees.md): every body's ``tf`` is the transform from its
 parent frame (``frame_id`` the parent body's name, ``world`` for a root; translation the joint point, rotation
@@ -23,7 +25,8 @@ for a live view in Foxglove.
 
 Time-varying inputs from a file (``input_file``, ``gyrosim serve SCENE --input-file FILE.csv``): FMPy's CSV format
 (a ``time`` column, one column per input: ``tau_x``.. for a one-body scene, ``<body>.tau_x``.. for several
-bodies, ``<body>.motor_torque`` and ``<body>.tau_x``.. for a tree scene; :mod:`gyrosim.inputs`), checked against
+bodies, ``<body>.motor_torque``, ``<body>.motor_force`` and ``<body>.tau_x``.. for a tree scene;
+:mod:`gyrosim.inputs`), checked against
 the scene before anything starts. Before every communication step the file's values at the step's start time
 (simulation time; linear between rows, held after the last row, as FMPy applies them) are set and held over the
 step. A Zenoh command (``.../torque``, ``.../motor``) replaces the file's value of the inputs it sets until the
@@ -51,9 +54,74 @@ from .config import describe_endpoints, open_session, zenoh_error
 from .ros2 import Frame
 from .tree import SCENE_OUTPUTS, FrameState, TreeFrames
 
-__all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals"]
+__all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals", "MotorForce",
+           "parse_motor_force", "DEFAULT_FORCE_LIMIT", "FORCE_ENCODING", "MOTOR_INPUTS"]
 
 log = logging.getLogger("gyrosim.service")
+
+#: Default largest accepted |motor force| of a slider, N.
+DEFAULT_FORCE_LIMIT = 1000.0
+#: The Zenoh encoding a slider's motor command is recorded with (a JSON channel without a schema: the motor schema,
+#: ``{"torque"}``, is a hinge's).
+FORCE_ENCODING = "application/json;gyrosim.MotorForce"
+#: A joint motor's input by its short name -> (the member of its ``.../motor`` command, unit, the joint).
+MOTOR_INPUTS = {"motor_torque": ("torque", "N*m", "hinge"), "motor_force": ("force", "N", "slider")}
+
+
+@dataclass(frozen=True)
+class MotorForce:
+    """A slider's motor force command, N along the joint axis (on the body; its reaction on the parent)."""
+
+    force: float
+
+    def as_inputs(self) -> dict[str, float]:
+        """As the model input ``motor_force``."""
+        return {"motor_force": self.force}
+
+
+def parse_motor_force(payload, limit: float = DEFAULT_FORCE_LIMIT) -> MotorForce:
+    """Parse and validate a slider's motor command ``{"force": ..}`` (N along the axis), with the checks of
+    :func:`gyrosim.telemetry.messages.parse_motor` (size, UTF-8, JSON, exactly the one numeric finite member,
+    ``|force| <= limit``).
+
+    Raises
+    ------
+    gyrosim.telemetry.messages.MotorRejected
+        With ``reason`` naming what is wrong.
+    """
+    import json
+
+    rej = msg.MotorRejected
+    raw = payload.encode() if isinstance(payload, str) else bytes(payload)
+    if len(raw) > msg.MAX_TORQUE_PAYLOAD:
+        raise rej(f"payload of {len(raw)} bytes, at most {msg.MAX_TORQUE_PAYLOAD} allowed")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise rej(f"payload is not UTF-8 ({e.reason} at byte {e.start})", raw[:40]) from None
+
+    def constant(name):  # json takes NaN/Infinity literals by default
+        raise ValueError(f"{name} is not a finite number")
+
+    try:
+        obj = json.loads(text, parse_constant=constant)
+    except ValueError as e:
+        raise rej(f"not valid JSON ({e})", text[:80]) from None
+    if not isinstance(obj, dict) or set(obj) != {"force"}:
+        got = type(obj).__name__ if not isinstance(obj, dict) else "members " + (", ".join(sorted(obj)) or "none")
+        raise rej(f"expected a JSON object {{\"force\"}} (N along the slider's axis), got {got}", obj)
+    v = obj["force"]
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise rej(f"force = {v!r} is a {type(v).__name__}, expected a number (N)", obj)
+    try:
+        v = float(v)
+    except OverflowError:  # a JSON integer beyond the float range
+        raise rej(f"force is an integer of {len(str(obj['force']))} digits, not a finite float") from None
+    if not math.isfinite(v):
+        raise rej(f"force = {obj['force']!r} is not finite", obj)
+    if abs(v) > limit:
+        raise rej(f"|force| = {abs(v):g} N exceeds the limit {limit:g} N", obj)
+    return MotorForce(v)
 
 
 @dataclass(frozen=True)
@@ -75,7 +143,9 @@ class ServeOptions:
     prefix : str
         First key chunk(s).
     torque_limit : float
-        Largest accepted |torque component|, N*m.
+        Largest accepted |torque component| (and |hinge motor torque|), N*m.
+    force_limit : float
+        Largest accepted |slider motor force|, N.
     wait_subscribers : float
         Wait up to this many wall seconds for a subscriber on every state key before stepping.
     linger : float
@@ -103,6 +173,7 @@ class ServeOptions:
     input_file: str | None = None
     ros_domain: int | None = None
     ros_distro: str = "jazzy"
+    force_limit: float = DEFAULT_FORCE_LIMIT
 
     def __post_init__(self):
         if not (isinstance(self.rate, (int, float)) and math.isfinite(self.rate) and self.rate > 0):
@@ -116,6 +187,9 @@ class ServeOptions:
             raise ConfigError("wall_duration", self.wall_duration, "a finite number of wall seconds > 0")
         if not (math.isfinite(self.torque_limit) and self.torque_limit > 0):
             raise ConfigError("torque_limit", self.torque_limit, "a finite limit > 0 N*m")
+        if not (isinstance(self.force_limit, (int, float)) and math.isfinite(self.force_limit)
+                and self.force_limit > 0):
+            raise ConfigError("force_limit", self.force_limit, "a finite limit > 0 N")
         if not (math.isfinite(self.wait_subscribers) and self.wait_subscribers >= 0):
             raise ConfigError("wait_subscribers", self.wait_subscribers, "seconds >= 0")
 
@@ -271,7 +345,13 @@ class Service:
             self._input_names = None
         self._file = _FileInputs(inputs, model, self.bodies) if inputs is not None else None
         self._torque_bodies = [i for i in range(len(self.bodies)) if "tau_x" in self.body_inputs(i)]
-        self._motor_bodies = [i for i in range(len(self.bodies)) if "motor_torque" in self.body_inputs(i)]
+        #: body index -> its joint motor's input (motor_torque of a hinge, motor_force of a slider)
+        self._motors = {}
+        for i in range(len(self.bodies)):
+            motor = next((n for n in MOTOR_INPUTS if n in self.body_inputs(i)), None)
+            if motor is not None:
+                self._motors[i] = motor
+        self._motor_bodies = list(self._motors)
         self._rejections_logged = 0
 
         def pub(key, encoding):
@@ -284,12 +364,12 @@ class Service:
              "imu": pub(k.imu, msg.IMU_ENCODING)}
             for k in self.keys
         ]
-        self.torque_subs = {}
-        self.motor_subs = {}
-        for i, k in enumerate(self.keys):
-            # every body gets the subscribers: a body without such inputs answers with a clear rejection
-            self.torque_subs[i] = session.declare_subscriber(k.torque, zenoh.handlers.FifoChannel(1024))
-            self.motor_subs[i] = session.declare_subscriber(k.motor, zenoh.handlers.FifoChannel(1024))
+        # a body has the subscribers of the inputs it has: a publisher's matching status says whether its commands
+        # are taken (params queries list every body's inputs)
+        self.torque_subs = {i: session.declare_subscriber(self.keys[i].torque, zenoh.handlers.FifoChannel(1024))
+                            for i in self._torque_bodies}
+        self.motor_subs = {i: session.declare_subscriber(self.keys[i].motor, zenoh.handlers.FifoChannel(1024))
+                           for i in self._motor_bodies}
         self.queryables = [session.declare_queryable(k.params, zenoh.handlers.FifoChannel(64))
                            for k in self.keys]
         self.token = session.liveliness().declare_token(K.alive_key(self.scene, prefix=options.prefix))
@@ -306,7 +386,9 @@ class Service:
             self._joint_coords = [("displacement", "velocity") if b.joint == "slider" else ("angle", "rate")
                                   for b in tree if b.joint in ("hinge", "slider")]
             self.ros = Ros2Bridge(session, options.ros_domain, self.scene, self.bodies, self._hinges,
-                                  fixed=any(b.joint == "fixed" for b in tree), distro=options.ros_distro)
+                                  fixed=any(b.joint == "fixed" for b in tree), distro=options.ros_distro,
+                                  torques=self._torque_bodies,
+                                  motors={i: MOTOR_INPUTS[n][0] for i, n in self._motors.items()})
 
     # --------------------------------------------------------------------------------------------- inputs
     def body_inputs(self, body: int) -> dict[str, float]:
@@ -334,10 +416,11 @@ class Service:
                     raise msg.TorqueRejected(f"body {self.bodies[i]!r} of scene {self.scene!r} has no "
                                              "torque input (scene: torque_input = true)")
             else:
-                cmd = msg.parse_motor(payload, self.options.torque_limit)
-                if i not in self._motor_bodies:
+                motor = self._motors.get(i)
+                if motor is None:
                     raise msg.MotorRejected(f"body {self.bodies[i]!r} of scene {self.scene!r} has no motor "
-                                            "input (a hinge with motor_input = true)")
+                                            "input (a hinge or slider with motor_input = true)")
+                cmd = self._parse_motor(payload, i, motor)
             for name, value in cmd.as_inputs().items():
                 self.model.set(name, value, body=i)
         except msg.TorqueRejected as e:  # MotorRejected too
@@ -350,12 +433,42 @@ class Service:
         if self._file is not None:
             self._file.overridden(i, cmd.as_inputs(), self.model.time)
         if self.recorder is not None:
-            encoding = msg.TORQUE_ENCODING if kind == "torque" else msg.MOTOR_ENCODING
+            encoding = (msg.TORQUE_ENCODING if kind == "torque" else FORCE_ENCODING
+                        if isinstance(cmd, MotorForce) else msg.MOTOR_ENCODING)
             self.recorder.write_sample(key, encoding, payload, publish_time_ns=msg.seconds_to_ns(self.model.time))
         if kind == "torque":
             log.info("torque on %s: %s N*m", self.bodies[i], (cmd.x, cmd.y, cmd.z))
+        elif isinstance(cmd, MotorForce):
+            log.info("motor force on %s: %s N", self.bodies[i], cmd.force)
         else:
             log.info("motor torque on %s: %s N*m", self.bodies[i], cmd.torque)
+
+    def _parse_motor(self, payload, i: int, motor: str):
+        """Body ``i``'s joint motor command (``motor``: its input, motor_torque or motor_force); the other joint's
+        command sent to it is refused by name."""
+        parsers = {"motor_torque": lambda limit: msg.parse_motor(payload, limit),
+                   "motor_force": lambda limit: parse_motor_force(payload, limit)}
+        limits = {"motor_torque": self.options.torque_limit, "motor_force": self.options.force_limit}
+        try:
+            return parsers[motor](limits[motor])
+        except msg.TorqueRejected as first:
+            other = next(n for n in MOTOR_INPUTS if n != motor)
+            try:
+                parsers[other](math.inf)
+            except msg.TorqueRejected:
+                raise first from None  # not the other joint's command either: the first reason
+            member, unit, joint = MOTOR_INPUTS[motor]
+            raise msg.MotorRejected(f"body {self.bodies[i]!r} of scene {self.scene!r} is on a {joint}: its motor "
+                                    f"command is {{\"{member}\": x}} in {unit}, not "
+                                    f"{{\"{MOTOR_INPUTS[other][0]}\"}}") from None
+
+    def commands_text(self) -> str:
+        """The command keys subscribed and what each takes, e.g. ``.../cart/motor {"force"} N``, or ``none``."""
+        parts = [f"{self.keys[i].torque} {{\"x\", \"y\", \"z\"}} N*m" for i in self._torque_bodies]
+        for i, motor in self._motors.items():
+            member, unit, _ = MOTOR_INPUTS[motor]
+            parts.append(f"{self.keys[i].motor} {{\"{member}\"}} {unit}")
+        return ", ".join(parts) or "none (no body has a torque or motor input)"
 
     def apply_file_inputs(self) -> None:
         """Set the input file's values at the model's current time (those a Zenoh command overrides kept)."""
@@ -671,6 +784,7 @@ def main(conf, scene=None, *, options: ServeOptions = ServeOptions(), parameters
             log.info("serving scene %r (bodies: %s) on %s/%s/... at %g Hz, realtime factor %g",
                      service.scene, ", ".join(service.bodies), options.prefix, service.scene, options.rate,
                      options.realtime_factor)
+            log.info("commands taken: %s", service.commands_text())
             if ready is not None:
                 ready(service)
             try:

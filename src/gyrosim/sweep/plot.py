@@ -39,7 +39,9 @@ _BARE_UNITS = {"q_w": "1", "q_x": "1", "q_y": "1", "q_z": "1", "omega_x": "rad/s
                "tau_z": "N.m", "angle": "rad", "rate": "rad/s", "r_x": "m", "r_y": "m", "r_z": "m", "v_x": "m/s",
                "v_y": "m/s", "v_z": "m/s", "cm_x": "m", "cm_y": "m", "cm_z": "m", "pos_x": "m", "pos_y": "m",
                "pos_z": "m", "stiffness": "N.m/rad", "rest_angle": "rad", "joint_damping": "N.m.s/rad",
-               "motor_torque": "N.m", **{f"q_world_{c}": "1" for c in "wxyz"}, **{f"q_orbit_{c}": "1" for c in "wxyz"}}
+               "motor_torque": "N.m", "displacement": "m", "velocity": "m/s", "rest_displacement": "m",
+               "motor_force": "N", "orbit_anomaly": "rad", **{f"q_world_{c}": "1" for c in "wxyz"},
+               **{f"q_orbit_{c}": "1" for c in "wxyz"}}
 
 
 def _scene_units(table) -> dict[str, str]:
@@ -75,8 +77,8 @@ def _varied(table) -> list[str]:
 
     names = table.column_names
     spec = json.loads((table.schema.metadata or {}).get(b"gyrosim.spec", b"{}"))
-    if isinstance(spec.get("vary"), dict):
-        varied = {column_name(n) for n in spec["vary"]}
+    if isinstance(spec.get("vary"), dict):  # a state start is <name>_start whatever its joint
+        varied = {f"{n}_start" if f"{n}_start" in names else column_name(n) for n in spec["vary"]}
         return [c for c in names if c in varied]  # the files' column order is the order given
     return names[1:names.index("q_w")] if "q_w" in names else []
 

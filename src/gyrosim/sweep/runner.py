@@ -19,7 +19,8 @@ Per sample (row):
   sample; ``blew_up_time``: the output point (s) at which it was found (NaN when it ran to the end). The drifts of a
   sample that blew up are those of the output points before that.
 * ``lyapunov`` (with ``--lyapunov``): the largest Lyapunov exponent of the sample's run (1/s, renormalised
-  neighbours on the sweep's output grid, :func:`gyrosim.analysis.chaos.lyapunov`; NaN where it blew up): a second
+  neighbours on the sweep's output grid, :func:`gyrosim.analysis.chaos.lyapunov`; NaN where it blew up, -inf where
+  the neighbour met the sample in the same state, as a mass coming to rest on an impact stop): a second
   run of the chunk's samples, each with its neighbour, so the other columns keep their bits.
 """
 
@@ -45,8 +46,9 @@ _REPLICAS: dict = {}
 def result_columns(spec: SweepSpec) -> list[tuple[str, str]]:
     """(column, kind) in file order: kind is ``int``, ``float``, ``str`` or ``bool``."""
     cols = [("sample", "int")]
+    states = set(spec.scene.state_names())
     for name, dist in spec.vary:
-        cols.append((column_name(name), "str" if dist.kind == "choice" and isinstance(dist.args[0], str)
+        cols.append((column_name(name, states), "str" if dist.kind == "choice" and isinstance(dist.args[0], str)
                      else "float"))
     cols += [(o, "float") for o in _output_names(spec.scene)]
     cols += [("max_energy_drift", "float"), ("max_L_drift", "float"), ("blew_up", "bool"),
@@ -117,8 +119,9 @@ def run_chunk(spec: SweepSpec, k: int) -> dict:
     res = {c: (np.empty(n, dtype=np.int64) if kind == "int" else np.empty(n, dtype=bool) if kind == "bool"
                else np.empty(n, dtype=object) if kind == "str" else np.empty(n)) for c, kind in result_columns(spec)}
     res["sample"][:] = np.arange(a, b)
+    states = set(spec.scene.state_names())
     for name in spec.varied_names:
-        res[column_name(name)][:] = draws[name]
+        res[column_name(name, states)][:] = draws[name]
     for idx, wide_values in parts:
         sub = {name: draws[name][idx] for name in spec.varied_names if name not in MODEL_WIDE}
         out = _run_group(spec, len(idx), sub, wide_values)

@@ -51,13 +51,19 @@ SWEEP_KEYS = ("samples", "seed", "chunk_size", "stop_time", "output_interval", "
 DEFAULT_CHUNK = 2000
 
 
-#: A tree's joint coordinates (``<body>.<name>``): state starts too
-_TREE_STATES = STATE_NAMES + ("angle", "rate", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z")
+#: The bare names of the joints' coordinates (``<body>.<name>``), for a column named without its scene: state starts
+_TREE_STATES = STATE_NAMES + ("angle", "rate", "r_x", "r_y", "r_z", "v_x", "v_y", "v_z", "displacement", "velocity",
+                              "orbit_anomaly")
 
 
-def column_name(name: str) -> str:
+def column_name(name: str, states=None) -> str:
     """The Parquet column of a varied variable: ``<name>_start`` for a state start (``omega_x_start``,
-    ``rotor.rate_start``)."""
+    ``rotor.rate_start``, ``displacement_start``), so that it never shares a name with the final output.
+
+    ``states`` is the scene's :meth:`~gyrosim.scene.Scene.state_names` (every joint's coordinates, whatever the
+    joint); without it, the bare names of today's joints decide."""
+    if states is not None:
+        return f"{name}_start" if name in states else name
     return f"{name}_start" if name.rpartition(".")[2] in _TREE_STATES else name
 
 
@@ -462,8 +468,15 @@ def check_spec(spec: SweepSpec) -> None:
     (:func:`gyrosim.sweep.sampling.check_draws`, naming the first bad sample), then a trial model with the fixed
     values and sample 0's draws, initialised and called for zero intervals (the Model's own rules and messages)."""
     from ..model import Model
+    from .runner import result_columns
     from .sampling import check_draws, draw
 
+    seen: dict = {}
+    for c, _ in result_columns(spec):  # a dataset's column names are unique, or no reader opens it
+        if c in seen:
+            raise ConfigError("--vary", c, f"a name whose column is not also another column: {c!r} is a column of "
+                              "the dataset already (a final output or a summary)")
+        seen[c] = True
     check_draws(spec)
     m = Model(spec.scene, stop_time=spec.stop_time)
     first = {n: v[0] for n, v in draw(spec, 0, 1).items()}
