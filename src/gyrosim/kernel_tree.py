@@ -691,28 +691,42 @@ class TreeKernel:
             while j >= 0:
                 below[j].append(i)
                 j = tree[j].parent
-        massless = {i for i, b in enumerate(tree) if all(get(b, n) == 0.0 for n in ("mass", "I1", "I2", "I3"))}
+        import dataclasses
+
+        from .scene_tree import inert_joints
+
+        def now(b):   # the body with its values as set
+            J = np.asarray(b.inertia, dtype=float).copy()
+            J[np.diag_indices(3)] = [get(b, n) for n in ("I1", "I2", "I3")]
+            return dataclasses.replace(b, mass=get(b, "mass"), inertia=J,
+                                       cm=np.array([get(b, f"cm_{c}") for c in "xyz"]))
+
+        bodies = [now(b) for b in tree]
+        # the joints that carry nothing in any configuration: the scene file's rule (scene_tree.inert_joints)
         out = []
-        for i, b in enumerate(tree):
-            alone = all(c in massless for c in below[i])
-            if b.joint == "fixed":  # no coordinate of its own: a massless fixed body (a sensor's frame) is fine
+        for i, n, v, what, advice in inert_joints(bodies):
+            if n.startswith("cm_"):   # a mass on the axis: name the component the scene had off it (what was set)
+                axis = np.asarray(tree[i].axis, dtype=float)
+                off = [c for k, c in enumerate("xyz") if abs(axis[k]) < 1.0 and float(tree[i].cm[k]) != 0.0]
+                n, v = (f"cm_{off[0]}", get(tree[i], f"cm_{off[0]}")) if off else (n, v)
+            out.append((sc.var_name(tree[i].name, n), v, what, True, advice))
+        named = {e[0] for e in out}
+        massless = {i for i, b in enumerate(bodies) if b.mass == 0.0 and not np.diag(b.inertia).any()}
+        for i, b in enumerate(bodies):   # and those singular where the bodies below them line up with the joint
+            if b.joint == "fixed" or all(c in massless for c in below[i]):
                 continue
-            if i in massless:
+            if i in massless and sc.var_name(b.name, "mass") not in named:
                 out.append((sc.var_name(b.name, "mass"), 0.0, f"body {b.name!r} has neither mass nor inertia "
-                            "(mass and I1, I2, I3 all 0)", alone, "give it mass or inertia"))
+                            "(mass and I1, I2, I3 all 0)", False, "give it mass or inertia"))
             elif b.joint == "hinge":
-                m = get(b, "mass")
-                cm = np.array([get(b, f"cm_{c}") for c in "xyz"])
-                axis = np.asarray(b.axis, dtype=float)
-                J = np.asarray(b.inertia, dtype=float).copy()
-                J[np.diag_indices(3)] = [get(b, n) for n in ("I1", "I2", "I3")]
-                if float(axis @ J @ axis) + m * float(cm @ cm - (cm @ axis) ** 2) == 0.0:
+                axis, cm, m = np.asarray(b.axis, dtype=float), b.cm, b.mass
+                if float(axis @ b.inertia @ axis) + m * float(cm @ cm - (cm @ axis) ** 2) == 0.0:
                     across = [c for k, c in enumerate("xyz") if abs(axis[k]) < 1.0]
-                    pick = next((c for c in across if float(b.cm["xyz".index(c)]) != 0.0), across[0])
-                    name = sc.var_name(b.name, f"cm_{pick}")
-                    out.append((name, get(b, f"cm_{pick}"), f"body {b.name!r} has no moment of inertia about its "
-                                f"hinge axis (its mass {m:g} kg on the axis, cm = [{', '.join(f'{x:g}' for x in cm)}]"
-                                " m, and no moment of its own about it)", alone,
+                    pick = next((c for c in across if float(tree[i].cm["xyz".index(c)]) != 0.0), across[0])
+                    out.append((sc.var_name(b.name, f"cm_{pick}"), float(cm["xyz".index(pick)]),
+                                f"body {b.name!r} has no moment of inertia about its hinge axis (its mass {m:g} kg "
+                                f"on the axis, cm = [{', '.join(f'{x:g}' for x in cm)}] m, and no moment of its own "
+                                "about it)", False,
                                 "move its centre of mass off the axis or give it a moment of inertia about it"))
         return sorted(out, key=lambda e: not e[3])
 

@@ -144,3 +144,17 @@ def test_the_command_line_says_it_in_one_line_with_exit_2(tmp_path, args, line):
                         "--set", "lower=20", "--set", "upper=30", "--set", "displacement=25"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
+
+
+def test_a_slider_set_massless_at_run_time_is_named_as_at_load(tmp_path):
+    """A slider body given inertia but no mass (--set ball.mass=0): the run fails at its first step, naming the
+    mass and the scene file's reason (scene_tree.inert_joints, the one rule at load and at run time)."""
+    from gyrosim.errors import IntegrationError
+
+    text = SLIDER.format(x0=1.0, lower=0.0, upper=10.0).replace("principal = [0.0, 0.0, 0.0]",
+                                                                  "principal = [0.1, 0.1, 0.1]")
+    m = Model(_scene(tmp_path, text))
+    m.set("mass", 0.0)
+    with pytest.raises(IntegrationError, match=r"body 'ball' has no mass for its slider to move .*\(mass = 0\); "
+                                               "give it mass"):
+        m.step(0.01)

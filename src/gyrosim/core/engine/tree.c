@@ -2427,6 +2427,10 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
         }
         double rem = piece;
         int events = 0;
+        /* the controller's step for the smooth motion: an impact does not change it, so the rest of the piece and
+         * the next ones start from it again, not from the step that reached the stop (which shrinks with the
+         * flights towards an accumulation point) */
+        const double hint_piece = *hint;
         gs_tree_indicators(t, y, p, z0);
         for (int c = 0; c < nz; c++) {
             if (z0[c] < 0.0) {   /* beyond a stop at the start: put on it where it moves out */
@@ -2510,6 +2514,7 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 STEP_FROM_Y0(y, tau);
             }
             impact_pre(t, y, p, pre, 0);
+            if (!fixed) *hint = hint_piece;
             rem -= tau;
         }
     }
