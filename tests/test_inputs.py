@@ -117,7 +117,7 @@ def test_read_csv_as_fmpy_reads_it(tmp_path):
     ("time,tau_x\n0,1\n2,2\n1.5,3\n", "line 4, column 1", ["time = '1.5'", ">= 2.0 s", "line 3", "must not decrease"]),
     # an absurd magnitude: refused with its place, the value and the range (MAX_INPUT = 1e12, in N*m)
     ("time,tau_x,tau_y\n0,1,0\n1,2,1e300\n", "line 3, column 3",
-     ["tau_y = '1e300'", "a finite number from -1e+12 to 1e+12 in the input's unit (N*m for torques)"]),
+     ["tau_y = '1e300'", "a finite number from -1e+12 to 1e+12 in N*m"]),
     ("time,tau_x\n0,-1.5e12\n", "line 2, column 2", ["tau_x = '-1.5e12'", "from -1e+12 to 1e+12"]),
 ])
 def test_read_csv_errors(tmp_path, text, where, words):
@@ -162,7 +162,7 @@ def test_an_unknown_column_is_named_with_the_file_and_its_place(tmp_path, capsys
     assert main(["simulate", "satellite_wheels", "--input-file", str(f), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.strip() == (f"gyrosim simulate: error: {f}, line 3, column 2: wheel_x.motor_torque = '1e300' is not "
-                           "allowed: a finite number from -1e+12 to 1e+12 in the input's unit (N*m for torques)")
+                           "allowed: a finite number from -1e+12 to 1e+12 in N*m")
     assert out.read_text() == "an earlier result\n"
 
 

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .study import TopReference
+from .ticks import tidy_log_ticks
 
 __all__ = ["run_peers", "peers_table", "peers_choose_table", "plot_peers", "PEER_CASES", "LagrangeTop", "TARGETS"]
 
@@ -805,6 +806,7 @@ def plot_peers(res: dict, out) -> list[str]:
         ax.legend(fontsize=6.5, ncol=1, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         fig.tight_layout()
         f = out / f"peers_{name}.png"
+        tidy_log_ticks(fig)
         fig.savefig(f, dpi=110)
         plt.close(fig)
         names.append(f.name)

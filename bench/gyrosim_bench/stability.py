@@ -43,6 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .ticks import tidy_log_ticks
+
 __all__ = ["FreeCase", "TopCase", "free_grid", "top_grid", "run", "stable_x", "run_stability", "study_drifts",
            "recommend_max_drift", "stability_table", "plot_stability", "safe_steps", "FIXED", "STEP_FREE"]
 
@@ -954,6 +956,7 @@ def plot_stability(res: dict, out) -> str:
                  f"{st['n_steps']} steps", fontsize=10)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     f = Path(out) / "stability.png"
+    tidy_log_ticks(fig)
     fig.savefig(f, dpi=110)
     plt.close(fig)
     return f.name

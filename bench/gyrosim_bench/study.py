@@ -60,6 +60,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .ticks import tidy_log_ticks
+
 __all__ = ["main", "PARTS", "CASES", "EXPECTED_ORDER", "observed_order"]
 
 #: The splittings on the exact torque-free flow and their orders: in the accuracy ladders (:func:`ladder`), the
@@ -1128,6 +1130,7 @@ def plot_case(case: Case, recs: list[dict], orders: dict, out: Path) -> list[str
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes, off the lines
     fig.tight_layout()
     f = out / f"wp_{case.name}.png"
+    tidy_log_ticks(fig)
     fig.savefig(f, dpi=110)
     plt.close(fig)
     files.append(f.name)
@@ -1163,6 +1166,7 @@ def plot_case(case: Case, recs: list[dict], orders: dict, out: Path) -> list[str
     fig.suptitle(case.title, fontsize=9)
     fig.tight_layout()
     f = out / f"step_{case.name}.png"
+    tidy_log_ticks(fig)
     fig.savefig(f, dpi=110)
     plt.close(fig)
     files.append(f.name)
@@ -1200,6 +1204,7 @@ def plot_long(recs: list[dict], out: Path) -> list[str]:
         fig.legend(*axs[0].get_legend_handles_labels(), loc="lower center", ncol=len(rr), fontsize=8,
                    frameon=False)  # below the panels, off the data
         f = out / f"long_{case}.png"
+        tidy_log_ticks(fig)
         fig.savefig(f, dpi=110)
         plt.close(fig)
         files.append(f.name)
@@ -1226,6 +1231,7 @@ def plot_cost(res: dict, out: Path) -> str:
     ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
     f = out / "cost.png"
+    tidy_log_ticks(fig)
     fig.savefig(f, dpi=110)
     plt.close(fig)
     return f.name

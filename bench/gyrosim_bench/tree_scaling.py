@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .ticks import tidy_log_ticks
+
 __all__ = ["main", "run"]
 
 SIZES = (10, 30, 100, 300, 1000)
@@ -115,6 +117,7 @@ def _plot(rows, png: Path) -> None:
     ax[1].axvline(32.5, color="gray", lw=0.8)
     ax[1].text(34, ax[1].get_ylim()[1] * 0.05, "large build (> 32)", fontsize=8, color="gray")
     fig.tight_layout()
+    tidy_log_ticks(fig)
     fig.savefig(png, dpi=110)
     plt.close(fig)
 

@@ -131,9 +131,11 @@ def check_writable(target, flag: str) -> Path:
 
     A symlink is checked as the file it names (its folder gets the temporary file); a device, FIFO or other
     special file is written in place, so only the file itself must be writable. A regular file with no write
-    permission bit (``chmod a-w``) is read-only for root too."""
+    permission bit (``chmod a-w``) is read-only for root too. An empty path (``-o ""``) names no file: refused."""
     from .errors import GyrosimError
 
+    if isinstance(target, str) and not target.strip():  # Path("") is "." (the current folder): never a result
+        raise GyrosimError(f"{flag} {target!r} cannot be written: an empty path names no file")
     target = Path(target)
     real = _resolved(target)
     folder = real.parent

@@ -40,6 +40,8 @@ def output_folder(target, flag: str, *, default: bool = False, make: bool = Fals
         ``--output 'x/y' cannot be used: folder 'x' does not exist (an output folder is made only inside an
         existing one)``, and the like; exit code 2.
     """
+    if isinstance(target, str) and not target.strip():  # Path("") is "." (the current folder): never meant
+        raise GyrosimError(f"{flag} {target!r} cannot be used: an empty path names no folder")
     target = Path(target)
     reason = None
     if target.exists():

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import ConfigError, GyrosimError, exit_code, one_line
+from .errors import ConfigError, GyrosimError, exit_code, name_list, number, numeric_warnings, one_line
 
 __all__ = ["main", "build_parser", "add_verbosity", "verbosity", "scene_info", "fmu_info", "show_plot"]
 
@@ -42,6 +42,22 @@ def verbosity(args) -> int:
         logging.basicConfig(format="%(name)s %(levelname)s: %(message)s", stream=sys.stderr)
     logging.getLogger("gyrosim").setLevel(level)
     return v
+
+
+class _Typed(argparse.Action):
+    """Store an option's value and remember which of its names was typed (``--tolerance`` or
+    ``--relative-tolerance``, ``-o`` or ``--output-file``): messages name the flag the user typed (:func:`typed`)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        flags = dict(getattr(namespace, "typed_flags", None) or {})
+        flags[self.dest] = option_string
+        namespace.typed_flags = flags
+
+
+def typed(args, dest: str, default: str) -> str:
+    """The flag the user typed for ``dest`` (``default`` when none was typed or it is not remembered)."""
+    return (getattr(args, "typed_flags", None) or {}).get(dest) or default
 
 
 def _parse_set(items):
@@ -92,10 +108,45 @@ def _check_times(args) -> None:
             raise ConfigError(flag, value, "a finite number > 0 in s")
     tol = args.relative_tolerance
     if tol is not None and not (MIN_TOLERANCE <= tol < 1.0):
-        raise ConfigError("--relative-tolerance", tol, f"a number from {MIN_TOLERANCE:g} to 1 (exclusive): "
-                          "double precision cannot meet a smaller relative tolerance")
+        raise ConfigError(typed(args, "relative_tolerance", "--relative-tolerance"), tol,
+                          f"a number from {MIN_TOLERANCE:g} to 1 (exclusive): double precision cannot meet a "
+                          "smaller relative tolerance")
     if args.stop_time is not None and args.stop_time <= args.start_time:
         raise ConfigError("--stop-time", args.stop_time, f"a time after --start-time = {args.start_time!r} s")
+    out = getattr(args, "output_file", None)
+    if out is not None and not out.strip():
+        raise ConfigError("--output-file", out, "a file name (leave the flag out for "
+                          "<scene>_out.csv)")
+
+
+def _source(args, dest: str, flag: str, key: str, scene_name: str) -> tuple[str, str | None]:
+    """``(field, where)`` naming where a value came from: the flag the user typed, or the scene's key."""
+    if getattr(args, dest, None) is not None:
+        return typed(args, dest, flag), None
+    return key, f"scene {scene_name!r}"
+
+
+def _check_finite(block, run) -> None:
+    """A block of rows with a non-finite value (an overflow the health monitor did not stop, e.g. with max_drift
+    = 0): the rows before it are kept and the run fails with one line naming the output and the time (exit code 1),
+    instead of numpy's warnings and inf or nan in the CSV."""
+    import numpy as np
+
+    from .errors import IntegrationError
+
+    flat = block.view(np.float64).reshape(block.shape[0], -1) if len(block) else None
+    if flat is None:
+        return
+    bad = ~np.isfinite(flat)
+    if not bad.any():
+        return
+    i, j = (int(x[0]) for x in np.nonzero(bad))
+    name = ("time", *run.names)[j]
+    e = IntegrationError(f"the run overflowed: {name} = {float(flat[i, j])!r} at t = {number(float(flat[i, 0]))} s "
+                         "(check the parameters and start values: the state or an output went beyond double "
+                         "precision)")
+    e.rows = block[:i]
+    raise e
 
 
 def _write_rows(fh, block) -> None:
@@ -121,36 +172,72 @@ def _read_input_file(path):
         raise GyrosimError(f"--input-file {str(p)!r} cannot be read: {e.strerror or e}") from None
 
 
+def _check_input_values(run, values: dict) -> None:
+    """``--set``/``--start-values`` of an input (held for the run): a finite number at most
+    :data:`gyrosim.inputs.MAX_INPUT` in size in the input's unit (N*m for a torque, N for a force), as an input
+    file's values."""
+    from .inputs import MAX_INPUT, input_range
+
+    inputs = set(run.model.input_names)
+    inputs |= {n.rpartition(".")[2] for n in inputs}  # a bare name sets every body's
+    for name, text in values.items():
+        if name not in inputs:
+            continue
+        try:
+            x = float(text)
+        except (TypeError, ValueError):
+            continue  # the model has said what it takes
+        if not abs(x) <= MAX_INPUT:
+            raise ConfigError(name, x, input_range(name))
+
+
 def prepare_simulate(args):
     """Every check of ``gyrosim simulate``'s arguments, the scene, the input file and the output path, before
     anything runs or is written: ``(run, output path)``. Raises what :func:`main` maps to exit code 2."""
     from ._atomic import check_writable
+    from .scene import load_scene
     from .trajectory import Run
 
     _check_times(args)
     kw = {}
     if getattr(args, "input_file", None):
         kw["input"] = _read_input_file(args.input_file)
+    values = _start_values(args)
     try:
-        run = Run(args.scene, start_values=_start_values(args), start_time=args.start_time,
+        run = Run(args.scene, start_values=values, start_time=args.start_time,
                   stop_time=args.stop_time, output_interval=args.output_interval, integrator=args.integrator,
                   max_step=args.max_step, relative_tolerance=args.relative_tolerance, output=args.output_variables,
                   **kw)
     except OverflowError:  # (stop - start) / interval beyond any integer a float holds
         run = None
+    except ConfigError as e:
+        if e.field == "stop_time" and args.stop_time is None:  # --start-time at or after the scene's stop time
+            sc = load_scene(args.scene)
+            raise ConfigError("--start-time", args.start_time, f"a time before the stop_time of scene {sc.name!r}, "
+                              f"{number(sc.stop_time)} s (or give a --stop-time after it)") from None
+        raise
+    sc = run.scene if run is not None else load_scene(args.scene)
     if run is not None and run.n == 0:
-        raise ConfigError("--output-interval", run.dt, f"at most the run's length, {run.stop_time - run.t0!r} s "
-                          "from --start-time to --stop-time")
+        field, where = _source(args, "output_interval", "--output-interval", "output_interval", sc.name)
+        span = ("from --start-time to --stop-time" if args.stop_time is not None else
+                "from --start-time to the scene's stop_time")
+        raise ConfigError(field, run.dt, f"at most the run's length, {number(run.stop_time - run.t0)} s {span}",
+                          where=where)
     if run is None or run.n >= MAX_ROWS:
-        raise ConfigError("--output-interval" if args.output_interval is not None else "--stop-time",
-                          args.output_interval if args.output_interval is not None else args.stop_time,
-                          f"a run of fewer than {MAX_ROWS:.0e} rows (hundreds of GB of CSV, hours of writing): "
-                          "a longer --output-interval or a shorter --stop-time")
+        if args.output_interval is not None:
+            field, where, value = typed(args, "output_interval", "--output-interval"), None, args.output_interval
+        elif args.stop_time is not None:
+            field, where, value = "--stop-time", None, args.stop_time
+        else:  # both from the scene
+            field, where, value = "stop_time", f"scene {sc.name!r}", sc.stop_time
+        raise ConfigError(field, value, f"a run of fewer than {MAX_ROWS:.0e} rows (hundreds of GB of CSV, hours of "
+                          "writing): a longer --output-interval or a shorter --stop-time", where=where)
+    _check_input_values(run, values)
     # the checks the model makes at its first step (moments, quaternion, 'exact' on a body under a torque, work
     # per engine call), made now: a run that would be refused has not opened its output
     run.model.initialize()
     run.model._check_call(run.dt, "output interval")
-    out = Path(args.output_file) if args.output_file else Path(f"{run.scene.name}_out.csv")
+    out = Path(args.output_file) if args.output_file is not None else Path(f"{run.scene.name}_out.csv")
     check_writable(out, "--output-file")
     if args.show_plot:
         check_writable(out.with_suffix(".png"), "--show-plot")
@@ -164,9 +251,13 @@ def cmd_simulate(args) -> int:
     import time
 
     from ._atomic import atomic_path
-    from .errors import IntegrationError
+    from .errors import IntegrationError, RecordingError
 
     v = verbosity(args)
+    if is_fmu(args.scene):  # an FMU runs in FMPy with the same flags (fmpy simulate's habits)
+        from .fmu.cli import simulate_fmu
+
+        return simulate_fmu(args)
     run, out = prepare_simulate(args)
     model = run.model
     if v > 0:
@@ -179,32 +270,42 @@ def cmd_simulate(args) -> int:
     chunk = max(1, min(run.n, 200_000 // max(1, model.n_bodies)))
     kept = [] if args.show_plot else None
     bar, t_wall, done = None, time.perf_counter(), 0
-    with atomic_path(out, keep_on=(IntegrationError,)) as tmp:
-        try:
-            fh = tmp.open("w", newline="")
-        except OSError as e:
-            raise GyrosimError(f"--output-file {str(out)!r} cannot be written: {e.strerror or e}") from None
-        with fh:
-            fh.write(",".join(["time", *run.names]) + "\n")
+    flag = "--output-file"
+    try:
+        with atomic_path(out, keep_on=(IntegrationError,)) as tmp:
             try:
-                for block in run.chunks(chunk):
-                    _write_rows(fh, block)
-                    if kept is not None:
-                        kept.append(block)
-                    done += len(block)
-                    if bar is not None:
-                        bar.update(len(block))
-                    elif v >= 0 and done <= run.n and time.perf_counter() - t_wall > 0.5:
-                        from tqdm import tqdm
+                fh = tmp.open("w", newline="")
+            except OSError as e:
+                raise GyrosimError(f"{flag} {str(out)!r} cannot be written: {e.strerror or e}") from None
+            with fh:
+                fh.write(",".join(["time", *run.names]) + "\n")
+                try:
+                    for block in run.chunks(chunk):
+                        _check_finite(block, run)
+                        _write_rows(fh, block)
+                        if kept is not None:
+                            kept.append(block)
+                        done += len(block)
+                        if bar is not None:
+                            bar.update(len(block))
+                        elif v >= 0 and done <= run.n and time.perf_counter() - t_wall > 0.5:
+                            from tqdm import tqdm
 
-                        bar = tqdm(total=run.n + 1, initial=done, unit="row", desc=f"simulate {run.scene.name}",
-                                   file=sys.stderr)
-            except IntegrationError as e:
-                _write_rows(fh, e.rows)  # the rows before the blow-up, then the message and exit code 1
-                if bar is not None:
-                    bar.close()
-                fh.close()
-                raise IntegrationError(f"{e}; wrote the {done + len(e.rows)} rows before it to {out}") from None
+                            bar = tqdm(total=run.n + 1, initial=done, unit="row", desc=f"simulate {run.scene.name}",
+                                       file=sys.stderr)
+                except IntegrationError as e:
+                    rows = getattr(e, "rows", None)
+                    if rows is not None:
+                        _write_rows(fh, rows)  # the rows before the blow-up, then the message and exit code 1
+                    if bar is not None:
+                        bar.close()
+                    fh.close()
+                    n = done + (0 if rows is None else len(rows))
+                    raise IntegrationError(f"{e}; wrote the {n} rows before it to {out}") from None
+    except (BrokenPipeError, GyrosimError):
+        raise
+    except OSError as e:  # a write the file system refuses (-o /dev/full, a full disk): a run-time failure
+        raise RecordingError(f"{flag} {str(out)!r} cannot be written: {e.strerror or e}") from None
     if bar is not None:
         bar.close()
     if v >= 0:
@@ -222,9 +323,12 @@ def cmd_simulate(args) -> int:
 _QUANTITIES = (
     ("attitude", lambda b: b.startswith("q_")),
     ("angles", lambda b: b in ("phi", "theta", "psi", "angle")),
+    ("displacement", lambda b: b == "displacement"),
     ("rates", lambda b: b.startswith("omega_") or b == "rate"),
     ("position", lambda b: b in ("r_x", "r_y", "r_z")),
-    ("velocity", lambda b: b in ("v_x", "v_y", "v_z")),
+    ("velocity", lambda b: b in ("v_x", "v_y", "v_z", "velocity")),
+    ("world position", lambda b: b.startswith("r_world_")),
+    ("world velocity", lambda b: b.startswith("v_world_")),
     ("momentum", lambda b: b.startswith("L_")),
     ("energy", lambda b: b in ("energy", "energy_error")),
     ("orbit anomaly", lambda b: b == "orbit_anomaly"),
@@ -263,14 +367,15 @@ def _panels(result, names):
     differ by more than :data:`_SCALE_RATIO` (at most :data:`_MAX_SPLIT` panels a quantity)."""
     import numpy as np
 
-    bodies_with_joint_attitude = {n.rsplit(".", 1)[0] for n in names
-                                  if "." in n and (n.rsplit(".", 1)[1] in ("angle",) or n.rsplit(".", 1)[1]
-                                                   in ("q_w", "q_x", "q_y", "q_z"))}
+    # the bodies whose joint coordinates say how they move on their parent (a hinge's angle, a slider's
+    # displacement, a ball's quaternion); "" is the one body of a scene of one body (bare names)
+    bodies_with_joint_attitude = {n.rpartition(".")[0] for n in names if n.rpartition(".")[2]
+                                  in ("angle", "displacement", "q_w", "q_x", "q_y", "q_z", "r_x", "r_y", "r_z")}
     groups: dict[str, list[str]] = {}
     for name in names:
         body, _, bare = name.rpartition(".")
-        if bare.startswith("q_world_") and body in bodies_with_joint_attitude:
-            continue  # a tree body's world attitude where its joint's angle or quaternion says it
+        if bare.startswith(("q_world_", "r_world_", "v_world_")) and body in bodies_with_joint_attitude:
+            continue  # a tree body's world attitude and motion where its joint's coordinates say them
         if bare.startswith("q_orbit_") and f"{body}.angle" in names:
             continue  # a hinge body's attitude in the orbit frame: its angle says how it turns on its parent
         groups.setdefault(_quantity(bare), []).append(name)
@@ -298,6 +403,30 @@ def _panels(result, names):
         for part in split:
             panels.append((quantity, sorted(part, key=members.index)))
     return panels
+
+
+def _constant(x) -> bool:
+    """A series that never changes (every finite sample the same, bit for bit, or none finite)."""
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return x.size == 0 or float(x.min()) == float(x.max())
+
+
+def _constant_note(result, panels) -> str:
+    """``"constant, not drawn: L_x, L_y, L_z = 0.0; q_world_w = 1.0"``: the series of the panels left out, grouped
+    by value."""
+    import numpy as np
+
+    by_value: dict[str, list[str]] = {}
+    for _, names in panels:
+        for name in names:
+            x = np.asarray(result[name], dtype=float)
+            x = x[np.isfinite(x)]
+            by_value.setdefault(number(float(x[0])) if x.size else "nan", []).append(name)
+    parts = [f"{name_list(names, 6)} = {value}" for value, names in by_value.items()]
+    return "constant, not drawn: " + "; ".join(parts)
 
 
 def _set_limits(ax, values) -> None:
@@ -339,16 +468,33 @@ def show_plot(result, run, csv_path: Path, *, quiet: bool = False):
     columns = int(width * dpi * 0.72)  # the axes' width in pixels, about
     names, hidden = _readable(result, run.names, columns)
     panels = _panels(result, names)
+    # a panel of series that never change (a slider's attitude, the momentum of a translation) is left out and
+    # named in the title with its values; a run where nothing changes draws them all
+    still = [p for p in panels if all(_constant(result[n]) for n in p[1])]
+    if len(still) < len(panels):
+        panels = [p for p in panels if p not in still]
+    else:
+        still = []
     orbit = [p for p in panels if p[0].startswith("orbit ")]
     body = [p for p in panels if not p[0].startswith("orbit ")] or orbit
-    figures = [(csv_path.with_suffix(".png"), _figure(result, run, body, hidden, width, dpi, columns))]
+    note = _constant_note(result, still) if still else ""
+    figures = [(csv_path.with_suffix(".png"), _figure(result, run, body, hidden, width, dpi, columns, note=note))]
     if orbit and body is not orbit:
         figures.append((csv_path.with_name(f"{csv_path.stem}_orbit.png"),
                         _figure(result, run, orbit, [], width, dpi, columns, what="the orbit")))
     if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
+        from .errors import RecordingError
+
         for png, fig in figures:
-            with atomic_path(png) as tmp:
-                fig.savefig(tmp, dpi=100, format="png")
+            try:
+                with atomic_path(png) as tmp:
+                    fig.savefig(tmp, dpi=100, format="png")
+            except BrokenPipeError:
+                raise
+            except OSError as e:  # a file system that refuses the write: a run-time failure naming the file
+                if isinstance(e, GyrosimError):
+                    raise
+                raise RecordingError(f"--show-plot {str(png)!r} cannot be written: {e.strerror or e}") from None
         if not quiet:
             saved = " and ".join(str(png) for png, _ in figures)
             print(f"no interactive display (matplotlib backend {matplotlib.get_backend()}): plot saved to {saved}",
@@ -358,7 +504,7 @@ def show_plot(result, run, csv_path: Path, *, quiet: bool = False):
     return figures[0][1]
 
 
-def _figure(result, run, panels, hidden, width, dpi, columns, what: str = ""):
+def _figure(result, run, panels, hidden, width, dpi, columns, what: str = "", note: str = ""):
     """One figure of ``panels`` (``_panels``' groups), a panel a row; its title names the run and the notes."""
     import textwrap
 
@@ -395,6 +541,8 @@ def _figure(result, run, panels, hidden, width, dpi, columns, what: str = ""):
         notes.append("(band): a fast signal, shaded from its min to its max, the line its middle")
     if cut:
         notes.append(f"the first {_MAX_LINES} series of a quantity")
+    if note:
+        notes.append(note)
     lines = [f"gyrosim simulate {run.scene.name} ({run.model.integrator})" + (f": {what}" if what else "")]
     for note in notes:
         lines += textwrap.wrap(note, 110)
@@ -413,6 +561,55 @@ def _start_text(start) -> str:
     if start is None:
         return ""
     return repr(start + 0.0) if isinstance(start, float) else str(start)  # + 0.0: no "-0.0"
+
+
+def is_fmu(target) -> bool:
+    """True for a path that names an FMU (``X.fmu``): run in FMPy, never read as a scene file."""
+    return isinstance(target, (str, Path)) and str(target).lower().endswith(".fmu")
+
+
+#: ``gyrosim info``'s Bodies line names at most this many bodies, then "... and N more" (the variables table lists
+#: every body's variables, one a line).
+INFO_BODIES = 20
+
+
+def _field(label: str, text: str, width: int = 118) -> list[str]:
+    """``  Label              text``, wrapped at ``width`` columns under the text (a long list stays readable)."""
+    import textwrap
+
+    head = f"  {label:18} "
+    lines = textwrap.wrap(text, width, initial_indent=head, subsequent_indent=" " * len(head),
+                          break_on_hyphens=False, break_long_words=False) or [head.rstrip()]
+    return [line.replace("\xa0", " ") for line in lines]  # a no-break space keeps "l1 (hinge on l0)" on one line
+
+
+def _bodies(sc) -> str:
+    """The Bodies line: ``hub (free_rotation on world), wheel_x (hinge on hub), ...`` (joints in a tree), at most
+    :data:`INFO_BODIES` names."""
+    tree = getattr(sc, "tree", None)
+    if tree is None:
+        return name_list(sc.body_names, INFO_BODIES)
+    names = [f"{b.name} ({b.joint} on {tree[b.parent].name if b.parent >= 0 else 'world'})" for b in tree]
+    return name_list([n.replace(" ", "\xa0") for n in names], INFO_BODIES)
+
+
+#: Inputs by kind, as the Terms line names them: (label, test on the input's bare name).
+_INPUT_KINDS = (("torque inputs", lambda b: b.startswith("tau_")),
+                ("motor torque inputs", lambda b: b == "motor_torque"),
+                ("motor force inputs", lambda b: b == "motor_force"),
+                ("force inputs", lambda b: b in ("f_x", "f_y", "f_z")))
+
+
+def _terms(sc, rows) -> list[str]:
+    """The Terms line: the scene's terms (:meth:`Scene.describe`) with its inputs named as they are (torques, a
+    hinge's motor torque, a slider's motor force, a [[force]]'s force), from the scene's input variables."""
+    _, terms = sc.describe()
+    bare = [r[0].rpartition(".")[2] for r in rows if r[1] == "input"]
+    kinds = [label for label, test in _INPUT_KINDS if any(test(b) for b in bare)]
+    other = [t for t in terms if not t.endswith("inputs")]
+    at = next((i for i, t in enumerate(terms) if t.endswith("inputs")), len(other))
+    at = min(at, len(other))
+    return other[:at] + kinds + other[at:]
 
 
 def scene_info(scene) -> str:
@@ -435,15 +632,15 @@ def scene_info(scene) -> str:
     rows = [(name, var.causality, _start_text(var.start), var.unit, var.description)
             for name, var in sc.variables().items()]
     width = max(18, *(len(r[0]) for r in rows))
-    names, terms = sc.describe()
+    terms = _terms(sc, rows)
     lines = ["", "Model Info", "",
              f"  Scene              {sc.name}",
              f"  Description        {sc.description}",
              f"  Source             {sc.source}",
-             f"  Bodies             {len(sc.body_names)} ({names})",
-             f"  Terms              {', '.join(terms) or 'none (torque-free)'}",
+             *_field("Bodies", f"{len(sc.body_names)} ({_bodies(sc)})"),
+             *_field("Terms", ", ".join(terms) or "none (torque-free)"),
              f"  Integrator         {sc.integrator}",
-             f"  Integrators        {', '.join(sc.integrators)}",
+             *_field("Integrators", ", ".join(sc.integrators)),
              f"  Kernel             {sc.kernel_description}",
              f"  Variables          {len(rows)}",
              *([f"  Sweep              {sweep_line} (gyrosim sweep FILE --output DIR)"] if sweep_line else []),
@@ -503,11 +700,10 @@ def cmd_info(args) -> int:
     """``gyrosim info SCENE|FILE.fmu``: variables with causality, start, unit and description."""
     verbosity(args)
     target = args.target
-    is_fmu = str(target).lower().endswith(".fmu")
-    text = fmu_info(target) if is_fmu else scene_info(target)
+    text = fmu_info(target) if is_fmu(target) else scene_info(target)
     if getattr(args, "quiet", 0):  # only the variables table
         text = text[text.index("\nVariables\n") + len("\nVariables\n\n"):]
-    print(text)
+    _flush_stdout(text)
     return 0
 
 
@@ -536,11 +732,17 @@ def cmd_bench(args) -> int:
     return study_main(args)
 
 
-#: The scenes a command takes by name (gyrosim.scene.EMBEDDED_SCENES and "full"; a test keeps them equal), written
-#: out here so that ``gyrosim --help`` does not import the engine.
-SCENE_NAMES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
-               "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels", "mass_spring_chain", "triatomic",
-               "full")
+def embedded_scene_names() -> tuple[str, ...]:
+    """The embedded scenes, by name: the package's ``scenes/*.toml`` files (sorted), read from the folder so that
+    ``gyrosim --help`` does not import the engine and every help and message lists a new scene as soon as its file
+    is there."""
+    folder = Path(__file__).resolve().parent / "scenes"
+    return tuple(sorted(p.stem for p in folder.glob("*.toml")))
+
+
+#: The scenes a command takes by name: the embedded scenes (:func:`embedded_scene_names`, the same as
+#: gyrosim.scene.EMBEDDED_SCENES: a test keeps them equal) and "full".
+SCENE_NAMES = (*embedded_scene_names(), "full")
 SCENE_HELP = f"an embedded scene ({', '.join(SCENE_NAMES)}) or a scene file (.toml, docs/scenes.md)"
 
 
@@ -581,7 +783,10 @@ def cmd_chaos(args) -> int:
                           "regime; the default 1e-8 suits double precision)")
     tol = args.relative_tolerance
     if tol is not None and not (MIN_TOLERANCE <= tol < 1.0):
-        raise ConfigError("--relative-tolerance", tol, f"a number from {MIN_TOLERANCE:g} to 1 (exclusive)")
+        raise ConfigError(typed(args, "relative_tolerance", "--relative-tolerance"), tol,
+                          f"a number from {MIN_TOLERANCE:g} to 1 (exclusive)")
+    if args.plot is not None and not args.plot.strip():
+        raise ConfigError("--plot", args.plot, "a file name (leave the flag out for <scene>_chaos.png, or --no-plot)")
     want_section = args.section is None or args.section.lower() != "none"
     section = None
     if want_section and args.section is not None:
@@ -598,10 +803,11 @@ def cmd_chaos(args) -> int:
     T = args.stop_time if args.stop_time is not None else max(CHAOS_TIME, model.scene.stop_time)
     dt = args.output_interval if args.output_interval is not None else model.scene.output_interval
     if dt > T * (1 + 1e-9):
-        raise ConfigError("--output-interval", dt, f"at most the run's length, {T!r} s")
+        field, where = _source(args, "output_interval", "--output-interval", "output_interval", model.scene.name)
+        raise ConfigError(field, dt, f"at most the run's length, {number(T)} s", where=where)
     if args.interval is not None and args.interval < dt * (1 - 1e-9):
-        raise ConfigError("--interval", args.interval, f"at least the output interval, {dt!r} s (the neighbour is "
-                          "renormalised at output points)")
+        raise ConfigError("--interval", args.interval, f"at least the output interval, {number(dt)} s (the neighbour "
+                          "is renormalised at output points)")
     if args.trust is not None:
         try:
             check_trust(model)
@@ -615,7 +821,8 @@ def cmd_chaos(args) -> int:
         for flag, nm in [("--section", var)] + [("--record", r) for r in (args.record or ())]:
             if nm not in names:
                 raise ConfigError(flag, nm, f"an output of scene {model.scene.name!r}{did_you_mean(nm, names)}")
-    plot = None if args.no_plot else check_writable(args.plot or f"{model.scene.name}_chaos.png", "--plot")
+    plot = None if args.no_plot else check_writable(args.plot if args.plot is not None
+                                                    else f"{model.scene.name}_chaos.png", "--plot")
     if v > 0:
         print(f"scene {model.scene.name}, integrator {model.integrator}, max_step {model.max_step:g} s, "
               f"t = 0 .. {T:g} s every {dt:g} s", file=sys.stderr)
@@ -660,7 +867,14 @@ def cmd_chaos(args) -> int:
         print(f"gyrosim chaos: warning: a neighbour grew by {res.max_growth:.3g} in one interval (the intervals after "
               "it were halved); a shorter --interval keeps it linear", file=sys.stderr)
     if plot is not None:
-        plot_chaos(plot, res, sec, trust=trust)
+        try:
+            plot_chaos(plot, res, sec, trust=trust)
+        except OSError as e:  # a file system that refuses the write (--plot /dev/full): a run-time failure
+            if isinstance(e, (GyrosimError, BrokenPipeError)):
+                raise
+            from .errors import RecordingError
+
+            raise RecordingError(f"--plot {str(plot)!r} cannot be written: {e.strerror or e}") from None
         if v >= 0:
             print(f"wrote {plot}", file=sys.stderr)
     return 0
@@ -694,9 +908,9 @@ def _chaos_parser(sub) -> None:
                    help="output grid in s: where the neighbour is renormalised and crossings are bracketed "
                         "(default: the scene's)")
     tol = c.add_mutually_exclusive_group()
-    tol.add_argument("--relative-tolerance", dest="relative_tolerance", type=float, metavar="TOL",
+    tol.add_argument("--relative-tolerance", dest="relative_tolerance", type=float, metavar="TOL", action=_Typed,
                      help="tolerance of 'adaptive' and 'dop853' (default: the scene's)")
-    tol.add_argument("--tolerance", dest="relative_tolerance", type=float, metavar="TOL",
+    tol.add_argument("--tolerance", dest="relative_tolerance", type=float, metavar="TOL", action=_Typed,
                      help="the same as --relative-tolerance")
     c.add_argument("--interval", type=float, metavar="S", help="renormalisation interval in s, a whole number of "
                    "output intervals (default: the run's length / 2000)")
@@ -743,10 +957,10 @@ def _simulate_parser(sub) -> None:
     s.add_argument("--output-interval", type=float, metavar="H",
                    help="time between rows in s (default: the scene's)")
     tol = s.add_mutually_exclusive_group()
-    tol.add_argument("--relative-tolerance", dest="relative_tolerance", type=float, metavar="TOL",
+    tol.add_argument("--relative-tolerance", dest="relative_tolerance", type=float, metavar="TOL", action=_Typed,
                      help=f"tolerance of 'adaptive' and 'dop853' (as the FMI tolerance), {MIN_TOLERANCE:g} to 1 "
                           "(default: the scene's)")
-    tol.add_argument("--tolerance", dest="relative_tolerance", type=float, metavar="TOL",
+    tol.add_argument("--tolerance", dest="relative_tolerance", type=float, metavar="TOL", action=_Typed,
                      help="the same as --relative-tolerance")
     s.add_argument("--output-variables", nargs="+", action="extend", metavar="NAME",
                    help="the outputs to write (default: every output)")
@@ -754,9 +968,10 @@ def _simulate_parser(sub) -> None:
                    help="time-varying inputs, FMPy's format: a 'time' column and one column per input (e.g. "
                         "tau_x), held or interpolated between rows as FMPy does")
     out = s.add_mutually_exclusive_group()
-    out.add_argument("--output-file", dest="output_file", metavar="FILE.csv",
+    out.add_argument("--output-file", dest="output_file", metavar="FILE.csv", action=_Typed,
                      help="CSV file to write (default: <scene>_out.csv)")
-    out.add_argument("--output", "-o", dest="output_file", metavar="FILE.csv", help="the same as --output-file")
+    out.add_argument("--output", "-o", dest="output_file", metavar="FILE.csv", action=_Typed,
+                     help="the same as --output-file")
     s.add_argument("--show-plot", action="store_true",
                    help="plot the outputs by quantity (a window; without a display, a PNG next to the CSV)")
     add_verbosity(s)
@@ -795,7 +1010,34 @@ def build_parser() -> argparse.ArgumentParser:
         except ModuleNotFoundError as e:  # a part absent from this checkout (the module or its package)
             if not e.name or not (mod == e.name or mod.startswith(e.name + ".")):
                 raise
+    _bound_samples(sub)
     return p
+
+
+#: The most samples ``gyrosim sweep --samples`` takes: a Parquet row each (hundreds of bytes), so 1e8 is tens of
+#: GB of results and hours of work; beyond it a sweep's book-keeping alone fills the memory (1e12 samples reached
+#: 10 GB in 25 s before the first chunk ran).
+MAX_SAMPLES = 10 ** 8
+
+
+def _bound_samples(sub) -> None:
+    """``gyrosim sweep --samples N`` from 1 to :data:`MAX_SAMPLES`, checked where the command line is read (one line,
+    exit code 2) before the sweep's handler runs."""
+    parser = sub.choices.get("sweep")
+    handler = parser.get_default("func") if parser is not None else None
+    if handler is None or getattr(handler, "bounded", False):
+        return
+
+    def bounded(args):
+        n = getattr(args, "samples", None)
+        if n is not None and n > MAX_SAMPLES:  # fewer than 1: the sweep's spec says so
+            raise ConfigError(typed(args, "samples", "--samples"), n, f"a number of samples from 1 to "
+                              f"{MAX_SAMPLES:,} (each a Parquet row; split a larger study into sweeps of their own "
+                              "--seed)")
+        return handler(args)
+
+    bounded.bounded = True
+    parser.set_defaults(func=bounded)
 
 
 def _closed_pipe() -> int:
@@ -806,6 +1048,21 @@ def _closed_pipe() -> int:
     except (OSError, ValueError):
         pass
     return 141  # 128 + SIGPIPE, as a program killed by the closed pipe would exit
+
+
+def _flush_stdout(text: str | None = None) -> None:
+    """Print ``text`` (if given) and flush stdout; a write it refuses (``gyrosim info free_body > /dev/full``)
+    names it (exit code 1), and stdout is pointed at /dev/null so that the interpreter's own flush at exit does not
+    fail again. A closed pipe stays a BrokenPipeError (141)."""
+    try:
+        if text is not None:
+            print(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise
+    except OSError as e:
+        _closed_pipe()
+        raise OSError(e.errno, e.strerror or str(e), "<standard output>") from None
 
 
 def main(argv=None) -> int:
@@ -821,8 +1078,16 @@ def main(argv=None) -> int:
     prog = "gyrosim " + " ".join(x for x in (args.command, getattr(args, "fmu_command", None),
                                              getattr(args, "mcap_command", None)) if x)
     try:
-        rc = int(args.func(args) or 0)
-        sys.stdout.flush()
+        scene = getattr(args, "scene", None)
+        if args.command != "simulate" and is_fmu(scene):  # not a scene file: never read as TOML
+            raise ConfigError("scene", scene, f"an embedded scene or a scene file (.toml): {Path(scene).name} is an "
+                              "FMU; run it with `gyrosim simulate FILE.fmu`, list it with `gyrosim info FILE.fmu`, "
+                              "or use FMPy (fmpy simulate)")
+        # numpy's RuntimeWarnings (an overflow on the way to a blow-up) are not the user's output: the command
+        # says what happened in one line (-v: one note line each)
+        with numeric_warnings(prog, getattr(args, "verbose", 0)):
+            rc = int(args.func(args) or 0)
+        _flush_stdout()
         return rc
     except BrokenPipeError:
         return _closed_pipe()

@@ -21,12 +21,13 @@ a co-simulation FMU (set the inputs, ``doStep``). FMPy also splits a step at a s
 it (for FMUs that accept a variable communication step) and records an extra row there; gyrosim keeps its output
 grid and applies such a step from the next output point on: put steps of an input on the output grid.
 
-Every value must be finite and at most :data:`MAX_INPUT` = 1e12 in size, in the input's unit (every input of
-gyrosim is a torque in N*m). The largest torques machines produce are about 1e7 N*m (a large ship's propeller
-shaft, a wind turbine's main shaft); 1e12 leaves five orders of magnitude beyond that for any scene in SI units,
-while a value such as 1e300 N*m only overflows the state and the work integral at the first step (a blow-up whose
-advice would be about max_step). A file's value beyond it is refused with the file, the line, the column, the
-value and the range.
+Every value must be finite and at most :data:`MAX_INPUT` = 1e12 in size, in the input's unit (:func:`input_unit`:
+N*m for a torque, ``tau_*`` and ``motor_torque``; N for a force, ``motor_force`` and a ``[[force]]``'s ``f_*``).
+The largest torques machines produce are about 1e7 N*m (a large ship's propeller shaft, a wind turbine's main
+shaft) and the largest forces about 1e7 N (a rocket engine); 1e12 leaves five orders of magnitude beyond that for
+any scene in SI units, while a value such as 1e300 only overflows the state and the work integral at the first step
+(a blow-up whose advice would be about max_step). A file's value beyond it is refused with the file, the line, the
+column, the value and the range in the input's unit.
 
 Examples
 --------
@@ -45,15 +46,39 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, name_list
 
-__all__ = ["read_input_csv", "read_input_file", "InputSignal", "input_names", "MAX_INPUT"]
+__all__ = ["read_input_csv", "read_input_file", "InputSignal", "input_names", "input_unit", "input_range", "MAX_INPUT"]
 
 _FORMAT = "FMPy's input format: a header row 'time,<input>,...' then one row per time, comma-separated"
 
-#: The largest size of an input value, in the input's unit (N*m: every input is a torque); see the module's notes.
+#: The largest size of an input value, in the input's unit (N*m for a torque, N for a force); see the module's notes.
 MAX_INPUT = 1e12
-_INPUT_RANGE = f"a finite number from {-MAX_INPUT:g} to {MAX_INPUT:g} in the input's unit (N*m for torques)"
+
+
+def input_unit(name: str) -> str:
+    """The unit of the input ``name`` (``tau_x``, ``wheel_x.motor_torque``, ``cart.motor_force``,
+    ``craft.jet.f_x``): N*m for a torque, N for a force; "its unit" for a name that is neither.
+
+    >>> input_unit("rotor.tau_z"), input_unit("cart.motor_force"), input_unit("jet.f_x")
+    ('N*m', 'N', 'N')
+    """
+    bare = str(name).rpartition(".")[2]
+    if bare.startswith("tau_") or bare == "motor_torque":
+        return "N*m"
+    if bare == "motor_force" or bare in ("f_x", "f_y", "f_z"):
+        return "N"
+    return "its unit"
+
+
+def _in_unit(name: str) -> str:
+    unit = input_unit(name)
+    return "in the input's unit" if unit == "its unit" else f"in {unit}"
+
+
+def input_range(name: str) -> str:
+    """What a value of the input ``name`` may be: ``a finite number from -1e+12 to 1e+12 in N`` (its unit)."""
+    return f"a finite number from {-MAX_INPUT:g} to {MAX_INPUT:g} {_in_unit(name)}"
 
 
 def _isclose(a: float, b: float) -> bool:
@@ -149,11 +174,12 @@ def read_input_csv(path, names=None) -> np.ndarray:
             except ValueError:
                 x = None
             if x is None or not math.isfinite(x):
-                unit = "s" if j == 0 else "the input's unit (N*m for torques)"
-                raise ConfigError(header[j], literal, f"a finite number in {unit}",
+                unit = "in s" if j == 0 else _in_unit(header[j])
+                raise ConfigError(header[j], literal, f"a finite number {unit}",
                                   where=f"{where}, line {i + 1}, column {j + 1}")
             if j and abs(x) > MAX_INPUT:
-                raise ConfigError(header[j], literal, _INPUT_RANGE, where=f"{where}, line {i + 1}, column {j + 1}")
+                raise ConfigError(header[j], literal, input_range(header[j]),
+                                  where=f"{where}, line {i + 1}, column {j + 1}")
             row.append(x)
         if rows and row[0] < rows[-1][0]:
             raise ConfigError("time", cell_text(lines[i]), f"a time >= {rows[-1][0]!r} s, the time of line "
@@ -284,11 +310,12 @@ class InputSignal:
             bad = np.flatnonzero(~np.isfinite(v))
             if bad.size:
                 i = int(bad[0])
-                raise ConfigError(n, float(v[i]), "a finite number", where=f"input row {i} (time {float(t[i])!r} s)")
+                raise ConfigError(n, float(v[i]), f"a finite number {_in_unit(n)}",
+                                  where=f"input row {i} (time {float(t[i])!r} s)")
             big = np.flatnonzero(np.abs(v) > MAX_INPUT)
             if big.size:
                 i = int(big[0])
-                raise ConfigError(n, float(v[i]), _INPUT_RANGE, where=f"input row {i} (time {float(t[i])!r} s)")
+                raise ConfigError(n, float(v[i]), input_range(n), where=f"input row {i} (time {float(t[i])!r} s)")
             values[:, j] = v
         self.array = array
         #: where each input came from (:func:`read_input_file`: "FILE, line L, column C"), for messages
@@ -370,8 +397,8 @@ class InputSignal:
         for n in self.names:
             if n not in allowed:
                 if not allowed:
-                    how = ("give a [[body]] torque_input = true (the inputs tau_x, tau_y, tau_z) or a hinge "
-                           "motor_input = true (motor_torque)")
+                    how = ("give a [[body]] torque_input = true (the inputs tau_x, tau_y, tau_z), a hinge or slider "
+                           "motor_input = true (motor_torque, motor_force) or a [[force]] (f_x, f_y, f_z)")
                     raise ConfigError("input", n, f"an input of scene {sc.name!r}, which has none ({how})",
                                       where=self.origin.get(n))
                 bare = n.rpartition(".")[2]
@@ -381,7 +408,6 @@ class InputSignal:
                     role = "a parameter: set it with start_values" if var.causality == "parameter" else "an output"
                     what = f"; {n} is {role}"
                 raise ConfigError("input", n, f"an input of scene {sc.name!r}{did_you_mean(n, allowed)}: "
-                                  + ", ".join(allowed[:24]) + (", ..." if len(allowed) > 24 else "") + what,
-                                  where=self.origin.get(n))
+                                  + name_list(allowed, 24) + what, where=self.origin.get(n))
             setters.append((n, n, None))  # the full name: the model finds the body
         return setters

@@ -33,6 +33,18 @@ def _ring(ax, R, radius, plane, center=(0.0, 0.0, 0.0), **kw):
     ax.plot(w[0], w[1], w[2], **kw)
 
 
+def _scaled(values, unit: str):
+    """``(values / 10**p, "[1e<p> unit]")`` with p a multiple of 3 that puts the largest magnitude between 1 and
+    1000: the axis label says the scale its tick labels are in (never matplotlib's offset text, nor a fixed scale
+    the values are far below)."""
+    v = np.asarray(values, dtype=float)
+    top = float(np.max(np.abs(v[np.isfinite(v)]))) if np.isfinite(v).any() else 0.0
+    if top == 0.0:
+        return v, f"[{unit}]"
+    p = 3 * math.floor(math.log10(top) / 3)
+    return v / 10.0 ** p, (f"[{unit}]" if p == 0 else f"[1e{p} {unit}]")
+
+
 def gimbal_tour(out: Path, stop_time: float = 10.0) -> Path:
     """Run the gimbal_gyroscope scene and draw it; returns the PNG's path."""
     import matplotlib
@@ -83,8 +95,21 @@ def gimbal_tour(out: Path, stop_time: float = 10.0) -> Path:
     a2.plot(t[z], r["inner.angle"][z], lw=1.0, color="tab:orange")
     a2.set_ylabel("inner.angle [rad]\n(nutation, first 1 s)")
     a3 = fig.add_subplot(gs[2, 1])
-    a3.plot(t, r["energy_error"] * 1e9, lw=0.8, color="tab:red")
-    a3.set_ylabel("energy_error [nJ]")
+    # rk4's error oscillates at twice the nutation frequency (about 5 samples an oscillation at 5 ms): a line
+    # through the samples zig-zags into a solid block. Drawn instead: its envelope, the lowest and highest value
+    # of each window of a few oscillations (gyrosim.telemetry.series.envelope), which shows that it is bounded and
+    # does not drift
+    from .telemetry.series import envelope, period_samples
+
+    err, unit = _scaled(r["energy_error"], "J")
+    tm, lo, hi, _ = envelope(t, err, 200, period_samples(err))
+    a3.fill_between(tm, lo, hi, color="tab:red", alpha=0.12, lw=0)
+    a3.plot(tm, hi, color="tab:red", lw=1.0, label="highest")
+    a3.plot(tm, lo, color="tab:red", lw=1.0, ls="--", label="lowest")
+    window = float(np.median(np.diff(tm))) if len(tm) > 2 else float(t[-1] - t[0])
+    a3.legend(loc="center right", fontsize="small", frameon=False, title=f"over each {window:.2g} s",
+              title_fontsize="small")
+    a3.set_ylabel(f"energy_error {unit}")
     a3.set_xlabel("time [s]")
     for a in (a1, a2, a3):
         a.grid(True, lw=0.3)
@@ -139,8 +164,9 @@ def slew_tour(out: Path, angle: float = math.radians(60.0), stop_time: float = 6
         ax[2].plot(a[:, 0], a[:, 5 + j], lw=1, label=f"{wheels[j]}.rate")
     ax[1].set_ylabel("hub rate [rad/s]")
     ax[2].set_ylabel("wheel rate [rad/s]")
-    ax[3].plot(a[:, 0], (a[:, 8] - a[0, 8]) * 1e12, lw=1, color="tab:red")
-    ax[3].set_ylabel("|L| - |L(0)| [1e-12 kg*m^2/s]")
+    dL, unit = _scaled(a[:, 8] - a[0, 8], "kg*m^2/s")
+    ax[3].plot(a[:, 0], dL, lw=1, color="tab:red")
+    ax[3].set_ylabel(f"|L| - |L(0)| {unit}")
     ax[3].set_xlabel("time [s]")
     for x in ax:
         x.grid(True, lw=0.3)

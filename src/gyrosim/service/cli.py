@@ -15,6 +15,7 @@ file) and ``--wall-duration S`` is wall-clock seconds.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 
@@ -41,11 +42,40 @@ def parse_set(items) -> dict:
     return out
 
 
+#: The highest ``serve --rate``: communication steps per simulated second. Each step publishes every body's state,
+#: transform and IMU (and records them): 10 kHz of one body is 30,000 messages a second, the order of what a Zenoh
+#: peer and an MCAP writer keep up with; far beyond it a service only falls behind (1e9 Hz never advances).
+MAX_RATE = 10_000.0
+
+
+def _scenes() -> str:
+    from ..cli import embedded_scene_names
+
+    return ", ".join(embedded_scene_names())
+
+
 def _check_scene(scene) -> None:
     """A scene given as a file path that does not exist: "not found" (embedded names pass through)."""
     if scene and (scene.endswith(".toml") or os.sep in scene or "/" in scene) and not os.path.exists(scene):
-        raise ConfigError("scene", scene, "an embedded scene (free_body, heavy_top, gyroscope) or an existing "
-                          "TOML file (not found)")
+        raise ConfigError("scene", scene, f"an embedded scene ({_scenes()}) or an existing TOML file (not found)")
+
+
+def _check_serve(args) -> None:
+    """serve's numbers, named by their flags, before anything starts (exit code 2)."""
+    if not (math.isfinite(args.rate) and 0 < args.rate <= MAX_RATE):
+        raise ConfigError("--rate", args.rate, f"a rate > 0 and at most {MAX_RATE:,.0f} Hz (communication steps per "
+                          "simulated second, each publishing every body's state, transform and IMU)")
+    if not (math.isfinite(args.realtime_factor) and args.realtime_factor >= 0):
+        raise ConfigError("--realtime-factor", args.realtime_factor, "a finite factor >= 0 (0: as fast as possible)")
+    for flag, v in (("--duration", args.duration), ("--wall-duration", args.wall_duration)):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise ConfigError(flag, v, "a finite number of seconds > 0")
+    if not (math.isfinite(args.torque_limit) and args.torque_limit > 0):
+        raise ConfigError("--torque-limit", args.torque_limit, "a finite limit > 0 N*m")
+    if not (math.isfinite(args.wait_subscribers) and args.wait_subscribers >= 0):
+        raise ConfigError("--wait-subscribers", args.wait_subscribers, "a finite number of seconds >= 0")
+    if args.max_step is not None and not (math.isfinite(args.max_step) and args.max_step > 0):
+        raise ConfigError("--max-step", args.max_step, "a finite number > 0 in s")
 
 
 def _durations(p: argparse.ArgumentParser, what: str) -> None:
@@ -95,7 +125,8 @@ def _serve(args: argparse.Namespace) -> int:
         from .serve import ServeOptions, main
 
         _check_scene(args.scene)
-        if args.record:  # the folder must exist (docs/cli.md, "Output paths"): a usage error, exit code 2
+        _check_serve(args)
+        if args.record is not None:  # the folder must exist (docs/cli.md, "Output paths"): a usage error, exit 2
             from .._outputs import output_file
 
             output_file(args.record, "--record")
@@ -131,8 +162,11 @@ def _record(args: argparse.Namespace) -> int:
         if args.max_messages is not None and args.max_messages <= 0:
             raise ConfigError("--max-messages", args.max_messages, "a count > 0")
         for flag, v in (("--duration", args.duration), ("--wall-duration", args.wall_duration)):
-            if v is not None and not v > 0:
-                raise ConfigError(flag, v, "seconds > 0")
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise ConfigError(flag, v, "a finite number of seconds > 0")
+        if not (math.isfinite(args.flush_interval) and args.flush_interval > 0):
+            raise ConfigError("--flush-interval", args.flush_interval, "a finite number > 0 in s (the longest time "
+                              "between flushes to disk: what a crash can lose)")
         from .._outputs import output_file
 
         output_file(args.output, "--output")  # its folder must exist: a usage error, exit code 2
@@ -186,8 +220,7 @@ def register(subparsers) -> None:
                     "commands (.../motor), answer params queries, hold a liveliness token. Default: a Zenoh peer "
                     "listening on tcp/127.0.0.1:7447 with scouting off (no router needed).")
     p.add_argument("scene", nargs="?", default=None,
-                   help="Embedded scene (free_body, heavy_top, gyroscope; trees: gimbal_gyroscope, spacecraft, "
-                        "cmg_spacecraft, double_pendulum, coupled_pendula) or TOML file; default: full model.")
+                   help=f"Embedded scene ({_scenes()}) or TOML file; default: full model.")
     p.add_argument("--record", metavar="FILE.mcap", help="Also record everything published into this file.")
     _durations(p, "to run (default: until SIGINT/SIGTERM)")
     p.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", metavar="[HOST:]PORT",
@@ -201,7 +234,8 @@ def register(subparsers) -> None:
                         "at every step. A Zenoh torque or motor command replaces a file value until the file's "
                         "next row.")
     p.add_argument("--rate", type=float, default=100.0, metavar="HZ",
-                   help="Publication rate = communication steps per simulated second (default 100).")
+                   help=f"Publication rate = communication steps per simulated second, up to {MAX_RATE:,.0f} "
+                        "(default 100).")
     p.add_argument("--realtime-factor", type=float, default=1.0, metavar="X",
                    help="Simulated seconds per wall second (default 1; 0: as fast as possible).")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="Set a parameter or start value.")

@@ -43,6 +43,8 @@ __all__ = [
     "config_from_args",
     "loopback_config",
     "default_config_dict",
+    "endpoint_problem",
+    "check_endpoints",
 ]
 
 #: Endpoint the default producer listens on and the default consumer connects to.
@@ -89,6 +91,116 @@ def loopback_config(role: str = "producer", endpoint: str = DEFAULT_ENDPOINT, **
     return conf
 
 
+#: Zenoh's link protocols (zenoh-links: tcp, udp, tls, quic, ws, unixsock-stream, unixpipe, serial, vsock) and how
+#: each writes its address: "host:port" (an IPv4 address, [an IPv6 address] or a host name, and a port 0..65535),
+#: "path" (a socket file, a pipe, a serial device) or "cid:port" (a vsock context id and port).
+ENDPOINT_PROTOCOLS = {"tcp": "host:port", "udp": "host:port", "tls": "host:port", "quic": "host:port",
+                      "ws": "host:port", "unixsock-stream": "path", "unixpipe": "path", "serial": "path",
+                      "vsock": "cid:port"}
+_HOSTNAME = re.compile(r"^(?=.{1,253}$)[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?"
+                       r"(?:\.[A-Za-z0-9](?:[A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*\.?$")
+_IPV4ISH = re.compile(r"^[0-9.]+$")
+
+
+def _host_problem(host: str) -> str | None:
+    import ipaddress
+
+    if not host:
+        return "no host before ':PORT' (e.g. 127.0.0.1, [::1] or localhost)"
+    if host.startswith("["):
+        if not host.endswith("]"):
+            return f"the IPv6 address {host!r} lacks its closing ']'"
+        try:
+            ipaddress.IPv6Address(host[1:-1].split("%", 1)[0])
+        except ValueError:
+            return f"{host[1:-1]!r} is not an IPv6 address"
+        return None
+    if ":" in host:
+        return f"an IPv6 address goes in brackets: [{host}]:PORT"
+    if _IPV4ISH.match(host):
+        try:
+            ipaddress.IPv4Address(host)
+        except ValueError:
+            return f"{host!r} is not an IPv4 address"
+        return None
+    if not _HOSTNAME.match(host):
+        return f"{host!r} is not a host name or an IP address"
+    return None
+
+
+def endpoint_problem(endpoint) -> str | None:
+    """What is wrong with a Zenoh endpoint (``-e``, ``-l``, a config file's endpoints), or None: the forms Zenoh
+    takes, ``<protocol>/<address>[?<metadata>][#<config>]`` with a protocol of :data:`ENDPOINT_PROTOCOLS` and an
+    address as that protocol writes it (``tcp/127.0.0.1:7447``, ``udp/[::1]:7447``, ``tls/host.example:7447``,
+    ``unixsock-stream//tmp/zenoh.sock``). Whether the address is reachable or free is Zenoh's to say when the
+    session opens.
+
+    >>> endpoint_problem("tcp/127.0.0.1:7447") is None, endpoint_problem("tcp/127.0.0.1")
+    (True, 'tcp takes HOST:PORT and no port is given')
+    """
+    if not isinstance(endpoint, str):
+        return "a text PROTOCOL/ADDRESS"
+    proto, sep, rest = endpoint.partition("/")
+    if not sep or not proto:
+        return "it has no protocol before a '/'" if sep else "it has no '/' between a protocol and an address"
+    form = ENDPOINT_PROTOCOLS.get(proto)
+    if form is None:
+        near = next((p for p in ENDPOINT_PROTOCOLS if p.lower() == proto.lower()), None)
+        hint = f" (did you mean {near!r}?)" if near else ""
+        return f"protocol {proto!r} is not one of Zenoh's ({', '.join(ENDPOINT_PROTOCOLS)}){hint}"
+    address = rest.split("#", 1)[0].split("?", 1)[0]
+    if not address.strip() or address != address.strip():
+        return f"{proto} takes {form.upper()} and the address is empty or has blanks"
+    if form == "path":
+        return None
+    if ":" not in address or (address.startswith("[") and not address.rsplit("]", 1)[-1].startswith(":")):
+        return f"{proto} takes {form.upper()} and no port is given"
+    host, _, port = address.rpartition(":")
+    if not port.isdigit() or not 0 <= int(port) <= 65535:
+        return f"the port {port!r} is not a number from 0 to 65535"
+    if form == "cid:port":
+        return None if host and re.match(r"^[\w-]+$", host) else f"{host!r} is not a vsock context id"
+    problem = _host_problem(host)
+    return problem
+
+
+def check_endpoints(endpoints, flag: str) -> None:
+    """Raise a :class:`ConfigError` (exit code 2) naming ``flag`` and the first malformed endpoint."""
+    for ep in endpoints or ():
+        problem = endpoint_problem(ep)
+        if problem:
+            raise ConfigError(flag, ep, f"a Zenoh endpoint PROTOCOL/ADDRESS (e.g. tcp/127.0.0.1:7447): {problem}")
+
+
+def _zenoh_text(e: Exception) -> str:
+    """Zenoh's error without its Rust wrappers and source locations: the message a user can act on."""
+    raw = " ".join(str(e).split())
+    m = re.search(r'msg: "(.*?)(?:\s+at\s+\S+\.rs:\d+(?::\d+)?)?\.?"', raw)
+    text = m.group(1) if m else raw
+    return _RUST_NOISE.sub("", text).strip().rstrip(".")
+
+
+def _file_endpoint_error(path: str, e: Exception) -> ConfigError:
+    """A config file Zenoh refuses: its bad endpoint named (exit code 2), else Zenoh's reason without internals."""
+    text = _zenoh_text(e)
+    m = re.search(r"Endpoints must be of the form .*?: (\S+)$", text)
+    if m:
+        ep = m.group(1)
+        return ConfigError("-c/--config", path, f"a Zenoh JSON5 file whose endpoints are PROTOCOL/ADDRESS (e.g. "
+                           f"tcp/127.0.0.1:7447); endpoint {ep!r}: {endpoint_problem(ep) or 'Zenoh refuses it'}")
+    return ConfigError("-c/--config", path, f"a readable Zenoh JSON5 file; Zenoh says: {text}")
+
+
+def _config_endpoints(conf, path: str) -> list[str]:
+    try:
+        value = json.loads(conf.get_json(path))
+    except Exception:  # noqa: BLE001 - an unset path
+        return []
+    if isinstance(value, dict):  # per-mode endpoints: {"router": [...], "peer": [...]}
+        value = [e for v in value.values() for e in (v or [])]
+    return [e for e in value or []] if isinstance(value, list) else [value]
+
+
 def add_config_arguments(parser: argparse.ArgumentParser) -> None:
     """Add Zenoh's example flags ``-m -e -l -c --no-multicast-scouting --cfg`` to ``parser``."""
     g = parser.add_argument_group("zenoh", "Zenoh session (as in Zenoh's examples); default: loopback peer")
@@ -131,7 +243,14 @@ def config_from_args(args: argparse.Namespace, role: str = "producer"):
         try:
             conf = zenoh.Config.from_file(args.config)
         except Exception as e:  # zenoh.ZError: one clear line
-            raise ConfigError("-c/--config", args.config, f"a readable Zenoh JSON5 file; Zenoh says: {e}") from None
+            raise _file_endpoint_error(args.config, e) from None
+        for key, flag in (("connect/endpoints", "-c/--config connect"), ("listen/endpoints", "-c/--config listen")):
+            for ep in _config_endpoints(conf, key):
+                if problem := endpoint_problem(ep):
+                    raise ConfigError(flag, ep, f"a Zenoh endpoint PROTOCOL/ADDRESS (e.g. tcp/127.0.0.1:7447) in "
+                                      f"{args.config}: {problem}")
+    check_endpoints(connect, "-e/--connect")
+    check_endpoints(listen, "-l/--listen")
     try:
         if not getattr(args, "config", None):
             d = default_config_dict(role)
@@ -152,13 +271,21 @@ def config_from_args(args: argparse.Namespace, role: str = "producer"):
             key, sep, value = c.partition(":")
             if not sep:
                 raise ConfigError("--cfg", c, "KEY:VALUE with a config path and a JSON5 value")
-            conf.insert_json5(key, value)
+            try:
+                conf.insert_json5(key, value)
+            except Exception as e:  # noqa: BLE001 - zenoh.ZError: one clear line naming the setting
+                raise ConfigError("--cfg", c, f"a config path and a JSON5 value Zenoh takes; Zenoh says: "
+                                  f"{_zenoh_text(e)}") from None
+            if key.strip("/").endswith("endpoints"):
+                for ep in _config_endpoints(conf, key.strip("/")):
+                    if problem := endpoint_problem(ep):
+                        raise ConfigError("--cfg", c, f"Zenoh endpoints PROTOCOL/ADDRESS: {ep!r}: {problem}")
     except ConfigError:
         raise
     except Exception as e:  # zenoh.ZError: one clear line
         raise ConfigError("Zenoh flags", " ".join(f"{k}={v}" for k, v in (("mode", mode), ("connect", connect),
                                                                           ("listen", listen)) if v),
-                          f"values Zenoh accepts; Zenoh says: {e}") from None
+                          f"values Zenoh accepts; Zenoh says: {_zenoh_text(e)}") from None
     return conf
 
 

@@ -16,7 +16,7 @@ import logging
 import os
 import sys
 
-from ..errors import GyrosimError, exit_code, one_line
+from ..errors import GyrosimError, exit_code, name_list, numeric_warnings, one_line
 
 __all__ = ["register", "run_handler", "setup_logging", "add_verbosity"]
 
@@ -24,14 +24,28 @@ __all__ = ["register", "run_handler", "setup_logging", "add_verbosity"]
 EXIT_BROKEN_PIPE = 141
 
 
+#: A log line names at most this many items of a list (the bodies of a 500-body scene in serve's banner), then
+#: "... and N more" (-v: every item).
+LOG_NAMES = 20
+
+
+def _shorter(arg):
+    if isinstance(arg, str) and arg.count(", ") >= LOG_NAMES:
+        return name_list(arg.split(", "), LOG_NAMES)
+    return arg
+
+
 class _Format(logging.Formatter):
-    """``gyrosim serve: warning: ...`` for warnings and errors; time-stamped records at -v."""
+    """``gyrosim serve: warning: ...`` for warnings and errors; time-stamped records at -v. Without -v, a list of
+    more than :data:`LOG_NAMES` names in a record's arguments is cut to that many and "... and N more"."""
 
     def __init__(self, prog: str, verbose: bool):
         super().__init__("%(asctime)s %(name)s %(levelname)s: %(message)s" if verbose else "%(message)s")
         self.prog, self.verbose = prog, verbose
 
     def format(self, record):
+        if not self.verbose and isinstance(record.args, tuple) and any(_shorter(a) is not a for a in record.args):
+            record = logging.makeLogRecord({**record.__dict__, "args": tuple(_shorter(a) for a in record.args)})
         text = super().format(record)
         if self.verbose:
             return text
@@ -96,7 +110,8 @@ def run_handler(prog: str, fn, args: argparse.Namespace | None = None) -> int:
     if args is not None:
         setup_logging(verbose - getattr(args, "quiet", 0), prog)
     try:
-        code = int(fn() or 0)
+        with numeric_warnings(prog, verbose):  # numpy's RuntimeWarnings are not the user's output (errors.py)
+            code = int(fn() or 0)
         sys.stdout.flush()
         return code
     except BrokenPipeError:
@@ -118,10 +133,23 @@ def run_handler(prog: str, fn, args: argparse.Namespace | None = None) -> int:
         return exit_code(e)
 
 
+def _print(text: str) -> None:
+    """Print to stdout; a write it refuses (``> /dev/full``) is named (exit code 1) and stdout is pointed at
+    /dev/null (the interpreter's flush at exit would fail again). A closed pipe stays a BrokenPipeError (141)."""
+    try:
+        print(text)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        raise
+    except OSError as e:
+        _silence_stdout()
+        raise OSError(e.errno, e.strerror or str(e), "<standard output>") from None
+
+
 def _out(args, text: str) -> None:
     """Print a result line unless -q."""
     if not getattr(args, "quiet", 0):
-        print(text)
+        _print(text)
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -144,7 +172,7 @@ def _info(args: argparse.Namespace) -> int:
         from .info import mcap_info
 
         info = mcap_info(args.file)
-        print(info.format())
+        _print(info.format())
         return 0 if info.complete else 1  # 1: truncated or damaged (a run-time failure, docs/cli.md)
 
     return run_handler("gyrosim mcap info", run, args)

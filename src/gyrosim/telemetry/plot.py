@@ -3,10 +3,14 @@
 Reads every ``gyrosim.BodyState`` channel (one line per body), tolerating a truncated or damaged file (one
 warning line with the counts: what was dropped, how many messages were lost against the Statistics record), and
 writes ``<stem>_attitude.png``, ``<stem>_rates.png``, ``<stem>_energy.png`` and ``<stem>_momentum.png``
-(matplotlib's Agg backend, no display needed); a recording of a tree scene with hinges
-also ``<stem>_joints.png`` (every hinge's angle and rate). A tree body's attitude panel shows the ZYZ angles of
-its world attitude ``q``; the scene-wide energy and angular momentum a tree's bodies all carry are drawn once per
-scene.
+(matplotlib's Agg backend, no display needed); a recording of a tree scene with hinges or sliders
+also ``<stem>_joints.png`` (every joint's coordinate and its rate: a hinge's angle and rate, a slider's
+displacement and velocity). A tree body's attitude panel shows the ZYZ angles of its world attitude ``q``; the
+scene-wide energy and angular momentum a tree's bodies all carry are drawn once per scene.
+
+A panel whose series never change (a body's spin rate, the angular momentum of a translation) is left out beside
+panels that move and named with its value in the figure's title; a figure where nothing changes (the attitude of
+bodies on sliders) is drawn whole, its title saying so and pointing to the joints figure.
 
 Made to be read: a quantity that barely moves (the gyroscope's nutation angle, its spin rate, energy, |L|) is
 plotted as its deviation from the initial value, in its unit, with the initial value in the panel title, never
@@ -179,10 +183,36 @@ def _panel(ax, series: dict, values: dict, name: str, unit: str, label) -> bool:
 
 
 def _attitude_series(series: dict) -> dict:
-    """The bodies the attitude figure draws: a hinge body's attitude is its angle (the joints figure), and beside
-    other bodies its world ZYZ angles (a wheel's theta sweeping 0..pi at its spin) would only cover theirs; a scene
-    of hinges only keeps them all."""
-    return {k: s for k, s in series.items() if s.joint_type != "hinge"} or series
+    """The bodies the attitude figure draws: a hinge or slider body's motion is its joint coordinate (the joints
+    figure), and beside other bodies its world ZYZ angles (a wheel's theta sweeping 0..pi at its spin) would only
+    cover theirs; a scene of hinges and sliders only keeps them all."""
+    return {k: s for k, s in series.items() if s.joint_type not in ("hinge", "slider")} or series
+
+
+#: Joint coordinates the joints figure draws, a row per body: (coordinate, unit, its rate, unit), in this order.
+JOINT_COORDINATES = (("angle", "rad", "rate", "rad/s"), ("displacement", "m", "velocity", "m/s"))
+
+
+def _constant(y) -> bool:
+    """A series that never changes (every finite sample the same, bit for bit, or none finite)."""
+    y = np.asarray(y, dtype=float)
+    y = y[np.isfinite(y)]
+    return y.size == 0 or float(y.min()) == float(y.max())
+
+
+def _constant_text(panels) -> str:
+    """``"phi = 0.0 (m1, m2, m3)"``: the constant panels left out of a figure, with their values."""
+    from ..errors import name_list, number
+
+    parts = []
+    for name, unit, values in panels:
+        firsts = {}
+        for topic, y in values.items():
+            y = np.asarray(y, dtype=float)
+            y = y[np.isfinite(y)]
+            firsts.setdefault(number(float(y[0])) if y.size else "nan", []).append(topic)
+        parts.append("; ".join(f"{name} = {v}{' ' + unit if unit and v != 'nan' else ''}" for v in firsts))
+    return name_list(parts, 6, "; ")
 
 
 def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
@@ -228,16 +258,29 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
         p = parts[topic]
         return p[-2] if one_scene and len(p) >= 2 else "/".join(p[-3:-1])
 
+    has_joints = any(c[0] in s.joint and c[2] in s.joint for s in series.values() for c in JOINT_COORDINATES)
+
     def figure(rows: int, title: str, panels, label=label):
-        """``panels``: (name, unit, {topic: values}) per row; one legend above the panels."""
+        """``panels``: (name, unit, {topic: values}) per row; one legend above the panels. Panels whose series are
+        all constant are left out beside panels that move and named in the title; a figure where nothing moves is
+        drawn whole and its title says so."""
+        still = [p for p in panels if all(_constant(y) for y in p[2].values())]
+        if len(still) == len(panels):
+            where = f" (the motion: {stem}_joints.png)" if has_joints else ""
+            title = f"{title}\nconstant throughout{where}"
+            still = []
+        panels = [p for p in panels if p not in still]
+        rows = len(panels)
         fig, axes = plt.subplots(rows, 1, sharex=True, figsize=(8.5, 2.3 * rows + 1.0), layout="constrained")
         banded = False
         for ax, (name, unit, values) in zip(np.atleast_1d(axes), panels):
             banded |= _panel(ax, series, values, name, unit, label)
         axes = np.atleast_1d(axes)
         axes[-1].set_xlabel("simulation time t / s")
-        fig.suptitle(title + ("\n(band): a fast signal, shaded from its min to its max, the line its middle"
-                              if banded else ""), fontsize="medium")
+        notes = ["(band): a fast signal, shaded from its min to its max, the line its middle"] if banded else []
+        if still:
+            notes.append(f"constant, not drawn: {_constant_text(still)}")
+        fig.suptitle("\n".join([title, *notes]), fontsize="medium")
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside lower center", ncols=min(6, len(labels)), fontsize="small",
                    frameon=False, title=None if len(labels) > 1 else "body")
@@ -276,21 +319,25 @@ def plot_recording(path, output_dir=None, *, dpi: int = 110) -> list[str]:
                                              energy_panels)))
     figures.append(("momentum", figure_overall(1, "|L|, angular momentum about the reference point", [
         ("|L|", "kg m²/s", {k: np.linalg.norm(s.L, axis=-1) for k, s in overall.items()})])))
-    hinges = {k: s for k, s in series.items() if "angle" in s.joint and "rate" in s.joint}
-    if hinges:  # one row per hinge, angle and rate side by side: each on its own scale
-        n = len(hinges)
+    # one row per joint with a coordinate (a hinge's angle, a slider's displacement), the coordinate and its rate
+    # side by side: each on its own scale
+    joints = [(k, s, c) for k, s in series.items() for c in JOINT_COORDINATES
+              if c[0] in s.joint and c[2] in s.joint]
+    if joints:
+        n = len(joints)
         fig, axes = plt.subplots(n, 2, sharex=True, squeeze=False, figsize=(11.0, 2.1 * n + 1.0),
                                  layout="constrained")
         banded = False
-        for row, (k, s) in zip(axes, hinges.items()):
+        for row, (k, s, (coord, cunit, rate, runit)) in zip(axes, joints):
             body = label(k)  # the body on the right of each panel; the axes say the quantity (labels stay short)
-            banded |= _panel(row[0], series, {k: s.joint["angle"]}, "angle", "rad", label)
-            banded |= _panel(row[1], series, {k: s.joint["rate"]}, "rate", "rad/s", label)
+            banded |= _panel(row[0], series, {k: s.joint[coord]}, coord, cunit, label)
+            banded |= _panel(row[1], series, {k: s.joint[rate]}, rate, runit, label)
             for ax in row:
                 ax.set_title(body, loc="right", fontsize="small", fontweight="bold")
         for ax in axes[-1]:
             ax.set_xlabel("simulation time t / s")
-        fig.suptitle("hinge joints: angle and rate relative to the parent body" + (
+        kinds = [f"{c[0]} and {c[2]}" for c in JOINT_COORDINATES if any(j[2] == c for j in joints)]
+        fig.suptitle(f"joint coordinates relative to the parent body ({'; '.join(kinds)})" + (
             "\n(band): a fast signal, shaded from its min to its max, the line its middle" if banded else ""),
             fontsize="medium")
         figures.append(("joints", fig))
