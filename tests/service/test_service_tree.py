@@ -156,6 +156,28 @@ def _omega_by_differences(model, body: str, delta: float = 1e-5) -> np.ndarray:
     return 2.0 * quat_multiply(quat_conjugate(q0), dq)[1:]
 
 
+def _specific_force_by_differences(model, body: str, delta: float = 1e-5) -> np.ndarray:
+    """The specific force at ``body``'s origin in its frame, R^T (dv_world/dt - gravity), the derivative of the
+    model's own v_world output by forward differences with Richardson extrapolation (error O(delta^2))."""
+    from gyrosim.core.rotations import quat_to_matrix
+
+    saved = model.get_state()
+    name = model.scene.var_name
+    out0 = model.outputs()
+    v0 = np.array([out0[name(body, f"v_world_{c}")] for c in "xyz"])
+
+    def derivative(h):
+        model.set_state(saved)
+        model.step(h)
+        out = model.outputs()
+        return (np.array([out[name(body, f"v_world_{c}")] for c in "xyz"]) - v0) / h
+
+    a = 2.0 * derivative(delta / 2) - derivative(delta)
+    model.set_state(saved)
+    g = model.get("g") * np.asarray(model.scene.gravity_dir, dtype=float)
+    return quat_to_matrix(_q_world(out0, body)).T @ (a - g)
+
+
 # ------------------------------------------------------------------------------ frames without Zenoh
 @pytest.mark.parametrize("scene", TREE_SCENES + ("free_chain", "arm_on_cart", "mass_spring_chain"))
 def test_tree_frames_are_the_models_relative_transforms_and_rates(scene, free_chain, arm_on_cart):
@@ -255,6 +277,11 @@ def test_served_tf_is_each_bodys_transform_from_its_parent(scene, free_chain, ar
         w = np.array([imu.angular_velocity.x, imu.angular_velocity.y, imu.angular_velocity.z])
         ref = _omega_by_differences(reference, b)
         assert np.allclose(w, ref, rtol=1e-6, atol=1e-5 * max(1.0, np.linalg.norm(ref))), (b, w, ref)
+        # and its linear acceleration what an accelerometer at the body's origin reads: the specific force
+        acc = np.array([imu.linear_acceleration.x, imu.linear_acceleration.y, imu.linear_acceleration.z])
+        assert list(imu.linear_acceleration_covariance) == [0.0] * 9   # given (exactly), not "not provided"
+        ref = _specific_force_by_differences(reference, b)
+        assert np.allclose(acc, ref, rtol=1e-6, atol=1e-5 * max(1.0, np.linalg.norm(ref))), (b, acc, ref)
         state = json.loads(got["state"][b][n - 1][1])
         assert np.allclose(state["omega"], w, rtol=0, atol=0)
         assert set(state["joint"]) == {c for c in reference.scene.tree[bodies.index(b)].coords}
@@ -478,7 +505,9 @@ def test_a_sliders_motor_force_is_commanded_like_a_hinges_motor(tmp_path):
     with open(tmp_path / "cart.mcap", "rb") as f:
         reader = make_reader(f)
         [(schema, channel, message)] = list(reader.iter_messages(topics=["/gyrosim/cart/cart/motor"]))
-    assert schema is None and channel.message_encoding == "json" and json.loads(message.data) == {"force": force}
+    # its own schema (a hinge's motor schema is {"torque"}), which the recording carries for Foxglove and the readers
+    assert (schema.name, schema.encoding, channel.message_encoding) == ("gyrosim.MotorForce", "jsonschema", "json")
+    assert json.loads(schema.data)["required"] == ["force"] and json.loads(message.data) == {"force": force}
 
 
 def test_the_readme_motor_snippet_runs_against_a_live_spacecraft():

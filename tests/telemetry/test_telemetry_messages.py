@@ -78,7 +78,7 @@ def test_a_tree_bodys_state_carries_its_parent_joint_and_the_scene_wide_values()
     props = msg.BODY_STATE_JSON_SCHEMA["properties"]
     assert set(props["joint"]["properties"]) == set(msg.JOINT_VARIABLES) >= {"angle", "rate", "q_w", "omega_z",
                                                                            "r_x", "v_z"}
-    assert set(props["inputs"]["properties"]) == {"tau_x", "tau_y", "tau_z", "motor_torque"}
+    assert set(props["inputs"]["properties"]) == {"tau_x", "tau_y", "tau_z", "motor_torque", "motor_force"}
     # a one-body scene's state has none of the tree fields: its messages are unchanged
     assert not {"parent", "joint_type", "joint"} & set(msg.decode_state(msg.encode_state(_state())))
 
@@ -259,3 +259,22 @@ def test_motor_commands_are_parsed_and_rejected_as_torque_commands():
 def test_params_reply_is_strict_json():
     d = json.loads(msg.encode_params({"a": math.inf, "b": [np.float64(1.5), float("nan")], "c": "x"}))
     assert d == {"a": None, "b": [1.5, None], "c": "x"}
+
+
+def test_imu_with_a_linear_acceleration_says_it_is_given():
+    """The service's IMU carries the specific force (Model.specific_force): its covariance all zeros (given
+    exactly, no error estimate), not the -1 of "not provided"; decoded by mcap-ros2's reader."""
+    data = msg.encode_imu(1.0, Q, OMEGA, frame_id="gyro", linear_acceleration=(0.5, -1.0, 9.81))
+    imu = msg.decode_cdr(msg.IMU_TYPE, data)
+    la = imu.linear_acceleration
+    assert (la.x, la.y, la.z) == (0.5, -1.0, 9.81)
+    assert list(imu.linear_acceleration_covariance) == [0.0] * 9
+
+
+def test_a_sliders_motor_command_parses_with_the_motor_checks():
+    assert msg.parse_motor_force(b'{"force": 12.5}', limit=100.0).as_inputs() == {"motor_force": 12.5}
+    for bad, words in ((b'{"torque": 1}', "expected force in N"), (b'{"force": 1e6}', "exceeds the limit 100 N"),
+                       (b'{"force": true}', r"expected a number \(N\)")):
+        with pytest.raises(msg.MotorRejected, match=words):
+            msg.parse_motor_force(bad, limit=100.0)
+    assert msg.schema_for_encoding(msg.MOTOR_FORCE_ENCODING).name == "gyrosim.MotorForce"

@@ -72,6 +72,8 @@ def _check_serve(args) -> None:
             raise ConfigError(flag, v, "a finite number of seconds > 0")
     if not (math.isfinite(args.torque_limit) and args.torque_limit > 0):
         raise ConfigError("--torque-limit", args.torque_limit, "a finite limit > 0 N*m")
+    if not (math.isfinite(args.force_limit) and args.force_limit > 0):
+        raise ConfigError("--force-limit", args.force_limit, "a finite limit > 0 N")
     if not (math.isfinite(args.wait_subscribers) and args.wait_subscribers >= 0):
         raise ConfigError("--wait-subscribers", args.wait_subscribers, "a finite number of seconds >= 0")
     if args.max_step is not None and not (math.isfinite(args.max_step) and args.max_step > 0):
@@ -142,7 +144,8 @@ def _serve(args: argparse.Namespace) -> int:
             params["max_step"] = args.max_step
         options = ServeOptions(rate=args.rate, realtime_factor=args.realtime_factor, duration=args.duration,
                                wall_duration=args.wall_duration, record=args.record, prefix=args.prefix,
-                               torque_limit=args.torque_limit, wait_subscribers=args.wait_subscribers,
+                               torque_limit=args.torque_limit, force_limit=args.force_limit,
+                               wait_subscribers=args.wait_subscribers,
                                foxglove=foxglove, input_file=args.input_file, ros_domain=args.ros_domain,
                                ros_distro=args.ros_distro)
         conf = config_from_args(args, role="producer")
@@ -243,7 +246,10 @@ def register(subparsers) -> None:
     p.add_argument("--max-step", type=float, metavar="S", help="Largest internal step, s.")
     p.add_argument("--prefix", default=K.DEFAULT_PREFIX, help="First key chunk (default gyrosim).")
     p.add_argument("--torque-limit", type=float, default=100.0, metavar="NM",
-                   help="Largest accepted |torque component| in N*m (default 100).")
+                   help="Largest accepted |torque component| of a torque command and |torque| of a hinge's motor "
+                        "command, in N*m (default 100).")
+    p.add_argument("--force-limit", type=float, default=1000.0, metavar="N",
+                   help="Largest accepted |force| of a slider's motor command, in N (default 1000).")
     p.add_argument("--wait-subscribers", type=float, default=0.0, metavar="S",
                    help="Wait up to S wall seconds for a subscriber on every state key before stepping.")
     _ros_arguments(p, "Also be a ROS 2 node (gyrosim_<scene>) in rmw_zenoh's protocol on this ROS domain "

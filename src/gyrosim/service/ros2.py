@@ -241,7 +241,8 @@ def ros_name(name: str) -> str:
 @dataclass
 class Frame:
     """One body's frame at a step: its transform from its parent's frame (``rotation`` child -> parent, w first;
-    ``translation`` m), its world attitude and body rates (the IMU), and whether its joint is fixed."""
+    ``translation`` m), its world attitude, body rates and specific force (the IMU; m/s^2, body frame: None when
+    not known), and whether its joint is fixed."""
 
     body: str
     parent: str
@@ -250,6 +251,7 @@ class Frame:
     q_world: tuple
     omega: tuple
     fixed: bool = False
+    linear_acceleration: tuple | None = None
 
 
 class Ros2Bridge:
@@ -355,7 +357,7 @@ class Ros2Bridge:
             self._static_sent = True
             n += 1
         for pub, f in zip(self.imu, frames):
-            pub.put(msg.encode_imu(t, f.q_world, f.omega, frame_id=f.body))
+            pub.put(msg.encode_imu(t, f.q_world, f.omega, frame_id=f.body, linear_acceleration=f.linear_acceleration))
             n += 1
         if self.joint_states is not None and joints is not None:
             self.joint_states.put(msg.encode_joint_state(t, self.hinges, *joints))

@@ -59,69 +59,12 @@ __all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "inst
 
 log = logging.getLogger("gyrosim.service")
 
-#: Default largest accepted |motor force| of a slider, N.
-DEFAULT_FORCE_LIMIT = 1000.0
-#: The Zenoh encoding a slider's motor command is recorded with (a JSON channel without a schema: the motor schema,
-#: ``{"torque"}``, is a hinge's).
-FORCE_ENCODING = "application/json;gyrosim.MotorForce"
+#: Default largest accepted |motor force| of a slider, N; the encoding its commands are recorded with.
+DEFAULT_FORCE_LIMIT = msg.DEFAULT_FORCE_LIMIT
+FORCE_ENCODING = msg.MOTOR_FORCE_ENCODING
+MotorForce, parse_motor_force = msg.MotorForce, msg.parse_motor_force
 #: A joint motor's input by its short name -> (the member of its ``.../motor`` command, unit, the joint).
 MOTOR_INPUTS = {"motor_torque": ("torque", "N*m", "hinge"), "motor_force": ("force", "N", "slider")}
-
-
-@dataclass(frozen=True)
-class MotorForce:
-    """A slider's motor force command, N along the joint axis (on the body; its reaction on the parent)."""
-
-    force: float
-
-    def as_inputs(self) -> dict[str, float]:
-        """As the model input ``motor_force``."""
-        return {"motor_force": self.force}
-
-
-def parse_motor_force(payload, limit: float = DEFAULT_FORCE_LIMIT) -> MotorForce:
-    """Parse and validate a slider's motor command ``{"force": ..}`` (N along the axis), with the checks of
-    :func:`gyrosim.telemetry.messages.parse_motor` (size, UTF-8, JSON, exactly the one numeric finite member,
-    ``|force| <= limit``).
-
-    Raises
-    ------
-    gyrosim.telemetry.messages.MotorRejected
-        With ``reason`` naming what is wrong.
-    """
-    import json
-
-    rej = msg.MotorRejected
-    raw = payload.encode() if isinstance(payload, str) else bytes(payload)
-    if len(raw) > msg.MAX_TORQUE_PAYLOAD:
-        raise rej(f"payload of {len(raw)} bytes, at most {msg.MAX_TORQUE_PAYLOAD} allowed")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise rej(f"payload is not UTF-8 ({e.reason} at byte {e.start})", raw[:40]) from None
-
-    def constant(name):  # json takes NaN/Infinity literals by default
-        raise ValueError(f"{name} is not a finite number")
-
-    try:
-        obj = json.loads(text, parse_constant=constant)
-    except ValueError as e:
-        raise rej(f"not valid JSON ({e})", text[:80]) from None
-    if not isinstance(obj, dict) or set(obj) != {"force"}:
-        got = type(obj).__name__ if not isinstance(obj, dict) else "members " + (", ".join(sorted(obj)) or "none")
-        raise rej(f"expected a JSON object {{\"force\"}} (N along the slider's axis), got {got}", obj)
-    v = obj["force"]
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise rej(f"force = {v!r} is a {type(v).__name__}, expected a number (N)", obj)
-    try:
-        v = float(v)
-    except OverflowError:  # a JSON integer beyond the float range
-        raise rej(f"force is an integer of {len(str(obj['force']))} digits, not a finite float") from None
-    if not math.isfinite(v):
-        raise rej(f"force = {obj['force']!r} is not finite", obj)
-    if abs(v) > limit:
-        raise rej(f"|force| = {abs(v):g} N exceeds the limit {limit:g} N", obj)
-    return MotorForce(v)
 
 
 @dataclass(frozen=True)
@@ -534,12 +477,15 @@ class Service:
         t = m.time
         t_ns = msg.seconds_to_ns(t)
         ros_frames = []
+        accel = m.specific_force()   # what an accelerometer at each body's origin reads (body frames)
         for i, (body, parent, joint, f, state) in enumerate(self._frames(t)):
             wall = time.time_ns()
+            acc = tuple(float(a) for a in accel[i])
             payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state(wall))),
                         ("tf", msg.TF_ENCODING, msg.encode_tf(t, f.rotation, child_frame_id=body, frame_id=parent,
                                                               translation=f.translation)),
-                        ("imu", msg.IMU_ENCODING, msg.encode_imu(t, f.q_world, f.omega, frame_id=body)))
+                        ("imu", msg.IMU_ENCODING, msg.encode_imu(t, f.q_world, f.omega, frame_id=body,
+                                                                 linear_acceleration=acc)))
             live_tf = None
             if self.live is not None:
                 live_tf = msg.encode_frame_transform(t, f.rotation, child_frame_id=body, parent_frame_id=parent,
@@ -547,7 +493,7 @@ class Service:
             self._emit(i, payloads, wall, t_ns, live_tf)
             if self.ros is not None:
                 ros_frames.append(Frame(body, parent, f.rotation, f.translation, f.q_world, f.omega,
-                                        joint == "fixed"))
+                                        joint == "fixed", acc))
         if self.ros is not None:
             joints = None
             if self._hinges:

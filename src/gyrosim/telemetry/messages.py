@@ -52,6 +52,13 @@ __all__ = [
     "STATE_SCHEMA_NAME",
     "TORQUE_SCHEMA_NAME",
     "MOTOR_SCHEMA_NAME",
+    "MOTOR_FORCE_SCHEMA_NAME",
+    "MOTOR_FORCE_ENCODING",
+    "MOTOR_FORCE_JSON_SCHEMA",
+    "MotorForce",
+    "parse_motor_force",
+    "encode_motor_force",
+    "DEFAULT_FORCE_LIMIT",
     "TF_TYPE",
     "IMU_TYPE",
     "TF_MSGDEF",
@@ -94,6 +101,7 @@ __all__ = [
 STATE_SCHEMA_NAME = "gyrosim.BodyState"
 TORQUE_SCHEMA_NAME = "gyrosim.Torque"
 MOTOR_SCHEMA_NAME = "gyrosim.MotorTorque"
+MOTOR_FORCE_SCHEMA_NAME = "gyrosim.MotorForce"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 IMU_TYPE = "sensor_msgs/msg/Imu"
 #: The ROS 2 types of the ROS 2 side (``gyrosim serve --ros-domain``): the simulation clock, hinge joint states, and
@@ -109,12 +117,16 @@ TF_ENCODING = f"application/cdr;{TF_TYPE}"
 IMU_ENCODING = f"application/cdr;{IMU_TYPE}"
 TORQUE_ENCODING = "application/json"
 MOTOR_ENCODING = "application/json"
+#: A slider's motor command ``{"force"}`` (N): its own schema, named in the encoding (a hinge's is ``{"torque"}``).
+MOTOR_FORCE_ENCODING = f"application/json;{MOTOR_FORCE_SCHEMA_NAME}"
 PARAMS_ENCODING = "application/json"
 
 #: Parent frame of every transform.
 WORLD_FRAME = "world"
 #: Default largest accepted |torque component|, N*m.
 DEFAULT_TORQUE_LIMIT = 100.0
+#: Default largest accepted |motor force| of a slider's motor command, N.
+DEFAULT_FORCE_LIMIT = 1000.0
 
 # ------------------------------------------------------------------------------ ROS 2 message definitions
 _SEP = "=" * 80 + "\n"
@@ -243,18 +255,22 @@ def _num(what: str) -> dict:
     return {"type": "number", "description": what + " (null when not available or not finite)"}
 
 
-#: Input names a BodyState's ``inputs`` object may carry: body-frame torque and a hinge's motor torque, N*m.
-STATE_INPUTS = ("tau_x", "tau_y", "tau_z", "motor_torque")
+#: Input names a BodyState's ``inputs`` object may carry: body-frame torque and a hinge's motor torque, N*m; a
+#: slider's motor force, N.
+STATE_INPUTS = ("tau_x", "tau_y", "tau_z", "motor_torque", "motor_force")
 
 _INPUT_DESCRIPTIONS = {"tau_x": "body-frame torque x, N*m", "tau_y": "body-frame torque y, N*m",
                        "tau_z": "body-frame torque z, N*m",
-                       "motor_torque": "hinge motor torque about the joint axis, N*m (tree scenes)"}
+                       "motor_torque": "hinge motor torque about the joint axis, N*m (tree scenes)",
+                       "motor_force": "slider motor force along the joint axis, N (tree scenes)"}
 
 #: The joint variables a tree body's BodyState carries in ``joint`` (docs/trees.md), with unit and meaning; a body
 #: has those of its joint only (hinge: angle, rate; ball and free_rotation: q, omega; free: also r, v; fixed: none).
 JOINT_VARIABLES = {
     "angle": ("rad", "hinge angle (unwrapped)"),
     "rate": ("rad/s", "hinge rate"),
+    "displacement": ("m", "slider displacement along its axis"),
+    "velocity": ("m/s", "slider velocity along its axis"),
     **{f"q_{c}": ("1", f"attitude relative to the parent, {c} part of (w, x, y, z)") for c in "wxyz"},
     **{f"omega_{c}": ("rad/s", f"angular velocity relative to the parent, body {c}") for c in "xyz"},
     **{f"r_{c}": ("m", f"position of the body's origin, world {c} (free joint)") for c in "xyz"},
@@ -580,11 +596,13 @@ _UNKNOWN_COV = [0.0] * 9
 _NOT_PROVIDED_COV = [-1.0] + [0.0] * 8
 
 
-def encode_imu(t: float, q, omega_body, *, frame_id: str) -> bytes:
-    """CDR ``sensor_msgs/msg/Imu``: orientation and body-frame angular velocity.
+def encode_imu(t: float, q, omega_body, *, frame_id: str, linear_acceleration=None) -> bytes:
+    """CDR ``sensor_msgs/msg/Imu``: orientation, body-frame angular velocity and linear acceleration.
 
-    The simulation gives both exactly, so their covariances are all zeros ("unknown" in ROS terms, no
-    estimate of error); linear acceleration is not provided: its covariance element 0 is -1, as ROS asks.
+    The simulation gives them exactly, so their covariances are all zeros ("unknown" in ROS terms, no estimate of
+    error). ``linear_acceleration`` is the specific force at the body's origin in its frame, as a real IMU reads it
+    (``Model.specific_force``: a body at rest on a support reads +g along the world's up); without it the message
+    says "not provided" (covariance element 0 is -1, as ROS asks).
 
     Parameters
     ----------
@@ -596,16 +614,19 @@ def encode_imu(t: float, q, omega_body, *, frame_id: str) -> bytes:
         Body-frame angular velocity, rad/s.
     frame_id : str
         The body's frame (the body name).
+    linear_acceleration : (3,) array_like, optional
+        Specific force a - g at the body's origin, body frame, m/s^2.
     """
     wx, wy, wz = (float(v) for v in omega_body)
+    ax, ay, az = (0.0, 0.0, 0.0) if linear_acceleration is None else (float(v) for v in linear_acceleration)
     msg = {
         "header": _header(t, frame_id),
         "orientation": _quat_xyzw(q),
         "orientation_covariance": _UNKNOWN_COV,
         "angular_velocity": {"x": wx, "y": wy, "z": wz},
         "angular_velocity_covariance": _UNKNOWN_COV,
-        "linear_acceleration": {"x": 0.0, "y": 0.0, "z": 0.0},
-        "linear_acceleration_covariance": _NOT_PROVIDED_COV,
+        "linear_acceleration": {"x": ax, "y": ay, "z": az},
+        "linear_acceleration_covariance": _NOT_PROVIDED_COV if linear_acceleration is None else _UNKNOWN_COV,
     }
     return bytes(_encoder(IMU_TYPE)(msg))
 
@@ -674,7 +695,7 @@ class TorqueRejected(ConfigError):
 MAX_TORQUE_PAYLOAD = 1024
 
 
-def _parse_object(payload, members: tuple[str, ...], reject, expected: str) -> dict:
+def _parse_object(payload, members: tuple[str, ...], reject, expected: str, unit: str = "N*m") -> dict:
     """Decode a command payload to a JSON object with exactly ``members`` (checks as :func:`parse_torque`)."""
     if isinstance(payload, str):
         text = payload
@@ -700,17 +721,17 @@ def _parse_object(payload, members: tuple[str, ...], reject, expected: str) -> d
         raise reject(f"expected a JSON object {expected}, got {type(obj).__name__}", obj)
     missing = [k for k in members if k not in obj]
     if missing:
-        raise reject(f"missing member(s) {', '.join(missing)}; expected {', '.join(members)} in N*m", obj)
+        raise reject(f"missing member(s) {', '.join(missing)}; expected {', '.join(members)} in {unit}", obj)
     extra = sorted(set(obj) - set(members))
     if extra:
         raise reject(f"unknown member(s) {', '.join(extra)}; expected only {', '.join(members)}", obj)
     return obj
 
 
-def _torque_value(obj: dict, k: str, limit: float, reject) -> float:
+def _torque_value(obj: dict, k: str, limit: float, reject, unit: str = "N*m") -> float:
     v = obj[k]
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise reject(f"{k} = {v!r} is a {type(v).__name__}, expected a number (N*m)", obj)
+        raise reject(f"{k} = {v!r} is a {type(v).__name__}, expected a number ({unit})", obj)
     try:
         v = float(v)
     except OverflowError:  # a JSON integer beyond the float range
@@ -719,7 +740,7 @@ def _torque_value(obj: dict, k: str, limit: float, reject) -> float:
     if not math.isfinite(v):
         raise reject(f"{k} = {obj[k]!r} is not finite", obj)
     if abs(v) > limit:
-        raise reject(f"|{k}| = {abs(v):g} N*m exceeds the limit {limit:g} N*m", obj)
+        raise reject(f"|{k}| = {abs(v):g} {unit} exceeds the limit {limit:g} {unit}", obj)
     return v
 
 
@@ -797,6 +818,49 @@ def parse_motor(payload: bytes | bytearray | memoryview | str,
     """
     obj = _parse_object(payload, ("torque",), MotorRejected, '{"torque"}')
     return MotorTorque(_torque_value(obj, "torque", limit, MotorRejected))
+
+
+@dataclass(frozen=True)
+class MotorForce:
+    """A slider's motor force command, N along the joint axis (on the body; its reaction on the parent)."""
+
+    force: float
+
+    def as_inputs(self) -> dict[str, float]:
+        """As the model input ``motor_force``."""
+        return {"motor_force": self.force}
+
+
+#: JSON Schema of a slider's motor command.
+MOTOR_FORCE_JSON_SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "title": MOTOR_FORCE_SCHEMA_NAME,
+    "description": "Slider motor force command along the joint axis, N (on the body; its reaction on the parent), "
+                   "held until the next command.",
+    "type": "object",
+    "properties": {"force": {**_NUM, "description": "motor force along the slider axis, N"}},
+    "required": ["force"],
+    "additionalProperties": False,
+}
+
+
+def parse_motor_force(payload: bytes | bytearray | memoryview | str,
+                      limit: float = DEFAULT_FORCE_LIMIT) -> MotorForce:
+    """Parse and validate a slider's motor command ``{"force": ..}`` (N along the axis), with the checks of
+    :func:`parse_motor` (size, UTF-8, JSON, exactly the one finite numeric member, ``|force| <= limit``).
+
+    Raises
+    ------
+    MotorRejected
+        With ``reason`` naming what is wrong.
+    """
+    obj = _parse_object(payload, ("force",), MotorRejected, '{"force"} (N along the slider\'s axis)', "N")
+    return MotorForce(_torque_value(obj, "force", limit, MotorRejected, "N"))
+
+
+def encode_motor_force(force: float) -> bytes:
+    """A slider's motor command payload ``{"force"}`` (N along the axis)."""
+    return json.dumps({"force": float(force)}, allow_nan=True).encode()
 
 
 def encode_motor(torque: float) -> bytes:
@@ -930,6 +994,9 @@ def schema_for_encoding(zenoh_encoding: str, key: str | None = None) -> ChannelS
         return ChannelSchema("json", TORQUE_SCHEMA_NAME, "jsonschema", _json_schema_bytes(TORQUE_JSON_SCHEMA))
     if enc == MOTOR_ENCODING and key is not None and str(key).endswith("/motor"):
         return ChannelSchema("json", MOTOR_SCHEMA_NAME, "jsonschema", _json_schema_bytes(MOTOR_JSON_SCHEMA))
+    if enc == MOTOR_FORCE_ENCODING:
+        return ChannelSchema("json", MOTOR_FORCE_SCHEMA_NAME, "jsonschema",
+                             _json_schema_bytes(MOTOR_FORCE_JSON_SCHEMA))
     if base in _MESSAGE_ENCODINGS:
         return ChannelSchema(_MESSAGE_ENCODINGS[base])
     return ChannelSchema(enc)
