@@ -174,3 +174,16 @@ def test_a_scene_name_beyond_the_allowed_length_or_characters_is_refused_at_load
     with pytest.raises(ConfigError) as e:
         load_scene(write(tmp_path, _PENDULUM.format(scene="p", body="c" * 65)))
     assert e.value.field == "name" and "(65 characters)" in e.value.value and "a Zenoh key" in e.value.allowed
+
+
+def test_a_file_that_is_not_text_is_named_so_by_every_reader(tmp_path):
+    """The one reader of scene files (scene.read_scene_file) says what a binary file is, for load_scene and for
+    the sweep's [sweep] table alike, instead of a UTF-8 codec error; an FMU is named as one."""
+    from gyrosim.sweep.spec import load_sweep_scene
+
+    for name, words in (("x.toml", "x.toml is not a text file"), ("Box.fmu", "Box.fmu is an FMU")):
+        p = tmp_path / name
+        p.write_bytes(b"PK\x03\x04\x8f\xff\x00binary")
+        for read in (load_scene, load_sweep_scene):
+            with pytest.raises(ConfigError, match=words):
+                read(str(p))

@@ -1010,34 +1010,7 @@ def build_parser() -> argparse.ArgumentParser:
         except ModuleNotFoundError as e:  # a part absent from this checkout (the module or its package)
             if not e.name or not (mod == e.name or mod.startswith(e.name + ".")):
                 raise
-    _bound_samples(sub)
     return p
-
-
-#: The most samples ``gyrosim sweep --samples`` takes: a Parquet row each (hundreds of bytes), so 1e8 is tens of
-#: GB of results and hours of work; beyond it a sweep's book-keeping alone fills the memory (1e12 samples reached
-#: 10 GB in 25 s before the first chunk ran).
-MAX_SAMPLES = 10 ** 8
-
-
-def _bound_samples(sub) -> None:
-    """``gyrosim sweep --samples N`` from 1 to :data:`MAX_SAMPLES`, checked where the command line is read (one line,
-    exit code 2) before the sweep's handler runs."""
-    parser = sub.choices.get("sweep")
-    handler = parser.get_default("func") if parser is not None else None
-    if handler is None or getattr(handler, "bounded", False):
-        return
-
-    def bounded(args):
-        n = getattr(args, "samples", None)
-        if n is not None and n > MAX_SAMPLES:  # fewer than 1: the sweep's spec says so
-            raise ConfigError(typed(args, "samples", "--samples"), n, f"a number of samples from 1 to "
-                              f"{MAX_SAMPLES:,} (each a Parquet row; split a larger study into sweeps of their own "
-                              "--seed)")
-        return handler(args)
-
-    bounded.bounded = True
-    parser.set_defaults(func=bounded)
 
 
 def _closed_pipe() -> int:

@@ -781,6 +781,36 @@ def _embedded_scene(name: str) -> Scene:
     return scene_from_dict(tomllib.loads(text), f"<embedded scene {name}>")
 
 
+def read_scene_file(scene: str | Path) -> dict:
+    """A scene file's TOML as a dict (the one reader of scene files: load_scene, the sweeps' [sweep] table).
+
+    Raises
+    ------
+    ConfigError
+        Not a file (:class:`SceneNotFoundError`, with the embedded names and a "did you mean"), not UTF-8 text (an
+        FMU is named as one), unreadable, or invalid TOML.
+    """
+    s = str(scene)
+    path = Path(s)
+    if not path.is_file():
+        names = EMBEDDED_SCENES + ("full",)
+        what = "is a folder" if path.is_dir() else "not found"
+        raise SceneNotFoundError(s, f"scene {s!r} {what}{did_you_mean(s, names, cutoff=0.5)}: give an embedded "
+                                    f"scene ({', '.join(names)}) or the path of a TOML scene file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        what = ("an FMU (run it with `gyrosim simulate FILE.fmu` or FMPy)" if path.suffix.lower() == ".fmu"
+                else "not a text file")
+        raise ConfigError("scene", s, f"a TOML scene file (UTF-8 text); {path.name} is {what}") from None
+    except OSError as e:
+        raise SceneNotFoundError(s, f"scene file {s!r} cannot be read: {e.strerror or e}") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError("TOML", str(e), "a valid TOML document", where=str(path)) from None
+
+
 def load_scene(scene: str | Path | Scene | None) -> Scene:
     """Load a scene by embedded name, TOML path, or pass a :class:`Scene` through; ``None`` = the full model.
 
@@ -800,20 +830,5 @@ def load_scene(scene: str | Path | Scene | None) -> Scene:
     elif s == "full":
         return full_scene()
     else:
-        path = Path(s)
-        if not path.is_file():
-            names = EMBEDDED_SCENES + ("full",)
-            what = "is a folder" if path.is_dir() else "not found"
-            raise SceneNotFoundError(s, f"scene {s!r} {what}{did_you_mean(s, names, cutoff=0.5)}: give an embedded "
-                                        f"scene ({', '.join(names)}) or the path of a TOML scene file")
-        try:
-            text = path.read_text()
-        except (OSError, UnicodeDecodeError) as e:
-            reason = getattr(e, "strerror", None) or str(e)
-            raise SceneNotFoundError(s, f"scene file {s!r} cannot be read: {reason}") from None
-        source = str(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError("TOML", str(e), "a valid TOML document", where=source) from None
+        data, source = read_scene_file(s), s
     return scene_from_dict(data, source)

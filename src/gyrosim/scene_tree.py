@@ -519,8 +519,8 @@ def body_parameters(b: TreeBody) -> dict:
 
 
 #: The parameter names a scene parameter may set (each checked against its target body's own: body_parameters).
-_ALIAS_TARGETS = (tuple(BODY_PARAMS) + tuple(HINGE_PARAMS) + tuple(SLIDER_PARAMS) + tuple(BALL_PARAMS) +
-                  tuple(BALL_SPRING_PARAMS) + tuple(BALL_DAMPING_PARAMS) + STOP_PARAMS)
+_ALIAS_TARGETS = tuple(dict.fromkeys((*BODY_PARAMS, *HINGE_PARAMS, *SLIDER_PARAMS, *BALL_PARAMS, *BALL_SPRING_PARAMS,
+                                      *BALL_DAMPING_PARAMS, *STOP_PARAMS)))   # once each (hinge and slider share)
 
 
 def body_with(b: TreeBody, param: str, x: float) -> TreeBody:

@@ -199,3 +199,29 @@ def test_a_multi_body_scene_and_a_bad_sweep_table_are_refused(cli, tmp_path):
     rc, _, err = cli("sweep", f, "--output", tmp_path / "o")
     assert rc == 2 and "std >= 0" in err and "[sweep.vary] omega_x" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_the_sample_bound_holds_for_the_python_api_and_the_scene_table(tmp_path):
+    """MAX_SAMPLES is the sweep's own rule (build_spec), not only the command line's: a [sweep] table's samples and
+    build_spec(samples=...) beyond it are refused at once, naming the bound."""
+    from gyrosim.sweep.spec import MAX_SAMPLES, build_spec
+
+    with pytest.raises(ConfigError, match="a number of samples from 1 to 100,000,000"):
+        build_spec("free_body", samples=MAX_SAMPLES + 1, vary=["omega_x=uniform(0,1)"])
+    p = tmp_path / "big.toml"
+    p.write_text('[scene]\nname = "big"\n[[body]]\ninertia = { principal = [1, 2, 3] }\n'
+                 '[sweep]\nsamples = 1000000000000\nvary = { omega_x = "uniform(0,1)" }\n')
+    with pytest.raises(ConfigError, match="100,000,000"):
+        build_spec(str(p))
+
+
+def test_the_sets_error_names_each_parameter_once(tmp_path):
+    from gyrosim.scene import load_scene
+
+    p = tmp_path / "s.toml"
+    p.write_text('[scene]\nname = "s"\n[[body]]\nname = "p"\njoint = "hinge"\nmass = 1.0\n'
+                 'inertia = { principal = [1, 1, 1] }\n[parameters.k]\nvalue = 1.0\nsets = { "q.stiffness" = 1.0 }\n')
+    with pytest.raises(ConfigError) as e:
+        load_scene(str(p))
+    names = e.value.allowed.split("a parameter of ")[1].split(", or")[0].split(", ")
+    assert len(names) == len(set(names)) and "stiffness" in names

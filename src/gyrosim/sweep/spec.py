@@ -24,7 +24,6 @@ import hashlib
 import json
 import math
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,6 +46,10 @@ MODEL_WIDE = ("integrator", "max_step", "max_drift", "tolerance")
 #: The keys of a scene file's [sweep] table.
 SWEEP_KEYS = ("samples", "seed", "chunk_size", "stop_time", "output_interval", "integrator", "max_step", "vary", "set",
               "lyapunov")
+#: The most samples a sweep takes (the command line, a scene's [sweep] table, build_spec): a Parquet row each
+#: (hundreds of bytes), so 1e8 is tens of GB of results and hours of work; beyond it a sweep's book-keeping alone
+#: fills the memory (1e12 samples reached 10 GB in 25 s before the first chunk ran).
+MAX_SAMPLES = 10 ** 8
 #: Default samples per chunk (one compiled call of the engine, one Parquet file, one Dask task).
 DEFAULT_CHUNK = 2000
 
@@ -247,11 +250,10 @@ def load_sweep_scene(scene) -> tuple[Scene, dict]:
 
     if isinstance(scene, (str, Path)) and str(scene) not in EMBEDDED_SCENES + ("full",) \
             and Path(scene).is_file():
+        from ..scene import read_scene_file
+
         path = Path(scene)
-        try:
-            data = tomllib.loads(path.read_text())
-        except tomllib.TOMLDecodeError as e:
-            raise ConfigError("TOML", str(e), "a valid TOML document", where=str(path)) from None
+        data = read_scene_file(path)
         table = data.pop("sweep", {})
         if not isinstance(table, dict):
             raise ConfigError("sweep", table, "a table [sweep]", where=str(path))
@@ -423,6 +425,9 @@ def build_spec(scene=None, *, samples=None, vary=None, set=None, integrator=None
     if samples is None:
         raise ConfigError("--samples", None, "a number of samples >= 1 (or samples in the scene's [sweep] table)")
     samples = _int(samples, "--samples", 1)
+    if samples > MAX_SAMPLES:
+        raise ConfigError("--samples", samples, f"a number of samples from 1 to {MAX_SAMPLES:,} (each a Parquet row; "
+                          "split a larger study into sweeps of their own --seed)")
     seed = _int(seed if seed is not None else table.get("seed", 0), "--seed", 0)
     if seed >= 2 ** 63:
         raise ConfigError("--seed", seed, "an integer from 0 to 2**63 - 1")
