@@ -23,6 +23,11 @@ axis, a shift of a cyclic hinge angle) applied at constant rates. In coordinates
 the state is at rest, and the linearization there is ``A - sum_k c_k D xi_k`` (xi_k the symmetry's generator,
 c_k its rate, fitted from f(x0) = sum_k c_k xi_k(x0)). Its eigenvalues are the small oscillations about the steady
 motion (the nutation of a top, the librations of a satellite) as seen in the moving frame.
+
+Equilibria. ``about="equilibrium"`` sets the rates to 0 and searches the positions where the accelerations vanish
+(:func:`_rest_search`: a trust-region Newton method on the generalized forces, whose exact Jacobian the engine
+gives with holding joint forces applied), checks that they are round-off there (:data:`EQ_RTOL`) and raises a
+:class:`~gyrosim.errors.LinearAlgebraError` where it finds none.
 """
 from __future__ import annotations
 
@@ -63,6 +68,17 @@ class Names(NamedTuple):
     outputs: list
 
 
+#: The last part of a state name that is a rate, not a coordinate: a hinge's ``rate``, a slider's ``velocity``
+#: (m/s: the rate of its ``displacement``), a rotating joint's ``omega_x..z``, a free joint's ``v_x..z``.
+RATE_NAMES = frozenset(("rate", "velocity", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"))
+
+
+def is_rate(name: str) -> bool:
+    """Whether state ``name`` (``<body>.<variable>`` or bare) is a rate (:data:`RATE_NAMES`), not a coordinate
+    (an angle, a small rotation, a displacement, a position, an orbit's anomaly)."""
+    return name.rpartition(".")[2] in RATE_NAMES
+
+
 @dataclass
 class Mode:
     """One eigenvalue of a linearization (one of each complex pair).
@@ -83,25 +99,39 @@ class Mode:
         """s; inf for a mode that does not oscillate."""
         return 2 * math.pi / self.frequency if self.frequency > 0 else math.inf
 
+    def _ranked(self):
+        """(names, values, the coordinates' indices largest first with the negligible ones (1e-9 of the largest)
+        left out, the rates' indices largest first): numpy work, once per mode (the table asks for each mode's
+        shape; a 1,000-state linearization has 500 modes of 1,000 components)."""
+        got = self.__dict__.get("_rank")
+        if got is None or got[0] is not self.shape:
+            names = list(self.shape)
+            v = np.fromiter(self.shape.values(), dtype=complex, count=len(names))
+            a = np.abs(v)
+            rate = np.fromiter((is_rate(n) for n in names), dtype=bool, count=len(names))
+            disp, rest = np.flatnonzero(~rate), np.flatnonzero(rate)
+            disp = disp[np.argsort(-a[disp], kind="stable")]
+            rest = rest[np.argsort(-a[rest], kind="stable")]
+            if disp.size:
+                disp = disp[a[disp] > 1e-9 * a[disp[0]]]
+            got = (self.shape, names, v, disp, rest)
+            self.__dict__["_rank"] = got
+        return got[1:]
+
     def dominant(self, k: int = 3) -> list:
-        """The ``k`` state names with the largest components, coordinates (angles, small rotations, positions)
-        before rates."""
-        rates = ("rate", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z")
-        disp = [n for n in self.shape if not n.rpartition(".")[2].startswith(rates)]
-        pick = sorted(disp, key=lambda n: -abs(self.shape[n]))
-        pick = [n for n in pick if abs(self.shape[n]) > 1e-9 * abs(self.shape[pick[0]])] if pick else []
-        rest = sorted((n for n in self.shape if n not in disp), key=lambda n: -abs(self.shape[n]))
-        return (pick + rest)[:k]
+        """The ``k`` state names with the largest components, coordinates (angles, small rotations, displacements,
+        positions) before rates (:func:`is_rate`)."""
+        names, _, disp, rest = self._ranked()
+        return [names[i] for i in np.concatenate([disp, rest])[:k]]
 
     def displacement_shape(self) -> dict:
-        """The shape's coordinates (not its rates), the largest 1 and the others in phase with it (real for an
-        undamped mode)."""
-        d = {n: v for n, v in self.shape.items() if n in self.dominant(len(self.shape))
-             and not n.rpartition(".")[2].startswith(("rate", "omega_", "v_"))}
-        if not d:
+        """The shape's coordinates (not its rates), largest first: the largest 1 and the others relative to it (in
+        phase with it, real, for an undamped mode)."""
+        names, v, disp, _ = self._ranked()
+        if not disp.size:
             return {}
-        big = max(d.values(), key=abs)
-        return {n: v / big for n, v in d.items() if abs(v) > 1e-9 * abs(big)}
+        big = v[disp[0]]
+        return {names[i]: complex(v[i] / big) for i in disp}
 
 
 @dataclass
@@ -136,6 +166,10 @@ class Linearization:
     stability: str
     jacobian: Jacobian = field(repr=False)
     state: np.ndarray = field(repr=False)
+    #: the eigenvalues of A (computed once, with the modes)
+    ev: np.ndarray | None = field(default=None, repr=False)
+    #: about="equilibrium": how the search went (``steps``, ``residual`` and ``scale`` of the accelerations)
+    search: dict | None = field(default=None, repr=False)
 
     def _tuple(self) -> tuple:
         return (self.A, self.B, self.C, self.D, self.names)
@@ -152,7 +186,12 @@ class Linearization:
 
     @property
     def eigenvalues(self) -> np.ndarray:
-        return np.linalg.eigvals(self.A)
+        return self.ev if self.ev is not None else np.linalg.eigvals(self.A)
+
+    def coordinates(self) -> dict:
+        """The state linearized about, its coordinates only (angles, displacements, quaternions, positions; not
+        the rates), by the engine's state names."""
+        return {n: float(x) for n, x in zip(self.jacobian.states, self.state) if not is_rate(n)}
 
     def oscillations(self) -> list:
         """The modes that oscillate (not the rigid ones: a zero eigenvalue of a symmetry or a conserved quantity,
@@ -308,17 +347,20 @@ def _quats(bk: _Block) -> list:
     return [k for k, s in enumerate(bk.states) if s.endswith("q_w")]
 
 
-def _column(bk: _Block, vy: np.ndarray, vp: np.ndarray):
+def _column(bk: _Block, vy: np.ndarray, vp: np.ndarray, prep=None):
     """One column of the Jacobian as the model-exchange FMUs compute it (``gs_directional`` in the FMU glue), to
     the bit: the quaternion rates dq/dt = q (0, omega)/2 and the coordinates as outputs at q as it is, with the
     seed as given; every other row at q normalised, a quaternion's seed projected on the unit sphere's tangent
-    ((e_k - q^ q^_k) / |q|): what the engine integrates, whose dynamics see only the rotation q stands for."""
+    ((e_k - q^ q^_k) / |q|): what the engine integrates, whose dynamics see only the rotation q stands for.
+    ``prep``: :func:`_prep` of the block (computed here when not given)."""
+    quats, nout, idx = _prep(bk) if prep is None else prep
     nx = len(bk.states)
-    nout = _engine.tree_info(bk.desc)[3]
     raw_d, raw_o = np.zeros(nx + 1), np.zeros(nout)
     _engine.tree_directional(bk.desc, bk.y, bk.p, vy, vp, raw_d, raw_o)
+    if not quats:  # nothing to normalise: the second evaluation would repeat the first to the bit
+        return raw_d[:nx], raw_o[idx]
     y, vn = bk.y.copy(), vy.copy()
-    for k in _quats(bk):
+    for k in quats:
         q = bk.y[0, k:k + 4]
         nq = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
         y[0, k:k + 4] = q / nq
@@ -329,29 +371,62 @@ def _column(bk: _Block, vy: np.ndarray, vp: np.ndarray):
     n_d, n_o = np.zeros(nx + 1), np.zeros(nout)
     _engine.tree_directional(bk.desc, y, bk.p, vn, vp, n_d, n_o)
     inq = np.zeros(nx, dtype=bool)
-    for k in _quats(bk):
+    for k in quats:
         inq[k:k + 4] = True
     d = np.where(inq, raw_d[:nx], n_d[:nx])
-    o = np.array([raw_o[i] if i < nx else n_o[i] for _, i in bk.outputs])
+    o = np.where(idx < nx, raw_o[idx], n_o[idx])
     return d, o
 
 
-def _block_jacobian(bk: _Block):
+def _prep(bk: _Block):
+    """What every column of a block's Jacobian shares: its quaternions' first indices, the engine's output count
+    and the engine output index of each of the block's outputs (an array: the columns are numpy work, not a
+    Python loop over the outputs per column)."""
+    return _quats(bk), _engine.tree_info(bk.desc)[3], np.array([i for _, i in bk.outputs], dtype=np.intp)
+
+
+class _Stages:
+    """Reports the work as ``progress(what, done, total)``, stage by stage (the Jacobian's columns, an equilibrium
+    search's steps, the eigenvalues); nothing where ``progress`` is None."""
+
+    def __init__(self, progress=None):
+        self.progress = progress
+        self.what, self.done, self.total = "", 0, 0
+
+    def start(self, what: str, total: int) -> None:
+        self.what, self.done, self.total = what, 0, int(total)
+        if self.progress is not None:
+            self.progress(what, 0, self.total)
+
+    def tick(self, n: int = 1) -> None:
+        self.done += n
+        if self.progress is not None:
+            self.progress(self.what, self.done, self.total)
+
+
+_QUIET = _Stages()
+
+
+def _block_jacobian(bk: _Block, progress=None):
     nx = len(bk.states)
     A = np.zeros((nx, nx))
     C = np.zeros((len(bk.outputs), nx))
     B = np.zeros((nx, len(bk.inputs)))
     D = np.zeros((len(bk.outputs), len(bk.inputs)))
     zp = np.zeros(bk.p.shape[0])
+    prep = _prep(bk)
+    vy = np.zeros(nx)
     for j in range(nx):
-        vy = np.zeros(nx)
         vy[j] = 1.0
-        A[:, j], C[:, j] = _column(bk, vy, zp)
+        A[:, j], C[:, j] = _column(bk, vy, zp, prep)
+        vy[j] = 0.0
+        if progress is not None:
+            progress()
     for j, (_, cols) in enumerate(bk.inputs):
         vp = np.zeros_like(zp)
         for col, f in cols:
             vp[col] = f
-        B[:, j], D[:, j] = _column(bk, np.zeros(nx), vp)
+        B[:, j], D[:, j] = _column(bk, np.zeros(nx), vp, prep)
     return A, B, C, D
 
 
@@ -373,8 +448,9 @@ def jacobian(model, *, system: int = 0) -> Jacobian:
     return _jacobian_of(_blocks(model, system))
 
 
-def _jacobian_of(blocks: list) -> Jacobian:
-    parts = [(_block_jacobian(bk), bk) for bk in blocks]
+def _jacobian_of(blocks: list, stages: _Stages = _QUIET) -> Jacobian:
+    stages.start("Jacobian", sum(len(bk.states) for bk in blocks))
+    parts = [(_block_jacobian(bk, stages.tick), bk) for bk in blocks]
     from scipy.linalg import block_diag
 
     A, B, C, D = (block_diag(*[p[0][k] for p in parts]) for k in range(4))
@@ -400,33 +476,38 @@ def _cross(a):
     return np.array([[0, -z, y], [z, 0, -x], [-y, x, 0]], dtype=float)
 
 
+def _world_turn(bk: _Block, y: np.ndarray):
+    """The turn of the world (about the vertical where gravity or an orbit acts, else about the angular
+    momentum) as a symmetry of a tree with roots: (xi(x) (nx,), D xi (nx, nx)); an orbit's anomaly turns with it."""
+    nx = len(bk.states)
+    x = y[0, :nx]
+    if bk.gravity or bk.orbit:
+        axis = np.array([0.0, 0.0, 1.0])
+    else:  # torque-free: the direction of the angular momentum (any axis is a symmetry; this one moves)
+        out = np.zeros(_engine.tree_info(bk.desc)[3])
+        _engine.tree_outputs(bk.desc, y, bk.p.reshape(1, -1), out)
+        L = out[-3:]
+        axis = L / np.linalg.norm(L) if np.linalg.norm(L) > 0 else np.array([0.0, 0.0, 1.0])
+    Dw = np.zeros((nx, nx))
+    for qi, _, ri, vi, _ in bk.roots:
+        Dw[qi:qi + 4, qi:qi + 4] = 0.5 * _qleft(axis)
+        for k in (ri, vi):
+            if k is not None:
+                Dw[k:k + 3, k:k + 3] = _cross(axis)
+    anomaly = [k for k, s in enumerate(bk.states) if s.endswith("anomaly") and bk.orbit]
+    Dw[anomaly, :] = 0.0
+    xi = Dw @ x
+    xi[anomaly] = 1.0
+    return xi, Dw
+
+
 def _generators(bk: _Block, A: np.ndarray, y: np.ndarray) -> list:
     """The symmetries of this tree at this state: [(name, xi(x0) (nx,), D xi (nx, nx))]."""
     nx = len(bk.states)
     x = y[0, :nx]
     gens = []
     if bk.roots:
-        if bk.gravity or bk.orbit:
-            axis = np.array([0.0, 0.0, 1.0])
-        else:  # torque-free: the direction of the angular momentum (any axis is a symmetry; this one moves)
-            out = np.zeros(_engine.tree_info(bk.desc)[3])
-            _engine.tree_outputs(bk.desc, y, bk.p.reshape(1, -1), out)
-            L = out[-3:]
-            axis = L / np.linalg.norm(L) if np.linalg.norm(L) > 0 else np.array([0.0, 0.0, 1.0])
-        Dw = np.zeros((nx, nx))
-        for qi, _, ri, vi, _ in bk.roots:
-            Dw[qi:qi + 4, qi:qi + 4] = 0.5 * _qleft(axis)
-            for k in (ri, vi):
-                if k is not None:
-                    Dw[k:k + 3, k:k + 3] = _cross(axis)
-        for k, s in enumerate(bk.states):  # an orbit's anomaly turns with the world
-            if s.endswith("anomaly") and bk.orbit:
-                Dw[k, :] = 0.0
-        xi = Dw @ x
-        for k, s in enumerate(bk.states):
-            if s.endswith("anomaly") and bk.orbit:
-                xi[k] = 1.0
-        gens.append(("world", xi, Dw))
+        gens.append(("world", *_world_turn(bk, y)))
         for qi, wi, _, _, sym in bk.roots:
             if sym is None:
                 continue
@@ -479,7 +560,8 @@ def _reduction(bk: _Block, x: np.ndarray):
     return np.array(T_blocks).T, np.array(P_rows), names
 
 
-def _state_from(model, about) -> None:
+def _state_from(model, about, stages: _Stages = _QUIET) -> dict | None:
+    """Set the model to the state ``about`` asks for; about="equilibrium": how the search went."""
     if isinstance(about, dict):
         for k, v in about.items():
             model.set(k, v)
@@ -487,7 +569,8 @@ def _state_from(model, about) -> None:
     elif about == "steady_precession":
         steady_precession(model)
     elif about == "equilibrium":
-        _to_equilibrium(model)
+        return _to_equilibrium(model, stages)
+    return None
 
 
 def steady_precession(model, *, theta: float | None = None, spin: float | None = None,
@@ -570,22 +653,446 @@ def _check_finite(model, blocks, A=None) -> None:
                       "give the bodies inertia")
 
 
-def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
-    """Newton on f(x) = 0 from the present state, velocities set to 0 first (a tree or a one-body model)."""
-    if model.scene.kernel == "body":  # independent bodies: at rest where they are
+#: The equilibrium search's verdict: the accelerations where it stops, over their scale (the largest of those at
+#: the start and of the acceleration a unit change of the positions makes, the Frobenius norm of their Jacobian),
+#: must be at most this. The accelerations are sums of terms computed to ~1e-16 of their size, and Newton's last
+#: step lands within the stiffness's conditioning of round-off of the root: seen at most 3e-16 (pendula, tops, the
+#: embedded scenes, chains of 20 to 500 links started bent); the turned hinge of issue 43, which the old search
+#: called an equilibrium, was at 7e-3, and a search that stalls stops far above this too.
+EQ_RTOL = 1e-10
+
+
+def _unit_of(name: str, length: float, n_orb: float) -> float:
+    """The trust region's unit for the coordinate ``name`` (minimal coordinates): 1 rad for an angle or a small
+    rotation, the scene's length for a displacement or a position; on an orbit its rate for a rate."""
+    last = name.rpartition(".")[2]
+    if last in ("velocity", "v_x", "v_y", "v_z"):
+        return length * n_orb
+    if is_rate(name):
+        return n_orb
+    if last == "displacement" or last in ("r_x", "r_y", "r_z"):
+        return length
+    return 1.0
+
+
+def _length_scale(model) -> float:
+    """The scene's length (m): its largest joint offset or centre of mass distance, 1 m where it has none."""
+    tree = getattr(model.scene, "tree", None) or []
+    ls = [float(np.linalg.norm(v)) for b in tree for v in (b.pos, b.cm)]
+    ls = [v for v in ls if v > 0]
+    return max(ls) if ls else 1.0
+
+
+def _retract(bk: _Block, x: np.ndarray, dz: np.ndarray) -> np.ndarray:
+    """The state ``x`` (engine coordinates) moved by ``dz`` in the minimal coordinates of :func:`_reduction`: a
+    quaternion turned by its small rotation (q <- q (x) exp(rot / 2), normalised), every other coordinate added."""
+    x = x.copy()
+    quats = set(_quats(bk))
+    k = m = 0
+    while k < len(x):
+        if k in quats:
+            rot = dz[m:m + 3]
+            th = float(np.linalg.norm(rot))
+            w, v = math.cos(th / 2), (0.5 if th < 1e-8 else math.sin(th / 2) / th) * rot
+            q = w * x[k:k + 4] + _qright(v) @ x[k:k + 4]
+            x[k:k + 4] = q / np.linalg.norm(q)
+            k, m = k + 4, m + 3
+        else:
+            x[k] += dz[m]
+            k, m = k + 1, m + 1
+    return x
+
+
+def _tr_step(Js: np.ndarray, r: np.ndarray, delta: float):
+    """The trust-region step: u minimising |r + Js u| with |u| <= delta (Levenberg-Marquardt: u(lam) = -(Js^T Js
+    + lam)^-1 Js^T r, lam >= 0 the smallest that keeps |u| <= delta), from the SVD of Js. Directions of singular
+    values below 1e-12 of the largest are left alone: the accelerations do not depend on them (a cyclic
+    coordinate, a turn about the vertical, a rigid translation), so the step does not wander along them."""
+    U, sig, Vt = np.linalg.svd(Js, full_matrices=False)
+    if not sig.size or sig[0] == 0.0:
+        return np.zeros(Js.shape[1])
+    keep = sig > 1e-12 * sig[0]
+    sig, V, b = sig[keep], Vt[keep].T, U[:, keep].T @ r
+    c = sig * b
+
+    def u_of(lam):
+        return -(c / (sig * sig + lam))
+
+    w = u_of(0.0)
+    if np.linalg.norm(w) <= delta:
+        return V @ w
+    lo, hi = 0.0, float(np.linalg.norm(c)) / delta  # |u(hi)| <= |c| / hi = delta
+    lam = lo
+    for _ in range(60):  # Newton on 1/|u(lam)| - 1/delta, nearly linear in lam, kept inside [lo, hi]
+        w = u_of(lam)
+        nw = float(np.linalg.norm(w))
+        if abs(nw - delta) <= 1e-3 * delta:
+            break
+        if nw > delta:
+            lo = lam
+        else:
+            hi = lam
+        d = float(np.sum(c * c / (sig * sig + lam) ** 3)) / nw ** 3
+        step = (1.0 / nw - 1.0 / delta) / d if d > 0 else -1.0
+        lam = lam + step if lo < lam + step < hi else 0.5 * (lo + hi)
+    return V @ u_of(lam)
+
+
+class _Search(NamedTuple):
+    x: np.ndarray          # the engine state where it stopped
+    steps: int
+    residual: float        # max |acceleration| there (the minimal coordinates' rates of change)
+    scale: float           # their scale (EQ_RTOL)
+    worst: str             # the state whose rate of change is largest there
+    value: float           # that rate of change
+    flat: bool             # no step of the positions changes the accelerations there (to first order)
+
+
+def _newton_step(Js: np.ndarray, r: np.ndarray):
+    """The Newton step -Js^-1 r by LU where Js is square and well conditioned (LAPACK's estimate of its reciprocal
+    condition number above 1e-10), else None (then :func:`_tr_step`'s SVD): a 500 x 500 LU in milliseconds where
+    the SVD takes seconds."""
+    if not Js.size or Js.shape[0] != Js.shape[1]:
+        return None
+    import warnings
+
+    from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+    from scipy.linalg.lapack import dgecon
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LinAlgWarning)
+        lu, piv = lu_factor(Js, check_finite=False)
+    rcond, info = dgecon(lu, float(np.max(np.sum(np.abs(Js), axis=0))), norm="1")
+    if info != 0 or not rcond > 1e-10:
+        return None
+    u = -lu_solve((lu, piv), r, check_finite=False)
+    return u if np.all(np.isfinite(u)) else None
+
+
+def _hold_seeds(bk: _Block, x: np.ndarray):
+    """Parameter seeds (k, np) of a generalized force on each joint coordinate of ``bk`` at the state ``x``, in the
+    order of the coordinates: a hinge's or a slider's motor (on the child, its reaction on the parent), a ball's
+    torque about each body axis (the body's external torque, its opposite on the parent). None where a joint has
+    none (a free joint's translation) or on an orbit."""
+    from ..core.rotations import quat_to_matrix
+
+    if bk.orbit:
+        return None
+    nb = int(bk.desc[0])
+    parents = [int(bk.desc[2 + 2 * i]) for i in range(nb)]
+    joints = [int(bk.desc[3 + 2 * i]) for i in range(nb)]
+    seeds, at = [], 0
+    for i, (par, j) in enumerate(zip(parents, joints)):
+        o = _engine.TP_HEAD + _engine.TB_NP * i
+        if j in (_engine.J_HINGE, _engine.J_SLIDER):
+            s = np.zeros(bk.p.shape[0])
+            s[o + _engine.TB_MOTOR] = 1.0
+            seeds.append(s)
+            at += 2
+        elif j == _engine.J_BALL:
+            q = x[at:at + 4] / np.linalg.norm(x[at:at + 4])
+            R = quat_to_matrix(bk.p[o + _engine.TB_ROT:o + _engine.TB_ROT + 4]) @ quat_to_matrix(q)  # child -> parent
+            for c in range(3):
+                s = np.zeros(bk.p.shape[0])
+                s[o + _engine.TB_TAU + c] = 1.0
+                if par >= 0:
+                    op = _engine.TP_HEAD + _engine.TB_NP * par
+                    s[op + _engine.TB_TAU:op + _engine.TB_TAU + 3] = -R[:, c]
+                seeds.append(s)
+            at += 7
+        elif j == _engine.J_FIXED:
+            continue
+        else:
+            return None
+    return np.array(seeds).reshape(len(seeds), bk.p.shape[0])
+
+
+def _rest_search(bk: _Block, length: float, n_orb: float = 0.0, max_steps: int = 200,
+                 stages: _Stages = _QUIET) -> _Search:
+    """A trust-region Newton search for a state of ``bk`` whose accelerations vanish (on a circular orbit: whose
+    rates of change equal the turn with the orbit frame at rate ``n_orb``), moving its coordinates (on an orbit its
+    rates too; never an orbit's anomaly) from the block's state; the rates stay as they are (0 at an equilibrium).
+
+    The equations solved are the generalized forces Q(q) = M(q) a(q) = 0 (the accelerations' roots), whose
+    Jacobian, the stiffness, comes exactly from the engine's: with joint forces -Q(q_k) added that hold the state
+    at rest (a motor on each hinge and slider, a torque on each ball joint), the accelerations' Jacobian there is
+    M^-1 dQ/dq (the term in dM/dq multiplies the accelerations, now 0), and M^-1 the accelerations' derivatives
+    by those forces. Newton on Q, not on a: a bent chain of light links has accelerations far from linear in the
+    angles (M^-1 varies), its forces nearly linear (the gravity of a chain hanging near straight); Newton on a from
+    such a start wanders, on Q it converges in a few steps. Where the joints cannot all be held (a free joint, an
+    orbit), the plain accelerations and their Jacobian.
+
+    Each step solves the linearized equations within a trust region (no coordinate moved by more than its radius;
+    units: 1 rad for angles and rotations, the scene's ``length`` for displacements) and is taken only where the
+    residual shrinks as the linear model says; the region grows after good steps and shrinks after poor ones, so a
+    Jacobian singular at the start (a pendulum started horizontal, where the torque's derivative vanishes) gives a
+    step of the region's size, not a jump of 1e15 rad. Where the Jacobian is round-off (the start a turning point of
+    the forces: a pendulum exactly horizontal) or no step helps and the accelerations are not yet round-off, a step
+    along the accelerations (where the motion from rest goes: downhill in the potential), else a probe of each
+    coordinate by a quarter of its unit either way, looks for a way off the plateau."""
+    nx = len(bk.states)
+    _, _, names = _reduction(bk, bk.y[0, :nx])
+    if n_orb:
+        unknown = [k for k, n in enumerate(names) if not n.endswith("anomaly")]
+        rows = unknown
+    else:
+        unknown = [k for k, n in enumerate(names) if not is_rate(n) and not n.endswith("anomaly")]
+        rows = [k for k, n in enumerate(names) if is_rate(n)]  # the accelerations (the coordinates' rows: rates, 0)
+    units = np.array([_unit_of(names[k], length, n_orb) for k in unknown])
+    plain = not _quats(bk)
+    engine, k = [], 0  # the engine index of each minimal coordinate (-1: a small rotation, 3 per quaternion)
+    for q in _quats(bk) + [nx]:
+        engine += list(range(k, q)) + ([-1, -1, -1] if q < nx else [])
+        k = q + 4
+    rates_at = np.array([engine[k] for k in rows]) if not n_orb else None  # the rates' rows are the engine's
+
+    def at(x, p=None):
+        return bk._replace(y=_with(bk, x), p=bk.p if p is None else p)
+
+    def minimal(b, x, d):
+        if rates_at is not None:
+            return d[rates_at]
+        return (d if plain else _reduction(b, x)[1] @ d)[rows]
+
+    def accel(x):
+        b = at(x)
+        f = _derivs(b)
+        if n_orb:
+            f = f - n_orb * _world_turn(b, b.y)[0]
+        return minimal(b, x, f)
+
+    def jac(x, p=None):
+        b = at(x, p)
+        if plain and not n_orb:  # only the coordinates' columns: half the engine's work
+            A = np.zeros((nx, len(unknown)))
+            prep = _prep(b)
+            zp = np.zeros(b.p.shape[0])
+            for j, k in enumerate(unknown):
+                vy = np.zeros(nx)
+                vy[k] = 1.0
+                A[:, j] = _column(b, vy, zp, prep)[0]
+                stages.tick()
+            return A[rows] * units
+        A = _block_jacobian(b, stages.tick)[0]
+        if n_orb:
+            A = A - n_orb * _world_turn(b, b.y)[1]
+        if not plain:
+            T, P, _ = _reduction(b, x)
+            A = P @ A @ T
+        return A[np.ix_(rows, unknown)] * units
+
+    def forces(x, a):
+        """(hold, r): where the joints can be held, hold = (the seeds, M^-1 factored) and r = Q = M a, the
+        generalized forces, by LU on M^-1 (M is as ill-conditioned as the tree makes it, 8e10 for 500 point masses
+        on light links: solved, never inverted and multiplied); else (None, a)."""
+        seeds = None if n_orb else _hold_seeds(bk, x)
+        if seeds is None or not len(seeds) == len(unknown) == len(rows):
+            return None, a
+        from scipy.linalg import lu_factor, lu_solve
+
+        b = at(x)
+        prep, zy = _prep(b), np.zeros(nx)
+        Binv = np.empty((len(rows), len(seeds)))  # M^-1: the accelerations per unit generalized force
+        for j, sd in enumerate(seeds):
+            Binv[:, j] = minimal(b, x, _column(b, zy, sd, prep)[0])
+            stages.tick()
+        if not np.all(np.isfinite(Binv)):
+            return None, a
+        import warnings
+
+        from scipy.linalg import LinAlgWarning
+
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", LinAlgWarning)  # singular: Q not finite, below
+            lu = lu_factor(Binv, check_finite=False)
+            Q = lu_solve(lu, a, check_finite=False)
+        return ((seeds, lu), Q) if np.all(np.isfinite(Q)) else (None, a)
+
+    def local(x, a):
+        """(hold, r, Js, Ja) at x: the residual (the generalized forces where the joints can be held, else the
+        accelerations), its Jacobian in the trust region's units (dQ/dq = M J~, J~ the accelerations' Jacobian
+        with the holding forces -Q applied) and the accelerations' Jacobian."""
+        evals[0] += 1
+        seeds = None if n_orb else _hold_seeds(bk, x)
+        held = seeds is not None and len(seeds) == len(unknown) == len(rows)
+        stages.start(f"equilibrium search, Jacobian {evals[0]}", (len(seeds) if held else 0)
+                     + (len(unknown) if plain and not n_orb else nx))
+        hold, r = forces(x, a) if held else (None, a)
+        if hold is None:
+            Ja = jac(x)
+            return None, a, Ja, Ja
+        from scipy.linalg import lu_solve
+
+        seeds, lu = hold
+        Ja = jac(x, bk.p - seeds.T @ r)
+        return hold, r, lu_solve(lu, Ja, check_finite=False), Ja
+
+    def merit(x_try, a_try, hold):
+        """The residual at a trial point, as the step's model measures it."""
+        if hold is None:
+            return a_try
+        stages.start(f"equilibrium search, forces {evals[0]}", len(unknown))
+        h, r_try = forces(x_try, a_try)
+        return r_try if h is not None else np.full_like(r_try, np.nan)
+
+    def size(v):
+        return float(np.max(np.abs(v), initial=0.0))
+
+    def move(x, u):
+        dz = np.zeros(len(names))
+        dz[unknown] = u * units
+        return _retract(bk, x, dz)
+
+    x = bk.y[0, :nx].copy()
+    a = accel(x)
+    steps, evals = 0, [0]
+    if size(a) == 0.0 or not unknown:  # at rest already (a chain hanging straight), or nothing to move
+        k = int(np.argmax(np.abs(a))) if a.size else 0
+        return _Search(x, 0, size(a), size(a), names[rows[k]] if a.size else "", float(a[k]) if a.size else 0.0,
+                       True)
+    hold, r, Js, Ja = local(x, a)
+    # the accelerations' scale: those at the start, and what a unit change of the coordinates makes (the Frobenius
+    # norm of their Jacobian: within sqrt(n) of its largest singular value, without an SVD)
+    scale = max(size(a), float(np.linalg.norm(Ja)))
+    delta, probes = 0.5, 0
+    while steps < max_steps:
+        rr = float(r @ r)
+        if size(a) <= 1e-15 * scale:
+            break
+        # a Jacobian of round-off (the residual's change over a unit below 1e-10 of it) gives no direction
+        if float(np.linalg.norm(Js)) > 1e-10 * math.sqrt(rr):
+            u = _newton_step(Js, r)
+            if u is not None and size(u) <= delta:
+                pred = rr
+            else:  # beyond the region, singular or ill-conditioned: Levenberg-Marquardt within the region
+                u = _tr_step(Js, r, delta)
+                pred = rr - float(np.sum((r + Js @ u) ** 2))
+            nu, ok, rho = size(u), False, -1.0
+            if nu > 0:
+                x_try = move(x, u)
+                a_try = accel(x_try)
+                r_try = merit(x_try, a_try, hold)
+                if np.all(np.isfinite(r_try)):
+                    act = rr - float(r_try @ r_try)
+                    rho = act / pred if pred > 0 else (1.0 if act > 0 else -1.0)
+                    ok = act > 0 and rho > 1e-4
+                if ok:
+                    x, a = x_try, a_try
+                    hold, r, Js, Ja = local(x, a)
+                    steps += 1
+                    if rho > 0.75 and nu > 0.99 * delta:
+                        delta = min(2.0 * delta, 1e6)
+                if rho < 0.25:
+                    delta = 0.25 * nu
+            if ok or (nu > 1e-12 and delta > 1e-12):
+                continue
+        # stalled (no step within the trust region helps) or flat (the start a turning point of the forces, a
+        # pendulum horizontal): let it fall, a step along its accelerations (downhill in the potential, where the
+        # motion from rest would go), else probe each coordinate either way
+        if size(a) <= EQ_RTOL * scale or probes >= 4:
+            break
+        probes += 1  # (measured by the accelerations themselves: a probe is an evaluation, not a Jacobian)
+        best, best_x, best_a = float(a @ a), None, None
+        if len(rows) == len(unknown) and not n_orb:  # the rates' rows in the coordinates' order
+            fall = a / units
+            for h in (0.5, 0.25, 0.125, 0.0625):
+                xp = move(x, h / size(fall) * fall)
+                ap = accel(xp)
+                if np.all(np.isfinite(ap)) and ap @ ap < (1 - 1e-6) * best:
+                    best, best_x, best_a = float(ap @ ap), xp, ap
+                    break
+        for j in range(len(unknown) if best_x is None else 0):
+            for sgn in (1.0, -1.0):
+                e = np.zeros(len(unknown))
+                e[j] = 0.25 * sgn
+                xp = move(x, e)
+                ap = accel(xp)
+                if np.all(np.isfinite(ap)) and ap @ ap < (1 - 1e-6) * best:
+                    best, best_x, best_a = float(ap @ ap), xp, ap
+        if best_x is None:
+            break
+        x, a, delta = best_x, best_a, 0.5
+        hold, r, Js, Ja = local(x, a)
+        steps += 1
+    scale = max(scale, float(np.linalg.norm(Ja)))
+    worst = int(np.argmax(np.abs(a)))
+    flat = float(np.max(np.abs(Ja))) <= 1e-12 * scale
+    return _Search(x, steps, size(a), scale, names[rows[worst]], float(a[worst]), flat)
+
+
+def _wrap_angles(bk: _Block, x: np.ndarray, scale: float) -> np.ndarray:
+    """Hinge angles beyond half a turn wrapped into (-pi, pi] where the equations do not see the turn (no spring,
+    no stop: the rates of change the same to round-off)."""
+    f0 = _derivs(bk._replace(y=_with(bk, x)))
+    for k in bk.hinges:
+        if abs(x[k]) > math.pi:
+            xw = x.copy()
+            xw[k] = math.remainder(x[k], 2 * math.pi)
+            fw = _derivs(bk._replace(y=_with(bk, xw)))
+            if np.max(np.abs(fw - f0), initial=0.0) <= 1e-12 * max(scale, np.max(np.abs(f0), initial=0.0)):
+                x = xw
+    return x
+
+
+def _with(bk: _Block, x: np.ndarray) -> np.ndarray:
+    y = bk.y.copy()
+    y[0, :len(x)] = x
+    return y
+
+
+def _to_equilibrium(model, stages: _Stages = _QUIET) -> dict:
+    """:func:`_move_to_equilibrium`, the model put back as it was where no equilibrium is found (or the state is
+    refused)."""
+    state = model.get_state()
+    try:
+        return _move_to_equilibrium(model, stages)
+    except np.linalg.LinAlgError as e:  # an SVD or a factorization that did not converge: a run-time failure
+        model.set_state(state)
+        raise LinearAlgebraError(f"the linear algebra of the equilibrium search failed: {e}; start nearer an "
+                                 "equilibrium, or linearize about 'state'") from None
+    except Exception:
+        model.set_state(state)
+        raise
+
+
+def _move_to_equilibrium(model, stages: _Stages = _QUIET) -> dict:
+    """Move ``model`` to an equilibrium: the rates set to 0 (on a circular orbit: every root turning with the orbit
+    frame), then :func:`_rest_search` on each block. Returns how it went (``steps``, the largest ``residual``
+    acceleration and its ``scale``).
+
+    Raises
+    ------
+    LinearAlgebraError
+        No equilibrium found: the accelerations where the search stopped are not round-off (the message names the
+        largest, where it stopped and, where they do not depend on the positions, that the scene may have none);
+        :func:`_to_equilibrium` puts the model back as it was.
+    """
+    length = _length_scale(model)
+    if model.scene.kernel == "body":  # independent bodies, each on its pivot
         for n in ("omega_x", "omega_y", "omega_z"):
             model.set(n, 0.0)
         model.initialize()
-        return
-    for n, v in model.variables.items():
-        if v.causality == "output" and v.start is not None and n.rpartition(".")[2] in (
-                "rate", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z"):
-            model.set(n, 0.0)
+        blocks = _blocks(model)
+        _check_finite(model, blocks)
+        found = [_rest_search(bk, length, stages=stages) for bk in blocks]
+        for bk, res in zip(blocks, found):
+            _refuse_if_not_rest(bk, res)
+        for b, res in enumerate(found):
+            for k, n in enumerate(("q_w", "q_x", "q_y", "q_z")):
+                model.set(n, float(res.x[k]), body=b)
+        model.initialize()
+        return _summary(found)
+    model.initialize()
+    (bk,) = _blocks(model)
+    rates = [k for k, n in enumerate(bk.states) if is_rate(n)]
+    model._y[:, rates] = 0.0  # every copy at rest (by index: model.set per rate is a search per name)
+    model._state_dirty = True
+    model._out = None
     orbit = getattr(model.scene, "orbit", None)
     n_orb = 0.0
     if orbit is not None and orbit.circular:
         # on a circular orbit the equilibrium turns with the orbit frame: every root co-rotates at the orbit rate
-        # about the orbit normal (world +z), and Newton solves f(x) = n xi_world(x) (a relative equilibrium)
+        # about the orbit normal (world +z), and the search solves f(x) = n xi_world(x) (a relative equilibrium)
         p = model._p if model._p is not None else model._pp
         mu, r = float(p[0, _engine.TP_MU]), float(p[0, _engine.TP_ORBIT_R])
         n_orb = math.sqrt(mu / r**3)
@@ -598,50 +1105,60 @@ def _to_equilibrium(model, tol: float = 1e-13, iters: int = 50) -> None:
                 for k, c in enumerate("xyz"):
                     model.set(f"omega_{c}", float(w[k]), body=b.name)
     model.initialize()
-    _check_finite(model, _blocks(model))
-    for _ in range(iters):
-        (bk,) = _blocks(model)
-        x = bk.y[0, :len(bk.states)]
-        A, *_ = _block_jacobian(bk)
-        f = _derivs(bk)
-        if n_orb:
-            (_, xi, Dw), *_ = _generators(bk, A, bk.y)
-            f = f - n_orb * xi
-            A = A - n_orb * Dw
-        T, P, _ = _reduction(bk, x)
-        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(f))):
-            _check_finite(model, [bk], A)
-        try:
-            dz = np.linalg.lstsq(A @ T, -f, rcond=None)[0]
-        except np.linalg.LinAlgError as e:
-            raise LinearAlgebraError(f"Newton's step toward the equilibrium failed: {e} (a {A.shape[0]}x"
-                                     f"{A.shape[1]} Jacobian); linearize about='state' instead") from None
-        dx = T @ dz
-        y = model._y[0].copy()
-        y[:len(bk.states)] += dx
-        model._y[:] = y
-        model._state_dirty = True
-        model._out = None
-        model.initialize()
-        if np.linalg.norm(dz) <= tol * max(1.0, np.linalg.norm(x)):
-            return
-    raise ConfigError("about", "equilibrium", f"a state from which Newton's method finds one; {iters} iterations "
-                      "did not converge (start nearer to it, or linearize about='state')")
+    (bk,) = _blocks(model)
+    _check_finite(model, [bk])
+    res = _rest_search(bk, length, n_orb, stages=stages)
+    _refuse_if_not_rest(bk, res)
+    x = _wrap_angles(bk, res.x, res.scale)
+    y = model._y[0].copy()
+    y[:len(x)] = x
+    model._y[:] = y
+    model._state_dirty = True
+    model._out = None
+    model.initialize()
+    return _summary([res])
 
 
-def linearize(model, *, about=None, system: int = 0) -> Linearization:
+def _summary(found: list) -> dict:
+    return {"steps": sum(f.steps for f in found), "residual": max(f.residual for f in found),
+            "scale": max(f.scale for f in found)}
+
+
+def _refuse_if_not_rest(bk: _Block, res: _Search) -> None:
+    if res.residual <= EQ_RTOL * res.scale:
+        return
+    nx = len(bk.states)
+    coords = [f"{n} = {v + 0.0:.6g}" for n, v in zip(bk.states, res.x[:nx]) if not is_rate(n)]
+    where = ", ".join(coords[:6]) + (f", ... ({len(coords)} coordinates)" if len(coords) > 6 else "")
+    why = ("the accelerations do not change with the positions there (a constant force, as on a body falling "
+           "free or bouncing on a stop: the scene may have no equilibrium)" if res.flat else
+           "no step of the positions reduces the accelerations further there (a minimum of them that is not 0)")
+    raise LinearAlgebraError(
+        f"no equilibrium found from the start state: {why}; a trust-region Newton search stopped after "
+        f"{res.steps} steps at {where} with {res.worst}' = {res.value:.6g}, {res.residual / res.scale:.3g} of the "
+        f"accelerations' scale {res.scale:.6g} (an equilibrium: at most {EQ_RTOL:g}); start nearer an "
+        "equilibrium, or linearize about 'state'")
+
+
+def linearize(model, *, about=None, system: int = 0, progress=None) -> Linearization:
     """Linearize ``model`` (a :class:`gyrosim.Model`, any scene) about ``about``:
 
     - ``None`` (default): the present state. Where f(x) = 0 an equilibrium; where the state moves along the
       symmetries (a steady motion) the linearization in the frame that moves with it; else the instantaneous
       Jacobian (``about = "state"`` in the result).
     - ``"state"``: the instantaneous Jacobian, no symmetry taken out.
-    - ``"equilibrium"``: the velocities set to 0 and Newton's method to the nearest equilibrium (the model's state
-      moves there).
+    - ``"equilibrium"``: the velocities set to 0 and a trust-region Newton search on the accelerations as
+      functions of the positions (:func:`_rest_search`) to an equilibrium near the state (the model's state moves
+      there, hinge angles wrapped into one turn where the equations do not see the turn); where the search ends
+      with accelerations above round-off (EQ_RTOL of their scale) a :class:`LinearAlgebraError` says so.
     - ``"steady"``: the present state must be a steady motion (an error names the residual otherwise).
     - ``"steady_precession"``: a symmetric top on a pivot put in slow steady precession at its theta and spin
       (:func:`steady_precession`), then ``"steady"``.
     - a dict of start values (``{"upper.angle": 0.1}``): set, then as ``None``.
+
+    ``progress(what, done, total)``, where given, is called as the work goes: ``what`` the stage ("equilibrium
+    search, Jacobian k", "Jacobian", "eigenvalues"), ``done`` of ``total`` (Jacobian columns; 0 of 1 and 1 of 1 around
+    the eigen-decomposition, one long LAPACK call on a large system).
 
     Returns a :class:`Linearization` (``A, B, C, D, names = linearize(m)``), with the modes and the verdict.
 
@@ -656,20 +1173,21 @@ def linearize(model, *, about=None, system: int = 0) -> Linearization:
     if not isinstance(about, dict) and about not in allowed:
         raise ConfigError("about", about, "state, equilibrium, steady, steady_precession, a dict of start values "
                           "or None")
-    _state_from(model, about)
+    stages = _Stages(progress)
+    search = _state_from(model, about, stages)
     blocks = _blocks(model, system)
     _check_finite(model, blocks)
-    J = _jacobian_of(blocks)
+    J = _jacobian_of(blocks, stages)
     _check_finite(model, blocks, J.A)
     try:
-        return _linearize(model, about, blocks, J)
+        return _linearize(model, about, blocks, J, search, stages)
     except np.linalg.LinAlgError as e:
         raise LinearAlgebraError(f"the linear algebra of the linearization failed: {e} (a {J.A.shape[0]}x"
                                  f"{J.A.shape[1]} Jacobian at the state {about or 'as it is'}); the equations are "
                                  "too badly scaled there, or nearly singular") from None
 
 
-def _linearize(model, about, blocks, J) -> Linearization:
+def _linearize(model, about, blocks, J, search=None, stages: _Stages = _QUIET) -> Linearization:
     """:func:`linearize` past the checks: the symmetries taken out, the reduction, the modes and the verdict."""
     Ts, Ps, names, rates, A_rel = [], [], [], {}, []
     kind = "equilibrium"
@@ -682,6 +1200,8 @@ def _linearize(model, about, blocks, J) -> Linearization:
         fs = np.linalg.norm(f)
         if fs <= 1e-12 * np.linalg.norm(A) * max(1.0, np.linalg.norm(x)):
             fs = 0.0  # an equilibrium to round-off
+        if search is not None and not bk.orbit:
+            fs = 0.0  # the search's: accelerations at most EQ_RTOL of their scale (on an orbit, f = n xi: below)
         Dxi = np.zeros((nx, nx))
         if fs > 0 and about != "state":
             every = _generators(bk, A, bk.y)
@@ -719,20 +1239,26 @@ def _linearize(model, about, blocks, J) -> Linearization:
         at += nx
     from scipy.linalg import block_diag
 
-    T = block_diag(*Ts)
-    P = block_diag(*Ps)
-    Ar = P @ block_diag(*A_rel) @ T
-    Br = P @ J.B
-    Cr = J.C @ T
-    modes = modes_of(Ar, names)
-    stab = _verdict(Ar)
+    Ar = block_diag(*A_rel)
+    if any(_quats(bk) for bk in blocks):  # else T and P are the identity: no dense products of 1,000 x 1,000
+        T = block_diag(*Ts)
+        P = block_diag(*Ps)
+        Ar, Br, Cr = P @ Ar @ T, P @ J.B, J.C @ T
+    else:
+        Br, Cr = J.B.copy(), J.C.copy()
+    stages.start("eigenvalues", 1)
+    ev, V = _eig(Ar, names)
+    stages.tick()
+    modes = modes_of(Ar, names, (ev, V))
+    stab = _verdict(Ar, ev)
     state = np.concatenate([bk.y[0, :len(bk.states)] for bk in blocks])
     return Linearization(Ar, Br, Cr, J.D.copy(), Names(names, list(J.inputs), list(J.outputs)), kind, rates,
-                         modes, stab, J, state)
+                         modes, stab, J, state, ev, search)
 
 
-def _verdict(A: np.ndarray) -> str:
-    ev = np.linalg.eigvals(A) if A.size else np.zeros(0)
+def _verdict(A: np.ndarray, ev=None) -> str:
+    if ev is None:
+        ev = np.linalg.eigvals(A) if A.size else np.zeros(0)
     scale = max(np.max(np.abs(ev)) if ev.size else 0.0, 1e-300)
     tol = 1e-7 * scale
     if np.any(ev.real > tol):
@@ -742,11 +1268,37 @@ def _verdict(A: np.ndarray) -> str:
     return "marginally stable"
 
 
-def modes_of(A: np.ndarray, names: list) -> list:
-    """The eigenvalues of A as :class:`Mode` s (one per complex pair), slowest first."""
+def _eig(A: np.ndarray, names: list):
+    """The eigenvalues and eigenvectors of A. Where A is a second-order system at rest, its rows (coordinates,
+    rates) = ([0, I], [G, 0]) (an undamped tree at rest, q' = v, v' = G q: no damping, no gyroscopic term; the
+    coordinates and their rates in the same order), from the n x n problem G w = mu w instead of the 2n x 2n one:
+    lambda = +-sqrt(mu), the vector (w, lambda w). An eighth of LAPACK's work (a 1,000-state chain: seconds), the
+    same numbers to round-off. Else, and below 8 states (as quick either way), LAPACK on A."""
+    n2 = A.shape[0]
+    rate = np.fromiter((is_rate(s) for s in names), dtype=bool, count=len(names))
+    pos, vel = np.flatnonzero(~rate), np.flatnonzero(rate)
+    if n2 >= 8 and pos.size * 2 == n2:
+        n = pos.size
+        tol = 1e-14 * max(float(np.max(np.abs(A))), 1e-300)
+        second = (np.all(np.abs(A[np.ix_(pos, pos)]) <= tol) and np.all(np.abs(A[np.ix_(vel, vel)]) <= tol)
+                  and np.allclose(A[np.ix_(pos, vel)], np.eye(n), rtol=0, atol=1e-12))
+        if second:
+            mu, W = np.linalg.eig(A[np.ix_(vel, pos)])
+            lam = np.sqrt(mu.astype(complex))
+            ev = np.concatenate([lam, -lam])
+            V = np.zeros((n2, 2 * n), dtype=complex)
+            V[pos, :n], V[vel, :n] = W, W * lam
+            V[pos, n:], V[vel, n:] = W, -W * lam
+            return ev, V
+    return np.linalg.eig(A)
+
+
+def modes_of(A: np.ndarray, names: list, eig=None) -> list:
+    """The eigenvalues of A as :class:`Mode` s (one per complex pair), slowest first (``eig``: A's eigenvalues
+    and eigenvectors where known)."""
     if A.size == 0:
         return []
-    ev, V = np.linalg.eig(A)
+    ev, V = np.linalg.eig(A) if eig is None else eig
     scale = max(np.max(np.abs(ev)), 1e-300)
     out = []
     for k in np.argsort(np.abs(ev), kind="stable"):
@@ -766,7 +1318,7 @@ def modes_of(A: np.ndarray, names: list) -> list:
             kind = "oscillation" if lam.real <= 1e-9 * scale else "growing oscillation"
         else:
             kind = "decaying" if lam.real < 0 else "growing"
-        out.append(Mode(lam, abs(lam.imag), mag, zeta, {n: complex(x) for n, x in zip(names, v)}, kind))
+        out.append(Mode(lam, abs(lam.imag), mag, zeta, dict(zip(names, v.tolist())), kind))
     return out
 
 

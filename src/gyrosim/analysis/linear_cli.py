@@ -62,6 +62,8 @@ def _model(args):
 
 
 def cmd_linearize(args) -> int:
+    import time
+
     from .._atomic import check_writable
     from ..cli import verbosity
     from .linear import linearize, steady_precession
@@ -79,12 +81,35 @@ def cmd_linearize(args) -> int:
     if about == "steady_precession":
         steady_precession(m, **extra)
         about = "steady"
-    lin = linearize(m, about=about)
     scene = m.scene.name
+    bar, t_wall = None, time.perf_counter()
+
+    def progress(what, done, total):
+        """A bar on stderr once the work has taken 0.5 s (a large tree: the Jacobian's columns, the search's steps,
+        the eigenvalues), a bar per stage; none with -q."""
+        nonlocal bar
+        desc = f"linearize {scene}: {what}"
+        if bar is not None and bar.desc != desc:
+            bar.close()
+            bar = None
+        if bar is None and v >= 0 and time.perf_counter() - t_wall > 0.5:
+            from tqdm import tqdm
+
+            fmt = "{desc} [{elapsed}]" if what == "eigenvalues" else None  # one LAPACK call: no rate to show
+            bar = tqdm(total=total, initial=done, unit="column", desc=desc, file=sys.stderr, leave=False,
+                       bar_format=fmt)
+        elif bar is not None:
+            bar.update(done - bar.n)  # tqdm redraws at most every 0.1 s
+
+    try:
+        lin = linearize(m, about=about, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
     if v >= 0:
         what = {"equilibrium": "an equilibrium", "steady motion": "a steady motion",
                 "state": "the state as it is (not an equilibrium nor a steady motion: the instantaneous Jacobian)"}
-        print(f"scene {scene}: linearized about {what[lin.about]}"
+        print(f"scene {scene}: linearized about {what[lin.about]}{_where(lin)}"
               + ("; rates " + ", ".join(f"{k} {x:.10g}" for k, x in lin.rates.items()) if lin.rates else "")
               + f"; {len(lin.names.states)} states, {len(lin.names.inputs)} inputs")
     print(lin.table())
@@ -98,6 +123,19 @@ def cmd_linearize(args) -> int:
             if path:
                 print(f"wrote {path}", file=sys.stderr)
     return 0
+
+
+def _where(lin, most: int = 6) -> str:
+    """Where an equilibrium search ended: " at <coordinate> = <value>, ..." (the first ``most``; values below
+    1e-12 of the largest shown as 0: round-off of a zero), "" when no search ran."""
+    if lin.search is None:
+        return ""
+    c = lin.coordinates()
+    big = max((abs(x) for x in c.values()), default=0.0)
+    shown = [f"{n} = {(0.0 if abs(x) <= 1e-12 * max(big, 1.0) else x) + 0.0:.10g}" for n, x in list(c.items())[:most]]
+    more = f", ... ({len(c)} coordinates)" if len(c) > most else ""
+    k = lin.search["steps"]
+    return f" at {', '.join(shown)}{more} (found from the start state in {k} step{'' if k == 1 else 's'})"
 
 
 def _write(lin, path: Path) -> None:
@@ -121,14 +159,17 @@ def _write(lin, path: Path) -> None:
 
 
 def displacements(shape: dict) -> list:
-    """The names of a shape's coordinates (angles, small rotations, positions), not its rates."""
-    rates = ("rate", "omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z")
-    return [n for n in shape if not n.rpartition(".")[2].startswith(rates)]
+    """The names of a shape's coordinates (angles, small rotations, displacements, positions), not its rates (a
+    hinge's rate, a slider's velocity, omega, v: :func:`gyrosim.analysis.linear.is_rate`)."""
+    from .linear import is_rate
+
+    return [n for n in shape if not is_rate(n)]
 
 
-def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4):
-    """Eigenvalues in the complex plane and the oscillating modes' shapes (real parts, largest component 1);
-    returns the figure (closed)."""
+def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4, max_bars: int = 12):
+    """Eigenvalues in the complex plane and the oscillating modes' shapes (real parts, largest component 1; the
+    ``max_bars`` largest components, in state order); returns the figure (closed). Modes are numbered as the
+    table numbers them (``lin.table()``: every mode, rigid ones too)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -137,11 +178,12 @@ def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4):
 
     from .._atomic import atomic_path
 
+    number = {id(mode): k for k, mode in enumerate(lin.modes, 1)}
     osc = lin.oscillations()[:max_modes]
     n = max(1, len(osc))
     fig, axes = plt.subplots(1, 1 + n, figsize=(4.2 * (1 + n), 4.0), squeeze=False, layout="constrained")
     ax = axes[0, 0]
-    ev = np.linalg.eigvals(lin.A)
+    ev = np.asarray(lin.eigenvalues)
     ax.axvline(0, color="0.6", lw=0.8)
     ax.axhline(0, color="0.6", lw=0.8)
     ax.plot(ev.real, ev.imag, "o", color="C3")
@@ -156,6 +198,11 @@ def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4):
         names = displacements(mode.shape) or list(mode.shape)
         z = np.array([mode.shape[s] for s in names])
         z = z / z[np.argmax(np.abs(z))]  # the largest displacement 1
+        of = ""
+        if len(names) > max_bars:  # the largest, in state order
+            top = np.sort(np.argsort(-np.abs(z), kind="stable")[:max_bars])
+            of = f" ({max_bars} largest of {len(names)})"
+            names, z = [names[i] for i in top], z[top]
         inphase = np.abs(z.imag) <= 1e-6 * np.abs(z)
         vals = np.where(inphase, z.real, np.abs(z))  # signed where in phase or opposed, else the size
         keep = np.abs(z) > 1e-9
@@ -166,8 +213,9 @@ def plot_modes(lin, path: Path, *, title: str = "", max_modes: int = 4):
                            bar.get_height()), xytext=(3, 0), textcoords="offset points", va="center", fontsize=8)
         a.axvline(0, color="0.6", lw=0.8)
         per = f", period {mode.period:.4g} s" if math.isfinite(mode.period) else ""
-        a.set_title(f"mode {k + 1}: {mode.frequency:.5g} rad/s{per}", fontsize=9)
-        a.set_xlabel("shape: displacements, the largest 1\n(orange: the size, at the phase shown)", fontsize=8)
+        a.set_title(f"mode {number[id(mode)]}: {mode.frequency:.5g} rad/s{per}", fontsize=9)
+        a.set_xlabel(f"shape: displacements{of}, the largest 1\n(orange: the size, at the phase shown)",
+                     fontsize=8)
         a.tick_params(axis="y", labelsize=8)
         a.invert_yaxis()
     if not osc:
