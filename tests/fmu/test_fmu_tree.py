@@ -575,9 +575,12 @@ def test_ranges_are_in_the_model_description_and_refused_as_the_model_refuses(tr
     m = Model("double_pendulum")
     for name in ("m1", "m2", "L1", "L2"):
         assert (mv[name].min, mv[name].max) == ("5e-324", None), name
-    for name in ("g", "upper.mass", "lower.I3", "upper.stiffness", "lower.joint_damping"):
+    for name in ("upper.mass", "lower.I3", "upper.stiffness", "lower.joint_damping"):
         assert float(mv[name].min) == 0.0 and mv[name].max is None, name
-    assert mv["upper.cm_z"].min is None and mv["upper.angle"].min is None
+    # g, inputs and start states: the one magnitude rule (ranges.MAX_MAGNITUDE), quaternions excepted
+    assert (float(mv["g"].min), float(mv["g"].max)) == (0.0, 1e12)
+    assert mv["upper.cm_z"].min is None
+    assert (float(mv["upper.angle"].min), float(mv["upper.angle"].max)) == (-1e12, 1e12)
     s = tree_slave("double_pendulum", v)
     s.setup()
     for name, bad in (("m1", 0.0), ("m2", -1.0), ("L1", -1.0), ("L2", 0.0), ("upper.mass", -0.5), ("g", -9.81)):
