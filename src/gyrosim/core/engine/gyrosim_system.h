@@ -105,6 +105,14 @@ size_t gs_sys_advance(const gs_system *s, size_t n, int method, double *y, const
                       double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
                       int32_t *status, int threads);
 
+/* One copy (n = 1) over H from time t as gs_sys_advance, stopping at the first impact a tree's impact stops locate
+ * (gs_tree_advance_event: *at the place within the interval, zeroed at its start; *event, *elapsed). A system
+ * without impact stops takes the whole of H as gs_sys_advance does (*event = 0, *elapsed = H, at->finished = 1).
+ * Returns the units that failed, status[units] as gs_sys_advance's (y, hint, stats and ex then unspecified). */
+size_t gs_sys_advance_event(const gs_system *s, int method, double *y, const double *p, double t, double H,
+                            double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
+                            int32_t *status, gs_tree_pos *at, int *event, double *elapsed);
+
 /* n copies over n_out output intervals of dt from t0 + k0*dt (the body kernel's clock; a tree's flow is
  * autonomous): the outputs at every point (k = 0..n_out) into out[(k * n + c) * nout + .], as gs_trajectory /
  * gs_tree_trajectory (every derived output). Returns the units that failed (status = the interval, NaN rows from

@@ -222,6 +222,33 @@ double gs_tree_fastest_rate(const gs_tree *t, const double *y, const double *p);
 size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
                        double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads);
 
+/* Where gs_tree_advance_event stopped within its interval: plain data (the FMUs keep it in their state), all zero at
+ * the interval's start. gs_tree_advance takes an interval in pieces (the fixed-step methods' own steps; adaptive
+ * and dop853 pieces of the controller's step) and locates the impacts within a piece; this is the loop's place. */
+typedef struct {
+    int64_t k;           /* the piece being taken (euler, rk4, the implicit methods: its step's index) */
+    double done;         /* adaptive, dop853: the length of the pieces begun (s) */
+    double start;        /* the piece's offset from the interval's start (s) */
+    double piece, rem;   /* the piece's length, and what of it remains after the impact (s) */
+    double hint_piece;   /* adaptive, dop853: the controller's step at the piece's start */
+    int32_t events;      /* the impacts located in the piece so far (the accumulation point's count) */
+    int32_t inside;      /* 1: stopped at an impact inside piece k (go on from rem); 0: at piece k's start */
+    int32_t finished;    /* 1: nothing of the interval remains once the impact is applied */
+    int32_t pad_;
+} gs_tree_pos;
+
+/* One system (n = 1) over the interval H as gs_tree_advance, from *at (zeroed: the interval's start) to the
+ * interval's end or the first impact located, whichever comes first. At an impact *event = 1, y is the state at it
+ * and before it (on or beyond the stop: the located bracket's end, what gs_tree_advance applies the impact to),
+ * *elapsed the time from the interval's start to it, and *at where to go on from. Called again with the same H and
+ * *at once the impact is applied (gs_tree_impact: the same law), it goes on as gs_tree_advance does after that
+ * impact, so a run stopped at every impact has gs_tree_advance's bits. Otherwise *event = 0, *elapsed = H and the
+ * interval is done. The impacts that end a sequence at its accumulation point (plastic, on a joint come to rest on
+ * its stop) are applied inside, as gs_tree_advance applies them: no stop there. Returns gs_tree_advance's status. */
+int32_t gs_tree_advance_event(const gs_tree *t, int method, double *y, const double *p, double H, double rtol,
+                              double atol, double max_step, double *hint, int64_t *stats, gs_tree_pos *at,
+                              int *event, double *elapsed);
+
 /* n_out intervals of dt: outputs at every point (k = 0..n_out) into out[(k * n + b) * GS_TREE_NOUT + .]. euler and
  * rk4 give the bits of a loop of gs_tree_advance over dt. adaptive and dop853 take the steps their error control
  * chooses over the whole run (no step is cut by the output grid: 1001 points do not force 1001 steps) and evaluate

@@ -216,6 +216,22 @@ size_t gs_sys_advance(const gs_system *s, size_t n, int method, double *y, const
     return failed;
 }
 
+size_t gs_sys_advance_event(const gs_system *s, int method, double *y, const double *p, double t, double H,
+                            double rtol, double atol, double max_step, double *hint, int64_t *stats, double *ex,
+                            int32_t *status, gs_tree_pos *at, int *event, double *elapsed) {
+    if (s->kernel == GS_KERNEL_TREE) {
+        status[0] = gs_tree_advance_event(&s->tree, method, y, p, H, rtol, atol, max_step, hint, stats, at, event,
+                                          elapsed);
+        return status[0] != 0;
+    }
+    /* the body kernel has no events: the whole interval, as gs_sys_advance takes it */
+    *event = 0;
+    *elapsed = H;
+    at->inside = 0;
+    at->finished = 1;
+    return gs_sys_advance(s, 1, method, y, p, t, H, rtol, atol, max_step, hint, stats, ex, status, 1);
+}
+
 size_t gs_sys_trajectory(const gs_system *s, size_t n, int method, double *y, const double *p, double t0,
                          int64_t k0, double dt, int64_t n_out, double rtol, double atol, double max_step,
                          double *hint, int64_t *stats, double *ex, int32_t *status, int threads, double *out) {

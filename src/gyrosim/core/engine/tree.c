@@ -45,6 +45,14 @@ typedef double treal;   /* a value only compared, never differentiated (tree_cs.
  * TB(name) declares a table field (TB(E) is `E[GS_TREE_SMALL]` or `(*E)`), TLOC a local table: rows of the small
  * build's capacity cap on the stack, or count rows from the arena. The row syntax (x[i][a]) is the same in both. */
 #ifdef TREE_HEAP
+#if !defined(GS_TREE_CS) && !defined(gs_tree_advance_event)
+/* the large build's name for the event entry (tree_big.c names the other public functions before it includes this
+ * file) */
+#define gs_tree_advance_event big_tree_advance_event
+int32_t big_tree_advance_event(const gs_tree *t, int method, double *y, const double *p, double H, double rtol,
+                               double atol, double max_step, double *hint, int64_t *stats, gs_tree_pos *at,
+                               int *event, double *elapsed);
+#endif
 #define TB(name) (*name)
 #define TLOC(type, name, dims, cap, count) type (*name) dims = ws_alloc((size_t)(count) * sizeof(type dims))
 #define WS_OPEN const WsMark ws_mark_ = ws_mark()
@@ -161,6 +169,9 @@ size_t big_tree_advance(const gs_tree *t, int method, size_t n, double *y, const
 size_t big_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, const double *p, double dt,
                            int64_t n_out, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                            int32_t *status, int threads, double *out);
+int32_t big_tree_advance_event(const gs_tree *t, int method, double *y, const double *p, double H, double rtol,
+                               double atol, double max_step, double *hint, int64_t *stats, gs_tree_pos *at,
+                               int *event, double *elapsed);
 #endif
 #define TB(name) name[GS_TREE_SMALL]
 #define TLOC(type, name, dims, cap, count) type name[cap] dims
@@ -2388,10 +2399,30 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
  * that energy_error stays at the integrator's error). So does every crossing after 64 events in one piece. A joint
  * at rest on its stop stays there while the forces press it on (every piece ends beyond and is projected back), and
  * leaves when they pull it away. Returns as advance_system. */
+static int32_t advance_from(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
+                            int64_t n_sub, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                            TotalsMemo *memo, gs_tree_pos *at);
+
 static int32_t advance_events(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                               int64_t n_sub, double rtol, double atol, double max_step, double *hint,
                               int64_t *stats, TotalsMemo *memo) {
-    if (!pre->impacts) return advance_system(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats, memo);
+    return advance_from(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats, memo, NULL);
+}
+
+/* advance_events from a place within the interval (at; NULL: its start, and no stop at an impact): with at, the
+ * loop stops where an impact has been located, before applying it, and records its place in *at (at->inside = 1),
+ * so that the call that goes on from there, once the impact is applied, takes the same steps as the loop would have.
+ * at->finished = 1 when nothing of the interval remains (the interval taken to its end, or an impact at its end). */
+static int32_t advance_from(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
+                            int64_t n_sub, double rtol, double atol, double max_step, double *hint, int64_t *stats,
+                            TotalsMemo *memo, gs_tree_pos *at) {
+    if (!pre->impacts) {
+        if (at) {
+            at->inside = 0;
+            at->finished = 1;
+        }
+        return advance_system(t, method, y, p, pre, H, n_sub, rtol, atol, max_step, hint, stats, memo);
+    }
     const int nz = gs_tree_n_indicators(t, p);
     const size_t ny = (size_t)t->ny * sizeof(double);
     const int fixed = method == GS_EULER || method == GS_RK4 || implicit_method(method);
@@ -2405,7 +2436,9 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
     TLOC(double, zd1, , 2 * GS_TREE_SMALL, nz);
     int32_t rc = 0;
     const double h = H / (double)n_sub;
-    double done_t = 0.0;
+    double done_t = at ? at->done : 0.0;
+    const int64_t k0 = at ? at->k : 0;
+    const int resume = at && at->inside;   /* inside piece k0, after an impact the caller has applied */
 /* advance from y0 over tau into dst (the hint as at y0), or fail the call */
 #define STEP_FROM_Y0(dst_, tau_)                                                                         \
     do {                                                                                                 \
@@ -2416,26 +2449,37 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
             goto done;                                                                                   \
         }                                                                                                \
     } while (0)
-    for (int64_t k = 0; fixed ? k < n_sub : done_t < H; k++) {
-        double piece;
-        if (fixed) {
-            piece = k == n_sub - 1 ? H - h * (double)(n_sub - 1) : h;
+    for (int64_t k = k0; (resume && k == k0) || (fixed ? k < n_sub : done_t < H); k++) {
+        double piece, start, rem, hint_piece;
+        int events;
+        if (resume && k == k0) {   /* the rest of the piece the impact was located in */
+            piece = at->piece;
+            start = at->start;
+            rem = at->rem;
+            events = at->events;
+            hint_piece = at->hint_piece;
         } else {
-            piece = fmin(H - done_t, fmin(max_step, *hint > 0.0 ? *hint : max_step));
-            if (!(piece > 0.0) || H - done_t - piece <= 4.0 * DBL_EPSILON * H) piece = H - done_t;
-            done_t += piece;
-        }
-        double rem = piece;
-        int events = 0;
-        /* the controller's step for the smooth motion: an impact does not change it, so the rest of the piece and
-         * the next ones start from it again, not from the step that reached the stop (which shrinks with the
-         * flights towards an accumulation point) */
-        const double hint_piece = *hint;
-        gs_tree_indicators(t, y, p, z0);
-        for (int c = 0; c < nz; c++) {
-            if (z0[c] < 0.0) {   /* beyond a stop at the start: put on it where it moves out */
-                impact_pre(t, y, p, pre, 0);
-                break;
+            if (fixed) {
+                piece = k == n_sub - 1 ? H - h * (double)(n_sub - 1) : h;
+                start = h * (double)k;
+            } else {
+                piece = fmin(H - done_t, fmin(max_step, *hint > 0.0 ? *hint : max_step));
+                if (!(piece > 0.0) || H - done_t - piece <= 4.0 * DBL_EPSILON * H) piece = H - done_t;
+                start = done_t;
+                done_t += piece;
+            }
+            rem = piece;
+            events = 0;
+            /* the controller's step for the smooth motion: an impact does not change it, so the rest of the piece
+             * and the next ones start from it again, not from the step that reached the stop (which shrinks with
+             * the flights towards an accumulation point) */
+            hint_piece = *hint;
+            gs_tree_indicators(t, y, p, z0);
+            for (int c = 0; c < nz; c++) {
+                if (z0[c] < 0.0) {   /* beyond a stop at the start: put on it where it moves out */
+                    impact_pre(t, y, p, pre, 0);
+                    break;
+                }
             }
         }
         while (rem > 0.0) {
@@ -2513,10 +2557,27 @@ static int32_t advance_events(const gs_tree *t, int method, double *y, const dou
                 tau = b;
                 STEP_FROM_Y0(y, tau);
             }
+            if (at) {   /* stop before the impact: the caller applies it and goes on from here */
+                at->k = k;
+                at->done = done_t;
+                at->start = start;
+                at->piece = piece;
+                at->rem = rem - tau;
+                at->hint_piece = hint_piece;
+                at->events = events;
+                at->inside = 1;
+                at->finished = !(at->rem > 0.0) && (fixed ? k + 1 >= n_sub : !(done_t < H));
+                if (!fixed) *hint = hint_piece;
+                goto done;
+            }
             impact_pre(t, y, p, pre, 0);
             if (!fixed) *hint = hint_piece;
             rem -= tau;
         }
+    }
+    if (at) {
+        at->inside = 0;
+        at->finished = 1;
     }
 #undef STEP_FROM_Y0
 done:
@@ -2564,6 +2625,28 @@ size_t gs_tree_advance(const gs_tree *t, int method, size_t n, double *y, const 
         WS_CLOSE;
     }
     return failed;
+}
+
+int32_t gs_tree_advance_event(const gs_tree *t, int method, double *y, const double *p, double H, double rtol,
+                              double atol, double max_step, double *hint, int64_t *stats, gs_tree_pos *at,
+                              int *event, double *elapsed) {
+    TREE_DISPATCH(return big_tree_advance_event(t, method, y, p, H, rtol, atol, max_step, hint, stats, at, event,
+                                                elapsed));
+    *event = 0;
+    *elapsed = 0.0;
+    int64_t n_sub = 1;   /* gs_tree_advance's steps and refusals, for one system */
+    if (fixed_method(method)) n_sub = gs_substeps(H, max_step);
+    if (!tree_method(t, method) || n_sub == 0) return tree_method(t, method) ? 1 : -1;
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
+    precompute(t, p, &pre);
+    const int32_t status = advance_from(t, method, y, p, &pre, H, n_sub, rtol, atol, max_step, hint, stats, NULL, at);
+    WS_CLOSE;
+    if (status == 0) {
+        *event = at->inside;
+        *elapsed = at->inside ? at->start + (at->piece - at->rem) : H;
+    }
+    return status;
 }
 
 /* A dense trajectory's rows (gs_ode_trajectory's and gs_lie_dense's out): output point k of system b to
