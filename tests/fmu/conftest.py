@@ -45,7 +45,7 @@ class Slave(FmiSlave):
                          {v.name: v.valueReference for v in self.md.modelVariables}, name, logging_on)
 
     def outputs(self):
-        names = [v.name for v in self.md.modelVariables if v.causality == "output"]
+        names = [v.name for v in self.md.modelVariables if v.causality == "output" and not v.dimensions]   # scalars
         return dict(zip(names, self.get(*names)))
 
 

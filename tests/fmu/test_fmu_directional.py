@@ -154,7 +154,7 @@ def _structure(md):
     """(state vrs in order, derivative vrs, output vrs, input vrs, {unknown vr: declared dependencies or None})"""
     states = [u.variable.derivative.valueReference for u in md.derivatives]
     ders = [u.variable.valueReference for u in md.derivatives]
-    outs = [u.variable.valueReference for u in md.outputs]
+    outs = [u.variable.valueReference for u in md.outputs if not u.variable.dimensions]   # FMI 3.0: the scalars
     inputs = [v.valueReference for v in md.modelVariables if v.causality == "input"]
     deps = {u.variable.valueReference: (None if u.dependencies is None else {d.valueReference for d in u.dependencies})
             for u in (*md.outputs, *md.derivatives)}

@@ -114,7 +114,8 @@ def test_variables_are_the_tree_variables_and_validate(tree_fmu, scene, v):
     md = read_model_description(str(path))
     sc = load_scene(scene)
     want = tree_variables(sc)
-    got = [x for x in md.modelVariables if x.causality != "independent"]
+    # the scalars (FMI 3.0's arrays, views of them, are after them: tests/fmu/test_fmu3_arrays.py)
+    got = [x for x in md.modelVariables if x.causality != "independent" and not x.dimensions]
     assert [x.name for x in got[:len(want)]] == list(want)
     assert [x.valueReference for x in got] == list(range(1, len(got) + 1))
     for x, (name, var) in zip(got, want.items()):

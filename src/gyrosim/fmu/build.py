@@ -27,6 +27,7 @@ import re
 import shutil
 import subprocess
 import tempfile
+import threading
 import uuid
 import xml.etree.ElementTree as ET
 import zipfile
@@ -41,9 +42,12 @@ from ..scene import Scene, load_scene
 from .layout import (
     DER_UNITS,
     STATES,
+    FmuArray,
     FmuRow,
     SystemLayout,
+    fmu_arrays,
     fmu_rows,
+    fmu_terminals,
     fmu_variables,
     jacobian_pattern,
     me_rows,
@@ -77,6 +81,8 @@ PLATFORMS = {"linux": ("linux64", "x86_64-linux", ".so"), "windows": ("win64", "
 _ENGINE = tuple(sorted(f.name for f in resources.files("gyrosim.core").joinpath("engine").iterdir()
                        if f.name.endswith((".c", ".h")) or f.name == "cflags.txt"))
 _GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_model.c")
+#: FMI 3.0's glue besides: array variables and adjoint derivatives (fmi3Functions.c calls it).
+_GLUE3 = ("gyrosim_arrays.h", "gyrosim_arrays.c")
 _UNITS = {  # unit -> SI base-unit exponents
     "kg.m2": {"kg": 1, "m": 2}, "kg": {"kg": 1}, "m": {"m": 1}, "m/s2": {"m": 1, "s": -2},
     "N.m.s": {"kg": 1, "m": 2, "s": -1}, "s": {"s": 1}, "1": {}, "rad/s": {"rad": 1, "s": -1},
@@ -314,6 +320,7 @@ def _config_header(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: str,
         "#define GS_NOMINALS " + arr(lay.nominals[:lay.nx]), "",
         "/* value reference -> {kind, index, aux, flags (1: >= 0), name, unit, range (GS_RANGES row, -1: none)} */",
         "#define GS_VARS { \\\n    " + ", \\\n    ".join(table) + "}",
+        *(_arrays_config(sc, lay, rows, len(table)) if fmi_version == 3 else []),
         "", "#endif", "",
     ]
     return "\n".join(lines)
@@ -371,7 +378,7 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
         else:
             attrs = {"needsExecutionTool": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
                      "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
-                     "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "false",
+                     "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "true",
                      "needsCompletedIntegratorStep": "true"}
         for k, v in attrs.items():
             me.set(k, v)
@@ -390,9 +397,10 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
                        "canSerializeFMUstate": "true", "providesDirectionalDerivative": "true"})
     else:
         common.update({"canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
-                       "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "false",
-                       "hasEventMode": "false", "canReturnEarlyAfterIntermediateUpdate": "false",
-                       "providesIntermediateUpdate": "false"})
+                       "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "true",
+                       # event mode, early return, intermediate update (fmi3Functions.c, docs/fmu.md)
+                       "hasEventMode": "true", "mightReturnEarlyFromDoStep": "true",
+                       "canReturnEarlyAfterIntermediateUpdate": "true", "providesIntermediateUpdate": "true"})
     for k, v in common.items():
         cs.set(k, v)
     if fmi_version == 2:
@@ -547,6 +555,8 @@ def _model_description(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: 
             if derivative is not None:
                 t.set("derivative", derivative)
         elif vtype == "Real":
+            if fmi_type != "me" and r.kind in ("output", "state"):   # readable in intermediate update mode
+                attrs["intermediateUpdate"] = "true"
             if start is not None:
                 attrs["start"] = _fmt(start)
             if unit:
@@ -561,9 +571,11 @@ def _model_description(sc: Scene, lay: SystemLayout, rows: list[FmuRow], ident: 
         else:
             se = ET.SubElement(mv, "String", attrs)
             ET.SubElement(se, "Start", value=str(start))
+    deps = dependencies(lay, rows, has_me)
+    if fmi_version == 3:   # the arrays after every scalar
+        array_variables(mv, lay, all_rows, fmu_arrays(sc, lay, rows), outputs, initial_unknowns, deps)
     initial_unknowns.sort()
-    model_structure(root, fmi_version, outputs, derivatives, initial_unknowns, dependencies(lay, rows, has_me),
-                    indicators)
+    model_structure(root, fmi_version, outputs, derivatives, initial_unknowns, deps, indicators)
     ET.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
@@ -604,6 +616,77 @@ def model_structure(root: ET.Element, fmi_version: int, outputs, derivatives, in
             ET.SubElement(ms, "EventIndicator", valueReference=str(vr))
 
 
+#: FMI 3.0's terminals (every FMI 3.0 FMU carries them: :func:`terminals_and_icons`).
+TERMINALS_FILE = "terminalsAndIcons/terminalsAndIcons.xml"
+
+
+def _arrays_config(sc: Scene, lay: SystemLayout, rows: list[FmuRow], vr0: int) -> list[str]:
+    """The generated configuration's array variables (FMI 3.0; gyrosim_arrays.c): value references from ``vr0`` (the
+    first after every scalar), each ``{name, elements, first row of GS_ARRAY_ELEMS}``, and every element ``{value
+    reference of its scalar (0: none), parameter-row slot of a fixed element (-1: 0), its name in messages}``."""
+    arrays, elems = [], []
+    for a in fmu_arrays(sc, lay, rows):
+        arrays.append(f"{{{_c_string(a.name)}, {len(a.elements)}, {len(elems)}}}")
+        elems += [f"{{{vr}u, {slot}, {_c_string(label)}}}" for vr, slot, label in zip(a.elements, a.fixed, a.labels)]
+    return ["", "/* FMI 3.0 array variables (gyrosim_arrays.c): {name, elements, first element row}, value references "
+            "GS_ARRAY_VR0 onwards; an element {scalar's value reference (0: none), fixed parameter-row slot "
+            "(-1: 0), name} */",
+            f"#define GS_N_ARRAYS {len(arrays)}", f"#define GS_ARRAY_VR0 {vr0}u",
+            "#define GS_ARRAYS {" + (", ".join(arrays) if arrays else '{"", 0, 0}') + "}",
+            "#define GS_ARRAY_ELEMS { \\\n    " + (", \\\n    ".join(elems) if elems else '{0u, -1, ""}') + "}"]
+
+
+def array_variables(mv: ET.Element, lay: SystemLayout, rows: list[FmuRow], arrays: list[FmuArray], outputs: list,
+                    initial_unknowns: list, deps: dict) -> None:
+    """FMI 3.0's array variables ``arrays`` (:func:`~gyrosim.fmu.layout.fmu_arrays`) into ModelVariables ``mv``,
+    value references after the variables ``rows`` (every scalar, model exchange's included): ``<Float64>`` with its
+    ``<Dimension>`` elements, causality, variability, initial and unit those of its scalars, the start values theirs
+    (row-major; a fixed element's from the parameter row), and where they share one, their range. An output is in
+    ``outputs`` with the union of its scalars' dependencies (``deps``, extended), a calculated one also in
+    ``initial_unknowns``. No array is declared ``intermediateUpdate`` (fmi3InstantiateCoSimulation's required
+    intermediate variables are scalars)."""
+    for k, a in enumerate(arrays):
+        vr = len(rows) + 1 + k
+        scalars = [rows[e - 1] for e in a.elements if e]
+        first, v = scalars[0], scalars[0].var
+        attrs = {"name": a.name, "valueReference": str(vr), "causality": v.causality,
+                 "variability": v.variability, "description": a.what}
+        if first.kind == "output":
+            attrs["initial"] = "calculated"
+        else:
+            attrs["initial"] = "exact"
+            attrs["start"] = " ".join(_fmt(rows[e - 1].var.start if e else (lay.p0[f] if f >= 0 else 0.0))
+                                      for e, f in zip(a.elements, a.fixed))
+        if v.unit:
+            attrs["unit"] = v.unit
+        ranges = {tuple(sorted(range_attributes({}, r.var).items())) for r in scalars}
+        if len(scalars) == len(a.elements) and len(ranges) == 1:
+            attrs.update(dict(next(iter(ranges))))
+        el = ET.SubElement(mv, "Float64", attrs)
+        for n in a.shape:
+            ET.SubElement(el, "Dimension", start=str(n))
+        if v.causality == "output":
+            outputs.append(vr)
+            if attrs["initial"] == "calculated":
+                initial_unknowns.append(vr)
+            dep = [deps[e] for e in a.elements if e in deps]
+            if dep:
+                deps[vr] = sorted(set().union(*dep))
+
+
+def terminals_and_icons(sc: Scene, rows: list[FmuRow]) -> str:
+    """``terminalsAndIcons/terminalsAndIcons.xml`` (FMI 3.0, fmi3TerminalsAndIcons.xsd): the terminals of
+    :func:`~gyrosim.fmu.layout.fmu_terminals`, their members ``signal`` variables (no icon)."""
+    root = ET.Element("fmiTerminalsAndIcons", fmiVersion="3.0")
+    ts = ET.SubElement(root, "Terminals")
+    for t in fmu_terminals(sc, rows):
+        te = ET.SubElement(ts, "Terminal", name=t.name, matchingRule=t.rule, terminalKind=t.kind, description=t.what)
+        for member, var in t.members:
+            ET.SubElement(te, "TerminalMemberVariable", variableName=var, memberName=member, variableKind="signal")
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
 def _build_description(ident: str, sources) -> str:
     flags = " ".join(f for f in C_FLAGS if f.startswith(("-std", "-O", "-ff", "-fno")))
     root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
@@ -628,7 +711,8 @@ def compile_command(src_dir: Path, out: Path, fmi_version: int, cc: str | None =
         cc, flags = cc or WINDOWS_CC, WINDOWS_C_FLAGS
     else:
         cc, flags = cc or os.environ.get("CC", "gcc"), C_FLAGS
-    srcs = [*ENGINE_UNITS, "gyrosim_model.c", f"fmi{fmi_version}Functions.c"]
+    srcs = [*ENGINE_UNITS, "gyrosim_model.c", *(["gyrosim_arrays.c"] if fmi_version == 3 else []),
+            f"fmi{fmi_version}Functions.c"]
     return [cc, *flags, "-shared", f"-I{src_dir}", f"-I{fmi_include_dir()}",
             *[str(src_dir / s) for s in srcs], "-o", str(out), "-Wl,--no-undefined", "-lm"]
 
@@ -687,7 +771,8 @@ def _engine_objects(src_dir: Path, cc: str, flags, platform: str, units) -> tupl
         objs.append(str(obj))
         if obj.is_file():
             continue
-        part = obj.with_name(f".{obj.name}.{os.getpid()}.{len(jobs)}.tmp")
+        # unique per process and thread: builds on a thread pool compile the same unit side by side
+        part = obj.with_name(f".{obj.name}.{os.getpid()}.{threading.get_ident()}.{len(jobs)}.tmp")
         cmd = [cc, *flags, f"-I{src_dir}", "-c", str(src_dir / unit), "-o", str(part)]
         jobs.append((platform, cmd, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                                       text=True), part, obj))
@@ -757,8 +842,8 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
                            "(Debian/Ubuntu: apt-get install gcc-mingw-w64-x86-64)")
     platforms = ("linux", "windows") if win_cc else ("linux",)
     texts = engine_sources()
-    texts[f"fmi{fmi_version}Functions.c"] = resources.files(__package__).joinpath(
-        "c", f"fmi{fmi_version}Functions.c").read_text()
+    for name in (*(_GLUE3 if fmi_version == 3 else ()), f"fmi{fmi_version}Functions.c"):
+        texts[name] = resources.files(__package__).joinpath("c", name).read_text()
     sources = [*texts, "gyrosim_config.h"]
     # a deterministic token: a hash of everything the FMU is made of (with a placeholder for the token itself)
     lay = system_layout(sc)
@@ -780,6 +865,9 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         if fmi_version == 3:
             (src_dir / "buildDescription.xml").write_text(_build_description(ident, sources))
         (root / "modelDescription.xml").write_text(md)
+        if fmi_version == 3:
+            (root / "terminalsAndIcons").mkdir()
+            (root / TERMINALS_FILE).write_text(terminals_and_icons(sc, rows))
         # the engine's objects: compiled once per compiler, flags and text (a cache shared by builds), side by side
         # for the platforms; then each platform's library from them and the glue
         plans, pending = [], []
@@ -828,6 +916,8 @@ def build_fmu(scene: str | Path | Scene | None = None, fmi_version: int = 2,
         tmp_fmu = root / f"{ident}.fmu"
         with zipfile.ZipFile(tmp_fmu, "w", zipfile.ZIP_DEFLATED) as zf:
             zf.write(root / "modelDescription.xml", "modelDescription.xml")
+            if fmi_version == 3:
+                zf.write(root / TERMINALS_FILE, TERMINALS_FILE)
             for platform in platforms:
                 zf.write(root / binary_path(fmi_version, ident, platform), binary_path(fmi_version, ident, platform))
             for f in sorted(src_dir.iterdir()):

@@ -12,6 +12,10 @@ state (``state``: an output with a settable start value), a column of the output
 
 The kernel is asked once, in :func:`system_layout` (as ``gs_sys_init`` dispatches on the description's tag); the rest
 reads the layout.
+
+FMI 3.0 adds :func:`fmu_arrays` (array variables, views of the scalars: ``q_world`` [4], ``omega`` [3], ``L`` [3],
+``inertia`` [3, 3], ``joint_angles``) and :func:`fmu_terminals` (terminalsAndIcons.xml: a frame per body, a flange per
+hinge or slider).
 """
 
 from __future__ import annotations
@@ -31,7 +35,9 @@ from ..scene import Scene
 from ..scene_tree import NONNEGATIVE_PARAMS
 
 __all__ = ["SystemLayout", "FmuRow", "system_layout", "fmu_variables", "fmu_rows", "SCENE_SETTINGS",
-           "me_rows", "jacobian_pattern", "range_rows", "SYSTEM", "WORK_STATE", "DER_UNITS", "STATES"]
+           "me_rows", "jacobian_pattern", "range_rows", "SYSTEM", "WORK_STATE", "DER_UNITS", "STATES",
+           "FmuArray", "fmu_arrays", "ARRAY_STEMS", "JOINT_ANGLES", "FmuTerminal", "fmu_terminals", "FRAME_KIND",
+           "FLANGE_KINDS"]
 
 #: gyrosim_system.h's constants (GS_KERNEL_*, GS_SP_*, GS_SB_*), read from the header the glue compiles.
 SYSTEM = {m[1]: int(m[2]) for m in re.finditer(
@@ -360,3 +366,142 @@ def range_rows(rows: list[FmuRow]) -> list[tuple[int, object]]:
             if r.kind in ("param", "alias", "max_drift", "max_step", "input", "state") and r.var is not None
             and r.var.type == "Real"
             and r.var.range.bounded and (math.isfinite(r.var.range.min) or math.isfinite(r.var.range.max))]
+
+
+# ------------------------------------------------------------------------------------------ FMI 3.0 arrays, terminals
+
+#: The array variables made of scalar stems (FMI 3.0): ``<stem>`` is the array of ``<stem>_<component>`` in this order
+#: wherever the scene has all of them (``q``, ``q_world``, ``<body>.q_world``, ``omega``, ``L``, ...).
+ARRAY_STEMS = {"q": ("w", "x", "y", "z"), "q_world": ("w", "x", "y", "z"), "omega": ("x", "y", "z"),
+               "L": ("x", "y", "z")}
+#: The array of a tree's hinge angles.
+JOINT_ANGLES = "joint_angles"
+
+
+@dataclass(frozen=True)
+class FmuArray:
+    """An FMI 3.0 array variable: another view of scalar variables (getting it reads them, setting it sets them).
+
+    ``elements``: the value reference of each element's scalar variable, row-major; 0 for an element that is no
+    variable (an inertia's product of inertia), whose value is the parameter-row slot ``fixed[k]`` (-1: 0), fixed.
+    ``labels``: each element as messages name it (``omega[1] (omega_x)``, 1-based as FMI's element indices)."""
+
+    name: str
+    shape: tuple
+    elements: tuple
+    fixed: tuple
+    labels: tuple
+    what: str
+
+
+def _index_label(shape, k: int) -> str:
+    idx = np.unravel_index(k, shape)
+    return ",".join(str(int(i) + 1) for i in idx)
+
+
+def _array(name, shape, elements, names, what, fixed=None) -> FmuArray:
+    fixed = tuple(fixed) if fixed is not None else (-1,) * len(elements)
+    labels = tuple(f"{name}[{_index_label(shape, k)}]" + (f" ({names[k]})" if names[k] else "")
+                   for k in range(len(elements)))
+    return FmuArray(name, tuple(shape), tuple(elements), fixed, labels, what)
+
+
+def fmu_arrays(sc: Scene, lay: SystemLayout, rows: list[FmuRow]) -> list[FmuArray]:
+    """The FMI 3.0 array variables of ``sc`` over its scalar variables ``rows`` (value references from 1): every
+    complete group of :data:`ARRAY_STEMS` in the order of its scalars, each body's ``inertia`` [3, 3] (the diagonal
+    its parameters I1, I2, I3; the products of inertia the system's, fixed), and a tree's :data:`JOINT_ANGLES` (its
+    hinges' angles in body order). An array whose name is already a variable's is left out."""
+    vr = {r.name: i for i, r in enumerate(rows, start=1)}
+    kind = {r.name: r.kind for r in rows}
+    out = []
+    for r in rows:
+        head, dot, short = r.name.rpartition(".")
+        stem, _, comp = short.rpartition("_")
+        comps = ARRAY_STEMS.get(stem)
+        if not comps or comp != comps[0]:
+            continue
+        name = f"{head}{dot}{stem}"
+        names = [f"{name}_{c}" for c in comps]
+        if all(n in vr for n in names) and name not in vr:
+            settable = "setting it sets them" if kind[names[0]] == "state" else "an output"
+            out.append(_array(name, (len(names),), [vr[n] for n in names], names,
+                              f"{', '.join(names)} as one array [{len(names)}] (the same values: getting it reads "
+                              f"them; {settable})"))
+    tree = lay.desc[0] == SYSTEM["KERNEL_TREE"]
+    for b, body in enumerate(sc.body_names):
+        name = sc.var_name(body, "inertia")
+        diag = [sc.var_name(body, f"I{k}") for k in (1, 2, 3)]
+        if name in vr or not all(kind.get(n) == "param" for n in diag):
+            continue
+        o = lay.body_offset[b] + _engine.TB_I if tree else -1
+        products = {(0, 1): 3, (0, 2): 4, (1, 2): 5}   # GS_TB_I + 3..5: Ixy, Ixz, Iyz
+        elements, fixed, names = [], [], []
+        for i in range(3):
+            for j in range(3):
+                elements.append(vr[diag[i]] if i == j else 0)
+                names.append(diag[i] if i == j else "")
+                fixed.append(-1 if i == j or not tree else o + products[(min(i, j), max(i, j))])
+        out.append(_array(name, (3, 3), elements, names,
+                          f"inertia tensor about the centre of mass in the body frame, [3, 3] row-major: the diagonal "
+                          f"is {', '.join(diag)} (setting it sets them), the products of inertia are "
+                          + ("the scene's, fixed" if tree else "0 (principal body axes)"), fixed))
+    if sc.tree is not None and JOINT_ANGLES not in vr:
+        names = [sc.var_name(b.name, "angle") for b in sc.tree if b.joint == "hinge"]
+        names = [n for n in names if kind.get(n) == "state"]
+        if names:
+            out.append(_array(JOINT_ANGLES, (len(names),), [vr[n] for n in names], names,
+                              f"the hinge angles {', '.join(names)} as one array [{len(names)}] (the same values: "
+                              "getting it reads them; setting it sets them)"))
+    return out
+
+
+@dataclass(frozen=True)
+class FmuTerminal:
+    """A terminal of terminalsAndIcons.xml: ``name``, ``kind`` (terminalKind), ``rule`` (matchingRule), ``members``
+    ``[(memberName, variable name)]`` (variableKind ``signal``) and a description."""
+
+    name: str
+    kind: str
+    rule: str
+    members: tuple
+    what: str
+
+
+#: terminalKind of a body's frame and of a hinge's / a slider's flange (vendor kinds: ``_gyrosim_...``).
+FRAME_KIND = "_gyrosim_frame"
+FLANGE_KINDS = {"hinge": "_gyrosim_rotational_flange", "slider": "_gyrosim_translational_flange"}
+_FLANGE_MEMBERS = {"hinge": ("angle", "rate", "motor_torque"), "slider": ("displacement", "velocity", "motor_force")}
+
+
+def fmu_terminals(sc: Scene, rows: list[FmuRow]) -> list[FmuTerminal]:
+    """The terminals of ``sc``: a ``frame`` per body, named after the body (members ``r_world_*``, ``q_world_*``,
+    ``v_world_*`` and, where they are the body's rate in the world, ``omega_*``: a root's ball, free_rotation or
+    free joint, every body of the one-body kernel, whose ``q`` is then its ``q_world``), and a ``flange`` per hinge
+    or slider, named ``<body>.<joint>`` (angle or displacement, rate or velocity, and the motor input where the joint
+    has one). Matching rule ``bus``: by member name, members present where the body has them."""
+    names = {r.name for r in rows}
+    out = []
+    joints = {b.name: b for b in sc.tree} if sc.tree is not None else {}
+    for body in sc.body_names:
+        b = joints.get(body)
+        # the attitude: q_world, or the one-body kernel's q (body to world)
+        world = "q_world" if b is not None or sc.var_name(body, "q_world_w") in names else "q"
+        wanted = [*((f"r_world_{c}", f"r_world_{c}") for c in "xyz"),
+                  *((f"q_world_{c}", f"{world}_{c}") for c in "wxyz"),
+                  *((f"v_world_{c}", f"v_world_{c}") for c in "xyz")]
+        if b is None or (b.parent < 0 and b.joint in ("ball", "free_rotation", "free")):
+            wanted += [(f"omega_{c}", f"omega_{c}") for c in "xyz"]
+        members = [(m, sc.var_name(body, short)) for m, short in wanted if sc.var_name(body, short) in names]
+        if members:
+            out.append(FmuTerminal(body, FRAME_KIND, "bus", tuple(members),
+                                   f"frame of body {body!r}: its origin's position and velocity in the world, its "
+                                   "attitude (body to world) and, where present, its angular velocity in the world "
+                                   "in body axes"))
+        if b is not None and b.joint in _FLANGE_MEMBERS:
+            members = [(m, sc.var_name(body, m)) for m in _FLANGE_MEMBERS[b.joint] if sc.var_name(body, m) in names]
+            what = "rotational: angle rad, rate rad/s" if b.joint == "hinge" else \
+                "translational: displacement m, velocity m/s"
+            motor = " and its motor input" if len(members) > 2 else ""
+            out.append(FmuTerminal(f"{body}.{b.joint}", FLANGE_KINDS[b.joint], "bus", tuple(members),
+                                   f"flange of the {b.joint} joint of body {body!r} ({what}){motor}"))
+    return out

@@ -6,14 +6,30 @@
  *
  * Script lines (one call each; "#" starts a comment). A line may start with "!" when the call must return
  * Error: the host then prints "EXPECTED_ERROR <call>" and goes on (an unexpected status ends the run with 1).
- *   instantiate NAME             fmi2Instantiate(CoSimulation) / fmi3InstantiateCoSimulation
+ *   instantiate NAME [event_mode] [early_return] [update]
+ *                                fmi2Instantiate(CoSimulation) / fmi3InstantiateCoSimulation; FMI 3.0: the words
+ *                                set eventModeUsed, earlyReturnAllowed and pass the intermediate update callback,
+ *                                which prints "UPDATE t canReturnEarly v..." (%a) with the values of update_get's VRs
+ *   update_get VR...             the VRs the intermediate update callback gets (fmi3GetFloat64 inside the callback)
+ *   update_early K               the callback asks for an early return at its K-th call (0: never)
+ *   enter_event_mode | update_discrete | enter_step_mode
+ *                                fmi3EnterEventMode, fmi3UpdateDiscreteStates (prints "UPDATED valuesChanged"),
+ *                                fmi3EnterStepMode
  *   setup START STOP|-           fmi2SetupExperiment (FMI 3: the times passed to EnterInitializationMode)
  *   enter_init | exit_init | terminate | reset | free
  *   set_real VR VALUE            VALUE parsed with strtod (decimal or C99 hex)
  *   set_string VR VALUE
  *   get VR...                    prints "GET v..." with %a (exact)
  *   get_string VR                prints "GETS value"
- *   step T H                     one doStep from T with step H
+ *   step T H                     one doStep from T with step H (FMI 3.0: where it returns early or needs an event,
+ *                                prints "STEP eventHandlingNeeded earlyReturn lastSuccessfulTime" and the host's time
+ *                                is lastSuccessfulTime)
+ *   run_events N H EVERY VR...   FMI 3.0's event loop over N communication points t_k = t0 + k*H: doStep from the
+ *                                time reached to the next point; where it returns with eventHandlingNeeded prints
+ *                                "EVENT t v..." (the values there, before the event), calls fmi3EnterEventMode,
+ *                                fmi3UpdateDiscreteStates and fmi3EnterStepMode and prints "AFTER t v..."; where it
+ *                                returns early without one prints "EARLY t v..."; every EVERY points (and at the
+ *                                last) "OUT k t v...". Stops at the first non-OK call: "STEPFAIL k status".
  *   run N H EVERY VR... [-- TAUX TAUY TAUZ]
  *       N doSteps of H from the current time t_k = t0 + k*H; before step k sets the torques (if given) to
  *       0.001*((k%7)-3), 0.002*((k%5)-2), 0.0005*((k%3)-1); every EVERY steps (and after the last) prints
@@ -98,16 +114,46 @@ static void logger3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String c
 
 static void *inst;
 static void *state;
+/* the intermediate update callback: the VRs it gets, the call that asks for an early return, the calls so far */
+#define MAX_UPDATE_VRS 64
+static unsigned update_vrs[MAX_UPDATE_VRS];
+static size_t n_update_vrs;
+static long update_early, update_calls;
 static unsigned char *buffer;
 static size_t buffer_size;
 static double start_time = 0.0, stop_time = 0.0, now = 0.0;
 static int stop_defined = 0;
 
+static fmi3Boolean step_event, step_early;   /* the last doStep's eventHandlingNeeded and earlyReturn */
+static fmi3Float64 step_last;                /* and its lastSuccessfulTime */
+
 static int do_step(double t, double h) {
     if (version == 2) return F(fmi2DoStep)(inst, t, h, fmi2True);
-    fmi3Boolean event = 0, terminate = 0, early = 0;
-    fmi3Float64 last = 0.0;
-    return F(fmi3DoStep)(inst, t, h, fmi3True, &event, &terminate, &early, &last);
+    fmi3Boolean terminate = 0;
+    step_event = step_early = 0;
+    step_last = t + h;
+    return F(fmi3DoStep)(inst, t, h, fmi3True, &step_event, &terminate, &step_early, &step_last);
+}
+
+static void intermediate_update(fmi3InstanceEnvironment env, fmi3Float64 t, fmi3Boolean set_requested,
+                                fmi3Boolean get_allowed, fmi3Boolean step_finished, fmi3Boolean can_return_early,
+                                fmi3Boolean *early_requested, fmi3Float64 *early_time) {
+    (void)env;
+    (void)set_requested;
+    (void)step_finished;
+    update_calls++;
+    printf("UPDATE %a %d", t, (int)can_return_early);
+    if (get_allowed && n_update_vrs > 0) {
+        double v[MAX_UPDATE_VRS];
+        if (F(fmi3GetFloat64)(inst, (const fmi3ValueReference *)update_vrs, n_update_vrs, v, n_update_vrs) == 0) {
+            for (size_t i = 0; i < n_update_vrs; i++) printf(" %a", v[i]);
+        } else {
+            printf(" GETFAIL");
+        }
+    }
+    printf("\n");
+    *early_requested = can_return_early && update_calls == update_early;
+    *early_time = t;
 }
 
 static int set_real(unsigned vr, double x) {
@@ -125,6 +171,59 @@ static int get_reals(const unsigned *vrs, size_t n, double *out) {
 }
 
 #define MAX_VRS 64
+
+static int print_values(const char *what, long k, double t, const unsigned *vrs, size_t nv) {
+    double out[MAX_VRS];
+    if (get_reals(vrs, nv, out) != 0) return 3;
+    printf("%s", what);
+    if (k >= 0) printf(" %ld", k);
+    printf(" %a", t);
+    for (size_t i = 0; i < nv; i++) printf(" %a", out[i]);
+    printf("\n");
+    return 0;
+}
+
+/* FMI 3.0's event loop (run_events): doStep to each communication point, the events handled where they come */
+static int run_events(char *args) {
+    unsigned vrs[MAX_VRS];
+    size_t nv = 0;
+    char *tok = strtok(args, " \t\n");
+    const long n = strtol(tok, NULL, 10);
+    const double h = strtod(strtok(NULL, " \t\n"), NULL);
+    const long every = strtol(strtok(NULL, " \t\n"), NULL, 10);
+    while ((tok = strtok(NULL, " \t\n")) && nv < MAX_VRS) vrs[nv++] = (unsigned)strtoul(tok, NULL, 10);
+    const double t0 = now;
+    double t = now;
+    for (long k = 0; k < n;) {
+        const double next = t0 + (double)(k + 1) * h;
+        int s = do_step(t, next - t);
+        if (s != 0) {
+            printf("STEPFAIL %ld %d\n", k, s);
+            return 0;
+        }
+        t = step_early || step_event ? step_last : next;
+        now = t;
+        if (step_event) {
+            if (print_values("EVENT", -1, t, vrs, nv) != 0) return 3;
+            fmi3Boolean need = 0, terminate = 0, nominals = 0, values = 0, time_defined = 0;
+            fmi3Float64 next_time = 0.0;
+            if ((s = F(fmi3EnterEventMode)(inst)) != 0 ||
+                (s = F(fmi3UpdateDiscreteStates)(inst, &need, &terminate, &nominals, &values, &time_defined,
+                                                 &next_time)) != 0 ||
+                (s = F(fmi3EnterStepMode)(inst)) != 0) {
+                printf("STEPFAIL %ld %d\n", k, s);
+                return 0;
+            }
+            if (print_values("AFTER", -1, t, vrs, nv) != 0) return 3;
+        } else if (step_early) {
+            if (print_values("EARLY", -1, t, vrs, nv) != 0) return 3;
+        }
+        if (step_early) continue;   /* the same communication point again */
+        k++;
+        if ((k % every == 0 || k == n) && print_values("OUT", k, t, vrs, nv) != 0) return 3;
+    }
+    return 0;
+}
 
 static int run(char *args) {
     long n = 0, every = 1;
@@ -183,11 +282,36 @@ static int call(char *line) {
             static fmi2CallbackFunctions cb = {logger2, calloc, free, NULL, NULL};
             inst = F(fmi2Instantiate)(name, fmi2CoSimulation, token, "file:///tmp", &cb, fmi2False, fmi2True);
         } else {
-            inst = F(fmi3InstantiateCoSimulation)(name, token, "/tmp/", fmi3False, fmi3True, fmi3False, fmi3False,
-                                                  NULL, 0, NULL, logger3, NULL);
+            const fmi3Boolean event_mode = strstr(rest, " event_mode") != NULL;
+            const fmi3Boolean early_return = strstr(rest, " early_return") != NULL;
+            update_calls = 0;
+            inst = F(fmi3InstantiateCoSimulation)(name, token, "/tmp/", fmi3False, fmi3True, event_mode,
+                                                  early_return, NULL, 0, NULL, logger3,
+                                                  strstr(rest, " update") ? intermediate_update : NULL);
         }
         return inst ? 0 : 3;
     }
+    if (strcmp(cmd, "update_get") == 0) {
+        n_update_vrs = 0;
+        for (char *t = strtok(rest, " \t\n"); t && n_update_vrs < MAX_UPDATE_VRS; t = strtok(NULL, " \t\n"))
+            update_vrs[n_update_vrs++] = (unsigned)strtoul(t, NULL, 10);
+        return 0;
+    }
+    if (strcmp(cmd, "update_early") == 0) {
+        update_early = strtol(rest, NULL, 10);
+        return 0;
+    }
+    if (strcmp(cmd, "enter_event_mode") == 0) return F(fmi3EnterEventMode)(inst);
+    if (strcmp(cmd, "enter_step_mode") == 0) return F(fmi3EnterStepMode)(inst);
+    if (strcmp(cmd, "update_discrete") == 0) {
+        fmi3Boolean need = 0, terminate = 0, nominals = 0, values = 0, time_defined = 0;
+        fmi3Float64 next_time = 0.0;
+        const int s = F(fmi3UpdateDiscreteStates)(inst, &need, &terminate, &nominals, &values, &time_defined,
+                                                  &next_time);
+        if (s == 0) printf("UPDATED %d\n", (int)values);
+        return s;
+    }
+    if (strcmp(cmd, "run_events") == 0) return run_events(rest);
     if (strcmp(cmd, "setup") == 0) {
         char stop[64] = "-";
         sscanf(rest, "%lf %63s", &start_time, stop);
@@ -266,6 +390,10 @@ static int call(char *line) {
         sscanf(rest, "%lf %lf", &t, &h);
         const int s = do_step(t, h);
         if (s == 0) now = t + h;
+        if (s == 0 && version == 3 && (step_event || step_early)) {
+            now = step_last;
+            printf("STEP %d %d %a\n", (int)step_event, (int)step_early, step_last);
+        }
         return s;
     }
     if (strcmp(cmd, "run") == 0) return run(rest);

@@ -6,8 +6,12 @@
  * sequence". Invalid input (a bad parameter, h <= 0, a wrong current time, a step past the stop time, a blow-up)
  * returns fmi3Error with a message through the logger and leaves the instance as it was before the call.
  * The interfaces offered are those of the build (GS_HAS_CS, GS_HAS_ME in gyrosim_config.h). Model exchange: see
- * gyrosim_model.c (states, norm events); its event mode has no discrete states. Scheduled execution, event mode
- * in co-simulation, clocks and configuration mode are not provided.
+ * gyrosim_model.c (states, norm events); its event mode has no discrete states. Co-simulation offers event mode
+ * (hasEventMode), early return and intermediate update (gyrosim_model.c, "co-simulation events"): instantiated with
+ * eventModeUsed and earlyReturnAllowed, fmi3DoStep returns at an impact with eventHandlingNeeded and
+ * fmi3UpdateDiscreteStates applies it; the intermediate update callback is called at the impacts and at the end of
+ * every doStep, and an early return it asks for is taken there. Scheduled execution, clocks and configuration mode
+ * are not provided.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,10 +22,17 @@
 
 #define M ((GsInstance *)instance)
 #define ALL_STATES (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_TERMINATED | GS_EVENT | GS_CONT)
+/* inside the intermediate update callback (M->in_update) only the functions whose mask has GS_UPDATE */
 #define CHECK(mask, name) \
     do { \
         if (!instance) return fmi3Error; \
         M->fn = (name); \
+        if (M->in_update && !((mask) & GS_UPDATE)) { \
+            gs_log_error(M, "Illegal call sequence: the instance is in intermediate update mode (inside the " \
+                         "intermediate update callback of fmi3DoStep); allowed there: fmi3GetFloat64 of the " \
+                         "variables with intermediateUpdate=\"true\""); \
+            return fmi3Error; \
+        } \
         if (!(M->d.fmi_state & (mask)) && !gs_check_state(M, (mask), (name))) return fmi3Error; \
     } while (0)
 #define NOT_NULL(p, name, what) \
@@ -35,11 +46,22 @@
 typedef struct {
     fmi3LogMessageCallback logger;
     fmi3InstanceEnvironment env;
+    fmi3IntermediateUpdateCallback update;
 } Env;
 
 static void logger3(void *env, int status, const char *category, const char *message) {
     const Env *e = (const Env *)env;
     if (e && e->logger) e->logger(e->env, (fmi3Status)status, category, message);
+}
+
+/* the importer's intermediate update callback (GsUpdate): no intermediate inputs are taken, the outputs may be got,
+ * the internal steps up to t are finished; its earlyReturnTime is not used (the FMU returns at t) */
+static int update3(void *env, double t, int can_return_early) {
+    const Env *e = (const Env *)env;
+    fmi3Boolean requested = fmi3False;
+    fmi3Float64 when = t;
+    e->update(e->env, t, fmi3False, fmi3True, fmi3True, can_return_early ? fmi3True : fmi3False, &requested, &when);
+    return requested ? 1 : 0;
 }
 
 static fmi3Status st(int s) {
@@ -119,22 +141,33 @@ fmi3Instance fmi3InstantiateCoSimulation(fmi3String instanceName, fmi3String ins
                                          fmi3IntermediateUpdateCallback intermediateUpdate) {
     (void)resourcePath;
     (void)visible;
-    (void)earlyReturnAllowed;
-    (void)requiredIntermediateVariables;
-    (void)intermediateUpdate;
-    if (eventModeUsed) {
+    /* the intermediate variables the importer will get: those with intermediateUpdate="true" (the outputs; no
+     * input takes intermediate values) */
+    if (nRequiredIntermediateVariables > 0 && !requiredIntermediateVariables) {
         if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                                   "fmi3InstantiateCoSimulation: eventModeUsed = true is not allowed: this FMU "
-                                   "has no event mode in co-simulation (hasEventMode=\"false\").");
+                                   "fmi3InstantiateCoSimulation: requiredIntermediateVariables = NULL is not "
+                                   "allowed with nRequiredIntermediateVariables > 0");
         return NULL;
     }
-    if (nRequiredIntermediateVariables > 0) {
-        if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError",
-                                   "fmi3InstantiateCoSimulation: intermediate variables are not provided.");
-        return NULL;
+    for (size_t i = 0; i < nRequiredIntermediateVariables; i++) {
+        if (!gs_intermediate_variable(requiredIntermediateVariables[i])) {
+            char msg[256];
+            snprintf(msg, sizeof(msg), "fmi3InstantiateCoSimulation: requiredIntermediateVariables[%zu] = %u is not "
+                     "allowed: the value reference of a variable with intermediateUpdate=\"true\" (an output; see "
+                     "modelDescription.xml)", i, (unsigned)requiredIntermediateVariables[i]);
+            if (logMessage) logMessage(instanceEnvironment, fmi3Error, "logStatusError", msg);
+            return NULL;
+        }
     }
-    return instantiate("fmi3InstantiateCoSimulation", 0, instanceName, instantiationToken, loggingOn,
-                       instanceEnvironment, logMessage);
+    fmi3Instance instance = instantiate("fmi3InstantiateCoSimulation", 0, instanceName, instantiationToken,
+                                        loggingOn, instanceEnvironment, logMessage);
+    if (instance) {
+        M->event_mode = eventModeUsed ? 1 : 0;
+        M->early_return = earlyReturnAllowed ? 1 : 0;
+        ((Env *)M->env)->update = intermediateUpdate;
+        M->update = intermediateUpdate ? update3 : NULL;
+    }
+    return instance;
 }
 
 fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3String instantiationToken,
@@ -160,6 +193,12 @@ fmi3Instance fmi3InstantiateScheduledExecution(fmi3String instanceName, fmi3Stri
 
 void fmi3FreeInstance(fmi3Instance instance) {
     if (!instance) return;
+    if (M->in_update) {   /* the doStep that called back still runs on it: kept (a leak, not a crash) */
+        M->fn = "fmi3FreeInstance";
+        gs_log_error(M, "Illegal call sequence: not allowed in intermediate update mode (inside the intermediate "
+                     "update callback of fmi3DoStep); the instance is not freed");
+        return;
+    }
     free(M->env);
     gs_free(M);
 }
@@ -179,16 +218,24 @@ fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
         gs_me_start(M);
         M->d.fmi_state = GS_EVENT;
     } else {
-        M->d.fmi_state = GS_STEP;
+        M->d.fmi_state = M->event_mode ? GS_EVENT : GS_STEP;   /* eventModeUsed: event mode first */
     }
     return fmi3OK;
 }
 
 fmi3Status fmi3EnterEventMode(fmi3Instance instance) {
     CHECK(ALL_STATES, "fmi3EnterEventMode");
-    if (!M->d.me) {
-        gs_log_error(M, "this FMU has no event mode in co-simulation (hasEventMode=\"false\")");
-        return fmi3Error;
+    if (!M->d.me) {   /* co-simulation: from step mode, where the importer said it uses event mode */
+        if (!M->event_mode) {
+            gs_log_error(M, "not allowed: the instance was instantiated with eventModeUsed = false (event mode is "
+                         "used where fmi3InstantiateCoSimulation gets eventModeUsed = true)");
+            return fmi3Error;
+        }
+        if (!(M->d.fmi_state & (GS_STEP | GS_EVENT)) && !gs_check_state(M, GS_STEP | GS_EVENT, "fmi3EnterEventMode")) {
+            return fmi3Error;
+        }
+        M->d.fmi_state = GS_EVENT;
+        return fmi3OK;
     }
     if (!(M->d.fmi_state & (GS_EVENT | GS_CONT)) && !gs_check_state(M, GS_EVENT | GS_CONT, "fmi3EnterEventMode")) {
         return fmi3Error;
@@ -212,7 +259,8 @@ fmi3Status fmi3Reset(fmi3Instance instance) {
 
 /* ----------------------------------------------------------------------------------------------- values */
 
-#define GET_MASK (GS_INIT | GS_STEP | GS_TERMINATED | GS_EVENT | GS_CONT)
+#define GET_MASK (GS_INIT | GS_STEP | GS_TERMINATED | GS_EVENT | GS_CONT | GS_UPDATE)   /* the variables: gs_get_real
+                                                                                      * checks which in GS_UPDATE */
 #define SET_MASK (GS_INSTANTIATED | GS_INIT | GS_STEP | GS_EVENT | GS_CONT)
 
 static int scalar_count(fmi3Instance instance, const char *function, size_t nvr, size_t nValues) {
@@ -225,30 +273,25 @@ static int scalar_count(fmi3Instance instance, const char *function, size_t nvr,
     return 1;
 }
 
+#include "gyrosim_arrays.h"   /* the array variables (FMI 3.0): fmi3GetFloat64, fmi3SetFloat64 */
+
+/* Scalars and arrays: nValues is the number of elements of every value reference (an array serialised row-major). */
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, fmi3Float64 values[], size_t nValues) {
     CHECK(GET_MASK, "fmi3GetFloat64");
-    if (!scalar_count(instance, "fmi3GetFloat64", nValueReferences, nValues)) return fmi3Error;
-    if (nValueReferences == 0) return fmi3OK;
-    NOT_NULL(valueReferences, "fmi3GetFloat64", "valueReferences[]");
-    NOT_NULL(values, "fmi3GetFloat64", "values[]");
-    for (size_t i = 0; i < nValueReferences; i++) {
-        if (gs_get_real(M, valueReferences[i], &values[i]) != GS_OK) return fmi3Error;
-    }
-    return fmi3OK;
+    if (nValueReferences == 0 && nValues == 0) return fmi3OK;
+    if (nValueReferences > 0) NOT_NULL(valueReferences, "fmi3GetFloat64", "valueReferences[]");
+    if (nValues > 0) NOT_NULL(values, "fmi3GetFloat64", "values[]");
+    return st(gs_get_float64(M, valueReferences, nValueReferences, values, nValues));
 }
 
 fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference valueReferences[],
                           size_t nValueReferences, const fmi3Float64 values[], size_t nValues) {
     CHECK(SET_MASK, "fmi3SetFloat64");
-    if (!scalar_count(instance, "fmi3SetFloat64", nValueReferences, nValues)) return fmi3Error;
-    if (nValueReferences == 0) return fmi3OK;
-    NOT_NULL(valueReferences, "fmi3SetFloat64", "valueReferences[]");
-    NOT_NULL(values, "fmi3SetFloat64", "values[]");
-    for (size_t i = 0; i < nValueReferences; i++) {
-        if (gs_set_real(M, valueReferences[i], values[i]) != GS_OK) return fmi3Error;
-    }
-    return fmi3OK;
+    if (nValueReferences == 0 && nValues == 0) return fmi3OK;
+    if (nValueReferences > 0) NOT_NULL(valueReferences, "fmi3SetFloat64", "valueReferences[]");
+    if (nValues > 0) NOT_NULL(values, "fmi3SetFloat64", "values[]");
+    return st(gs_set_float64(M, valueReferences, nValueReferences, values, nValues));
 }
 
 fmi3Status fmi3GetString(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -391,7 +434,7 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
                                         size_t nUnknowns, const fmi3ValueReference knowns[], size_t nKnowns,
                                         const fmi3Float64 seed[], size_t nSeed, fmi3Float64 sensitivity[],
                                         size_t nSensitivity) {
-    CHECK(GET_MASK, "fmi3GetDirectionalDerivative");
+    CHECK(GET_MASK & ~GS_UPDATE, "fmi3GetDirectionalDerivative");
     if (nSeed != nKnowns) {
         gs_log_error(M, "nSeed = %zu is not allowed: the knowns are scalars, so nSeed = nKnowns = %zu", nSeed,
                      nKnowns);
@@ -412,18 +455,17 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance, const fmi3ValueRe
     return st(gs_directional(M, unknowns, nUnknowns, knowns, nKnowns, seed, sensitivity));
 }
 
+/* sensitivity^T = seed^T J, J the Jacobian of fmi3GetDirectionalDerivative (the same knowns and unknowns; an array
+ * stands for its elements): computed from J's columns, one per known element (gyrosim_arrays.c: no reverse pass). */
 fmi3Status fmi3GetAdjointDerivative(fmi3Instance instance, const fmi3ValueReference unknowns[], size_t nUnknowns,
                                     const fmi3ValueReference knowns[], size_t nKnowns, const fmi3Float64 seed[],
                                     size_t nSeed, fmi3Float64 sensitivity[], size_t nSensitivity) {
-    (void)unknowns;
-    (void)nUnknowns;
-    (void)knowns;
-    (void)nKnowns;
-    (void)seed;
-    (void)nSeed;
-    (void)sensitivity;
-    (void)nSensitivity;
-    return not_provided(instance, "fmi3GetAdjointDerivative", "providesAdjointDerivatives=\"false\"");
+    CHECK(GET_MASK & ~GS_UPDATE, "fmi3GetAdjointDerivative");   /* as fmi3GetDirectionalDerivative */
+    if (nUnknowns > 0) NOT_NULL(unknowns, "fmi3GetAdjointDerivative", "unknowns[]");
+    if (nKnowns > 0) NOT_NULL(knowns, "fmi3GetAdjointDerivative", "knowns[]");
+    if (nSeed > 0) NOT_NULL(seed, "fmi3GetAdjointDerivative", "seed[]");
+    if (nSensitivity > 0) NOT_NULL(sensitivity, "fmi3GetAdjointDerivative", "sensitivity[]");
+    return st(gs_adjoint(M, unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity));
 }
 
 fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance) {
@@ -514,7 +556,7 @@ fmi3Status fmi3SetShiftFraction(fmi3Instance instance, const fmi3ValueReference 
         CHECK((mask), (name)); \
         if (!M->d.me) { \
             gs_log_error(M, "a model-exchange function: this instance is co-simulation (instantiated with " \
-                         "fmi3InstantiateCoSimulation; hasEventMode=\"false\")"); \
+                         "fmi3InstantiateCoSimulation)"); \
             return fmi3Error; \
         } \
     } while (0)
@@ -529,9 +571,11 @@ fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boolean *discrete
                                     fmi3Boolean *nominalsOfContinuousStatesChanged,
                                     fmi3Boolean *valuesOfContinuousStatesChanged, fmi3Boolean *nextEventTimeDefined,
                                     fmi3Float64 *nextEventTime) {
-    CHECK_ME(GS_EVENT, "fmi3UpdateDiscreteStates");
+    CHECK(GS_EVENT, "fmi3UpdateDiscreteStates");
     int changed = 0;
-    if (gs_me_update(M, &changed) != GS_OK) return fmi3Error;
+    /* model exchange: the impacts and renormalisations at the state the host has; co-simulation: the impact doStep
+     * returned at (eventHandlingNeeded), if any */
+    if ((M->d.me ? gs_me_update(M, &changed) : gs_cs_update(M, &changed)) != GS_OK) return fmi3Error;
     if (discreteStatesNeedUpdate) *discreteStatesNeedUpdate = fmi3False;
     if (terminateSimulation) *terminateSimulation = fmi3False;
     if (nominalsOfContinuousStatesChanged) *nominalsOfContinuousStatesChanged = fmi3False;
@@ -686,8 +730,20 @@ fmi3Status fmi3DeserializeFMUState(fmi3Instance instance, const fmi3Byte seriali
 
 fmi3Status fmi3EnterStepMode(fmi3Instance instance) {
     CHECK(ALL_STATES, "fmi3EnterStepMode");
-    gs_log_error(M, "this FMU has no event mode; fmi3ExitInitializationMode enters step mode");
-    return fmi3Error;
+    if (M->d.me) {
+        gs_log_error(M, "a co-simulation function: this instance is model exchange (instantiated with "
+                     "fmi3InstantiateModelExchange)");
+        return fmi3Error;
+    }
+    if (!M->event_mode) {
+        gs_log_error(M, "not allowed: the instance was instantiated with eventModeUsed = false, and "
+                     "fmi3ExitInitializationMode entered step mode");
+        return fmi3Error;
+    }
+    if (!(M->d.fmi_state & GS_EVENT) && !gs_check_state(M, GS_EVENT, "fmi3EnterStepMode")) return fmi3Error;
+    if (gs_cs_step_mode(M) != GS_OK) return fmi3Error;
+    M->d.fmi_state = GS_STEP;
+    return fmi3OK;
 }
 
 fmi3Status fmi3GetOutputDerivatives(fmi3Instance instance, const fmi3ValueReference valueReferences[],
@@ -707,10 +763,14 @@ fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 currentCommunicationPoi
                       fmi3Float64 *lastSuccessfulTime) {
     (void)noSetFMUStatePriorToCurrentPoint;
     CHECK(GS_STEP, "fmi3DoStep");
-    const int s = gs_do_step(M, currentCommunicationPoint, communicationStepSize);
-    if (eventHandlingNeeded) *eventHandlingNeeded = fmi3False;
+    int event = 0, early = 0;
+    /* without events to return at, an update to call or an interval to go on with: gs_do_step, today's path */
+    const int s = (M->event_mode && M->early_return) || M->update || M->d.in_interval
+                      ? gs_do_step_events(M, currentCommunicationPoint, communicationStepSize, &event, &early)
+                      : gs_do_step(M, currentCommunicationPoint, communicationStepSize);
+    if (eventHandlingNeeded) *eventHandlingNeeded = event ? fmi3True : fmi3False;
     if (terminateSimulation) *terminateSimulation = fmi3False;
-    if (earlyReturn) *earlyReturn = fmi3False;
+    if (earlyReturn) *earlyReturn = early ? fmi3True : fmi3False;
     if (lastSuccessfulTime) *lastSuccessfulTime = gs_time(M);
     return st(s);
 }

@@ -43,6 +43,18 @@ int gs_set_string(GsInstance *m, uint32_t vr, const char *value);
 int gs_do_step(GsInstance *m, double current_time, double h);
 double gs_time(const GsInstance *m);
 
+/* FMI 3.0 co-simulation's doStep with events, early return and intermediate update (gyrosim_model.c, "co-simulation
+ * events"): *event = 1 when it stopped at an impact (eventHandlingNeeded: m->event_mode and m->early_return), *early
+ * = 1 when it returned before the step's end; the time reached is gs_time. GS_OK, or GS_ERROR (logged; the instance
+ * as before the call). */
+int gs_do_step_events(GsInstance *m, double current_time, double h, int *event, int *early);
+/* fmi3UpdateDiscreteStates in co-simulation: the impact doStep stopped at, applied (*values_changed = 1) */
+int gs_cs_update(GsInstance *m, int *values_changed);
+/* fmi3EnterStepMode's check: GS_ERROR (logged) while the impact doStep returned at is not applied */
+int gs_cs_step_mode(GsInstance *m);
+/* 1 when variable vr may be got in intermediate update mode (intermediateUpdate="true": the outputs; and time) */
+int gs_intermediate_variable(uint32_t vr);
+
 /* Model Exchange (the host's solver integrates the system's coordinates; see gyrosim_model.h). */
 void gs_me_start(GsInstance *m);
 int gs_me_set_time(GsInstance *m, double t);

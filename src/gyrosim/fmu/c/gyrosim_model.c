@@ -263,6 +263,11 @@ int gs_get_real(GsInstance *m, uint32_t vr, double *value) {
     const GsVar *v = var_of(vr);
     GsData *d = &m->d;
     if (!v) return unknown_vr(m, vr, "Real");
+    if (m->in_update && !gs_intermediate_variable(vr)) {
+        gs_log_error(m, "%s cannot be got in intermediate update mode: only the variables with "
+                     "intermediateUpdate=\"true\" (the outputs) and time", v->name);
+        return GS_ERROR;
+    }
     switch (v->kind) {
         case GS_K_TIME: *value = gs_time(m); return GS_OK;
         case GS_K_PARAM: case GS_K_MAX_DRIFT: case GS_K_INPUT: *value = d->par[v->index]; return GS_OK;
@@ -396,6 +401,11 @@ int gs_set_real(GsInstance *m, uint32_t vr, double x) {
 int gs_get_string(GsInstance *m, uint32_t vr, const char **value) {
     const GsVar *v = var_of(vr);
     if (!v || v->kind != GS_K_INTEGRATOR) return unknown_vr(m, vr, "String");
+    if (m->in_update) {
+        gs_log_error(m, "%s cannot be got in intermediate update mode: only the variables with "
+                     "intermediateUpdate=\"true\" (the outputs) and time", v->name);
+        return GS_ERROR;
+    }
     *value = gs_method_names[m->d.integrator];
     return GS_OK;
 }
@@ -450,20 +460,19 @@ int gs_set_string(GsInstance *m, uint32_t vr, const char *value) {
 
 /* ------------------------------------------------------------------------------------------ stepping */
 
-/* Model.step (with the FMU's check of the current communication point) */
-int gs_do_step(GsInstance *m, double current_time, double h) {
+/* doStep's checks beyond start_step's: the integrator allowed and applicable, the work bounded (an interval of H):
+ * GS_OK, or GS_ERROR logged */
+static int step_checks(GsInstance *m, double H) {
     GsData *d = &m->d;
-    const double t = gs_time(m);
-    if (start_step(m, current_time, h) != GS_OK) return GS_ERROR;
     const int method = d->integrator;
     if (!gs_sys_method_allowed(&m->sys, method)) {   /* only a damaged state gets here */
         gs_log_error(m, "integrator code %d is not allowed: one of " GS_INTEGRATOR_LIST, method);
         return GS_ERROR;
     }
-    if (gs_sys_uses_max_step(&m->sys, method) && gs_substeps(h, d->max_step) == 0) {   /* bounded work */
+    if (gs_sys_uses_max_step(&m->sys, method) && gs_substeps(H, d->max_step) == 0) {   /* bounded work */
         gs_log_error(m, "a step of h = %s s with max_step = %s s needs %.3g internal steps, more than the %d one "
-                     "doStep may take; raise max_step or take shorter steps", num(h).s, num(d->max_step).s,
-                     h / d->max_step, GS_MAX_WORK);
+                     "doStep may take; raise max_step or take shorter steps", num(H).s, num(d->max_step).s,
+                     H / d->max_step, GS_MAX_WORK);
         return GS_ERROR;
     }
     int unit = 0;
@@ -473,20 +482,38 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
                      GS_SYS_UNITS > 1 ? unit_where(unit, "body ").s : "the body", why);
         return GS_ERROR;
     }
+    return GS_OK;
+}
+
+/* A step that failed (status[units] from the engine): the instance back to m->scratch (the state before the call)
+ * and the kernel's diagnosis of a step of h from t logged. GS_ERROR. */
+static int step_failed(GsInstance *m, const int32_t *status, double t, double h) {
+    GsData *d = &m->d;
+    const int method = d->integrator;
+    char why[1024];
+    memcpy(d, m->scratch, sizeof(GsData));
+    m->outputs_valid = 0;
+    int unit = 0;
+    while (unit < GS_SYS_UNITS - 1 && !status[unit]) unit++;
+    gs_sys_diagnose(&m->sys, method, d->y, d->p, d->hint, GS_SYS_NEX ? d->ex : NULL, t, h, d->tolerance,
+                    d->tolerance, d->max_step, unit, status[unit], why, sizeof(why));
+    gs_log_error(m, "integrator '%s' blew up%s in the step from t = %s s with h = %s s: %s",
+                 gs_method_names[method], unit_where(unit, " for body ").s, num(t).s, num(h).s, why);
+    return GS_ERROR;
+}
+
+/* Model.step (with the FMU's check of the current communication point) */
+int gs_do_step(GsInstance *m, double current_time, double h) {
+    GsData *d = &m->d;
+    const double t = gs_time(m);
+    if (start_step(m, current_time, h) != GS_OK) return GS_ERROR;
+    if (step_checks(m, h) != GS_OK) return GS_ERROR;
+    const int method = d->integrator;
     memcpy(m->scratch, d, sizeof(GsData));
     int32_t status[GS_SYS_UNITS];
     const size_t failed = gs_sys_advance(&m->sys, 1, method, d->y, d->p, t, h, d->tolerance, d->tolerance,
                                          d->max_step, d->hint, d->stats, GS_SYS_NEX ? d->ex : NULL, status, 1);
-    if (failed) {
-        memcpy(d, m->scratch, sizeof(GsData));
-        unit = 0;
-        while (unit < GS_SYS_UNITS - 1 && !status[unit]) unit++;
-        gs_sys_diagnose(&m->sys, method, d->y, d->p, d->hint, GS_SYS_NEX ? d->ex : NULL, t, h, d->tolerance,
-                        d->tolerance, d->max_step, unit, status[unit], why, sizeof(why));
-        gs_log_error(m, "integrator '%s' blew up%s in the step from t = %s s with h = %s s: %s",
-                     gs_method_names[method], unit_where(unit, " for body ").s, num(t).s, num(h).s, why);
-        return GS_ERROR;
-    }
+    if (failed) return step_failed(m, status, t, h);
     if (h == d->h) {
         d->n += 1;
     } else {
@@ -496,6 +523,147 @@ int gs_do_step(GsInstance *m, double current_time, double h) {
     }
     m->outputs_valid = 0;
     return GS_OK;
+}
+
+/* ------------------------------------------------------------------------------------------ co-simulation events */
+/* FMI 3.0 co-simulation with events, early return and intermediate update (gyrosim_model.h's GsData fields).
+ *
+ * doStep takes its interval as gs_do_step does, in calls of gs_sys_advance_event that stop at each impact the
+ * engine locates (the time to round-off of the fixed-step methods' own steps). At an impact:
+ *   - instantiated with eventModeUsed and earlyReturnAllowed: doStep returns there with eventHandlingNeeded, the
+ *     state the one at the impact and before it (the outputs read there), the time the impact's; the impact is
+ *     applied in fmi3UpdateDiscreteStates (gs_cs_update: gs_sys_impact, the law the engine applies inside a step);
+ *   - otherwise the impact is applied at once, as inside gs_do_step, and the interval goes on.
+ * The intermediate update callback, where given, is called at every impact (after it where it is applied inside)
+ * and at the interval's end, each time at a state the steps have finished (intermediateStepFinished), the outputs
+ * readable (intermediateVariableGetAllowed); where the importer asks for an early return there (and allowed it at
+ * instantiation), doStep returns at that time. The importer's next doStep that ends where the interval ends goes on
+ * with the interval's own steps: a run stopped at every impact then has the bits of a run of gs_do_step over the
+ * same communication points (gyrosim.model.Model's), its impacts at the times the engine locates inside Model's
+ * steps. A doStep that ends elsewhere starts an interval of its own from the time reached. */
+
+/* the clock once the interval is done: what gs_do_step leaves after a step of iv_H from iv_t0 */
+static void interval_done(GsData *d) {
+    if (d->iv_H == d->iv_h) {
+        d->t_base = d->iv_tb;
+        d->n = d->iv_n + 1;
+        d->h = d->iv_h;
+    } else {
+        d->t_base = d->iv_t0;
+        d->n = 1;
+        d->h = d->iv_H;
+    }
+    d->in_interval = 0;
+}
+
+/* the intermediate update callback at the clock's time and the state as they are: 1 when the importer asks for an
+ * early return and may have it (can_return_early, and earlyReturnAllowed) */
+static int intermediate_update(GsInstance *m, int can_return_early) {
+    if (!m->update) return 0;
+    const char *fn = m->fn;   /* the functions called back set it */
+    m->outputs_valid = 0;
+    m->in_update = 1;
+    const int requested = m->update(m->env, gs_time(m), can_return_early && m->early_return);
+    m->in_update = 0;
+    m->fn = fn;
+    return requested && can_return_early && m->early_return;
+}
+
+int gs_do_step_events(GsInstance *m, double current_time, double h, int *event, int *early) {
+    GsData *d = &m->d;
+    *event = 0;
+    *early = 0;
+    if (d->event_pending) {
+        gs_log_error(m, "a doStep is not allowed while the impact at t = %s s is pending (doStep returned "
+                     "eventHandlingNeeded = true there): call fmi3EnterEventMode, fmi3UpdateDiscreteStates and "
+                     "fmi3EnterStepMode first", num(gs_time(m)).s);
+        return GS_ERROR;
+    }
+    const double t = gs_time(m);
+    if (start_step(m, current_time, h) != GS_OK) return GS_ERROR;
+    /* the interval begun by an earlier doStep goes on where this step ends where it ends (to the tolerance of
+     * currentCommunicationPoint) */
+    const double iv_end = d->iv_t0 + d->iv_H, scale = fabs(iv_end) > 1.0 ? fabs(iv_end) : 1.0;
+    const int resume = d->in_interval && fabs(t + h - iv_end) <= 1e-9 * scale;
+    if (step_checks(m, resume ? d->iv_H : h) != GS_OK) return GS_ERROR;
+    memcpy(m->scratch, d, sizeof(GsData));
+    if (!resume) {
+        d->iv_t0 = t;
+        d->iv_H = h;
+        d->iv_tb = d->t_base;
+        d->iv_n = d->n;
+        d->iv_h = d->h;
+        memset(&d->at, 0, sizeof(d->at));
+    }
+    d->in_interval = 1;
+    const int stop_at_events = m->event_mode && m->early_return;
+    for (;;) {
+        int32_t status[GS_SYS_UNITS];
+        int ev = 0;
+        double elapsed = 0.0;
+        const size_t failed = gs_sys_advance_event(&m->sys, d->integrator, d->y, d->p, d->iv_t0, d->iv_H,
+                                                   d->tolerance, d->tolerance, d->max_step, d->hint, d->stats,
+                                                   GS_SYS_NEX ? d->ex : NULL, status, &d->at, &ev, &elapsed);
+        if (failed) return step_failed(m, status, t, h);
+        m->outputs_valid = 0;
+        if (!ev) {   /* the interval's end */
+            interval_done(d);
+            intermediate_update(m, 0);
+            return GS_OK;
+        }
+        if (d->at.finished) {   /* an impact at the interval's very end */
+            interval_done(d);
+        } else {
+            d->t_base = d->iv_t0 + elapsed;
+            d->n = 0;
+            d->h = 0.0;
+        }
+        const double te = gs_time(m);
+        if (stop_at_events) {
+            d->event_pending = 1;
+            gs_log_event(m, "t = %s s: an impact at a stop (eventHandlingNeeded; fmi3UpdateDiscreteStates "
+                         "applies it)", num(te).s);
+            intermediate_update(m, !d->at.finished);
+            *event = 1;
+            *early = !d->at.finished;
+            return GS_OK;
+        }
+        const int hits = gs_sys_impact(&m->sys, d->y, d->p);
+        gs_log_event(m, "t = %s s: %d impact%s at a stop", num(te).s, hits, hits == 1 ? "" : "s");
+        m->outputs_valid = 0;
+        if (d->at.finished) {
+            intermediate_update(m, 0);
+            return GS_OK;
+        }
+        if (intermediate_update(m, 1)) {   /* the importer's early return */
+            *early = 1;
+            return GS_OK;
+        }
+    }
+}
+
+int gs_cs_update(GsInstance *m, int *values_changed) {
+    GsData *d = &m->d;
+    *values_changed = 0;
+    if (!d->event_pending) return GS_OK;   /* an event of the importer's (its inputs): nothing of the FMU's */
+    const int hits = gs_sys_impact(&m->sys, d->y, d->p);
+    d->event_pending = 0;
+    *values_changed = hits > 0;
+    m->outputs_valid = 0;
+    gs_log_event(m, "t = %s s: %d impact%s at a stop applied", num(gs_time(m)).s, hits, hits == 1 ? "" : "s");
+    return GS_OK;
+}
+
+int gs_cs_step_mode(GsInstance *m) {
+    if (!m->d.event_pending) return GS_OK;
+    gs_log_error(m, "not allowed before fmi3UpdateDiscreteStates: the impact at t = %s s that doStep returned at "
+                 "(eventHandlingNeeded) is applied there; call it at least once in event mode", num(gs_time(m)).s);
+    return GS_ERROR;
+}
+
+int gs_intermediate_variable(uint32_t vr) {
+    const GsVar *v = var_of(vr);
+    return v && (v->kind == GS_K_STATE || v->kind == GS_K_OUTPUT || v->kind == GS_K_TIME);
 }
 
 /* ------------------------------------------------------------------------------------------ model exchange */
@@ -753,6 +921,22 @@ static double dd_pick(const GsInstance *m, const double col[GS_DD_COLUMN], uint3
 
 /* ------------------------------------------------------------------------------------------ state */
 
+/* the co-simulation events' fields of a state read from bytes: where doStep stopped within its interval */
+static int interval_valid(const GsData *d) {
+    const gs_tree_pos *a = &d->at;
+    if ((d->event_pending != 0 && d->event_pending != 1) || (d->in_interval != 0 && d->in_interval != 1) ||
+        (d->event_pending && d->me)) {
+        return 0;
+    }
+    if (!d->in_interval) return 1;
+    return isfinite(d->iv_t0) && isfinite(d->iv_H) && d->iv_H > 0.0 && isfinite(d->iv_tb) && isfinite(d->iv_h) &&
+           d->iv_n >= 0 && a->k >= 0 && isfinite(a->done) && a->done >= 0.0 && a->done <= d->iv_H &&
+           isfinite(a->piece) && a->piece >= 0.0 && a->piece <= d->iv_H && isfinite(a->rem) && a->rem >= 0.0 &&
+           a->rem <= a->piece && isfinite(a->start) && a->start >= 0.0 && a->start <= d->iv_H &&
+           isfinite(a->hint_piece) && a->events >= 0 && a->events <= 65 && (a->inside == 0 || a->inside == 1) &&
+           (a->finished == 0 || a->finished == 1);
+}
+
 int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *out) {
     if (read_state(m, in, size, out) != GS_OK) return GS_ERROR;
     /* the bytes may have been altered: check every field that indexes or divides before the state is used */
@@ -761,7 +945,8 @@ int gs_deserialize(GsInstance *m, const unsigned char *in, size_t size, GsData *
                    out->me == m->d.me && gs_sys_method_allowed(&m->sys, out->integrator) &&
                    isfinite(out->max_step) && out->max_step > 0.0 && isfinite(out->tolerance) &&
                    out->tolerance > 0.0 && out->n >= 0 && isfinite(out->h) && isfinite(out->t_base) &&
-                   out->par[m->sys.drift_slot] >= 0.0 && gs_sys_anchors_valid(&m->sys, GS_SYS_NEX ? out->ex : NULL);
+                   out->par[m->sys.drift_slot] >= 0.0 && gs_sys_anchors_valid(&m->sys, GS_SYS_NEX ? out->ex : NULL) &&
+                   interval_valid(out);
     if (!ok) {
         gs_log_error(m, "the bytes are not allowed: a state serialised by this FMU (inconsistent content)");
         return GS_ERROR;

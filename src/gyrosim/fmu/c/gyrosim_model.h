@@ -69,9 +69,11 @@ typedef struct {
 } GsAliasTarget;
 
 /* Life-cycle states (bit masks), shared by both FMI versions:
- * Instantiated, InitializationMode, StepComplete (FMI 2) / StepMode (FMI 3), Terminated, and for Model Exchange
- * EventMode and ContinuousTimeMode. */
-enum { GS_INSTANTIATED = 1, GS_INIT = 2, GS_STEP = 4, GS_TERMINATED = 8, GS_EVENT = 16, GS_CONT = 32 };
+ * Instantiated, InitializationMode, StepComplete (FMI 2) / StepMode (FMI 3), Terminated, EventMode (model exchange,
+ * and FMI 3.0 co-simulation instantiated with eventModeUsed) and ContinuousTimeMode. GS_UPDATE is no state of
+ * fmi_state: the bit a function's mask carries when it may be called in FMI 3.0's intermediate update mode (inside
+ * the intermediate update callback, while fmi_state stays StepMode). */
+enum { GS_INSTANTIATED = 1, GS_INIT = 2, GS_STEP = 4, GS_TERMINATED = 8, GS_EVENT = 16, GS_CONT = 32, GS_UPDATE = 64 };
 enum { GS_OK = 0, GS_WARNING = 1, GS_DISCARD = 2, GS_ERROR = 3, GS_FATAL = 4 };
 
 /* Model exchange: the continuous states and the quaternion norm drift | |q| - 1 | beyond which a completed integrator
@@ -108,9 +110,24 @@ typedef struct {
     int64_t stats[GS_SYS_UNITS * GS_NSTATS];
     double ex[GS_EX_ROWS];    /* the exact flows' anchors */
     double power[GS_SYS_UNITS];   /* model exchange: the work integrals' power at t_work (W) */
+    /* FMI 3.0 co-simulation's events and early returns (gs_do_step_events): doStep takes its interval [iv_t0,
+     * iv_t0 + iv_H] as gs_do_step does, stopping at an impact (gs_sys_advance_event). Stopped inside it (an event,
+     * an early return), the clock reads the time reached (t_base = that time, n = 0, h = 0) and the next doStep that
+     * ends where the interval ends goes on with the interval's own steps from `at`, so that the run has the bits
+     * of gs_do_step's; at the interval's end the clock is what gs_do_step would have left from the one before it
+     * (iv_tb, iv_n, iv_h). */
+    int32_t event_pending;    /* doStep stopped at an impact (eventHandlingNeeded): fmi3UpdateDiscreteStates applies it */
+    int32_t in_interval;      /* doStep returned inside its interval: at holds where */
+    double iv_t0, iv_H;       /* the interval (s) */
+    double iv_tb, iv_h;       /* the clock at its start: t_base, h (s) */
+    int64_t iv_n;             /* and n */
+    gs_tree_pos at;           /* where in it */
 } GsData;
 
 typedef void (*GsLogger)(void *env, int status, const char *category, const char *message);
+/* FMI 3.0's intermediate update callback as the glue calls it (fmi3Functions.c wraps the importer's): the time, and
+ * whether the FMU can return early there; returns 1 when the importer asks it to (earlyReturnRequested). */
+typedef int (*GsUpdate)(void *env, double t, int can_return_early);
 
 typedef struct {
     GsData d;
@@ -126,6 +143,11 @@ typedef struct {
     GsData *scratch;          /* the state before a step (restored when it fails) */
     int slot[GS_SYS_NDY];     /* y slot of every coordinate, then of every work integral's balance */
     int in_quat[GS_SYS_NDY];  /* the y slot of the quaternion a coordinate belongs to, or -1 */
+    /* FMI 3.0 co-simulation, fixed at instantiation (not part of an FMU state) */
+    int event_mode;           /* eventModeUsed */
+    int early_return;         /* earlyReturnAllowed */
+    GsUpdate update;          /* the intermediate update callback (NULL: none given) */
+    int in_update;            /* 1 inside it: intermediate update mode */
 } GsInstance;
 
 #include "gyrosim_glue_api.h"
