@@ -1785,15 +1785,13 @@ static int root_of(const gs_tree *t, int i) {
     return i;
 }
 
-static void totals_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, Totals *s) {
-    WS_OPEN;
-    KIN_DECL(kin, t->n);
-    kinematics(t, y, p, pre, &kin, 1);
+/* the totals from the world kinematics of the state (kinematics(..., world = 1)) */
+static void totals_kin(const gs_tree *t, const double *y, const double *p, const Kin *kp, Totals *s) {
     const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     s->T = s->V = s->pot_scale = s->inertia = 0.0;
     s->L[0] = s->L[1] = s->L[2] = 0.0;
     for (int i = 0; i < t->n; i++) {
-        const double *b = body_p(p, i), *c = b + GS_TB_CM, *J = b + GS_TB_I, *w = kin.v[i], *v = kin.v[i] + 3;
+        const double *b = body_p(p, i), *c = b + GS_TB_CM, *J = b + GS_TB_I, *w = kp->v[i], *v = kp->v[i] + 3;
         const double m = b[GS_TB_MASS];
         /* the spatial momentum h = I v from the mass, centre of mass and inertia about it (Featherstone, RBDA
          * 2.62): h_lin = m (v + w x c), h_ang = I_c w + c x h_lin */
@@ -1805,26 +1803,26 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
         h[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2] + cxh[1];
         h[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2] + cxh[2];
         s->T += 0.5 * (dot3(w, h) + dot3(v, h + 3));
-        mv3(kin.Rw[i], c, cw);
-        s->V -= m * g * (gd[0] * (kin.ow[i][0] + cw[0]) + gd[1] * (kin.ow[i][1] + cw[1]) + gd[2] * (kin.ow[i][2] + cw[2]));
+        mv3(kp->Rw[i], c, cw);
+        s->V -= m * g * (gd[0] * (kp->ow[i][0] + cw[0]) + gd[1] * (kp->ow[i][1] + cw[1]) + gd[2] * (kp->ow[i][2] + cw[2]));
         const int r = root_of(t, i);
         double d[3], dw[3];
         for (int a = 0; a < 3; a++) {
-            d[a] = kin.ow[i][a] + cw[a] - kin.ow[r][a];
-            dw[a] = kin.ow[i][a] + cw[a];
+            d[a] = kp->ow[i][a] + cw[a] - kp->ow[r][a];
+            dw[a] = kp->ow[i][a] + cw[a];
         }
         /* a root that translates (free, slider) carries its bodies' height: their distance from the world origin */
         const int moves = t->joint[r] == GS_J_FREE || t->joint[r] == GS_J_SLIDER;
         s->pot_scale += m * g * sqrt(moves ? dot3(dw, dw) : dot3(d, d));
         s->inertia += 0.5 * (b[GS_TB_I] + b[GS_TB_I + 1] + b[GS_TB_I + 2]) + m * dot3(d, d);
-        mv3(kin.Rw[i], h, nw);
-        mv3(kin.Rw[i], h + 3, fw);
-        cross3(kin.ow[i], fw, oxf);
+        mv3(kp->Rw[i], h, nw);
+        mv3(kp->Rw[i], h + 3, fw);
+        cross3(kp->ow[i], fw, oxf);
         for (int a = 0; a < 3; a++) s->L[a] += nw[a] + oxf[a];
         if (t->orbit != GS_ORBIT_NONE) {   /* the central potential (Kepler) and the orbit terms' scale */
             const double mu = p[GS_TP_MU], trJ = b[GS_TB_I] + b[GS_TB_I + 1] + b[GS_TB_I + 2];
             double c0[3];
-            for (int a = 0; a < 3; a++) c0[a] = kin.ow[i][a] + cw[a];
+            for (int a = 0; a < 3; a++) c0[a] = kp->ow[i][a] + cw[a];
             const double c2 = dot3(c0, c0);
             if (t->orbit == GS_ORBIT_KEPLER) {
                 const double rc = sqrt(c2);
@@ -1836,11 +1834,20 @@ static void totals_pre(const gs_tree *t, const double *y, const double *p, const
             }
         }
     }
-    const double Ve = elastic(t, y, p, &kin);
+    const double Ve = elastic(t, y, p, kp);
     s->V += Ve;
     s->pot_scale += Ve;
+}
+
+#ifndef GS_TREE_CS   /* the monitor's and the impacts' (the complex step's outputs take totals_kin) */
+static void totals_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, Totals *s) {
+    WS_OPEN;
+    KIN_DECL(kin, t->n);
+    kinematics(t, y, p, pre, &kin, 1);
+    totals_kin(t, y, p, &kin, s);
     WS_CLOSE;
 }
+#endif
 
 #ifndef GS_TREE_CS   /* the monitor: real arithmetic only (tree_cs.c includes the rest) */
 
@@ -2118,13 +2125,14 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
         }
         memcpy(out + t->nx + GS_TREE_BODY_NOUT * i + GS_TREE_OUT_QW, qw[i], sizeof(qr));
     }
-    {   /* every body's origin in the world (kin.ow) and its velocity there: the parent's velocity at the point r_i
-         * (the origin in the parent's frame), v_p + w_p x r_i, plus the joint's own translation (a slider's axis
-         * times its rate, a free joint's velocity relative to its parent), turned into the world by the parent's
-         * rotation. Made from the parent's frame, not the body's own, so that it depends on the body's own rotation
-         * in no way, not even by round-off (the FMUs declare what each output depends on). */
-        KIN_DECL(kin, t->n);
-        kinematics(t, y, p, pre, &kin, 1);
+    /* every body's origin in the world (kin.ow) and its velocity there: the parent's velocity at the point r_i (the
+     * origin in the parent's frame), v_p + w_p x r_i, plus the joint's own translation (a slider's axis times its
+     * rate, a free joint's velocity relative to its parent), turned into the world by the parent's rotation. Made
+     * from the parent's frame, not the body's own, so that it depends on the body's own rotation in no way, not even
+     * by round-off (the FMUs declare what each output depends on). The same kinematics serve the totals below. */
+    KIN_DECL(kin, t->n);
+    kinematics(t, y, p, pre, &kin, 1);
+    {
         for (int i = 0; i < t->n; i++) {
             double *ob = out + t->nx + GS_TREE_BODY_NOUT * i;
             const int par = t->parent[i];
@@ -2151,7 +2159,7 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
     if (memo && memo->valid && t->nx <= GS_ODE_MAX && !memcmp(memo->x, y, (size_t)t->nx * sizeof(double))) {
         s = memo->s;
     } else {
-        totals_pre(t, y, p, pre, &s);
+        totals_kin(t, y, p, &kin, &s);
     }
     double *o = out + GS_TREE_SCENE_OUT(t);
     o[0] = s.T + s.V;
