@@ -621,13 +621,50 @@ class TreeKernel:
         return float(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1], self._p[system:system + 1],
                                          1))
 
+    def _held_derivatives(self, y: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """The state's derivative with the joints that rest on an impact stop held there: a joint on its stop with
+        rate 0 whose free acceleration points into it is kept at rest by the stop's reaction, a generalized force
+        lambda_j on its coordinate (the impacts' contact as a constraint: sum_r A_jr lambda_r = -a_j, A's columns the
+        derivative's response to a unit force at each held joint, the engine's being linear in it). A joint whose
+        reaction would pull is not held (it lifts off), and the rest are solved again."""
+        desc, nx = self.layout.desc, self.layout.nx
+        dy0 = np.zeros(nx + 1)
+        _engine.tree_derivatives(desc, y, p, dy0)
+        held = []
+        for b, body in enumerate(self._bodies):
+            if body.stop != "impact" or body.joint not in ("hinge", "slider"):
+                continue
+            k = self.layout.coord_slots[(b, "angle" if body.joint == "hinge" else "displacement")]
+            x, v, a = y[k], y[k + 1], dy0[k + 1]
+            lo = body.lower is not None and x <= TreeKernel._pp_value(self, p, b, _engine.TB_LO) and a < 0.0
+            hi = body.upper is not None and x >= TreeKernel._pp_value(self, p, b, _engine.TB_HI) and a > 0.0
+            if v == 0.0 and (lo or hi):
+                held.append((b, k))
+        while held:
+            cols = []
+            for b, _ in held:   # the derivative's response to a unit generalized force at joint b
+                q = p.copy()
+                q[self.layout.body_offset(b) + _engine.TB_MOTOR] += 1.0
+                d = np.zeros(nx + 1)
+                _engine.tree_derivatives(desc, y, q, d)
+                cols.append(d - dy0)
+            A = np.array([[c[k + 1] for c in cols] for _, k in held])
+            lam = np.linalg.solve(A, -np.array([dy0[k + 1] for _, k in held]))
+            pushes = [(lam[r] > 0.0) == (dy0[k + 1] < 0.0) for r, (_, k) in enumerate(held)]
+            if all(pushes):
+                return dy0 + sum(lr * c for lr, c in zip(lam, cols))
+            held = [h for h, ok in zip(held, pushes) if ok]
+        return dy0
+
+    def _pp_value(self, p: np.ndarray, b: int, col: int) -> float:
+        return float(p[self.layout.body_offset(b) + col])
+
     def specific_force(self, system: int = 0) -> np.ndarray:
         """(n_bodies, 3) specific force at every body's origin, body frames (Model.specific_force)."""
         out = self._outputs_array()[system]   # initialises
         y, p = self._y[system], self._p[system]
         nx, nb = self.layout.nx, len(BODY_OUTPUTS)
-        dy = np.zeros(nx + 1)
-        _engine.tree_derivatives(self.layout.desc, y, p, dy)
+        dy = TreeKernel._held_derivatives(self, y, p)
         ddy, dout = np.zeros(nx + 1), np.zeros(self.layout.nout)
         _engine.tree_directional(self.layout.desc, y, p, dy[:nx].copy(), np.zeros_like(p), ddy, dout)
         g = float(p[_engine.TP_G]) * p[_engine.TP_GDIR:_engine.TP_GDIR + 3]

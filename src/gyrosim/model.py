@@ -115,15 +115,13 @@ class Model:
                 else:
                     self.set(k, v)
 
-        together = getattr(self._k, "_together", None)
-        if together is None:
-            set_all()
-            return
+        together = getattr(self._k, "_together", None)   # a tree's: its stops (one body has none)
         state, integrator = self.get_state(), self.integrator
         self._defer_together = True
         try:
             set_all()
-            together(self)
+            if together is not None:
+                together(self)
         except BaseException:
             self.set_state(state)
             self.integrator = integrator

@@ -158,3 +158,26 @@ def test_a_slider_set_massless_at_run_time_is_named_as_at_load(tmp_path):
     with pytest.raises(IntegrationError, match=r"body 'ball' has no mass for its slider to move .*\(mass = 0\); "
                                                "give it mass"):
         m.step(0.01)
+
+
+def test_sweeps_and_linearize_take_the_values_together_in_any_order(tmp_path):
+    """A sweep's --set and --vary, and linearize's about={...}, set their values together (Model.set_values): stops
+    moved with the start are taken in either order; a sweep whose draws fall outside the stops names the flag."""
+    from gyrosim.sweep.spec import build_spec, check_spec
+
+    path = _scene(tmp_path, SLIDER.format(x0=1.0, lower=0.0, upper=10.0))
+    for sets in (["lower=20", "upper=30", "displacement=25"], ["displacement=25", "upper=30", "lower=20"]):
+        check_spec(build_spec(path, samples=4, vary=["restitution=uniform(0.5,0.9)"], set=sets, stop_time=0.1))
+    with pytest.raises(ConfigError, match=r"--vary displacement = .* is not allowed: a start within the impact "):
+        check_spec(build_spec(path, samples=4, vary=["displacement=uniform(-2,-1)"], stop_time=0.1))
+    m = Model(path)
+    m.linearize(about={"upper": 30.0, "lower": 20.0, "displacement": 25.0})
+    assert m.get("lower") == 20.0 and m.get("displacement") == 25.0
+
+
+def test_set_values_leaves_a_one_body_model_as_it_was():
+    m = Model("gyroscope")
+    g = m.get("g")
+    with pytest.raises(ConfigError, match="omega_z"):
+        m.set_values({"g": 5.0, "omega_z": 1e200})
+    assert m.get("g") == g

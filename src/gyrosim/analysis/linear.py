@@ -563,8 +563,7 @@ def _reduction(bk: _Block, x: np.ndarray):
 def _state_from(model, about, stages: _Stages = _QUIET) -> dict | None:
     """Set the model to the state ``about`` asks for; about="equilibrium": how the search went."""
     if isinstance(about, dict):
-        for k, v in about.items():
-            model.set(k, v)
+        model.set_values(about)   # checked together: the order of the names does not matter
         model.initialize()
     elif about == "steady_precession":
         steady_precession(model)

@@ -132,13 +132,14 @@ def run_chunk(spec: SweepSpec, k: int) -> dict:
 
 def _model_for(spec: SweepSpec, k: int, per_body: dict, wide: dict) -> Model:
     model = Model(_replicated(spec.scene, k), stop_time=spec.stop_time)
+    values = {}
     for name, value in list(spec.fixed) + list(wide.items()):
         if name == "tolerance":
             model.set_tolerance(float(value))
         else:
-            model.set(name, value)
-    for name, values in per_body.items():
-        model.set_many(name, values)
+            values[name] = value
+    values.update(per_body)   # one value per copy
+    model.set_values(values)   # checked together: the order of --set and --vary does not matter
     return model
 
 

@@ -485,15 +485,20 @@ def check_spec(spec: SweepSpec) -> None:
     check_draws(spec)
     m = Model(spec.scene, stop_time=spec.stop_time)
     first = {n: v[0] for n, v in draw(spec, 0, 1).items()}
+    values = {}
     for name, value in list(spec.fixed) + list(first.items()):
-        flag = "--set" if name not in first else "--vary"
-        try:
-            if name == "tolerance":
+        if name == "tolerance":
+            try:
                 m.set_tolerance(float(value))
-            else:
-                m.set(name, value.item() if isinstance(value, np.generic) else value)
-        except ConfigError as e:
-            raise ConfigError(f"{flag} {name}", e.value, e.allowed) from None
+            except ConfigError as e:
+                raise ConfigError(f"{'--vary' if name in first else '--set'} {name}", e.value, e.allowed) from None
+        else:
+            values[name] = value.item() if isinstance(value, np.generic) else value
+    try:   # each value's range, then the values together (a joint's stops, a start within them), in any order
+        m.set_values(values)
+    except ConfigError as e:   # named with the flag that gave it, where one did
+        flag = "--vary " if e.field in first else "--set " if e.field in dict(spec.fixed) else ""
+        raise ConfigError(f"{flag}{e.field}", e.value, e.allowed) from None
     m.initialize()
     m.trajectory(spec.output_interval, 0)  # the call's checks (exact on a torque-free body, bounded work)
 

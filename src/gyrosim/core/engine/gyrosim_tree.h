@@ -267,6 +267,9 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
  * slot[0] = the upper stop's slot in p and slot[1] = the lower's, or GS_TREE_BAD_START with slot[0] = the
  * coordinate's slot in y and slot[1], slot[2] the lower and upper stops' slots in p (-1 where that stop is not
  * set). The callers name the variables and print the message. */
+/* The impacts one piece of a step may locate: beyond it the call fails (a rattle faster than the step can follow;
+ * an accumulation point ends by its flights' shrinking below the step's round-off, long before). */
+#define GS_TREE_MAX_EVENTS 100000
 #define GS_TREE_OK 0
 #define GS_TREE_BAD_STOPS 1
 #define GS_TREE_BAD_START 2

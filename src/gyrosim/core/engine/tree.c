@@ -2404,9 +2404,11 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
  * round-off of the step size, or the joint did not leave), the sequence of impacts has reached its accumulation
  * point (a bouncing that converges in finite time: Zeno), and the joint comes to rest: a plastic impact
  * (restitution 0) at the piece's end puts it on the stop with rate 0, the energy it takes in the balance's W (so
- * that energy_error stays at the integrator's error). So does every crossing after 64 events in one piece. A joint
- * at rest on its stop stays there while the forces press it on (every piece ends beyond and is projected back), and
- * leaves when they pull it away. Returns as advance_system. */
+ * that energy_error stays at the integrator's error). A joint at rest on its stop stays there while the forces
+ * press it on (every piece ends beyond and is projected back), and leaves when they pull it away. A joint that
+ * reaches its stop exactly at a piece's end, or starts a piece on it moving in, gets the restitution law there. More
+ * than GS_TREE_MAX_EVENTS impacts in one piece (a rattle the step cannot follow) fail the call. Returns as
+ * advance_system. */
 static int32_t advance_from(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                             int64_t n_sub, double rtol, double atol, double max_step, double *hint, int64_t *stats,
                             TotalsMemo *memo, gs_tree_pos *at);
@@ -2483,8 +2485,11 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
              * the flights towards an accumulation point) */
             hint_piece = *hint;
             gs_tree_indicators(t, y, p, z0);
+            indicator_rates(t, y, p, zd0);
             for (int c = 0; c < nz; c++) {
-                if (z0[c] < 0.0) {   /* beyond a stop at the start: put on it where it moves out */
+                /* beyond a stop at the start, or on it and moving in (a start value, a stop set into or onto the
+                 * joint): the impact's law where it moves out */
+                if (z0[c] < 0.0 || (z0[c] == 0.0 && zd0[c] < 0.0)) {
                     impact_pre(t, y, p, pre, 0);
                     break;
                 }
@@ -2504,7 +2509,8 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
             int j = -1, resting = 0;
             double first = 2.0, a = 0.0, ga = 0.0;
             for (int c = 0; c < nz; c++) {
-                if (!(z1[c] < 0.0)) continue;
+                /* beyond the stop at the end, or exactly on it and moving in (an impact at the piece's end) */
+                if (!(z1[c] < 0.0 || (z1[c] == 0.0 && zd1[c] < 0.0))) continue;
                 if (z0[c] > 0.0) {
                     const double f = z0[c] / (z0[c] - z1[c]);
                     if (f < first) {
@@ -2535,14 +2541,19 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
                     ga = za[c];
                 }
             }
-            if (j < 0 || ++events > 64) {   /* nothing to locate: the resting joints (or a Zeno run) brought to rest */
+            if (j < 0) {   /* nothing to locate: the resting joints (a Zeno run's end) brought to rest */
                 *hint = hint1;   /* y is the state of the whole piece */
-                if (j >= 0 || resting) impact_pre(t, y, p, pre, 1);
+                if (resting) impact_pre(t, y, p, pre, 1);
                 break;
+            }
+            if (++events > GS_TREE_MAX_EVENTS) {   /* a rattle faster than the step can follow: fail, never guess */
+                rc = (int32_t)(k + 1 > 2147483647 ? 2147483647 : k + 1);
+                goto done;
             }
             double b = rem, gb = z1[j], tau = rem, g = gb;
             int side = 0;
-            for (int it = 0; it < 200 && b - a > 4.0 * DBL_EPSILON * rem; it++) {
+            /* exactly on the stop at the piece's end (gb = 0): the impact is there, y the state at it */
+            for (int it = 0; it < 200 && gb != 0.0 && b - a > 4.0 * DBL_EPSILON * rem; it++) {
                 tau = (a * gb - b * ga) / (gb - ga);
                 if (!(tau > a && tau < b)) tau = 0.5 * (a + b);
                 STEP_FROM_Y0(y, tau);
@@ -2561,7 +2572,7 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
                     side = -1;
                 }
             }
-            if (g > 0.0) {   /* the state on or beyond the stop: the bracket's far end */
+            if (g > 0.0 && gb != 0.0) {   /* the state on or beyond the stop: the bracket's far end */
                 tau = b;
                 STEP_FROM_Y0(y, tau);
             }
