@@ -2542,7 +2542,9 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
                 }
             }
             if (j < 0) {   /* nothing to locate: the resting joints (a Zeno run's end) brought to rest */
-                *hint = hint1;   /* y is the state of the whole piece */
+                /* y is the state of the whole piece; after an impact in it, the controller's step is the smooth
+                 * motion's again (the remainder it last took may have been short) */
+                *hint = !fixed && events > 0 ? fmax(hint1, hint_piece) : hint1;
                 if (resting) impact_pre(t, y, p, pre, 1);
                 break;
             }
