@@ -819,16 +819,12 @@ class BodyKernel:
         """(n_bodies, 3) (``system`` is the body's row here): a body of this kernel turns about a point at rest in
         the world (its pivot, or its centre of mass), so its origin does not accelerate: an accelerometer there reads
         -g, in the body's frame, held by the pivot (+g along the world's up), and 0 where there is no gravity."""
-        out = self._outputs_array()
-        f = np.zeros((self.n_bodies, 3))
-        for b in range(self.n_bodies):
-            if not (self.scene.flags & _engine.GRAVITY):
-                continue
-            w, x, y, z = (float(out[b, _engine.O_Q + k]) for k in range(4))
-            g = float(self._g[b])
-            # R^T (0, 0, g): the world's up in the body frame, times g
-            f[b] = g * np.array([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)])
-        return f
+        from .core.rotations import quat_to_matrix
+
+        if not (self.scene.flags & _engine.GRAVITY):
+            return np.zeros((self.n_bodies, 3))
+        R = quat_to_matrix(self._outputs_array()[:, _engine.O_Q:_engine.O_Q + 4])   # body -> world
+        return self._g[:, None] * R[:, 2, :]   # R^T (0, 0, g): the world's up in the body frame, times g
 
     def dynamics_kernel(self, system: int = 0) -> str:
         return "rigid_body"

@@ -668,16 +668,13 @@ class TreeKernel:
         ddy, dout = np.zeros(nx + 1), np.zeros(self.layout.nout)
         _engine.tree_directional(self.layout.desc, y, p, dy[:nx].copy(), np.zeros_like(p), ddy, dout)
         g = float(p[_engine.TP_G]) * p[_engine.TP_GDIR:_engine.TP_GDIR + 3]
-        f = np.empty((self.n_bodies, 3))
-        for i in range(self.n_bodies):
-            at = nx + nb * i
-            w, x, yq, z = out[at:at + 4]
-            R = np.array([[1 - 2 * (yq * yq + z * z), 2 * (x * yq - w * z), 2 * (x * z + w * yq)],
-                          [2 * (x * yq + w * z), 1 - 2 * (x * x + z * z), 2 * (yq * z - w * x)],
-                          [2 * (x * z - w * yq), 2 * (yq * z + w * x), 1 - 2 * (x * x + yq * yq)]])
-            a = dout[at + BODY_OUTPUTS.index("v_world_x"):at + BODY_OUTPUTS.index("v_world_x") + 3]
-            f[i] = R.T @ (a - g)
-        return f
+        from .core.rotations import quat_to_matrix
+
+        qw, vw = BODY_OUTPUTS.index("q_world_w"), BODY_OUTPUTS.index("v_world_x")
+        at = nx + nb * np.arange(self.n_bodies)
+        R = quat_to_matrix(np.stack([out[k + qw:k + qw + 4] for k in at]))   # body -> world, (n_bodies, 3, 3)
+        a = np.stack([dout[k + vw:k + vw + 3] for k in at])
+        return np.einsum("bji,bj->bi", R, a - g)   # R^T (a - g)
 
     def dynamics_kernel(self, system: int = 0) -> str:
         p = self._p if self._p is not None else self._pp   # before initialize: the parameters set so far

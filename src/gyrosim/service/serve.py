@@ -54,15 +54,10 @@ from .config import describe_endpoints, open_session, zenoh_error
 from .ros2 import Frame
 from .tree import SCENE_OUTPUTS, FrameState, TreeFrames
 
-__all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals", "MotorForce",
-           "parse_motor_force", "DEFAULT_FORCE_LIMIT", "FORCE_ENCODING", "MOTOR_INPUTS"]
+__all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals", "MOTOR_INPUTS"]
 
 log = logging.getLogger("gyrosim.service")
 
-#: Default largest accepted |motor force| of a slider, N; the encoding its commands are recorded with.
-DEFAULT_FORCE_LIMIT = msg.DEFAULT_FORCE_LIMIT
-FORCE_ENCODING = msg.MOTOR_FORCE_ENCODING
-MotorForce, parse_motor_force = msg.MotorForce, msg.parse_motor_force
 #: A joint motor's input by its short name -> (the member of its ``.../motor`` command, unit, the joint).
 MOTOR_INPUTS = {"motor_torque": ("torque", "N*m", "hinge"), "motor_force": ("force", "N", "slider")}
 
@@ -116,7 +111,7 @@ class ServeOptions:
     input_file: str | None = None
     ros_domain: int | None = None
     ros_distro: str = "jazzy"
-    force_limit: float = DEFAULT_FORCE_LIMIT
+    force_limit: float = msg.DEFAULT_FORCE_LIMIT
 
     def __post_init__(self):
         if not (isinstance(self.rate, (int, float)) and math.isfinite(self.rate) and self.rate > 0):
@@ -376,12 +371,12 @@ class Service:
         if self._file is not None:
             self._file.overridden(i, cmd.as_inputs(), self.model.time)
         if self.recorder is not None:
-            encoding = (msg.TORQUE_ENCODING if kind == "torque" else FORCE_ENCODING
-                        if isinstance(cmd, MotorForce) else msg.MOTOR_ENCODING)
+            encoding = (msg.TORQUE_ENCODING if kind == "torque" else msg.MOTOR_FORCE_ENCODING
+                        if isinstance(cmd, msg.MotorForce) else msg.MOTOR_ENCODING)
             self.recorder.write_sample(key, encoding, payload, publish_time_ns=msg.seconds_to_ns(self.model.time))
         if kind == "torque":
             log.info("torque on %s: %s N*m", self.bodies[i], (cmd.x, cmd.y, cmd.z))
-        elif isinstance(cmd, MotorForce):
+        elif isinstance(cmd, msg.MotorForce):
             log.info("motor force on %s: %s N", self.bodies[i], cmd.force)
         else:
             log.info("motor torque on %s: %s N*m", self.bodies[i], cmd.torque)
@@ -390,7 +385,7 @@ class Service:
         """Body ``i``'s joint motor command (``motor``: its input, motor_torque or motor_force); the other joint's
         command sent to it is refused by name."""
         parsers = {"motor_torque": lambda limit: msg.parse_motor(payload, limit),
-                   "motor_force": lambda limit: parse_motor_force(payload, limit)}
+                   "motor_force": lambda limit: msg.parse_motor_force(payload, limit)}
         limits = {"motor_torque": self.options.torque_limit, "motor_force": self.options.force_limit}
         try:
             return parsers[motor](limits[motor])
