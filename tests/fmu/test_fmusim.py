@@ -6,40 +6,13 @@ docs/fmu.md says how) and found by GYROSIM_FMUSIM, on PATH, or at /opt/fmusim/fm
 
 from __future__ import annotations
 
-import csv
-import os
-import shutil
-import subprocess
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 import gyrosim
+from fmusim_runner import FMUSIM, SKIP_REASON, run_fmusim
 
-
-def _fmusim() -> str | None:
-    for cand in (os.environ.get("GYROSIM_FMUSIM"), shutil.which("fmusim"), "/opt/fmusim/fmusim"):
-        if cand and Path(cand).is_file() and os.access(cand, os.X_OK):
-            return cand
-    return None
-
-
-FMUSIM = _fmusim()
-pytestmark = pytest.mark.skipif(FMUSIM is None, reason="fmusim (Reference FMUs) not built here: see docs/fmu.md")
-
-
-def run_fmusim(fmu, out: Path, *args: str) -> dict:
-    """fmusim's CSV as {column: array}; fails with its stderr when it exits non-zero."""
-    r = subprocess.run([FMUSIM, *args, "--output-file", str(out), str(fmu)], capture_output=True, text=True,
-                       timeout=300)
-    assert r.returncode == 0, (r.returncode, r.stdout[-2000:], r.stderr[-2000:])
-    with open(out, newline="") as f:
-        rows = list(csv.reader(f))
-    head = rows[0]
-    # an array variable's cell holds its elements separated by spaces (row-major): a (rows, elements) array
-    cols = {name: [[float(x) for x in row[k].split()] for row in rows[1:]] for k, name in enumerate(head)}
-    return {name: np.array(v)[:, 0] if len(v[0]) == 1 else np.array(v) for name, v in cols.items()}
+pytestmark = pytest.mark.skipif(FMUSIM is None, reason=SKIP_REASON)
 
 
 def test_co_simulation_is_the_models_run_to_the_bit(build, tmp_path):
