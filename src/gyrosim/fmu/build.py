@@ -80,7 +80,7 @@ PLATFORMS = {"linux": ("linux64", "x86_64-linux", ".so"), "windows": ("win64", "
 #: setup.py compiles it), read from the folder so that a file added there is in every FMU; and the glue's (c/).
 _ENGINE = tuple(sorted(f.name for f in resources.files("gyrosim.core").joinpath("engine").iterdir()
                        if f.name.endswith((".c", ".h")) or f.name == "cflags.txt"))
-_GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_model.h", "gyrosim_model.c")
+_GLUE = ("gyrosim_glue_api.h", "gyrosim_glue_common.h", "gyrosim_num.h", "gyrosim_model.h", "gyrosim_model.c")
 #: FMI 3.0's glue besides: array variables and adjoint derivatives (fmi3Functions.c calls it).
 _GLUE3 = ("gyrosim_arrays.h", "gyrosim_arrays.c")
 _UNITS = {  # unit -> SI base-unit exponents

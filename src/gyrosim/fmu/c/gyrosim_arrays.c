@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "gyrosim_arrays.h"
+#include "gyrosim_num.h"
 
 /* An array: its name, number of elements and first row in ELEMS. An element: the value reference of its scalar
  * variable, or 0 and the parameter-row slot that holds it (-1: the value 0), and its name in messages. */
@@ -58,19 +59,6 @@ static int check_count(GsInstance *m, const char *what, size_t given, const char
                      refs, nvr);
     }
     return 0;
-}
-
-/* The shortest %g form that reads back to the same double (as Python's repr; gyrosim_glue_common.h's num). */
-typedef struct { char s[40]; } Num;
-
-static Num num(double x) {
-    Num r;
-    for (int prec = 1; prec <= 17; prec++) {
-        snprintf(r.s, sizeof(r.s), "%.*g", prec, x);
-        const double ax = fabs(x);
-        if (!isfinite(x) || (strtod(r.s, NULL) == x && (!strchr(r.s, 'e') || ax < 1e-4 || ax >= 1e16))) break;
-    }
-    return r;
 }
 
 /* an element that is no variable: its value (the parameter row, or 0) */

@@ -20,19 +20,7 @@ static char *dup_string(const char *s) {
     return r;
 }
 
-/* The shortest %g form that reads back to the same double (like Python's repr). */
-typedef struct { char s[40]; } Num;
-
-static Num num(double x) {
-    Num r;
-    for (int prec = 1; prec <= 17; prec++) {
-        snprintf(r.s, sizeof(r.s), "%.*g", prec, x);
-        /* plain digits where the magnitude allows (20, not 2e+01), as Python's repr chooses */
-        const double ax = fabs(x);
-        if (!isfinite(x) || (strtod(r.s, NULL) == x && (!strchr(r.s, 'e') || ax < 1e-4 || ax >= 1e16))) break;
-    }
-    return r;
-}
+#include "gyrosim_num.h"   /* num(): numbers in messages */
 
 static uint64_t fnv1a(const char *s) {
     uint64_t h = 1469598103934665603ULL;
