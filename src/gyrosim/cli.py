@@ -17,6 +17,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import ConfigError, GyrosimError, exit_code, name_list, number, numeric_warnings, one_line
+from .telemetry.cli import print_stdout
 
 __all__ = ["main", "build_parser", "add_verbosity", "verbosity", "scene_info", "fmu_info", "show_plot"]
 
@@ -703,7 +704,7 @@ def cmd_info(args) -> int:
     text = fmu_info(target) if is_fmu(target) else scene_info(target)
     if getattr(args, "quiet", 0):  # only the variables table
         text = text[text.index("\nVariables\n") + len("\nVariables\n\n"):]
-    _flush_stdout(text)
+    print_stdout(text)
     return 0
 
 
@@ -1023,21 +1024,6 @@ def _closed_pipe() -> int:
     return 141  # 128 + SIGPIPE, as a program killed by the closed pipe would exit
 
 
-def _flush_stdout(text: str | None = None) -> None:
-    """Print ``text`` (if given) and flush stdout; a write it refuses (``gyrosim info free_body > /dev/full``)
-    names it (exit code 1), and stdout is pointed at /dev/null so that the interpreter's own flush at exit does not
-    fail again. A closed pipe stays a BrokenPipeError (141)."""
-    try:
-        if text is not None:
-            print(text)
-        sys.stdout.flush()
-    except BrokenPipeError:
-        raise
-    except OSError as e:
-        _closed_pipe()
-        raise OSError(e.errno, e.strerror or str(e), "<standard output>") from None
-
-
 def main(argv=None) -> int:
     """Run ``gyrosim`` with ``argv``; return the exit code (0 ok, 1 runtime failure, 2 bad usage or input,
     130 interrupted, 141 closed pipe: :func:`gyrosim.errors.exit_code`). Errors are one line on stderr
@@ -1060,7 +1046,7 @@ def main(argv=None) -> int:
         # says what happened in one line (-v: one note line each)
         with numeric_warnings(prog, getattr(args, "verbose", 0)):
             rc = int(args.func(args) or 0)
-        _flush_stdout()
+        print_stdout()
         return rc
     except BrokenPipeError:
         return _closed_pipe()

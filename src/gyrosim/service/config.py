@@ -191,16 +191,6 @@ def _file_endpoint_error(path: str, e: Exception) -> ConfigError:
     return ConfigError("-c/--config", path, f"a readable Zenoh JSON5 file; Zenoh says: {text}")
 
 
-def _config_endpoints(conf, path: str) -> list[str]:
-    try:
-        value = json.loads(conf.get_json(path))
-    except Exception:  # noqa: BLE001 - an unset path
-        return []
-    if isinstance(value, dict):  # per-mode endpoints: {"router": [...], "peer": [...]}
-        value = [e for v in value.values() for e in (v or [])]
-    return [e for e in value or []] if isinstance(value, list) else [value]
-
-
 def add_config_arguments(parser: argparse.ArgumentParser) -> None:
     """Add Zenoh's example flags ``-m -e -l -c --no-multicast-scouting --cfg`` to ``parser``."""
     g = parser.add_argument_group("zenoh", "Zenoh session (as in Zenoh's examples); default: loopback peer")
@@ -245,7 +235,7 @@ def config_from_args(args: argparse.Namespace, role: str = "producer"):
         except Exception as e:  # zenoh.ZError: one clear line
             raise _file_endpoint_error(args.config, e) from None
         for key, flag in (("connect/endpoints", "-c/--config connect"), ("listen/endpoints", "-c/--config listen")):
-            for ep in _config_endpoints(conf, key):
+            for ep in _endpoints(conf, key):
                 if problem := endpoint_problem(ep):
                     raise ConfigError(flag, ep, f"a Zenoh endpoint PROTOCOL/ADDRESS (e.g. tcp/127.0.0.1:7447) in "
                                       f"{args.config}: {problem}")
@@ -277,7 +267,7 @@ def config_from_args(args: argparse.Namespace, role: str = "producer"):
                 raise ConfigError("--cfg", c, f"a config path and a JSON5 value Zenoh takes; Zenoh says: "
                                   f"{_zenoh_text(e)}") from None
             if key.strip("/").endswith("endpoints"):
-                for ep in _config_endpoints(conf, key.strip("/")):
+                for ep in _endpoints(conf, key.strip("/")):
                     if problem := endpoint_problem(ep):
                         raise ConfigError("--cfg", c, f"Zenoh endpoints PROTOCOL/ADDRESS: {ep!r}: {problem}")
     except ConfigError:
@@ -308,14 +298,16 @@ _RUST_NOISE = re.compile(r"\s+at\s+\S+\.rs:\d+(:\d+)?\.?|\s*\(os error \d+\)")
 _LOCATOR = re.compile(r"\b(?:tcp|udp|tls|quic|ws)/(?:\[[0-9a-fA-F:.%\w]+\]|[\w.\-]+):\d+")
 
 
-def _endpoints(conf, path: str) -> list[str]:
+def _endpoints(conf, path: str) -> list:
+    """The endpoints a Zenoh config holds at ``path`` (``listen/endpoints``): a list, the per-mode lists of a dict
+    ({"router": [...], "peer": [...]}) together, or one value as a list of one; [] where it is unset."""
     try:
         value = json.loads(conf.get_json(path))
     except Exception:  # noqa: BLE001 - an unset path
         return []
     if isinstance(value, dict):  # per-mode endpoints: {"router": [...], "peer": [...]}
         value = [e for v in value.values() for e in (v or [])]
-    return [str(e) for e in value or []]
+    return list(value) if isinstance(value, list) else [] if value is None else [value]
 
 
 def describe_endpoints(conf) -> str:

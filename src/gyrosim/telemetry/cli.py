@@ -133,11 +133,13 @@ def run_handler(prog: str, fn, args: argparse.Namespace | None = None) -> int:
         return exit_code(e)
 
 
-def _print(text: str) -> None:
-    """Print to stdout; a write it refuses (``> /dev/full``) is named (exit code 1) and stdout is pointed at
-    /dev/null (the interpreter's flush at exit would fail again). A closed pipe stays a BrokenPipeError (141)."""
+def print_stdout(text: str | None = None) -> None:
+    """Print ``text`` (if given) and flush stdout; a write it refuses (``> /dev/full``) is named (exit code 1) and
+    stdout is pointed at /dev/null (the interpreter's flush at exit would fail again). A closed pipe stays a
+    BrokenPipeError (141)."""
     try:
-        print(text)
+        if text is not None:
+            print(text)
         sys.stdout.flush()
     except BrokenPipeError:
         raise
@@ -149,7 +151,7 @@ def _print(text: str) -> None:
 def _out(args, text: str) -> None:
     """Print a result line unless -q."""
     if not getattr(args, "quiet", 0):
-        _print(text)
+        print_stdout(text)
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -172,7 +174,7 @@ def _info(args: argparse.Namespace) -> int:
         from .info import mcap_info
 
         info = mcap_info(args.file)
-        _print(info.format())
+        print_stdout(info.format())
         return 0 if info.complete else 1  # 1: truncated or damaged (a run-time failure, docs/cli.md)
 
     return run_handler("gyrosim mcap info", run, args)
