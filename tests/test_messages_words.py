@@ -223,12 +223,8 @@ def test_an_empty_output_path_is_refused(argv, flag, tmp_path, monkeypatch, caps
 
 
 def test_sweep_samples_are_bounded_where_the_command_line_is_read(tmp_path, capsys):
-    import time
-
-    t0 = time.perf_counter()
     assert main(["sweep", "free_body", "--samples", "1000000000000", "--vary", "omega_x=uniform(0.5,1.5)",
                  "--output", str(tmp_path / "sw")]) == 2
-    assert time.perf_counter() - t0 < 5
     err = _one_line(capsys)
     assert "--samples = 1000000000000 is not allowed: a number of samples from 1 to 100,000,000" in err
     assert not (tmp_path / "sw").exists()

@@ -20,7 +20,7 @@ import time
 from collections import defaultdict
 
 import pytest
-from svc_helpers import endpoint, finish, free_port, reap, start  # noqa: F401 - reap: autouse
+from svc_helpers import endpoint, finish, free_port, reap, start, wait_until  # noqa: F401 - reap: autouse
 
 zenoh = pytest.importorskip("zenoh")
 
@@ -81,7 +81,14 @@ def test_every_publishers_sequence_counts_1_2_3(tmp_path):
         code, _, err = finish(srv, timeout=120)
         assert code == 0, err[-3000:]
         assert "subscribers present" in err, err[-3000:]
-        time.sleep(0.5)   # the last samples in flight
+        n_all = int(round(RATE * DURATION)) + 1
+
+        def all_in():   # the last samples in flight: every topic's count reached
+            with lock:
+                return all(sum(len(v) for k, v in samples.items() if k.startswith(pre)) >= n_all
+                           for pre in TOPICS.values())
+
+        wait_until(all_in, timeout=30, what=f"{n_all} samples on each of {len(TOPICS)} topics")
         sub.undeclare()
     t_end = time.time_ns()
 
