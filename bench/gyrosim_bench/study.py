@@ -23,7 +23,7 @@ Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and int
 ``stability``, ``symplectic``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` / ``tree`` /
 ``tree_targets`` (the FMU, service, sweep and tree benches and issue 34's tree targets: ``run(out_dir)`` of
 :mod:`gyrosim_bench.fmu_bench`, ``service_bench``, ``sweep_bench``, ``tree_bench`` and ``tree_targets``, each in its
-own process).
+own process); ``contact``: the billiard ball and the tippe top against MuJoCo, Drake and PyBullet (``contact.md``).
 
 The study is not part of the installed package: it lives in the source checkout's ``bench/`` folder, and
 ``gyrosim bench`` (or ``make bench``) puts that folder on ``sys.path`` and runs :func:`main`.
@@ -80,9 +80,9 @@ TIMED = CLASSIC + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
 PARTS = ("accuracy", "cost", "long", "stability", "symplectic", "startup", "peers", "fmu", "service", "sweep",
-         "tree", "tree_targets", "tree_scaling")
+         "tree", "tree_targets", "tree_scaling", "contact")
 #: The parts run by a bench module of their own (``run(out_dir, quick)``, in its own process).
-EXTERNAL = ("fmu", "service", "sweep", "tree", "tree_targets", "tree_scaling")
+EXTERNAL = ("fmu", "service", "sweep", "tree", "tree_targets", "tree_scaling", "contact")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4, **EXACT_SPLIT_ORDER}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1328,7 +1328,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
     mods = {"fmu": (("gyrosim_bench.fmu_bench", "fmu"),), "service": (("gyrosim_bench.service_bench", "service"),),
             "sweep": (("gyrosim_bench.sweep_bench", "sweep"),), "tree": (("gyrosim_bench.tree_bench", "tree_bench"),),
             "tree_targets": (("gyrosim_bench.tree_targets", "tree_targets"),),
-            "tree_scaling": (("gyrosim_bench.tree_scaling", "tree_scaling"),)}
+            "tree_scaling": (("gyrosim_bench.tree_scaling", "tree_scaling"),),
+            "contact": (("gyrosim_bench.contact_bench", "contact"),)}
     bench_dir = str(Path(__file__).resolve().parents[1])  # the folder that holds gyrosim_bench
     msgs = []
     for name, label in mods[part]:
@@ -1374,7 +1375,7 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
              "stability": ("stability",), "symplectic": ("symplectic",), "startup": ("startup",), "peers": ("peers",),
              "fmu": (), "service": (), "sweep": (), "tree": (), "tree_targets": (),
-             "tree_scaling": ()}
+             "tree_scaling": (), "contact": ()}
 #: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
 SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
 

@@ -18,10 +18,12 @@ from .core import _engine
 from .core.tree import (
     BODY_OUTPUTS,
     BODY_SLOTS,
+    CONTACT_OUTPUTS,
     INPUT_SLOTS,
     ORBIT_BODY_OUTPUTS,
     ORBIT_COORD,
     ORBIT_OUTPUTS,
+    PLANE_SLOTS,
     SCENE_OUTPUTS,
     TreeLayout,
 )
@@ -106,7 +108,37 @@ def tree_output_names(scene: Scene) -> list[str]:
         for body in scene.tree:
             out += [name(body.name, c) for c in ORBIT_BODY_OUTPUTS]
         out += list(ORBIT_OUTPUTS)
+    for h, stem in contact_stems(scene):
+        out += [name(scene.tree[h.body].name, f"{stem}.{c}") for c in CONTACT_OUTPUTS]
     return out
+
+
+def contact_stems(scene) -> list:
+    """``(shape, stem)`` per contact in the engine's order: the stem ``<shape>`` with one plane,
+    ``<shape>.<plane>`` otherwise (the body prefix comes by the naming rule)."""
+    return [(h, stem) for h, _, stem in contacts_of(scene)]
+
+
+def contacts_of(scene) -> list:
+    """``(shape, plane, stem)`` per contact in the engine's order (shape-major: every shape meets every plane)."""
+    planes = getattr(scene, "planes", ())
+    return [(h, pl, h.name if len(planes) == 1 else f"{h.name}.{pl.name}") for h in getattr(scene, "shapes", ())
+            for pl in planes]
+
+
+#: The contact outputs' units and descriptions.
+_CONTACT_META = {
+    "gap": ("m", "distance of the shape above the plane (negative: penetration)"),
+    "normal_force": ("N", "normal force of the plane on the shape"),
+    "friction_x": ("N", "friction force of the plane on the shape, world x"),
+    "friction_y": ("N", "friction force of the plane on the shape, world y"),
+    "friction_z": ("N", "friction force of the plane on the shape, world z"),
+    "slip_speed": ("m/s", "speed of the body's point at the contact along the plane"),
+    "contact_x": ("m", "contact point (the shape's point deepest along the plane's normal), world x"),
+    "contact_y": ("m", "contact point, world y"),
+    "contact_z": ("m", "contact point, world z"),
+    "mode": ("1", "contact mode: 0 apart, 1 sliding, 2 rolling, 3 resting"),
+}
 
 
 def _body_param_value(b, name: str) -> float:
@@ -222,6 +254,16 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
         V.append(Variable(ORBIT_COORD, "output", "continuous", "Real", "rad",
                           "anomaly of the circular orbit (the orbit point at radius (cos, sin, 0)), unwrapped",
                           float(orbit.anomaly)))
+    if scene.shapes:
+        from .scene_contact import plane_variables
+
+        V += plane_variables(scene.planes)
+        for h, stem in contact_stems(scene):
+            pre = "" if len(scene.tree) == 1 else f"{scene.tree[h.body].name}."
+            against = f" (shape {h.name}, plane {stem.split('.')[-1] if '.' in stem else scene.planes[0].name})"
+            for c in CONTACT_OUTPUTS:
+                unit, desc = _CONTACT_META[c]
+                V.append(Variable(f"{pre}{stem}.{c}", "output", "continuous", "Real", unit, desc + against, None))
     for n, (unit, desc) in _SCENE_OUT_META.items():
         V.append(Variable(n, "output", "continuous", "Real", unit, desc, None))
     if orbit is not None:
@@ -245,6 +287,8 @@ def element_columns(sc, layout: TreeLayout) -> dict[str, int]:
         if kind == "spring":
             out[name] = layout.spring_offset(e) + {"stiffness": _engine.SPR_K, "rest_length": _engine.SPR_L0,
                                                    "damping": _engine.SPR_C}[short]
+        elif kind == "plane":
+            out[name] = layout.plane_offset(e) + PLANE_SLOTS[short]
         else:
             out[name] = layout.force_offset(e) + _engine.FRC_F + "xyz".index(short[-1])
     return out
@@ -285,7 +329,7 @@ def _scene_tables(sc) -> tuple:
         return hit[1:]
     names = tree_output_names(sc)
     layout = TreeLayout(sc.tree, sc.couplings, sc.orbit, springs=sc.springs, forces=sc.forces,
-                        gravity_dir=sc.gravity_dir)
+                        gravity_dir=sc.gravity_dir, shapes=sc.shapes, planes=sc.planes)
     tables = (weakref.ref(sc), layout, tree_variables(sc), tuple(names), {n: i for i, n in enumerate(names)},
               element_columns(sc, layout))
     _TABLES[key] = tables
@@ -412,6 +456,19 @@ class TreeKernel:
             full = self.scene.var_name(self.body_names[b], short)
             return full, self.variables[full].unit
 
+        if code == _engine.TREE_BAD_CONTACT:   # slot: the contact; its gap from the outputs of this state
+            from .core.tree import CONTACT_OUTPUTS
+
+            h, pl, stem = contacts_of(self.scene)[slot]
+            out = np.zeros((1, self.layout.nout))
+            _engine.tree_outputs(self.layout.desc, self._y[c:c + 1], self._pp[c:c + 1], out)
+            at = self.layout.nout - len(CONTACT_OUTPUTS) * len(contacts_of(self.scene)) + \
+                len(CONTACT_OUTPUTS) * slot + CONTACT_OUTPUTS.index("gap")
+            gap = self.scene.var_name(self.body_names[h.body], f"{stem}.gap")
+            tol = 1e-9 + 1e-6 * max(h.dims)   # contact_events.h start_tolerance: nearer, put on the plane
+            raise ConfigError(gap, float(out[0, at]), f"a start on or above plane {pl.name} (a gap >= -{tol:.3g} m, "
+                              f"put on the plane; shape {h.name} starts inside it: move the body's start position "
+                              "or attitude)")
         if code == _engine.TREE_BAD_STOPS:
             (hi, unit), (lo, _) = param(slot), param(lo_slot)
             raise ConfigError(hi, float(pp[slot]), f"a number above {lo} = {float(pp[lo_slot])!r} {unit}")

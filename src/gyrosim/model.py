@@ -136,7 +136,8 @@ class Model:
         if value in ("midpoint", "energy_momentum") and value not in allowed and self.scene.tree is not None:
             from .scene_tree import implicit_refusal
 
-            raise ConfigError("integrator", value, implicit_refusal(self.scene.tree, self.scene.orbit))
+            raise ConfigError("integrator", value, implicit_refusal(self.scene.tree, self.scene.orbit,
+                                                                    bool(self.scene.shapes)))
         if value in ("splitting", "splitting4") and value not in allowed and self.scene.tree is not None:
             from .scene_tree import split_refusal
 

@@ -70,7 +70,10 @@ __all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SC
 
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
                    "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels", "mass_spring_chain",
-                   "triatomic")
+                   "triatomic", "tippe_top", "eulers_disk", "rattleback", "top_on_floor", "rolling_coin",
+                   "billiard_ball")
+#: The embedded scenes with contact (DESIGN 4b: shapes on bodies against the plane ``floor``).
+CONTACT_SCENES = ("tippe_top", "eulers_disk", "rattleback", "top_on_floor", "rolling_coin", "billiard_ball")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact", "strang_exact",
                "yoshida_exact", "bm4_exact", "bm6_exact")
 G_DEFAULT = 9.81
@@ -146,6 +149,9 @@ class Scene:
     #: a tree's elements: springs between bodies (core.tree.Spring) and force inputs (core.tree.Force)
     springs: tuple = ()
     forces: tuple = ()
+    #: a tree's contact: convex shapes on bodies (core.tree.Shape) and planes in the world (core.tree.Plane)
+    shapes: tuple = ()
+    planes: tuple = ()
     #: gravity's direction (unit, world; g is its magnitude): -z unless the scene's ``gravity`` turns it
     gravity_dir: tuple = (0.0, 0.0, -1.0)
 
@@ -159,7 +165,24 @@ class Scene:
         for e, f in enumerate(self.forces):
             for c in "xyz":
                 out[self.var_name(self.tree[f.body].name, f"{f.name}.f_{c}")] = ("force", e, f"f_{c}")
+        if self.shapes:
+            from .scene_contact import plane_parameters
+
+            for e, pl in enumerate(self.planes):
+                for k in plane_parameters(pl):
+                    out[f"{pl.name}.{k}"] = ("plane", e, k)
         return out
+
+    def contact_outputs(self) -> tuple:
+        """The contacts' output names (``<shape>.gap``, ...; kernel_tree.contact_stems): scene-wide, like the
+        elements' variables, though named with a body's prefix in scenes of several bodies."""
+        if not self.shapes:
+            return ()
+        from .core.tree import CONTACT_OUTPUTS
+        from .kernel_tree import contact_stems
+
+        return tuple(self.var_name(self.tree[h.body].name, f"{stem}.{c}") for h, stem in contact_stems(self)
+                     for c in CONTACT_OUTPUTS)
 
     @property
     def kernel(self) -> str:
@@ -188,7 +211,7 @@ class Scene:
             return INTEGRATORS
         from .scene_tree import implicit_fits, split_fits
 
-        out = TREE_INTEGRATORS if implicit_fits(self.tree, self.orbit) else tuple(
+        out = TREE_INTEGRATORS if implicit_fits(self.tree, self.orbit, bool(self.shapes)) else tuple(
             m for m in TREE_INTEGRATORS if m not in ("midpoint", "energy_momentum"))
         return out if split_fits(self) else tuple(m for m in out if m not in ("splitting", "splitting4"))
 
@@ -273,6 +296,9 @@ class Scene:
                                        ("joint stops", any(b.lower is not None or b.upper is not None
                                                            for b in self.tree)),
                                        ("force inputs", bool(self.forces)),
+                                       ("contact (" + ", ".join(f"{h.name} on {h.kind}" for h in self.shapes) +
+                                        " against " + ", ".join(p.name for p in self.planes) + ")",
+                                        bool(self.shapes) and bool(self.planes)),
                                        (orbit, self.orbit is not None)) if on]
 
     def to_dict(self) -> dict:
@@ -292,7 +318,13 @@ class Scene:
                                  "point_b": [float(x) for x in e.point_b], "stiffness": e.stiffness,
                                  "rest_length": e.rest_length, "damping": e.damping} for e in self.springs],
                     "forces": [{"name": f.name, "body": f.body, "point": [float(x) for x in f.point],
-                                "world": f.world} for f in self.forces]}
+                                "world": f.world} for f in self.forces],
+                    "shapes": [{"name": h.name, "body": h.body, "kind": h.kind,
+                                "center": [float(x) for x in h.center],
+                                "axes": [float(x) for x in np.asarray(h.axes).ravel()],
+                                "dims": [float(x) for x in h.dims]} for h in self.shapes],
+                    "planes": [{k: (v.tolist() if isinstance(v, np.ndarray) else v)
+                                for k, v in dataclasses.asdict(p).items()} for p in self.planes]}
         b = self.bodies[0]
         return {**head, "gravity": self.gravity, "damping": self.damping, "torque": self.torque,
                 "integrator": self.integrator, "max_step": self.max_step, "max_drift": self.max_drift,
@@ -320,7 +352,7 @@ class Scene:
 
         body, _, short = name.rpartition(".")
         names = self.body_names
-        if body and body not in names and name in self.element_variables():
+        if body and body not in names and (name in self.element_variables() or name in self.contact_outputs()):
             return None, name
         if body:
             return names.index(body), short
@@ -609,7 +641,8 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     ConfigError
         Naming the source, the key, the value and what is allowed; unknown keys get a "did you mean".
     """
-    _check_keys(data, ("scene", "body", "sweep", "coupling", "parameters", "spring", "force"), source)
+    _check_keys(data, ("scene", "body", "sweep", "coupling", "parameters", "spring", "force", "shape", "plane"),
+                source)
     # [sweep]: `gyrosim sweep`
     sc = data.get("scene", {})
     if not isinstance(sc, dict):
@@ -669,12 +702,14 @@ def _one_body_scene(name, bodies, terms, integ, g, sc, where, source) -> Scene:
 
 
 def _tree_syntax(data: dict) -> bool:
-    """True where a scene uses the tree syntax (a joint, a parent, couplings, scene parameters or an orbit)."""
+    """True where a scene uses the tree syntax (a joint, a parent, couplings, scene parameters, elements, contact or an
+    orbit)."""
     from .scene_tree import TREE_KEYS
 
     bodies = data.get("body")
     sc = data.get("scene")
-    return ("coupling" in data or "parameters" in data or "spring" in data or "force" in data or
+    return ("coupling" in data or "parameters" in data or "spring" in data or "force" in data or "shape" in data or
+            "plane" in data or
             (isinstance(sc, dict) and "orbit" in sc) or
             (isinstance(bodies, list) and any(isinstance(b, dict) and any(k in b for k in TREE_KEYS) for b in bodies)))
 
@@ -720,6 +755,7 @@ def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -
 
 
 def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) -> Scene:
+    from .scene_contact import planes_from_dict, shapes_from_dict
     from .scene_tree import check_inert_joints, orbit_from_dict, tree_from_dict
 
     bodies, couplings, cnames, aliases, springs, forces = tree_from_dict(data, source)
@@ -728,9 +764,15 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
     for nm in cnames:
         if nm in names or nm in [e.name for e in springs + forces]:
             raise ConfigError("name", nm, "a coupling name no body, spring or force of the scene has", where=source)
+    taken = list(cnames) + [e.name for e in springs + forces]
+    shapes = shapes_from_dict(data, names, taken, source)
+    planes = planes_from_dict(data, taken + [h.name for h in shapes] + names, source)
+    if shapes and not planes or planes and not shapes:
+        raise ConfigError("shape" if planes else "plane", "none", "[[shape]] and [[plane]] tables together (a "
+                          "shape touches planes)", where=source)
     check_inert_joints(bodies, source)   # after the format's checks: a joint that carries nothing, before any run
     # a tree-only integrator keeps a tree of one body on the tree engine; so do elements and a turned gravity
-    plain = not springs and not forces and gdir == (0.0, 0.0, -1.0)
+    plain = not springs and not forces and not shapes and gdir == (0.0, 0.0, -1.0)
     one = (_one_body_kernel(data, bodies, couplings, aliases, orbit, g, source) if integ in INTEGRATORS and plain
            else None)
     if one is not None:  # a tree of one body that Euler's equations describe: the one-body kernel
@@ -739,15 +781,16 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
     if integ not in TREE_INTEGRATORS:
         raise ConfigError("integrator", integ, f"one of {', '.join(TREE_INTEGRATORS)}: a tree of bodies is "
                           f"integrated by the tree engine ('{integ}' solves one body)", where=where)
-    for what, count in (("coupling", len(couplings)), ("spring", len(springs)), ("force", len(forces))):
+    for what, count in (("coupling", len(couplings)), ("spring", len(springs)), ("force", len(forces)),
+                        ("shape", len(shapes)), ("plane", len(planes))):
         if count > _engine.TREE_ELEM_MAX:
             raise ConfigError(what, f"{count} [[{what}]] tables", f"at most {_engine.TREE_ELEM_MAX} in a tree",
                               where=source)
     if integ in ("midpoint", "energy_momentum"):
         from .scene_tree import implicit_fits, implicit_refusal
 
-        if not implicit_fits(bodies, orbit):
-            raise ConfigError("integrator", integ, implicit_refusal(bodies, orbit), where=where)
+        if not implicit_fits(bodies, orbit, bool(shapes)):
+            raise ConfigError("integrator", integ, implicit_refusal(bodies, orbit, bool(shapes)), where=where)
     scene = Scene(
         name=name, bodies=(), gravity=g > 0, damping=any(b.damping > 0 for b in bodies),
         torque=any(b.torque_input or b.motor_input for b in bodies) or bool(forces), integrator=integ,
@@ -757,7 +800,8 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
         output_interval=_num(sc, "output_interval", where, 0.01, lo=0.0, lo_open=True),
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source, tree=bodies, couplings=couplings,
-        coupling_names=cnames, aliases=aliases, orbit=orbit, springs=springs, forces=forces, gravity_dir=gdir)
+        coupling_names=cnames, aliases=aliases, orbit=orbit, springs=springs, forces=forces, gravity_dir=gdir,
+        shapes=shapes, planes=planes)
     if integ in ("splitting", "splitting4"):
         from .scene_tree import split_fits, split_refusal
 

@@ -778,12 +778,14 @@ def tree_nx(bodies, orbit) -> int:
     return sum(_NCOORD[b.joint] for b in bodies) + (1 if orbit is not None and orbit.radius is not None else 0)
 
 
-def implicit_fits(bodies, orbit) -> bool:
+def implicit_fits(bodies, orbit, contact: bool = False) -> bool:
     """The implicit methods (midpoint, energy_momentum) take the tree: their dense Newton matrix is sized by the
-    state, and the engine takes them up to _engine.IMPLICIT_MAX integrated components (nx and the work integral)."""
+    state, and the engine takes them up to _engine.IMPLICIT_MAX integrated components (nx and the work integral);
+    not with contact, whose friction law's kinks (the slip's direction, the contact opening) their Newton
+    iterations do not converge through."""
     from .core import _engine
 
-    return tree_nx(bodies, orbit) + 1 <= _engine.IMPLICIT_MAX
+    return not contact and tree_nx(bodies, orbit) + 1 <= _engine.IMPLICIT_MAX
 
 
 def _kernel_code(scene) -> int:
@@ -818,13 +820,17 @@ def split_refusal() -> str:
     """Why a tree is refused the integrator 'splitting' (the ConfigError's rule)."""
     return ("'rk4', 'dop853' or 'midpoint' for this tree: 'splitting' follows the exact flows of a gyrostat, a hub "
             "on a ball joint carrying rotors (axisymmetric leaves on hinges) without joint springs or damping, "
-            "stops, couplings, springs, forces or an orbit")
+            "stops, couplings, springs, forces, contacts or an orbit")
 
 
-def implicit_refusal(bodies, orbit) -> str:
-    """Why a tree too large for the implicit methods is refused (the ConfigError's rule)."""
+def implicit_refusal(bodies, orbit, contact: bool = False) -> str:
+    """Why a tree is refused the implicit methods (the ConfigError's rule): too large, or with contact."""
     from .core import _engine
 
+    if contact:
+        return ("'rk4', 'euler', 'adaptive' or 'dop853' for a scene with contact: 'midpoint' and 'energy_momentum' "
+                "solve each step by Newton's method, which does not converge through the contact law's kinks (the "
+                "friction's direction at the slip's stop, the contact opening)")
     return (f"'rk4', 'euler', 'adaptive' or 'dop853' for this tree: 'midpoint' and 'energy_momentum' take at most "
             f"{_engine.IMPLICIT_MAX - 1} joint coordinates (their Newton matrix is dense: its factorisation costs the "
             f"cube of the state's size), and this tree has {tree_nx(bodies, orbit)} ({len(bodies)} bodies)")

@@ -24,7 +24,7 @@ from gyrosim import simulate
 from gyrosim.analysis.chaos import lyapunov, oscillation_period, poincare
 from gyrosim.cli import main
 from gyrosim.model import Model
-from gyrosim.scene import EMBEDDED_SCENES
+from gyrosim.scene import CONTACT_SCENES, EMBEDDED_SCENES
 
 HALF_PI = math.pi / 2
 DP_CHAOTIC = {"upper.angle": HALF_PI, "lower.angle": 0.0}  # theta1 = theta2 = pi/2 (DESIGN 4b)
@@ -129,9 +129,11 @@ def _section_closed_form(scene):
     return None
 
 
-@pytest.mark.parametrize("scene", EMBEDDED_SCENES)
+@pytest.mark.parametrize("scene", [s for s in EMBEDDED_SCENES if s not in CONTACT_SCENES])
 def test_every_embedded_scene(scene):
-    """Every embedded scene's default start is a regular motion: integrable (the torque-free body; the Lagrange
+    """Every embedded scene without contact (the contact scenes' starts are dissipative or unstable on purpose: a
+    tippe top inverting, a rattleback reversing; their closed forms are in tests/tree/test_contact*.py) has a default
+    start that is a regular motion: integrable (the torque-free body; the Lagrange
     tops heavy_top and gyroscope, and the top in axisymmetric gimbals with its two cyclic angles; spacecraft, a
     gyrostat with free wheels), or near a stable equilibrium or steady motion (cmg_spacecraft, coupled_pendula at
     0.1 rad, the satellites' 0.01 rad librations), or on a regular torus (the double pendulum from 1 rad: its log

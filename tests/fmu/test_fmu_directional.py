@@ -35,12 +35,14 @@ from gyrosim.analysis.linear import one_body_tree
 from gyrosim.core import _engine
 from gyrosim.core.tree import BODY_OUTPUTS
 from gyrosim.fmu import build_fmu
-from gyrosim.scene import EMBEDDED_SCENES, load_scene
+from gyrosim.scene import CONTACT_SCENES, EMBEDDED_SCENES, load_scene
 
 TWO_GYROS = "service/scenes/two_gyros.toml"
 #: scenes on an orbit: FMI 2 only (their glue is the other trees'; the orbit's terms are what is new)
 ORBIT_SCENES = ("satellite", "satellite_wheels")
-SCENES = (None, *(s for s in EMBEDDED_SCENES if s not in ORBIT_SCENES), TWO_GYROS)
+#: the contact scenes' Jacobians: tests/fmu/test_fmu_contact.py (a stiff compliant contact's central differences
+#: are no 1e-6 reference)
+SCENES = (None, *(s for s in EMBEDDED_SCENES if s not in ORBIT_SCENES and s not in CONTACT_SCENES), TWO_GYROS)
 BUILDS = ([(s, v, "both") for s in SCENES for v in (2, 3)] + [(s, 2, "both") for s in ORBIT_SCENES]
           + [("heavy_top", 3, "cs"), ("heavy_top", 3, "me"), ("gimbal_gyroscope", 2, "cs")])
 RTOL = 1e-6

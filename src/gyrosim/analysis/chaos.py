@@ -649,6 +649,11 @@ def check_trust(model: Model) -> None:
                           "integrator 'rk4' with max_step 0.001")
     if model.n_systems > 1:
         raise ConfigError("scene", model.scene.name, "one system: the trust horizon follows one run")
+    sc = model.scene
+    if any(b.stop == "impact" for b in sc.tree) or any(pl.model == "rigid" for pl in sc.planes if sc.shapes):
+        raise ConfigError("scene", sc.name, "a scene without events for the trust horizon: its long double "
+                          "reference is a plain run of equal steps, without the impacts, lift-offs and slide-stick "
+                          "changes that impact stops and rigid contacts make (a compliant contact has none)")
     if _engine.LD_MANT_DIG <= _engine.DBL_MANT_DIG:
         raise ConfigError("reference", "long double", f"a long double with more bits than double: this build's has "
                           f"{_engine.LD_MANT_DIG} mantissa bits, as double (MSVC, some ARM ABIs): no extended "

@@ -987,7 +987,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
         static const struct { const char *name; int value; } tc[] = {
             {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
             {"J_SLIDER", GS_J_SLIDER}, {"TB_ROT", GS_TB_ROT}, {"TB_KB", GS_TB_KB}, {"TB_CB", GS_TB_CB},
-            {"TB_LIM", GS_TB_LIM}, {"TREE_BAD_STOPS", GS_TREE_BAD_STOPS}, {"TREE_BAD_START", GS_TREE_BAD_START}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
+            {"TB_LIM", GS_TB_LIM}, {"TREE_BAD_STOPS", GS_TREE_BAD_STOPS}, {"TREE_BAD_START", GS_TREE_BAD_START}, {"TREE_BAD_CONTACT", GS_TREE_BAD_CONTACT}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
             {"TB_STOP_C", GS_TB_STOP_C}, {"TB_RESTITUTION", GS_TB_RESTITUTION}, {"TP_GDIR", GS_TP_GDIR}, {"SPR_PA", GS_SPR_PA}, {"SPR_PB", GS_SPR_PB},
             {"SPR_K", GS_SPR_K}, {"SPR_L0", GS_SPR_L0}, {"SPR_C", GS_SPR_C}, {"SPR_NP", GS_SPR_NP},
             {"FRC_P", GS_FRC_P}, {"FRC_F", GS_FRC_F}, {"FRC_NP", GS_FRC_NP},
@@ -996,6 +996,16 @@ PyMODINIT_FUNC PyInit__engine(void) {
             {"TB_MOTOR", GS_TB_MOTOR}, {"TB_TAU", GS_TB_TAU}, {"TP_G", GS_TP_G}, {"TP_DRIFT", GS_TP_DRIFT},
             {"TP_MU", GS_TP_MU}, {"TP_ORBIT_R", GS_TP_ORBIT_R}, {"ORBIT_NONE", GS_ORBIT_NONE},
             {"ORBIT_CIRCULAR", GS_ORBIT_CIRCULAR}, {"ORBIT_KEPLER", GS_ORBIT_KEPLER},
+            /* contact (gyrosim_tree.h GS_SHAPE_*, GS_SHP_*, GS_PLN_*, GS_CT_*) */
+            {"SHAPE_SPHERE", GS_SHAPE_SPHERE}, {"SHAPE_ELLIPSOID", GS_SHAPE_ELLIPSOID}, {"SHAPE_DISK", GS_SHAPE_DISK},
+            {"SHAPE_CYLINDER", GS_SHAPE_CYLINDER}, {"SHAPE_POINT", GS_SHAPE_POINT}, {"SHP_C", GS_SHP_C},
+            {"SHP_R", GS_SHP_R}, {"SHP_DIM", GS_SHP_DIM}, {"SHP_NP", GS_SHP_NP}, {"PLN_P", GS_PLN_P},
+            {"PLN_N", GS_PLN_N}, {"PLN_MU", GS_PLN_MU}, {"PLN_E", GS_PLN_E}, {"PLN_RS", GS_PLN_RS},
+            {"PLN_RR", GS_PLN_RR}, {"PLN_K", GS_PLN_K}, {"PLN_C", GS_PLN_C}, {"PLN_VS", GS_PLN_VS},
+            {"PLN_NP", GS_PLN_NP}, {"CONTACT_RIGID", GS_CONTACT_RIGID}, {"CONTACT_COMPLIANT", GS_CONTACT_COMPLIANT},
+            {"FRICTION_COULOMB", GS_FRICTION_COULOMB}, {"FRICTION_REGULARIZED", GS_FRICTION_REGULARIZED},
+            {"CT_GAP", GS_CT_GAP}, {"CT_FN", GS_CT_FN}, {"CT_FT", GS_CT_FT}, {"CT_SLIP", GS_CT_SLIP},
+            {"CT_X", GS_CT_X}, {"CT_MODE", GS_CT_MODE}, {"CT_NOUT", GS_CT_NOUT},
             /* the one-body rows' offsets (gyrosim_engine.h) */
             {"Y_Q", GS_Y_Q}, {"Y_OMEGA", GS_Y_OMEGA}, {"Y_NQW", GS_Y_NQW}, {"Y_REF", GS_Y_REF}, {"Y_TURN", GS_Y_TURN},
             {"Y_MON", GS_Y_MON}, {"Y_BALANCE", GS_Y_BALANCE}, {"Y_ESCALE", GS_Y_ESCALE}, {"Y_L0", GS_Y_L0},

@@ -17,8 +17,8 @@ import numpy as np
 
 from . import _engine
 
-__all__ = ["TreeBody", "TreeLayout", "Orbit", "Spring", "Force", "JOINTS", "JOINT_COORDS", "MU_EARTH", "BODY_SLOTS",
-           "GRAVITY_DOWN"]
+__all__ = ["TreeBody", "TreeLayout", "Orbit", "Spring", "Force", "Shape", "Plane", "JOINTS", "JOINT_COORDS",
+           "MU_EARTH", "BODY_SLOTS", "GRAVITY_DOWN"]
 
 #: The joints and their engine codes (free_rotation is a ball whose joint point is the centre of mass).
 JOINTS = {"free_rotation": _engine.J_BALL, "ball": _engine.J_BALL, "hinge": _engine.J_HINGE,
@@ -57,6 +57,20 @@ JOINT_COORDS = {
 BODY_OUTPUTS = ("q_world_w", "q_world_x", "q_world_y", "q_world_z", "r_world_x", "r_world_y", "r_world_z",
                 "v_world_x", "v_world_y", "v_world_z")
 SCENE_OUTPUTS = ("energy", "energy_error", "L_x", "L_y", "L_z")
+#: Every contact's outputs (a shape against a plane), in the engine's order (gyrosim_tree.h GS_CT_*).
+CONTACT_OUTPUTS = ("gap", "normal_force", "friction_x", "friction_y", "friction_z", "slip_speed", "contact_x",
+                   "contact_y", "contact_z", "mode")
+#: The contact modes (the ``mode`` output's values).
+CONTACT_MODES = ("apart", "sliding", "rolling", "resting")
+#: Shape kinds and their engine codes; the normal and friction laws and theirs.
+SHAPE_KINDS = {"sphere": _engine.SHAPE_SPHERE, "ellipsoid": _engine.SHAPE_ELLIPSOID, "disk": _engine.SHAPE_DISK,
+               "cylinder": _engine.SHAPE_CYLINDER, "point": _engine.SHAPE_POINT}
+CONTACT_MODELS = {"rigid": _engine.CONTACT_RIGID, "compliant": _engine.CONTACT_COMPLIANT}
+FRICTION_MODELS = {"coulomb": _engine.FRICTION_COULOMB, "regularized": _engine.FRICTION_REGULARIZED}
+#: A plane's parameters by name: their slot in its block of a parameter row (GS_PLN_*).
+PLANE_SLOTS = {"friction": _engine.PLN_MU, "restitution": _engine.PLN_E, "spin_radius": _engine.PLN_RS,
+               "rolling_resistance": _engine.PLN_RR, "stiffness": _engine.PLN_K, "damping": _engine.PLN_C,
+               "slip_velocity": _engine.PLN_VS}
 #: On an orbit: the circular orbit's anomaly (a coordinate of the state, after the joints'), every body's attitude
 #: in the orbit frame, the orbit point's position and velocity (scene-wide, from the central body).
 ORBIT_COORD = "orbit_anomaly"
@@ -218,6 +232,40 @@ class Force:
     world: bool = False
 
 
+@dataclass(frozen=True)
+class Shape:
+    """A convex shape on body ``body`` for contact with the planes: ``kind`` (SHAPE_KINDS), its centre ``center``
+    (m, body frame), its frame's axes in the body frame ``axes`` (3x3, columns; a disk's or cylinder's axis is the
+    third) and its dimensions ``dims`` (m: sphere, disk (radius, 0, 0); ellipsoid the semi-axes; cylinder (radius,
+    length, 0); point none)."""
+
+    name: str
+    body: int
+    kind: str
+    center: np.ndarray
+    axes: np.ndarray
+    dims: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Plane:
+    """A plane fixed in the world through ``point`` (m) with unit ``normal``, and its contact law: ``model``
+    (CONTACT_MODELS), ``friction_model`` (FRICTION_MODELS) and the parameters of PLANE_SLOTS."""
+
+    name: str
+    point: np.ndarray
+    normal: np.ndarray
+    model: str = "compliant"
+    friction_model: str = "regularized"
+    friction: float = 0.0
+    restitution: float = 0.0
+    spin_radius: float = 0.0
+    rolling_resistance: float = 0.0
+    stiffness: float = 0.0
+    damping: float = 0.0
+    slip_velocity: float = 0.0
+
+
 class TreeLayout:
     """The engine's arrays for a tree: description, parameter row, start state and column names.
 
@@ -248,25 +296,33 @@ class TreeLayout:
     """
 
     def __init__(self, bodies, couplings=(), orbit: Orbit | None = None, springs=(), forces=(),
-                 gravity_dir=GRAVITY_DOWN):
+                 gravity_dir=GRAVITY_DOWN, shapes=(), planes=()):
         self.bodies = tuple(bodies)
         self.couplings = tuple((int(a), int(b), float(k)) for a, b, k in couplings)
         self.orbit = orbit
         self.springs, self.forces = tuple(springs), tuple(forces)
+        self.shapes, self.planes = tuple(shapes), tuple(planes)
+        contacts = bool(self.shapes) and bool(self.planes)
         self.gravity_dir = _vec(gravity_dir)
         d = [len(self.bodies), len(self.couplings)]
         for b in self.bodies:
             d += [b.parent, JOINTS[b.joint]]
         for a, b, _ in self.couplings:
             d += [a, b]
-        if orbit is not None or self.springs or self.forces:
+        if orbit is not None or self.springs or self.forces or contacts:
             d.append(orbit.code if orbit is not None else _engine.ORBIT_NONE)
-        if self.springs or self.forces:
+        if self.springs or self.forces or contacts:
             d += [len(self.springs), len(self.forces)]
             for s in self.springs:
                 d += [s.a, s.b]
             for f in self.forces:
                 d += [f.body, int(f.world)]
+        if contacts:
+            d += [len(self.shapes), len(self.planes)]
+            for h in self.shapes:
+                d += [h.body, SHAPE_KINDS[h.kind]]
+            for pl in self.planes:
+                d += [CONTACT_MODELS[pl.model], FRICTION_MODELS[pl.friction_model]]
         self.desc = np.array(d, dtype=np.int32)
         self.nx, self.ny, self.np, self.nout = _engine.tree_info(self.desc)
         self.coord_slots = {}
@@ -291,6 +347,11 @@ class TreeLayout:
                     self.output_names.append((i, c))
             for c in ORBIT_OUTPUTS:
                 self.output_names.append((None, c))
+        if contacts:
+            for h in self.shapes:
+                for pl in self.planes:
+                    stem = h.name if len(self.planes) == 1 else f"{h.name}.{pl.name}"
+                    self.output_names += [(h.body, f"{stem}.{c}") for c in CONTACT_OUTPUTS]
         assert len(self.output_names) == self.nout
         self.dof = sum({"hinge": 1, "slider": 1, "free": 6, "fixed": 0}.get(b.joint, 3) for b in self.bodies)
 
@@ -305,6 +366,14 @@ class TreeLayout:
     def force_offset(self, e: int) -> int:
         """Where force element ``e``'s parameters start in a parameter row."""
         return self.spring_offset(len(self.springs)) + _engine.FRC_NP * e
+
+    def shape_offset(self, e: int) -> int:
+        """Where shape ``e``'s parameters start in a parameter row."""
+        return self.force_offset(len(self.forces)) + _engine.SHP_NP * e
+
+    def plane_offset(self, e: int) -> int:
+        """Where plane ``e``'s parameters start in a parameter row."""
+        return self.shape_offset(len(self.shapes)) + _engine.PLN_NP * e
 
     def params(self, g: float, max_drift: float) -> np.ndarray:
         """(np,) the parameter row of the bodies' values (inputs at 0)."""
@@ -347,6 +416,18 @@ class TreeLayout:
         for e, f in enumerate(self.forces):
             o = self.force_offset(e)
             p[o + _engine.FRC_P:o + _engine.FRC_P + 3] = _vec(f.point)
+        if self.shapes and self.planes:
+            for e, h in enumerate(self.shapes):
+                o = self.shape_offset(e)
+                p[o + _engine.SHP_C:o + _engine.SHP_C + 3] = _vec(h.center)
+                p[o + _engine.SHP_R:o + _engine.SHP_R + 9] = np.asarray(h.axes, dtype=float).reshape(9)
+                p[o + _engine.SHP_DIM:o + _engine.SHP_DIM + 3] = _vec(h.dims)
+            for e, pl in enumerate(self.planes):
+                o = self.plane_offset(e)
+                p[o + _engine.PLN_P:o + _engine.PLN_P + 3] = _vec(pl.point)
+                p[o + _engine.PLN_N:o + _engine.PLN_N + 3] = _vec(pl.normal)
+                for k, slot in PLANE_SLOTS.items():
+                    p[o + slot] = getattr(pl, k)
         return p
 
     def state(self) -> np.ndarray:

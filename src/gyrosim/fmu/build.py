@@ -94,6 +94,9 @@ _UNITS = {  # unit -> SI base-unit exponents
     "m3/s2": {"m": 3, "s": -2},
     # sliders, springs, forces
     "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
+    # contact: Hunt-Crossley's stiffness is kg m^-1/2 s^-2, which FMI's integer exponents cannot write (the unit
+    # stays named, without a BaseUnit)
+    "s/m": {"s": 1, "m": -1}, "N/m1.5": None,
 }
 _TOKEN = "@INSTANTIATION_TOKEN@"
 #: ``fmi_type`` values: co-simulation, model exchange, or both interfaces in one FMU.
@@ -409,7 +412,8 @@ def description_head(sc: Scene, ident: str, token: str, fmi_version: int, desc: 
     ud = ET.SubElement(root, "UnitDefinitions")
     for u in units:
         ue = ET.SubElement(ud, "Unit", name=u)
-        ET.SubElement(ue, "BaseUnit", {k: str(e) for k, e in _UNITS[u].items()})
+        if _UNITS[u] is not None:
+            ET.SubElement(ue, "BaseUnit", {k: str(e) for k, e in _UNITS[u].items()})
     lc = ET.SubElement(root, "LogCategories")
     for name, d in _LOG_CATEGORIES:
         ET.SubElement(lc, "Category", name=name, description=d)

@@ -175,7 +175,7 @@ _TREE_INPUT_SLOTS = INPUT_SLOTS
 
 def _tree_layout(sc: Scene) -> SystemLayout:
     """A tree of bodies on the articulated-body algorithm."""
-    from ..kernel_tree import element_columns, tree_layout
+    from ..kernel_tree import contacts_of, element_columns, tree_layout
     from ..model import Model
 
     lay = tree_layout(sc)
@@ -218,7 +218,9 @@ def _tree_layout(sc: Scene) -> SystemLayout:
         head_inputs=head_inputs,
         indicators=[(sc.var_name(b.name, f"{side}_stop_distance"), "m" if b.joint == "slider" else "rad")
                     for b in sc.tree if b.stop == "impact"
-                    for side, lim in (("lower", b.lower), ("upper", b.upper)) if lim is not None],
+                    for side, lim in (("lower", b.lower), ("upper", b.upper)) if lim is not None] + [
+            (sc.var_name(sc.tree[h.body].name, f"{stem}.{what}"), "1") for h, pl, stem in contacts_of(sc)
+            if pl.model == "rigid" for what in ("contact_event", "friction_event")],
         energy_error=[lay.nx + len(BODY_OUTPUTS) * len(sc.tree) + 1], pattern=pattern)
 
 
@@ -348,10 +350,21 @@ def me_rows(lay: SystemLayout, rows: list[FmuRow]) -> list[FmuRow]:
     from ..variables import Variable
 
     return out + [FmuRow(f"der({states[i]})", None, "der", i) for i in range(lay.nx)] + \
-        [FmuRow(name, Variable(name, "local", "continuous", "Real", unit,
-                               f"event indicator: the distance to the {name.rsplit('.', 1)[-1].split('_')[0]} impact "
-                               "stop (>= 0 within the stops; an impact where it reaches 0)", None), "indicator", k)
+        [FmuRow(name, Variable(name, "local", "continuous", "Real", unit, _indicator_text(name), None), "indicator", k)
          for k, (name, unit) in enumerate(lay.indicators)]
+
+
+def _indicator_text(name: str) -> str:
+    """An event indicator's description: an impact stop's distance, or a rigid contact's two (constraints.h)."""
+    if name.endswith(".contact_event"):
+        return ("event indicator of a rigid contact: its gap while apart (m; touch-down where it reaches 0), its "
+                "normal force while touching (N; lift-off where it reaches 0)")
+    if name.endswith(".friction_event"):
+        return ("event indicator of a rigid contact's friction: the slip along its direction while sliding (m/s; "
+                "it sticks where it reaches 0), the friction cone's margin while sticking (N; it slides where it "
+                "reaches 0), 1 otherwise")
+    return (f"event indicator: the distance to the {name.rsplit('.', 1)[-1].split('_')[0]} impact stop (>= 0 within "
+            "the stops; an impact where it reaches 0)")
 
 
 def jacobian_pattern(lay: SystemLayout, rows: list[FmuRow]):

@@ -8,7 +8,9 @@ Per body, on the topics of the MCAP recordings (``"/" + key``):
 * ``.../imu``: the same CDR ``sensor_msgs/msg/Imu`` bytes with the ``ros2msg`` definition;
 * ``.../tf``: the transform parent -> body (``world`` -> body; in a tree scene from the parent body's frame, so
   the 3D panel draws the whole tree) as JSON ``foxglove.FrameTransform``, the schema Foxglove's 3D panel draws
-  without any ROS support (the Zenoh key and the recordings keep CDR ``tf2_msgs/msg/TFMessage``).
+  without any ROS support (the Zenoh key and the recordings keep CDR ``tf2_msgs/msg/TFMessage``); one message per
+  transform, so in a scene with contact also ``world`` -> ``<body>/<shape>/contact`` for each contact point of the
+  body's shapes (:mod:`gyrosim.service.serve`).
 
 Log times are the wall clock at publication (ns since the Unix epoch), as in the recordings; the simulation
 time is in the messages (``t``, header stamps, ``timestamp``). The server has its own ``foxglove.Context``, so

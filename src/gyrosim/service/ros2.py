@@ -16,9 +16,10 @@ wire protocol, from rmw_zenoh's released sources (ros2-gbp/rmw_zenoh-release, ``
   ``reliability:durability:history,depth:deadline:lifespan:liveliness``, each left empty where it equals
   rmw_zenoh's default (reliable, volatile, keep last 42).
 
-Topics: ``/tf`` (every body's frame from its parent's, the roots' from ``world``; reliable, keep last 100, as
-tf2's broadcaster), ``/tf_static`` (the frames of ``fixed`` joints, transient local: a late subscriber gets them),
-``/<scene>/<body>/imu`` (``sensor_msgs/msg/Imu``, sensor-data QoS), ``/<scene>/joint_states``
+Topics: ``/tf`` (every body's frame from its parent's, the roots' from ``world``, and in a scene with contact every
+contact point's frame ``<body>/<shape>/contact`` from ``world``, :mod:`gyrosim.service.tree`; reliable, keep
+last 100, as tf2's broadcaster), ``/tf_static`` (the frames of ``fixed`` joints, transient local: a late
+subscriber gets them), ``/<scene>/<body>/imu`` (``sensor_msgs/msg/Imu``, sensor-data QoS), ``/<scene>/joint_states``
 (``sensor_msgs/msg/JointState`` of the hinges and sliders), ``/clock`` (``rosgraph_msgs/msg/Clock``: the simulation
 time, for ``use_sim_time``); subscribed, on the bodies that have the input only: ``/<scene>/<body>/torque``
 (``geometry_msgs/msg/Wrench`` or ``WrenchStamped``: its torque, N*m, body frame; bodies with torque inputs) and
@@ -242,7 +243,8 @@ def ros_name(name: str) -> str:
 class Frame:
     """One body's frame at a step: its transform from its parent's frame (``rotation`` child -> parent, w first;
     ``translation`` m), its world attitude, body rates and specific force (the IMU; m/s^2, body frame: None when
-    not known), and whether its joint is fixed."""
+    not known), whether its joint is fixed, and the frames of its shapes' contact points ``(child frame, parent
+    frame, rotation, translation)`` (from ``world``; on ``/tf`` at every step, a fixed body's too)."""
 
     body: str
     parent: str
@@ -252,6 +254,7 @@ class Frame:
     omega: tuple
     fixed: bool = False
     linear_acceleration: tuple | None = None
+    contacts: tuple = ()
 
 
 class Ros2Bridge:
@@ -342,12 +345,14 @@ class Ros2Bridge:
 
     # ----------------------------------------------------------------------------------------------- state
     def publish(self, t: float, frames: list[Frame], joints: tuple | None = None) -> int:
-        """Publish one step at simulation time ``t`` (s): ``/clock``, ``/tf`` (the moving frames), ``/tf_static``
+        """Publish one step at simulation time ``t`` (s): ``/clock``, ``/tf`` (the moving frames and the contact
+        points' frames), ``/tf_static``
         (the fixed ones, once: transient local keeps them for late subscribers), every body's IMU and the hinge
         joints ``(positions, rates)`` in :attr:`hinges`' order. Returns the messages published."""
         n = 1
         self.clock.put(msg.encode_clock(t))
         moving = [(f.body, f.parent, f.rotation, f.translation) for f in frames if not f.fixed]
+        moving += [c for f in frames for c in f.contacts]  # contact points move with the world, fixed body or not
         if moving:
             self.tf.put(msg.encode_tf_frames(t, moving))
             n += 1

@@ -20,6 +20,15 @@ the joint's), its ``state`` carries its world attitude ``q``, its angular veloci
 (``joint``) and the scene-wide energy and angular momentum, its ``imu`` the world attitude and angular velocity
 (:mod:`gyrosim.service.tree`).
 
+Scenes with contact (``[[shape]]`` and ``[[plane]]`` tables): every contact (a shape against a plane) is a tf frame
+too, in the ``tf`` of the body that carries the shape (the same TFMessage, after the body's own transform; on
+ROS 2's ``/tf`` and the Foxglove live view likewise): ``world`` -> ``<body>/<shape>/contact`` (with several planes
+``<body>/<shape>/<plane>/contact``), translation the contact point (the model's ``<shape>.contact_x..z``, world, m),
+rotation the plane's normal as the frame's z (the identity for a floor of normal +z), the stamp the body frames'.
+It is published at every step, also while the shape is apart from the plane (then the point is the shape's point
+nearest the plane). The body's ``state`` carries the contacts' gap, normal force, slip speed and mode
+(``contacts``).
+
 With ``foxglove`` set, a Foxglove WebSocket server (:mod:`gyrosim.service.live`) streams the same channels
 for a live view in Foxglove.
 
@@ -52,7 +61,7 @@ from ..telemetry import messages as msg
 from . import keys as K
 from .config import describe_endpoints, open_session, zenoh_error
 from .ros2 import Frame
-from .tree import SCENE_OUTPUTS, FrameState, TreeFrames
+from .tree import CONTACT_STATE, SCENE_OUTPUTS, FrameState, TreeFrames
 
 __all__ = ["ServeOptions", "ServeStats", "Service", "main", "build_model", "install_stop_signals", "MOTOR_INPUTS"]
 
@@ -281,6 +290,9 @@ class Service:
                                  for i in range(len(self.bodies))]
         else:
             self._input_names = None
+        #: body index -> its shapes' contacts (gyrosim.service.tree.ContactFrame), published with its tf and state
+        self._contacts = [[c for c in (self.tree.contacts if self.tree is not None else ()) if c.body_index == i]
+                          for i in range(len(self.bodies))]
         self._file = _FileInputs(inputs, model, self.bodies) if inputs is not None else None
         self._torque_bodies = [i for i in range(len(self.bodies)) if "tau_x" in self.body_inputs(i)]
         #: body index -> its joint motor's input (motor_torque of a hinge, motor_force of a slider)
@@ -473,22 +485,23 @@ class Service:
         t_ns = msg.seconds_to_ns(t)
         ros_frames = []
         accel = m.specific_force()   # what an accelerometer at each body's origin reads (body frames)
-        for i, (body, parent, joint, f, state) in enumerate(self._frames(t)):
+        for i, (body, parent, joint, f, state, contacts) in enumerate(self._frames(t)):
             wall = time.time_ns()
             acc = tuple(float(a) for a in accel[i])
+            # the body's frame from its parent's, then its contact points' from the world
+            transforms = [(body, parent, f.rotation, f.translation), *contacts]
             payloads = (("state", msg.STATE_ENCODING, msg.encode_state(state(wall))),
-                        ("tf", msg.TF_ENCODING, msg.encode_tf(t, f.rotation, child_frame_id=body, frame_id=parent,
-                                                              translation=f.translation)),
+                        ("tf", msg.TF_ENCODING, msg.encode_tf_frames(t, transforms)),
                         ("imu", msg.IMU_ENCODING, msg.encode_imu(t, f.q_world, f.omega, frame_id=body,
                                                                  linear_acceleration=acc)))
             live_tf = None
-            if self.live is not None:
-                live_tf = msg.encode_frame_transform(t, f.rotation, child_frame_id=body, parent_frame_id=parent,
-                                                     translation=f.translation)
+            if self.live is not None:  # foxglove.FrameTransform: one message per transform
+                live_tf = [msg.encode_frame_transform(t, q, child_frame_id=child, parent_frame_id=frame_id,
+                                                      translation=tr) for child, frame_id, q, tr in transforms]
             self._emit(i, payloads, wall, t_ns, live_tf)
             if self.ros is not None:
                 ros_frames.append(Frame(body, parent, f.rotation, f.translation, f.q_world, f.omega,
-                                        joint == "fixed", acc))
+                                        joint == "fixed", acc, tuple(contacts)))
         if self.ros is not None:
             joints = None
             if self._hinges:
@@ -498,20 +511,27 @@ class Service:
             self.stats.published += self.ros.publish(t, ros_frames, joints)
 
     def _frames(self, t: float):
-        """``(body, parent frame, joint, FrameState, state(wall_ns) -> BodyState)`` for every body at time ``t``:
-        a tree's from :class:`TreeFrames` (each body from its parent's frame), a one-body scene's bodies from the
-        world (their attitude, no translation; the state message with their ZYZ angles, momentum and energy)."""
+        """``(body, parent frame, joint, FrameState, state(wall_ns) -> BodyState, contact transforms)`` for every
+        body at time ``t``: a tree's from :class:`TreeFrames` (each body from its parent's frame; the contact points
+        of its shapes as ``(frame, "world", rotation, point)``), a one-body scene's bodies from the world (their
+        attitude, no translation; the state message with their ZYZ angles, momentum and energy; no contact)."""
         m = self.model
         if self.tree is not None:
             out = m.outputs()
             scene_out = {k: out[k] for k in SCENE_OUTPUTS if k in out}
             for i, (body, frame, f) in enumerate(zip(self.bodies, self.tree.bodies, self.tree.at(out))):
-                def state(wall, i=i, body=body, frame=frame, f=f):
+                mine = self._contacts[i]
+                transforms = [(c.frame_id, msg.WORLD_FRAME, c.rotation, tuple(out[k] for k in c.point_keys))
+                              for c in mine]
+                values = [{"shape": c.shape, "plane": c.plane, "frame": c.frame_id,
+                           **{q: out[k] for q, k in zip(CONTACT_STATE, c.value_keys)}} for c in mine]
+
+                def state(wall, i=i, body=body, frame=frame, f=f, values=values):
                     return msg.BodyState.from_tree_outputs(
                         t, self._seq[i], q_world=f.q_world, omega=f.omega, parent=frame.parent,
                         joint_type=frame.joint, joint=f.joint, scene_outputs=scene_out, inputs=self.body_inputs(i),
-                        scene=self.scene, body=body, wall_ns=wall)
-                yield body, frame.parent, frame.joint, f, state
+                        scene=self.scene, body=body, wall_ns=wall, contacts=values)
+                yield body, frame.parent, frame.joint, f, state, transforms
             return
         for i, body in enumerate(self.bodies):
             out = m.outputs(i)
@@ -521,10 +541,11 @@ class Service:
             def state(wall, i=i, body=body, out=out):
                 return msg.BodyState.from_outputs(t, self._seq[i], out, m.inputs(i), scene=self.scene, body=body,
                                                   wall_ns=wall)
-            yield body, msg.WORLD_FRAME, "free_rotation", FrameState((0.0, 0.0, 0.0), q, q, omega, {}), state
+            yield body, msg.WORLD_FRAME, "free_rotation", FrameState((0.0, 0.0, 0.0), q, q, omega, {}), state, []
 
-    def _emit(self, i: int, payloads, wall: int, t_ns: int, live_tf: bytes | None) -> None:
-        """Put one body's payloads ((kind, encoding, bytes) for state, tf, imu), record them, stream them live."""
+    def _emit(self, i: int, payloads, wall: int, t_ns: int, live_tf: list[bytes] | None) -> None:
+        """Put one body's payloads ((kind, encoding, bytes) for state, tf, imu), record them, stream them live
+        (``live_tf``: the tf's transforms as ``foxglove.FrameTransform`` JSON, one message each)."""
         pubs = self.publishers[i]
         for kind, encoding, data in payloads:
             pubs[kind].put(data)
@@ -535,7 +556,8 @@ class Service:
         if self.live is not None:
             key = self.keys[i]
             self.live.log(key.state, payloads[0][2], wall)
-            self.live.log(key.tf, live_tf, wall)
+            for data in live_tf:
+                self.live.log(key.tf, data, wall)
             self.live.log(key.imu, payloads[2][2], wall)
         self.stats.published += len(payloads)
         self._seq[i] += 1

@@ -14,6 +14,12 @@ the parent body's name or ``world`` for a root), the body's attitude in the worl
   down the tree: ``omega_i = R_rel^T omega_parent + the joint's rate`` (``axis * rate`` for a hinge, the joint's
   ``omega`` for a ball or free joint, 0 for fixed), as the engine composes the bodies' velocities.
 
+A scene with contact (``[[shape]]`` and ``[[plane]]`` tables, :mod:`gyrosim.scene_contact`) also has one frame per
+contact, shape and plane (:class:`ContactFrame`, :attr:`TreeFrames.contacts`), published in the ``tf`` of the body
+that carries the shape: from ``world``, named ``<body>/<shape>/contact`` (``<body>/<shape>/<plane>/contact`` in a
+scene of several planes; :func:`contact_frame_id`), its origin the contact point (the model's ``<shape>.contact_x..z``,
+world, m), its axes the world's turned so that its z is the plane's normal (the identity for a floor of normal +z).
+
 Plain Python floats: a few microseconds per body and step, no arrays to allocate.
 
 Examples
@@ -35,12 +41,110 @@ from dataclasses import dataclass
 
 from ..telemetry.messages import WORLD_FRAME
 
-__all__ = ["BodyFrame", "FrameState", "TreeFrames", "SCENE_OUTPUTS"]
+__all__ = ["BodyFrame", "FrameState", "TreeFrames", "SCENE_OUTPUTS", "ContactFrame", "contact_frame_id",
+           "contact_frames", "CONTACT_STATE", "normal_rotation"]
 
 #: The scene-wide outputs of a tree scene a BodyState carries.
 SCENE_OUTPUTS = ("energy", "energy_error", "L_x", "L_y", "L_z")
 
+#: The contact outputs a BodyState carries for each contact of its body (``contacts``), with the contact point (in
+#: the ``tf``): the short names of :data:`gyrosim.core.tree.CONTACT_OUTPUTS`.
+CONTACT_STATE = ("gap", "normal_force", "slip_speed", "mode")
+
 _IDENTITY = (1.0, 0.0, 0.0, 0.0)
+
+
+def contact_frame_id(body: str, shape: str, plane: str | None = None) -> str:
+    """The tf frame of a contact point: ``<body>/<shape>/contact``, with several planes
+    ``<body>/<shape>/<plane>/contact``.
+
+    Body, shape and plane names hold no ``/`` (letters, digits, ``_``, ``-``), so a contact's frame differs from
+    every body's frame and every other contact's; no leading ``/`` (tf2 refuses one).
+
+    Examples
+    --------
+    >>> contact_frame_id("top", "ball"), contact_frame_id("top", "stem", "wall")
+    ('top/ball/contact', 'top/stem/wall/contact')
+    """
+    return f"{body}/{shape}/contact" if plane is None else f"{body}/{shape}/{plane}/contact"
+
+
+def normal_rotation(normal) -> tuple:
+    """The unit quaternion ``(w, x, y, z)`` of the shortest rotation taking the world's z onto ``normal`` (unit):
+    a contact frame's rotation from the world, its z the plane's normal; the identity for ``(0, 0, 1)``, a half turn
+    about x for ``(0, 0, -1)``.
+
+    Examples
+    --------
+    >>> normal_rotation((0.0, 0.0, 1.0))
+    (1.0, 0.0, 0.0, 0.0)
+    """
+    nx, ny, nz = (float(v) for v in normal)
+    if nx == 0.0 and ny == 0.0:
+        # along z: the identity, or for -z a half turn about x
+        return _IDENTITY if nz > 0.0 else (0.0, 1.0, 0.0, 0.0)
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+    nx, ny, nz = nx / norm, ny / norm, nz / norm
+    # (1 + z.n, z x n), normalized; 1 + nz as (nx^2 + ny^2) / (1 - nz) near -z, where 1 + nz cancels
+    w = 1.0 + nz if nz >= 0.0 else (nx * nx + ny * ny) / (1.0 - nz)
+    x, y = (-ny if ny else 0.0), nx
+    n = math.sqrt(w * w + x * x + y * y)
+    return (w / n, x / n, y / n, 0.0)
+
+
+@dataclass(frozen=True)
+class ContactFrame:
+    """One contact (a shape against a plane) as the service publishes it.
+
+    Attributes
+    ----------
+    body : str
+        The body that carries the shape (its ``tf`` and ``state`` carry the contact).
+    body_index : int
+        The body's index in the model's bodies.
+    shape, plane : str
+        The shape's and the plane's names.
+    frame_id : str
+        The contact point's tf frame (:func:`contact_frame_id`), child of ``world``.
+    rotation : (4,) tuple of float
+        The frame's rotation from the world ``(w, x, y, z)``: its z the plane's normal (:func:`normal_rotation`).
+    point_keys : (3,) tuple of str
+        The model's outputs of the contact point, world, m (``<shape>.contact_x..z``, full names).
+    value_keys : tuple of str
+        The model's outputs of :data:`CONTACT_STATE` (full names), in that order.
+    """
+
+    body: str
+    body_index: int
+    shape: str
+    plane: str
+    frame_id: str
+    rotation: tuple
+    point_keys: tuple
+    value_keys: tuple
+
+
+def contact_frames(scene) -> list[ContactFrame]:
+    """Every contact of a tree scene, in the engine's order (:func:`gyrosim.kernel_tree.contact_stems`)."""
+    if not getattr(scene, "shapes", ()):
+        return []
+    from ..kernel_tree import contact_stems
+
+    names = [b.name for b in scene.tree]
+    several = len(scene.planes) > 1
+    planes = {pl.name: pl for pl in scene.planes}
+    out = []
+    for h, stem in contact_stems(scene):
+        body = names[h.body]
+        plane = stem.rsplit(".", 1)[1] if several else scene.planes[0].name
+        name = scene.var_name
+        out.append(ContactFrame(
+            body=body, body_index=int(h.body), shape=h.name, plane=plane,
+            frame_id=contact_frame_id(body, h.name, plane if several else None),
+            rotation=normal_rotation(planes[plane].normal),
+            point_keys=tuple(name(body, f"{stem}.contact_{c}") for c in "xyz"),
+            value_keys=tuple(name(body, f"{stem}.{q}") for q in CONTACT_STATE)))
+    return out
 
 
 @dataclass(frozen=True)
@@ -152,6 +256,8 @@ class TreeFrames:
         name = model.scene.var_name
         self._keys = [(tuple(name(f.name, c) for c in f.coords),
                        tuple(name(f.name, f"q_world_{c}") for c in "wxyz")) for f in self.bodies]
+        #: the scene's contacts (shape against plane), none without ``[[shape]]`` tables
+        self.contacts: list[ContactFrame] = contact_frames(model.scene)
 
     def at(self, outputs: dict) -> list[FrameState]:
         """Every body's frame from the model's outputs (``model.outputs()``, full names)."""

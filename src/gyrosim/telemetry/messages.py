@@ -70,6 +70,8 @@ __all__ = [
     "FRAME_TRANSFORM_JSON_SCHEMA",
     "STATE_INPUTS",
     "JOINT_VARIABLES",
+    "CONTACT_MODES",
+    "CONTACT_VALUES",
     "WORLD_FRAME",
     "DEFAULT_TORQUE_LIMIT",
     "BodyState",
@@ -277,6 +279,17 @@ JOINT_VARIABLES = {
     **{f"v_{c}": ("m/s", f"velocity of the body's origin, world {c} (free joint)") for c in "xyz"},
 }
 
+#: The contact modes (a contact's ``mode``; gyrosim.core.tree.CONTACT_MODES).
+CONTACT_MODES = ("apart", "sliding", "rolling", "resting")
+
+#: The values a BodyState's ``contacts`` carry for each contact (the model's ``<shape>.<name>``), with their meaning.
+CONTACT_VALUES = {
+    "gap": "distance of the shape above the plane, m (negative: penetration)",
+    "normal_force": "normal force of the plane on the shape, N",
+    "slip_speed": "speed of the body's point at the contact along the plane, m/s",
+    "mode": "contact mode: 0 apart, 1 sliding, 2 rolling, 3 resting",
+}
+
 #: JSON Schema (draft 2020-12) of a BodyState message.
 BODY_STATE_JSON_SCHEMA: dict = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -315,6 +328,25 @@ BODY_STATE_JSON_SCHEMA: dict = {
             "properties": {name: {"type": "number", "description": f"{what}, {unit}"}
                            for name, (unit, what) in JOINT_VARIABLES.items()},
             "description": "tree scenes: the joint's variables (<body>.<name> in the model), those of its joint only",
+        },
+        "contacts": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "properties": {
+                    "shape": {"type": "string", "description": "the shape (on this body)"},
+                    "plane": {"type": "string", "description": "the plane it touches"},
+                    "frame": {"type": "string", "description": "the contact point's tf frame (child of 'world', "
+                              "in this body's tf): <body>/<shape>/contact, <body>/<shape>/<plane>/contact with "
+                              "several planes"},
+                    **{name: {"type": "number", "description": what + " (null when not finite)"}
+                       for name, what in CONTACT_VALUES.items() if name != "mode"},
+                    "mode": {"type": "integer", "description": CONTACT_VALUES["mode"],
+                             "oneOf": [{"const": i, "title": m} for i, m in enumerate(CONTACT_MODES)]},
+                },
+            },
+            "description": "scenes with contact: the contacts of this body's shapes, one per shape and plane (left "
+                           "out for a body without shapes)",
         },
         "wall_ns": {"type": "integer", "description": "publisher wall clock at publication, ns since epoch "
                     "(beyond 2^53: JavaScript readers round it to about 0.2 us)"},
@@ -416,6 +448,10 @@ class BodyState:
         Tree scenes: ``hinge``, ``ball``, ``free_rotation``, ``free`` or ``fixed``.
     joint : dict
         Tree scenes: the joint variables by name (:data:`JOINT_VARIABLES`), those of the body's joint only.
+    contacts : tuple of dict
+        Scenes with contact: one dict per contact of the body's shapes, ``shape``, ``plane``, ``frame`` (the
+        contact point's tf frame) and the values of :data:`CONTACT_VALUES`; empty (left out of the message) for a
+        body without shapes.
     """
 
     t: float
@@ -435,6 +471,7 @@ class BodyState:
     parent: str | None = None
     joint_type: str | None = None
     joint: dict = field(default_factory=dict)
+    contacts: tuple = ()
 
     @classmethod
     def from_outputs(cls, t: float, seq: int, outputs: dict, inputs: dict | None = None, *,
@@ -457,7 +494,7 @@ class BodyState:
     @classmethod
     def from_tree_outputs(cls, t: float, seq: int, *, q_world, omega, parent: str, joint_type: str, joint: dict,
                           scene_outputs: dict, inputs: dict | None = None, scene: str = "", body: str = "",
-                          wall_ns: int | None = None) -> BodyState:
+                          wall_ns: int | None = None, contacts=()) -> BodyState:
         """Build the state of one body of a tree scene.
 
         Parameters
@@ -474,6 +511,8 @@ class BodyState:
             The scene-wide outputs ``energy``, ``energy_error``, ``L_x``, ``L_y``, ``L_z`` (those present are used).
         inputs : dict, optional
             The body's inputs by their short names (``motor_torque``, ``tau_x``..).
+        contacts : iterable of dict, optional
+            The contacts of the body's shapes: ``shape``, ``plane``, ``frame`` and :data:`CONTACT_VALUES`.
         """
         o = scene_outputs
         L = None
@@ -484,6 +523,7 @@ class BodyState:
             L=L, energy=o.get("energy"), energy_error=o.get("energy_error"),
             inputs={k: float(v) for k, v in (inputs or {}).items()}, scene=scene, body=body, wall_ns=wall_ns,
             parent=str(parent), joint_type=str(joint_type), joint={k: float(v) for k, v in joint.items()},
+            contacts=tuple(dict(c) for c in contacts),
         )
 
     def to_dict(self) -> dict:
@@ -507,7 +547,18 @@ class BodyState:
             d["parent"] = self.parent
             d["joint_type"] = self.joint_type or ""
             d["joint"] = {k: _finite_or_none(v) for k, v in self.joint.items()}
+        if self.contacts:
+            d["contacts"] = [_contact_dict(c) for c in self.contacts]
         return d
+
+
+def _contact_dict(c: dict) -> dict:
+    """One contact of a BodyState as JSON: names as strings, values finite or null, ``mode`` an integer."""
+    out = {k: str(c[k]) for k in ("shape", "plane", "frame") if k in c}
+    for k in CONTACT_VALUES:
+        v = _finite_or_none(c.get(k))
+        out[k] = (None if v is None else int(round(v))) if k == "mode" else v
+    return out
 
 
 def encode_state(state: BodyState) -> bytes:

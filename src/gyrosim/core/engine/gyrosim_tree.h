@@ -135,6 +135,54 @@ extern "C" {
 #define GS_FRC_F 3    /* 3: the force, N (body or world frame: the description says) */
 #define GS_FRC_NP 6
 
+/* Contact (contact.h): convex shapes on bodies against planes fixed in the world. A contact is a (shape, plane)
+ * pair; every shape meets every plane, shape-major. A shape's parameters (its block after the forces): */
+#define GS_SHAPE_SPHERE 0      /* radius GS_SHP_DIM */
+#define GS_SHAPE_ELLIPSOID 1   /* semi-axes GS_SHP_DIM[0..2] along the shape frame's axes */
+#define GS_SHAPE_DISK 2        /* a thin disk's rim: radius GS_SHP_DIM, its axis the shape frame's z */
+#define GS_SHAPE_CYLINDER 3    /* radius GS_SHP_DIM, length GS_SHP_DIM[1] along the shape frame's z */
+#define GS_SHAPE_POINT 4       /* a sharp tip: the shape frame's origin */
+#define GS_SHP_C 0     /* 3: the shape's centre in the body frame (m) */
+#define GS_SHP_R 3     /* 9: the shape frame's axes in the body frame (row-major S: body <- shape) */
+#define GS_SHP_DIM 12  /* 3: the dimensions by kind (m) */
+#define GS_SHP_NP 15
+/* a plane's parameters (its block after the shapes): the contact law is data on the plane */
+#define GS_PLN_P 0     /* 3: a point of the plane (m, world) */
+#define GS_PLN_N 3     /* 3: its normal (unit, world), pointing out of the solid below it */
+#define GS_PLN_MU 6    /* Coulomb friction coefficient */
+#define GS_PLN_E 7     /* Newton's restitution (rigid contact) */
+#define GS_PLN_RS 8    /* Contensou spin radius (m): spin friction, 0 none */
+#define GS_PLN_RR 9    /* rolling resistance lever (m): 0 none */
+#define GS_PLN_K 10    /* compliant: Hunt-Crossley stiffness (N/m^1.5) */
+#define GS_PLN_C 11    /* compliant: Hunt-Crossley damping (s/m) */
+#define GS_PLN_VS 12   /* regularized friction: the slip velocity (m/s) */
+#define GS_PLN_NP 13
+#define GS_CONTACT_RIGID 0       /* a plane's normal law (the description) */
+#define GS_CONTACT_COMPLIANT 1
+#define GS_FRICTION_COULOMB 0    /* its friction law */
+#define GS_FRICTION_REGULARIZED 1
+/* a contact's outputs (their block at the end of an output row), and its modes */
+#define GS_CT_GAP 0      /* m: the shape's distance above the plane (< 0: penetration) */
+#define GS_CT_FN 1       /* N: the normal force */
+#define GS_CT_FT 2       /* 3: the friction force on the body (N, world) */
+#define GS_CT_SLIP 5     /* m/s: the speed of the body's material point at the contact along the plane */
+#define GS_CT_X 6        /* 3: the contact point (m, world): the shape's point nearest the plane */
+#define GS_CT_MODE 9     /* GS_MODE_* */
+#define GS_CT_NOUT 10
+#define GS_MODE_APART 0
+#define GS_MODE_SLIDE 1
+#define GS_MODE_ROLL 2
+#define GS_MODE_REST 3
+
+/* A rigid contact's mode, kept in the state after the health monitor (y[t->ym], GS_CM_NP per contact, every contact
+ * of a tree with a rigid plane): discrete values the integrators carry unchanged and the events set (constraints.h) */
+#define GS_CM_MODE 0   /* GS_MODE_APART, GS_MODE_SLIDE or GS_MODE_ROLL (sticking: rolling or resting) */
+#define GS_CM_DIR 1    /* 4: the slip's direction at the piece's start (unit: v_t (world), R_c omega_n) */
+#define GS_CM_SCALE 5  /* |slip| there (m/s): a slip turned across its direction is no stop unless it is small */
+#define GS_CM_NP 6
+/* The constraint rows the one solver takes at once (a sticking contact has up to 4, a sliding one 1) */
+#define GS_TREE_ROWS_MAX 32
+
 #define GS_ORBIT_NONE 0
 #define GS_ORBIT_CIRCULAR 1
 #define GS_ORBIT_KEPLER 2
@@ -152,6 +200,11 @@ typedef struct {
     int spr_a[GS_TREE_ELEM_MAX], spr_b[GS_TREE_ELEM_MAX];   /* a spring's bodies (-1: the world) */
     int frc_b[GS_TREE_ELEM_MAX], frc_w[GS_TREE_ELEM_MAX];   /* a force's body; 1: the force in world axes */
     int p_spr, p_frc;            /* where the springs' and the forces' parameters start in p */
+    int n_shp, n_pln;            /* contact shapes and planes */
+    int shp_b[GS_TREE_ELEM_MAX], shp_k[GS_TREE_ELEM_MAX];    /* a shape's body and kind (GS_SHAPE_*) */
+    int pln_law[GS_TREE_ELEM_MAX], pln_fric[GS_TREE_ELEM_MAX];   /* a plane's GS_CONTACT_* and GS_FRICTION_* */
+    int p_shp, p_pln;            /* where the shapes' and the planes' parameters start in p */
+    int ym;                      /* where the rigid contacts' modes start in y (after the monitor), -1 without */
     int leaf[GS_TREE_MAX];       /* 1 when no body hangs from this one */
     int orbit;                   /* GS_ORBIT_* */
     int ya;                      /* the circular orbit's anomaly in y (nx - 1), -1 without */
@@ -160,7 +213,8 @@ typedef struct {
 
 /* The description as a flat int32 array: n, n_cpl, then (parent, joint) per body, then (a, b) per coupling, then
  * optionally the orbit (GS_ORBIT_*; none when left out), then optionally n_spr, n_frc, (a, b) per spring (-1: the
- * world), (body, world) per force. Returns 0, or a nonzero code when it is not a valid tree (a parent not before its
+ * world), (body, world) per force, then optionally n_shp, n_pln, (body, kind) per shape, (law, friction) per
+ * plane. Returns 0, or a nonzero code when it is not a valid tree (a parent not before its
  * child, an unknown joint, a coupling between bodies that are not hinges, sizes
  * beyond GS_TREE_MAX or GS_TREE_ELEM_MAX, an unknown orbit, a Kepler orbit with a root that is not free, an element on no body). */
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
@@ -184,13 +238,15 @@ void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, d
  * energy_error (J), L_x, L_y, L_z (world, about the world origin); with an orbit then every body's attitude in the
  * orbit frame q_orbit (4 each; body -> local vertical/local horizontal: x along-track, z towards the centre, y = z x
  * x, the negative orbit normal; w >= 0), the orbit point's position (m) and velocity (m/s) from the central body,
- * world axes (circular: the orbit point; Kepler: the tree's centre of mass). GS_TREE_NOUT(t) values. */
+ * world axes (circular: the orbit point; Kepler: the tree's centre of mass); then GS_CT_NOUT per contact
+ * (GS_CT_*, from GS_TREE_CONTACT_OUT(t)). GS_TREE_NOUT(t) values. */
 #define GS_TREE_BODY_NOUT 10   /* q_world[4], r_world[3], v_world[3] */
 #define GS_TREE_OUT_QW 0
 #define GS_TREE_OUT_RW 4
 #define GS_TREE_OUT_VW 7
 #define GS_TREE_SCENE_OUT(t) ((t)->nx + GS_TREE_BODY_NOUT * (t)->n)   /* where energy is in a row */
-#define GS_TREE_NOUT(t) (GS_TREE_SCENE_OUT(t) + 5 + ((t)->orbit ? 4 * (t)->n + 6 : 0))
+#define GS_TREE_CONTACT_OUT(t) (GS_TREE_SCENE_OUT(t) + 5 + ((t)->orbit ? 4 * (t)->n + 6 : 0))
+#define GS_TREE_NOUT(t) (GS_TREE_CONTACT_OUT(t) + GS_CT_NOUT * (t)->n_shp * (t)->n_pln)
 void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out);
 
 /* Start a state: quaternions normalised (0 returned when one is zero or a value is not finite, else 1), the
@@ -266,14 +322,19 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
  * joint with impact stops within them (lower <= x <= upper). Returns GS_TREE_OK, or GS_TREE_BAD_STOPS with
  * slot[0] = the upper stop's slot in p and slot[1] = the lower's, or GS_TREE_BAD_START with slot[0] = the
  * coordinate's slot in y and slot[1], slot[2] the lower and upper stops' slots in p (-1 where that stop is not
- * set). The callers name the variables and print the message. */
+ * set), or GS_TREE_BAD_CONTACT (gs_tree_contact_inside). The callers name the variables and print the message. */
 /* The impacts one piece of a step may locate: beyond it the call fails (a rattle faster than the step can follow;
  * an accumulation point ends by its flights' shrinking below the step's round-off, long before). */
 #define GS_TREE_MAX_EVENTS 100000
 #define GS_TREE_OK 0
 #define GS_TREE_BAD_STOPS 1
 #define GS_TREE_BAD_START 2
+#define GS_TREE_BAD_CONTACT 3   /* a rigid shape starts inside a plane: slot[0] = the contact (shape * n_pln + plane) */
 int gs_tree_check(const gs_tree *t, const double *y, const double *p, int slot[3]);
+
+/* The first rigid contact whose shape is inside its plane deeper than a start allows (1e-9 m + 1e-6 of the shape's
+ * size: nearer, a start is put on the plane), its gap (m) in *gap; -1 where none is. */
+int gs_tree_contact_inside(const gs_tree *t, const double *y, const double *p, double *gap);
 
 /* Impact stops: the number of event indicators (one per impact stop: lower, upper), their values (the distance
  * to the stop, x - lower and upper - x: >= 0 while the joint is within them), and the impact at a state on or

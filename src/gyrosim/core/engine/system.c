@@ -182,6 +182,8 @@ int gs_tree_check(const gs_tree *t, const double *y, const double *p, int slot[3
             return GS_TREE_BAD_START;
         }
     }
+    double gap;
+    if (y != NULL && t->ym >= 0 && (slot[0] = gs_tree_contact_inside(t, y, p, &gap)) >= 0) return GS_TREE_BAD_CONTACT;
     return GS_TREE_OK;
 }
 

@@ -163,6 +163,7 @@ int big_tree_start(const gs_tree *t, double *y, const double *p);
 void big_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new);
 double big_tree_drift(const gs_tree *t, const double *y, const double *p, double d[2]);
 int big_tree_impact(const gs_tree *t, double *y, const double *p);
+void big_tree_indicators(const gs_tree *t, const double *y, const double *p, double *z);
 double big_tree_fastest_rate(const gs_tree *t, const double *y, const double *p);
 size_t big_tree_advance(const gs_tree *t, int method, size_t n, double *y, const double *p, double H, double rtol,
                         double atol, double max_step, double *hint, int64_t *stats, int32_t *status, int threads);
@@ -206,11 +207,33 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     const size_t base = (size_t)(2 + 2 * n + 2 * nc);
     if (len != base && len != base + 1 && len < base + 3) return 3;
     t->orbit = len >= base + 1 ? desc[base] : GS_ORBIT_NONE;
-    t->n_spr = t->n_frc = 0;
+    t->n_spr = t->n_frc = t->n_shp = t->n_pln = 0;
     if (len >= base + 3) {   /* the elements */
         const int ns = desc[base + 1], nf = desc[base + 2];
         if (ns < 0 || ns > GS_TREE_ELEM_MAX || nf < 0 || nf > GS_TREE_ELEM_MAX) return 2;
-        if (len != base + 3 + 2 * (size_t)ns + 2 * (size_t)nf) return 3;
+        const size_t tail = base + 3 + 2 * (size_t)ns + 2 * (size_t)nf;   /* where the contact tables start */
+        if (len != tail && len < tail + 2) return 3;
+        if (len > tail) {   /* the contact shapes and planes */
+            const int nh = desc[tail], np = desc[tail + 1];
+            if (nh < 0 || nh > GS_TREE_ELEM_MAX || np < 0 || np > GS_TREE_ELEM_MAX) return 2;
+            if (len != tail + 2 + 2 * (size_t)nh + 2 * (size_t)np) return 3;
+            for (int e = 0; e < nh; e++) {
+                const int b = desc[tail + 2 + 2 * e], k = desc[tail + 3 + 2 * e];
+                if (b < 0 || b >= n || k < GS_SHAPE_SPHERE || k > GS_SHAPE_POINT) return 14;
+                t->shp_b[e] = b;
+                t->shp_k[e] = k;
+            }
+            for (int e = 0; e < np; e++) {
+                const int law = desc[tail + 2 + 2 * nh + 2 * e], fr = desc[tail + 3 + 2 * nh + 2 * e];
+                if (law != GS_CONTACT_COMPLIANT && law != GS_CONTACT_RIGID) return 15;
+                if (fr != GS_FRICTION_COULOMB && fr != GS_FRICTION_REGULARIZED) return 15;
+                if (law == GS_CONTACT_COMPLIANT && fr == GS_FRICTION_COULOMB) return 15;   /* stick needs rigid */
+                t->pln_law[e] = law;
+                t->pln_fric[e] = fr;
+            }
+            t->n_shp = nh;
+            t->n_pln = np;
+        }
         for (int e = 0; e < ns; e++) {
             const int a = desc[base + 3 + 2 * e], b = desc[base + 4 + 2 * e];
             if (a < -1 || a >= n || b < -1 || b >= n || a == b) return 12;
@@ -257,9 +280,19 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     if (t->orbit == GS_ORBIT_CIRCULAR) t->ya = at++;
     t->nx = at;
     t->ny = at + GS_TREE_NMON;
+    t->ym = -1;
+    for (int e = 0; e < t->n_pln && t->n_shp > 0; e++) {   /* a rigid plane: every contact's mode in the state */
+        if (t->pln_law[e] != GS_CONTACT_RIGID) continue;
+        if (t->n_shp * t->n_pln * 4 > GS_TREE_ROWS_MAX || n > GS_TREE_SMALL) return 16;
+        t->ym = t->ny;
+        t->ny += GS_CM_NP * t->n_shp * t->n_pln;
+        break;
+    }
     t->p_spr = GS_TP_HEAD + GS_TB_NP * n + nc;
     t->p_frc = t->p_spr + GS_SPR_NP * t->n_spr;
-    t->np = t->p_frc + GS_FRC_NP * t->n_frc;
+    t->p_shp = t->p_frc + GS_FRC_NP * t->n_frc;
+    t->p_pln = t->p_shp + GS_SHP_NP * t->n_shp;
+    t->np = t->p_pln + GS_PLN_NP * t->n_pln;
     return 0;
 }
 
@@ -431,7 +464,8 @@ typedef struct {
     M3 TB(Q);         /* else its rotation matrix (child at the joint's zero -> parent) */
     double TB(ap)[3]; /* a slider's axis in the parent frame (Q times the child frame's) */
     int elements;              /* springs or forces: the world kinematics is needed */
-    int impacts;               /* impact stops: gs_tree_advance locates their events */
+    int impacts;               /* impact stops or rigid contacts: gs_tree_advance locates their events */
+    int rigid;                 /* rigid contacts: their modes are in the state (t->ym) */
     double TB(U)[6][6];   /* ia_fixed: U = IA S (k columns) */
     double TB(Di)[6][6];  /* ia_fixed: D^-1 (k x k) */
     M6 TB(Ia);            /* ia_fixed, not a root: IA - U D^-1 U^T */
@@ -497,8 +531,9 @@ static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int 
 
 static void precompute(const gs_tree *t, const double *p, Pre *d) {
     d->g0 = p[GS_TP_G] == 0.0;
-    d->elements = t->n_spr > 0 || t->n_frc > 0;
+    d->elements = t->n_spr > 0 || t->n_frc > 0 || t->n_shp * t->n_pln > 0;
     d->impacts = 0;
+    d->rigid = t->ym >= 0;
     for (int i = 0; i < t->n; i++) {
         const double *b = body_p(p, i), *a = b + GS_TB_AXIS, *c = b + GS_TB_CM, *r = b + GS_TB_POS;
         const int par = t->parent[i];
@@ -558,6 +593,7 @@ static void precompute(const gs_tree *t, const double *p, Pre *d) {
         add_transformed_inertia(&kt, 0, d->Ia[i], d->IAbase[par], 63);
     }
     WS_CLOSE;
+    d->impacts |= d->rigid;
     kern_setup(t, p, d->rotor, d->elements || d->impacts, &d->kern);
 }
 
@@ -1199,6 +1235,48 @@ static TREE_INLINE void joint_qdd(const int k, const double (*U)[6], const doubl
  * IA and forces pA, each body's passed to its parent (inwards); the accelerations (outwards). What Pre knows is
  * skipped: the joint factors of the bodies whose IA is constant, c's and v's linear halves where they vanish, the
  * world's acceleration without gravity, the accelerations of leaves (no child needs them). */
+/* c = v x vj, the bias acceleration of body i's joint (Featherstone, RBDA 7.1: a_i = X a_parent + S qdd + c): a joint
+ * below a body other than a slider has no linear velocity of its own (vj = (wj; 0)), so c = (w x wj, v_lin x wj); a
+ * slider's has no angular one (vj = (0; vl_j)): c = (0, w x vl_j); a root's is zero (the world does not move) */
+static void joint_bias(const gs_tree *t, const Pre *pre, const Kin *kin, int i, double c[6]) {
+    const double *w = kin->v[i], *vl = kin->v[i] + 3;
+    if (t->parent[i] >= 0 && t->joint[i] == GS_J_SLIDER) {
+        c[0] = c[1] = c[2] = 0.0;
+        cross3(w, kin->vj[i] + 3, c + 3);
+    } else if (t->parent[i] >= 0) {
+        const double *wj = kin->vj[i];
+        cross3(w, wj, c);
+        if (pre->vlin0[i]) {
+            c[3] = c[4] = c[5] = 0.0;
+        } else {
+            cross3(vl, wj, c + 3);
+        }
+        if (t->joint[i] == GS_J_FREE) {   /* a free joint below a body moves linearly too: + w x vl_j */
+            double wv[3];
+            cross3(w, kin->vj[i] + 3, wv);
+            for (int a = 0; a < 3; a++) c[3 + a] += wv[a];
+        }
+    } else {
+        for (int a = 0; a < 6; a++) c[a] = 0.0;
+    }
+}
+
+/* acc += S qdd_i: body i's joint acceleration as a spatial vector in its frame */
+static void add_joint_acc(const gs_tree *t, const double *p, const Pre *pre, int i, const double *qdd_i,
+                          double acc[6]) {
+    if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
+        acc[pre->axis_k[i]] += qdd_i[0];
+    } else if (t->joint[i] == GS_J_HINGE) {
+        const double *ax = body_p(p, i) + GS_TB_AXIS;
+        for (int a = 0; a < 3; a++) acc[a] += ax[a] * qdd_i[0];
+    } else if (t->joint[i] == GS_J_SLIDER) {
+        const double *ax = body_p(p, i) + GS_TB_AXIS;
+        for (int a = 0; a < 3; a++) acc[3 + a] += ax[a] * qdd_i[0];
+    } else {
+        for (int a = 0; a < pre->nd[i]; a++) acc[a] += qdd_i[a];
+    }
+}
+
 static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
                 const double (*fx)[6], const double (*tau_in)[6], double (*qdd)[6]) {
     WS_OPEN;
@@ -1254,28 +1332,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         if (fx != NULL) {   /* the orbit's forces */
             for (int a = 0; a < 6; a++) pA[i][a] -= fx[i][a];
         }
-        /* c = v x vj: a joint below a body other than a slider has no linear velocity of its own (vj = (wj; 0)),
-         * so c = (w x wj, v_lin x wj); a slider's has no angular one (vj = (0; vl_j)): c = (0, w x vl_j); a root's
-         * is zero (the world does not move) */
-        if (t->parent[i] >= 0 && t->joint[i] == GS_J_SLIDER) {
-            c[i][0] = c[i][1] = c[i][2] = 0.0;
-            cross3(w, kin->vj[i] + 3, c[i] + 3);
-        } else if (t->parent[i] >= 0) {
-            const double *wj = kin->vj[i];
-            cross3(w, wj, c[i]);
-            if (pre->vlin0[i]) {
-                c[i][3] = c[i][4] = c[i][5] = 0.0;
-            } else {
-                cross3(vl, wj, c[i] + 3);
-            }
-            if (t->joint[i] == GS_J_FREE) {   /* a free joint below a body moves linearly too: + w x vl_j */
-                double wv[3];
-                cross3(w, kin->vj[i] + 3, wv);
-                for (int a = 0; a < 3; a++) c[i][3 + a] += wv[a];
-            }
-        } else {
-            for (int a = 0; a < 6; a++) c[i][a] = 0.0;
-        }
+        joint_bias(t, pre, kin, i, c[i]);
     }
     for (int i = t->n - 1; i >= 0; i--) {
         const int k = pre->nd[i], par = t->parent[i], fixed = pre->ia_fixed[i];
@@ -1348,17 +1405,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         }
         if (t->leaf[i]) continue;   /* a = ap + S qdd: only the children use it */
         for (int a = 0; a < 6; a++) acc[i][a] = ap[a];
-        if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
-            acc[i][pre->axis_k[i]] += qdd[i][0];
-        } else if (t->joint[i] == GS_J_HINGE) {
-            const double *ax = body_p(p, i) + GS_TB_AXIS;
-            for (int a = 0; a < 3; a++) acc[i][a] += ax[a] * qdd[i][0];
-        } else if (t->joint[i] == GS_J_SLIDER) {
-            const double *ax = body_p(p, i) + GS_TB_AXIS;
-            for (int a = 0; a < 3; a++) acc[i][3 + a] += ax[a] * qdd[i][0];
-        } else {
-            for (int a = 0; a < k; a++) acc[i][a] += qdd[i][a];
-        }
+        add_joint_acc(t, p, pre, i, qdd[i], acc[i]);
     }
     WS_CLOSE;
 }
@@ -1610,6 +1657,13 @@ static double element_forces(const gs_tree *t, const double *p, const Kin *k, do
     return P;
 }
 
+static void qdd_to_dy(const gs_tree *t, const double *y, const Kin *kin, const double (*qdd)[6], double *dy);
+static void derivs_full(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
+                        double *dy, double *cl);
+
+#include "contact.h"
+#include "constraints.h"
+
 /* The potential of the joints' springs and stops, the ball springs, the couplings and the spring elements (J);
  * the elements need the world kinematics (kin; NULL where the tree has none). */
 static double elastic(const gs_tree *t, const double *y, const double *p, const Kin *kin) {
@@ -1636,6 +1690,7 @@ static double elastic(const gs_tree *t, const double *y, const double *p, const 
         spring_force(t, p, kin, e, F, &l, &ld);
         V += 0.5 * sp[GS_SPR_K] * (l - sp[GS_SPR_L0]) * (l - sp[GS_SPR_L0]);
     }
+    if (kin != NULL) V += contact_potential(t, p, kin);
     return V;
 }
 
@@ -1665,7 +1720,11 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
     return P;
 }
 
-static void derivs(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *dy) {
+
+/* The right-hand side at state y; modes: the rigid contacts' modes (GS_CM_*; NULL: none acts); cl: what the
+ * constraint solve gives per contact (constraints.h CL_*; NULL: not wanted) */
+static void derivs_full(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
+                        double *dy, double *cl) {
     if (kern_derivs(t, &pre->kern, y, p, dy)) return;
     WS_OPEN;
     KIN_DECL(kin, t->n);
@@ -1683,8 +1742,28 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
     } else if (ext) {
         memset(fx, 0, (size_t)t->n * sizeof(fx[0]));
     }
-    if (pre->elements) P_el = element_forces(t, p, &kin, fx);
+    if (pre->elements) P_el = element_forces(t, p, &kin, fx) + contact_forces(t, p, &kin, fx);
     aba(t, y, p, pre, &kin, ext ? (const double (*)[6])fx : NULL, NULL, qdd);
+    if (modes != NULL && pre->rigid) P_el += constraint_forces(t, y, p, pre, modes, &kin, fx, qdd, cl);
+    qdd_to_dy(t, y, &kin, (const double (*)[6])qdd, dy);
+    dy[t->nx] = power(t, y, p, &kin) + P_el;
+    if (orbit) {   /* the work of the gravity-gradient torques and the tidal forces */
+        for (int i = 0; i < t->n; i++) dy[t->nx] += dot3(fnc[i], kin.v[i]) + dot3(fnc[i] + 3, kin.v[i] + 3);
+    }
+    if (t->ya >= 0) {
+        const double a = p[GS_TP_ORBIT_R];
+        dy[t->ya] = sqrt(p[GS_TP_MU] / (a * a * a));
+    }
+    WS_CLOSE;
+}
+
+static void derivs(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
+                   double *dy) {
+    derivs_full(t, y, p, pre, modes, dy, NULL);
+}
+
+/* dy[0:nx]: the joint coordinates' derivatives from the joint accelerations qdd at state y (kin its kinematics) */
+static void qdd_to_dy(const gs_tree *t, const double *y, const Kin *kin, const double (*qdd)[6], double *dy) {
     for (int i = 0; i < t->n; i++) {
         const double *s = y + t->yi[i];
         double *d = dy + t->yi[i];
@@ -1703,12 +1782,12 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
                 quat_rate(s, s + 7, d);
                 memcpy(d + 4, s + 10, 3 * sizeof(double));
                 memcpy(d + 7, qdd[i], 3 * sizeof(double));
-                cross3(s + 7, kin.vj[i] + 3, wv);   /* the free joint's v in child coordinates */
+                cross3(s + 7, kin->vj[i] + 3, wv);   /* the free joint's v in child coordinates */
                 for (int c = 0; c < 3; c++) a[c] = qdd[i][3 + c] + wv[c];
                 if (t->parent[i] < 0) {
-                    mv3(kin.Rw[i], a, d + 10);   /* the origin's acceleration, world */
+                    mv3(kin->Rw[i], a, d + 10);   /* the origin's acceleration, world */
                 } else {
-                    mtv3(kin.E[i], a, d + 10);   /* relative to the parent, in its frame (E^T: child -> parent) */
+                    mtv3(kin->E[i], a, d + 10);   /* relative to the parent, in its frame (E^T: child -> parent) */
                 }
                 break;
             }
@@ -1716,15 +1795,6 @@ static void derivs(const gs_tree *t, const double *y, const double *p, const Pre
                 break;
         }
     }
-    dy[t->nx] = power(t, y, p, &kin) + P_el;
-    if (orbit) {   /* the work of the gravity-gradient torques and the tidal forces */
-        for (int i = 0; i < t->n; i++) dy[t->nx] += dot3(fnc[i], kin.v[i]) + dot3(fnc[i] + 3, kin.v[i] + 3);
-    }
-    if (t->ya >= 0) {
-        const double a = p[GS_TP_ORBIT_R];
-        dy[t->ya] = sqrt(p[GS_TP_MU] / (a * a * a));
-    }
-    WS_CLOSE;
 }
 
 void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy) {
@@ -1732,7 +1802,7 @@ void gs_tree_derivatives(const gs_tree *t, const double *y, const double *p, dou
     WS_ENTER(t->n);
     PRE_DECL(pre, t->n);
     precompute(t, p, &pre);
-    derivs(t, y, p, &pre, dy);
+    derivs(t, y, p, &pre, t->ym >= 0 ? y + t->ym : NULL, dy);
     WS_CLOSE;
 }
 
@@ -1883,7 +1953,7 @@ int gs_tree_torque_free(const gs_tree *t, const double *p) {
         if (t->joint[i] == GS_J_BALL &&
             (b[GS_TB_POS] != 0.0 || b[GS_TB_POS + 1] != 0.0 || b[GS_TB_POS + 2] != 0.0)) return 0;
     }
-    if (t->n_frc > 0) return 0;   /* a force input (its value may change) */
+    if (t->n_frc > 0 || t->n_shp * t->n_pln > 0) return 0;   /* a force input (its value may change), a contact */
     for (int e = 0; e < t->n_spr; e++) {   /* a spring between two bodies pulls along their points' line: no torque */
         if (t->spr_a[e] < 0 || t->spr_b[e] < 0) return 0;
     }
@@ -1891,6 +1961,8 @@ int gs_tree_torque_free(const gs_tree *t, const double *p) {
 }
 
 static double norm3(const double a[3]) { return sqrt(dot3(a, a)); }
+
+#include "contact_events.h"
 
 int gs_tree_start(const gs_tree *t, double *y, const double *p) {
     TREE_DISPATCH(return big_tree_start(t, y, p));
@@ -1903,6 +1975,13 @@ int gs_tree_start(const gs_tree *t, double *y, const double *p) {
         const double nq = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
         if (!(nq > 0.0)) return 0;
         for (int a = 0; a < 4; a++) q[a] /= nq;
+    }
+    if (t->ym >= 0) {   /* the rigid contacts' modes from the start state */
+        WS_ENTER(t->n);
+        PRE_DECL(pre, t->n);
+        precompute(t, p, &pre);
+        contact_start(t, y, p, &pre);
+        WS_CLOSE;
     }
     Totals s;
     totals(t, y, p, &s);
@@ -1960,7 +2039,8 @@ static int impact_stops(const gs_tree *t, const double *b, int i) {
     return (l & 4) ? (l & 3) : 0;
 }
 
-int gs_tree_n_indicators(const gs_tree *t, const double *p) {
+/* the impact stops' indicators: the joints' */
+static int stop_indicators(const gs_tree *t, const double *p) {
     int n = 0;
     for (int i = 0; i < t->n; i++) {
         const int s = impact_stops(t, body_p(p, i), i);
@@ -1969,26 +2049,40 @@ int gs_tree_n_indicators(const gs_tree *t, const double *p) {
     return n;
 }
 
-void gs_tree_indicators(const gs_tree *t, const double *y, const double *p, double *z) {
-    int k = 0;
-    for (int i = 0; i < t->n; i++) {
-        const double *b = body_p(p, i), x = y[t->yi[i]];
-        const int s = impact_stops(t, b, i);
-        if (s & 1) z[k++] = x - b[GS_TB_LO];
-        if (s & 2) z[k++] = b[GS_TB_HI] - x;
-    }
+int gs_tree_n_indicators(const gs_tree *t, const double *p) {
+    int rigid_contacts = 0;
+    for (int pl = 0; pl < t->n_pln && t->ym >= 0; pl++) rigid_contacts += rigid(t, pl) * t->n_shp;
+    return stop_indicators(t, p) + 2 * rigid_contacts;
 }
 
-/* the indicators' rates dz/dt at state y: the joint's rate towards the inside of each impact stop (x' at a lower
- * stop, -x' at an upper one), in gs_tree_indicators' order */
-static void indicator_rates(const gs_tree *t, const double *y, const double *p, double *zd) {
+/* the indicators (z) and their rates dz/dt (zd; NULL: not wanted) at state y: each impact stop's distance and the
+ * joint's rate towards its inside (x' at a lower stop, -x' at an upper one), then the rigid contacts' (2 each,
+ * contact_events.h) */
+static void indicators_pre(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *z,
+                           double *zd) {
     int k = 0;
     for (int i = 0; i < t->n; i++) {
-        const double v = y[t->yi[i] + 1];
-        const int s = impact_stops(t, body_p(p, i), i);
-        if (s & 1) zd[k++] = v;
-        if (s & 2) zd[k++] = -v;
+        const double *b = body_p(p, i), x = y[t->yi[i]], v = y[t->yi[i] + 1];
+        const int s = impact_stops(t, b, i);
+        if (s & 1) {
+            if (zd) zd[k] = v;
+            z[k++] = x - b[GS_TB_LO];
+        }
+        if (s & 2) {
+            if (zd) zd[k] = -v;
+            z[k++] = b[GS_TB_HI] - x;
+        }
     }
+    contact_indicators(t, y, p, pre, z + k, zd ? zd + k : NULL);
+}
+
+void gs_tree_indicators(const gs_tree *t, const double *y, const double *p, double *z) {
+    TREE_DISPATCH(big_tree_indicators(t, y, p, z); return);
+    WS_ENTER(t->n);
+    PRE_DECL(pre, t->n);
+    precompute(t, p, &pre);
+    indicators_pre(t, y, p, &pre, z, NULL);
+    WS_CLOSE;
 }
 
 /* the velocity coordinates' change per unit generalized impulse at joint j: M^-1 e_j (the articulated-body
@@ -2067,7 +2161,7 @@ static int impact_pre(const gs_tree *t, double *y, const double *p, const Pre *p
         hits++;
     }
     WS_CLOSE;
-    return hits;
+    return hits + contact_events(t, y, p, pre, plastic);
 }
 
 int gs_tree_impact(const gs_tree *t, double *y, const double *p) {
@@ -2161,6 +2255,12 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
     } else {
         totals_kin(t, y, p, &kin, &s);
     }
+    if (t->n_shp * t->n_pln > 0) {   /* the rigid contacts' forces from their solve under the state's modes */
+        TLOC(double, cl, , CL_NP * GS_TREE_ROWS_MAX, CL_NP * t->n_shp * t->n_pln);
+        TLOC(double, dyc, , GS_ODE_MAX + 1, t->nx + 1);
+        if (t->ym >= 0) derivs_full(t, y, p, pre, y + t->ym, dyc, cl);
+        contact_outputs(t, p, &kin, t->ym >= 0 ? y + t->ym : NULL, cl, out + GS_TREE_CONTACT_OUT(t));
+    }
     double *o = out + GS_TREE_SCENE_OUT(t);
     o[0] = s.T + s.V;
     o[1] = o[0] - y[t->nx];
@@ -2200,11 +2300,12 @@ typedef struct {
     const double *p;
     const Pre *pre;
     TotalsMemo *memo;   /* where the monitor leaves the totals it made (NULL: nowhere) */
+    const double *modes;   /* the rigid contacts' modes over the step (the system's state: constant in it) */
 } Ctx;
 
 static void ode_rhs(const void *ctx, const double *y, double *dy) {
     const Ctx *c = (const Ctx *)ctx;
-    derivs(c->t, y, c->p, c->pre, dy);
+    derivs(c->t, y, c->p, c->pre, c->modes, dy);
 }
 
 static void ode_project(const void *ctx, double *y) {
@@ -2246,7 +2347,14 @@ static int lie_jvp(const void *ctx, const double *y, const double *v, double *jv
     const Ctx *c = (const Ctx *)ctx;
     WS_OPEN;
     TLOC(double, d, , GS_ODE_MAX + 1, c->t->nx + 1);
-    const int ok = gs_tree_directional(c->t, y, c->p, v, NULL, d, NULL);
+    /* a whole state for the complex step: the coordinates given, the rigid contacts' modes of the step */
+    TLOC(double, yf, , GS_ODE_MAX + GS_TREE_NMON + GS_CM_NP * GS_TREE_ROWS_MAX, c->t->ny);
+    memset(yf, 0, (size_t)c->t->ny * sizeof(double));
+    memcpy(yf, y, (size_t)(c->t->nx + 1) * sizeof(double));
+    if (c->t->ym >= 0 && c->modes != NULL) {
+        memcpy(yf + c->t->ym, c->modes, (size_t)(c->t->ny - c->t->ym) * sizeof(double));
+    }
+    const int ok = gs_tree_directional(c->t, yf, c->p, v, NULL, d, NULL);
     if (ok) memcpy(jv, d, (size_t)c->t->nx * sizeof(double));
     WS_CLOSE;
     return ok;
@@ -2267,6 +2375,10 @@ static int conservative(const gs_tree *t, const double *p) {
     if (t->n_frc > 0) return 0;
     for (int e = 0; e < t->n_spr; e++) {
         if (p[t->p_spr + GS_SPR_NP * e + GS_SPR_C] != 0.0) return 0;
+    }
+    for (int e = 0; e < t->n_pln && t->n_shp > 0; e++) {   /* a contact's damping, friction, rolling resistance */
+        const double *pp = p + t->p_pln + GS_PLN_NP * e;
+        if (pp[GS_PLN_C] != 0.0 || pp[GS_PLN_MU] != 0.0 || pp[GS_PLN_RR] != 0.0) return 0;
     }
     return 1;
 }
@@ -2368,7 +2480,7 @@ static int implicit_method(int method) { return method == GS_MIDPOINT || method 
 static int32_t advance_system(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double H,
                               int64_t n_sub, double rtol, double atol, double max_step, double *hint,
                               int64_t *stats, TotalsMemo *memo) {
-    Ctx ctx = {t, p, pre, memo};
+    Ctx ctx = {t, p, pre, memo, t->ym >= 0 ? y + t->ym : NULL};
     int64_t k;
     if (method == GS_SPLITTING || method == GS_SPLITTING4) {   /* the gyrostat's exact flows (tree_kernels.h);
                                                                  * refused elsewhere: step 1 fails */
@@ -2437,13 +2549,13 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
     const size_t ny = (size_t)t->ny * sizeof(double);
     const int fixed = method == GS_EULER || method == GS_RK4 || implicit_method(method);
     WS_OPEN;
-    TLOC(double, y0, , GS_ODE_MAX + GS_TREE_NMON, t->ny);
-    TLOC(double, ya, , GS_ODE_MAX + GS_TREE_NMON, t->ny);
-    TLOC(double, z0, , 2 * GS_TREE_SMALL, nz);
-    TLOC(double, z1, , 2 * GS_TREE_SMALL, nz);
-    TLOC(double, za, , 2 * GS_TREE_SMALL, nz);
-    TLOC(double, zd0, , 2 * GS_TREE_SMALL, nz);
-    TLOC(double, zd1, , 2 * GS_TREE_SMALL, nz);
+    TLOC(double, y0, , GS_ODE_MAX + GS_TREE_NMON + GS_CM_NP * GS_TREE_ROWS_MAX, t->ny);
+    TLOC(double, ya, , GS_ODE_MAX + GS_TREE_NMON + GS_CM_NP * GS_TREE_ROWS_MAX, t->ny);
+    TLOC(double, z0, , 2 * GS_TREE_SMALL + GS_TREE_ROWS_MAX, nz);
+    TLOC(double, z1, , 2 * GS_TREE_SMALL + GS_TREE_ROWS_MAX, nz);
+    TLOC(double, za, , 2 * GS_TREE_SMALL + GS_TREE_ROWS_MAX, nz);
+    TLOC(double, zd0, , 2 * GS_TREE_SMALL + GS_TREE_ROWS_MAX, nz);
+    TLOC(double, zd1, , 2 * GS_TREE_SMALL + GS_TREE_ROWS_MAX, nz);
     int32_t rc = 0;
     const double h = H / (double)n_sub;
     double done_t = at ? at->done : 0.0;
@@ -2484,8 +2596,8 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
              * and the next ones start from it again, not from the step that reached the stop (which shrinks with
              * the flights towards an accumulation point) */
             hint_piece = *hint;
-            gs_tree_indicators(t, y, p, z0);
-            indicator_rates(t, y, p, zd0);
+            if (pre->rigid) contact_refresh(t, y, p, pre);
+            indicators_pre(t, y, p, pre, z0, zd0);
             for (int c = 0; c < nz; c++) {
                 /* beyond a stop at the start, or on it and moving in (a start value, a stop set into or onto the
                  * joint): the impact's law where it moves out */
@@ -2500,10 +2612,8 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
             memcpy(y0, y, ny);
             STEP_FROM_Y0(y, rem);
             const double hint1 = *hint;
-            gs_tree_indicators(t, y0, p, z0);
-            gs_tree_indicators(t, y, p, z1);
-            indicator_rates(t, y0, p, zd0);
-            indicator_rates(t, y, p, zd1);
+            indicators_pre(t, y0, p, pre, z0, zd0);
+            indicators_pre(t, y, p, pre, z1, zd1);
             /* the earliest crossing j, located in [a, rem] (g(a) = ga > 0); resting: a joint on its stop at the
              * start whose return (or stay) cannot be told from round-off */
             int j = -1, resting = 0;
@@ -2528,7 +2638,7 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
                     continue;
                 }
                 STEP_FROM_Y0(ya, tau_a);
-                gs_tree_indicators(t, ya, p, za);
+                indicators_pre(t, ya, p, pre, za, NULL);
                 if (!(za[c] > 0.0)) {
                     resting = 1;
                     continue;
@@ -2559,7 +2669,7 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
                 tau = (a * gb - b * ga) / (gb - ga);
                 if (!(tau > a && tau < b)) tau = 0.5 * (a + b);
                 STEP_FROM_Y0(y, tau);
-                gs_tree_indicators(t, y, p, z1);
+                indicators_pre(t, y, p, pre, z1, NULL);
                 g = z1[j];
                 if (g == 0.0) break;
                 if (g > 0.0) {
@@ -2692,7 +2802,7 @@ static void tree_row(void *ctx, int64_t k, const double *y) {
 static int64_t dense_trajectory(const gs_tree *t, int method, double *y, const double *p, const Pre *pre, double dt,
                                 int64_t n_out, int64_t n_fixed, double rtol, double atol, double max_step,
                                 double *hint, int64_t *stats, double *row0, size_t stride, TotalsMemo *memo) {
-    Ctx ctx = {t, p, pre, memo};
+    Ctx ctx = {t, p, pre, memo, t->ym >= 0 ? y + t->ym : NULL};
     const gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
     TreeRows rows = {t, p, pre, row0, stride, memo};
     if (method == GS_EULER || method == GS_RK4) {
@@ -2756,7 +2866,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
             continue;
         }
         /* the implicit methods keep their Newton matrix over the run */
-        Ctx ctx = {t, pb, &pre, &memo};
+        Ctx ctx = {t, pb, &pre, &memo, t->ym >= 0 ? yb + t->ym : NULL};
         gs_lie L;
         gs_lie_run_t *run = NULL;
         if (implicit_method(method) && !pre.impacts) {   /* impacts: a loop of steps with their events */

@@ -25,6 +25,7 @@
 #define gs_tree_n_indicators big_tree_n_indicators
 #define gs_tree_indicators big_tree_indicators
 #define gs_tree_impact big_tree_impact
+#define gs_tree_contact_inside big_tree_contact_inside
 
 int big_tree_ncoord(int joint);
 int big_tree_ndof(int joint);
@@ -46,5 +47,6 @@ size_t big_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, co
 int big_tree_n_indicators(const gs_tree *t, const double *p);
 void big_tree_indicators(const gs_tree *t, const double *y, const double *p, double *z);
 int big_tree_impact(const gs_tree *t, double *y, const double *p);
+int big_tree_contact_inside(const gs_tree *t, const double *y, const double *p, double *gap);
 
 #include "tree.c"

@@ -40,6 +40,7 @@ static inline _Complex double cs_atan2(_Complex double y, _Complex double x) {
 #define sin csin
 #define cos ccos
 #define sqrt csqrt
+#define tanh ctanh
 #define fabs cs_fabs
 #define gs_tree_ncoord cs_tree_ncoord
 #define gs_tree_ndof cs_tree_ndof
@@ -58,6 +59,7 @@ int cs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
 #undef sin
 #undef cos
 #undef sqrt
+#undef tanh
 #undef fabs
 
 #define CS_H 1e-100

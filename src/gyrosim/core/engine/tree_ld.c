@@ -44,6 +44,7 @@ typedef long double treal;   /* a value tree.c only compares: the build's own ty
 #define cos cosl
 #define tan tanl
 #define sqrt sqrtl
+#define tanh tanhl
 #define fabs fabsl
 #define atan2 atan2l
 #define tree_atan2 atan2l   /* tree.c's atan2 of the complex step's build: the real one here */
@@ -81,6 +82,7 @@ void ld_tree_outputs(const gs_tree *t, const double *y, const double *p, double 
 #undef cos
 #undef tan
 #undef sqrt
+#undef tanh
 #undef fabs
 #undef atan2
 #undef acos
@@ -115,7 +117,7 @@ void gs_tree_derivatives_ld(const gs_tree *t, const double *y, const double *p, 
     for (int i = 0; i < t->ny; i++) yl[i] = y[i];
     for (int i = 0; i < t->np; i++) pl[i] = p[i];
     precompute(t, pl, &pre);
-    derivs(t, yl, pl, &pre, dl);
+    derivs(t, yl, pl, &pre, t->ym >= 0 ? yl + t->ym : NULL, dl);
     for (int i = 0; i <= t->nx; i++) ld_split(dl[i], dy + i, dy_lo ? dy_lo + i : NULL);
     WS_CLOSE;
 }
@@ -139,7 +141,7 @@ static void ld_step8(const gs_tree *t, const long double *p, const Pre *pre, lon
     WS_OPEN;
     long double *K[12], *s = ws_alloc((size_t)t->ny * sizeof(long double));
     for (int st = 0; st < 12; st++) K[st] = ws_alloc((size_t)(nx + 1) * sizeof(long double));
-    derivs(t, v, p, pre, K[0]);
+    derivs(t, v, p, pre, NULL, K[0]);
     for (int st = 1; st < 12; st++) {
         for (int i = 0; i < nx; i++) {
             long double acc = 0.0L;
@@ -148,7 +150,7 @@ static void ld_step8(const gs_tree *t, const long double *p, const Pre *pre, lon
             }
             s[i] = v[i] + h * acc;
         }
-        derivs(t, s, p, pre, K[st]);
+        derivs(t, s, p, pre, NULL, K[st]);
     }
     for (int i = 0; i < nx; i++) {
         long double acc = 0.0L;
@@ -173,7 +175,7 @@ static void ld_step(const gs_tree *t, int method, const long double *p, const Pr
     const size_t row = (size_t)(nx + 1) * sizeof(long double);
     long double *k1 = ws_alloc(row), *k2 = ws_alloc(row), *k3 = ws_alloc(row), *k4 = ws_alloc(row);
     long double *s = ws_alloc((size_t)t->ny * sizeof(long double));
-    derivs(t, v, p, pre, k1);
+    derivs(t, v, p, pre, NULL, k1);
     if (method == GS_EULER) {
         for (int i = 0; i < nx; i++) v[i] += h * k1[i];
         ld_project(t, v);
@@ -182,11 +184,11 @@ static void ld_step(const gs_tree *t, int method, const long double *p, const Pr
     }
     const long double h2 = 0.5L * h;
     for (int i = 0; i < nx; i++) s[i] = v[i] + h2 * k1[i];
-    derivs(t, s, p, pre, k2);
+    derivs(t, s, p, pre, NULL, k2);
     for (int i = 0; i < nx; i++) s[i] = v[i] + h2 * k2[i];
-    derivs(t, s, p, pre, k3);
+    derivs(t, s, p, pre, NULL, k3);
     for (int i = 0; i < nx; i++) s[i] = v[i] + h * k3[i];
-    derivs(t, s, p, pre, k4);
+    derivs(t, s, p, pre, NULL, k4);
     const long double h6 = h / 6.0L;
     for (int i = 0; i < nx; i++) v[i] += h6 * (k1[i] + 2.0L * (k2[i] + k3[i]) + k4[i]);
     ld_project(t, v);

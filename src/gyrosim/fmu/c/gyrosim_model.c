@@ -81,6 +81,15 @@ static int values_together(GsInstance *m, const double *y, const double *p) {
                      num(p[slot[0]]).s, lo ? lo->name : "lower", num(p[slot[1]]).s, hi && hi->unit[0] ? hi->unit : "1");
         return 0;
     }
+    if (code == GS_TREE_BAD_CONTACT) {   /* the contact's gap output names it */
+        const gs_tree *t = &m->sys.tree;
+        double gap = 0.0;
+        gs_tree_contact_inside(t, y, p, &gap);
+        const GsVar *g = var_at(GS_K_OUTPUT, GS_TREE_CONTACT_OUT(t) + GS_CT_NOUT * slot[0] + GS_CT_GAP);
+        gs_log_error(m, "%s = %s is not allowed: a start on or above its plane (the shape starts inside it: move "
+                     "the body's start position or attitude)", g ? g->name : "a contact's gap", num(gap).s);
+        return 0;
+    }
     const GsVar *x = var_at(GS_K_STATE, slot[0]);
     gs_log_error(m, "%s = %s is not allowed: a start within the impact stops [%s, %s] %s", x ? x->name : "a joint",
                  num(y[slot[0]]).s, slot[1] >= 0 ? num(p[slot[1]]).s : "-inf", slot[2] >= 0 ? num(p[slot[2]]).s : "inf",

@@ -1,0 +1,462 @@
+/*
+ * gyrosim engine: the constraint layer (DESIGN 7.11). Every constraint is rows of one constraint Jacobian J that one
+ * solver serves; the articulated-body algorithm stays the unconstrained core beneath it. Included by tree.c after
+ * contact.h (every build: the complex step differentiates through the solve, so `linearize` sees the constraint).
+ *
+ * Rows. A row is a velocity that the constraint holds at zero, linear in the generalized velocities (J v): the
+ * velocity of the body's material point at a contact along a world direction d (the normal n, the plane's tangents
+ * t1, t2), or the spin about the normal scaled by the contact radius (R_c n . omega). Its column is the unit wrench
+ * (a force at the contact point and a torque, world) that the row's multiplier lambda scales. For a sticking
+ * contact the column is the row's own direction (J^T); a sliding contact has only its normal row, and its column
+ * carries Coulomb's friction with it (n - mu s/|s| and the Contensou torque), so that the friction is mu lambda_n.
+ *
+ * The solve (Featherstone, RBDA 8.3, with the articulated-body algorithm for M^-1): with qdd0 the accelerations
+ * of every other force, a row's acceleration is J qdd + gamma, affine in the multipliers:
+ *     G lambda = -b,   G_rk = row r's acceleration from column k's unit wrench at rest (J M^-1 W_k),
+ *                      b_r = row r's acceleration from qdd0 with the velocity terms (J qdd0 + gamma).
+ * G's columns come from the algorithm at zero velocity with only that wrench applied; the row accelerations from a
+ * forward pass of the body accelerations (a_i = X a_parent + S qdd + c, RBDA 7.1). A row's acceleration is the
+ * derivative of the material point's velocity at the moving contact point: the point's classical acceleration
+ * a + alpha x c + omega x (v + omega x c) plus omega x u, u the contact point's velocity over the body, which the
+ * geometry table's support-map derivative gives (shape_support_rate). The multipliers' wrenches join the applied
+ * forces and the algorithm runs once more: the constrained accelerations.
+ *
+ * Modes (GS_CM_*, in the state) and events. A rigid contact is apart, sliding or sticking. Each has two event
+ * indicators (gs_tree_indicators), located by the one event loop as the impact stops are (tree.c advance_from):
+ *     apart      the gap (touch-down where it crosses zero moving in),
+ *     sliding    lambda_n (lift-off) and the slip along its direction when the slide began (the slip stops),
+ *     sticking   lambda_n (lift-off) and the friction cone's margin mu lambda_n - |(lambda_t1, lambda_t2,
+ *                lambda_spin)| (the contact breaks loose).
+ * At an event (contact_events) the modes change and impulses keep the velocities consistent: a touch-down is a
+ * Newton impact (the normal velocity becomes -e times itself; the other active rows held), a contact that comes
+ * to stick has its row velocities set to zero by the impulse that does it; the energy they take is in the
+ * balance's W. A touch-down with nothing left to bounce (e = 0, or the accumulation point of a bouncing that
+ * converges: the event loop's plastic impact) makes the contact active.
+ */
+
+/* two unit tangents of a plane with unit normal n (world), fixed by n alone: t1 = e x n / |e x n| with e the world
+ * axis least along n, t2 = n x t1 */
+static void plane_tangents(const double *n, double t1[3], double t2[3]) {
+    int k = 0;
+    treal best = fabs(n[0]);
+    for (int a = 1; a < 3; a++) {
+        const treal v = fabs(n[a]);
+        if (v < best) {
+            best = v;
+            k = a;
+        }
+    }
+    double e[3] = {0.0, 0.0, 0.0};
+    e[k] = 1.0;
+    cross3(e, n, t1);
+    const double l = sqrt(dot3(t1, t1));
+    for (int a = 0; a < 3; a++) t1[a] /= l;
+    cross3(n, t1, t2);
+}
+
+/* the support map's derivative: sd = Ds(d) dd, the rate of the support point (shape frame) as its direction d
+ * (unit) turns at dd */
+static void shape_support_rate(int kind, const double *dim, const double d[3], const double dd[3], double sd[3]) {
+    switch (kind) {
+        case GS_SHAPE_SPHERE: {   /* s = R d: sd = R (dd - d (d . dd)) (d stays unit) */
+            const double dn = dot3(d, dd);
+            for (int a = 0; a < 3; a++) sd[a] = dim[0] * (dd[a] - d[a] * dn);
+            break;
+        }
+        case GS_SHAPE_ELLIPSOID: {   /* s = A d / w, w = sqrt(d^T A d): sd = A dd / w - A d (d^T A dd) / w^3 */
+            double Ad[3], Add[3];
+            for (int a = 0; a < 3; a++) {
+                Ad[a] = dim[a] * dim[a] * d[a];
+                Add[a] = dim[a] * dim[a] * dd[a];
+            }
+            const double w2 = dot3(d, Ad), w = sqrt(w2), q = dot3(d, Add);
+            for (int a = 0; a < 3; a++) sd[a] = Add[a] / w - Ad[a] * q / (w2 * w);
+            break;
+        }
+        case GS_SHAPE_DISK:
+        case GS_SHAPE_CYLINDER: {   /* s = R p / |p|, p = (d_x, d_y, 0); the cylinder's end is constant */
+            const double r2 = d[0] * d[0] + d[1] * d[1];
+            const treal rr = r2;
+            sd[0] = sd[1] = sd[2] = 0.0;
+            if (rr > 0.0) {
+                const double r = sqrt(r2), pp = (d[0] * dd[0] + d[1] * dd[1]) / r2;
+                sd[0] = dim[0] * (dd[0] - d[0] * pp) / r;
+                sd[1] = dim[0] * (dd[1] - d[1] * pp) / r;
+            }
+            break;
+        }
+        default:
+            sd[0] = sd[1] = sd[2] = 0.0;
+    }
+}
+
+/* u: the contact point's velocity over body i (world): the support point moving as the normal turns in the body,
+ * d = -S^T R^T n, d' = S^T (omega_b x n_b) */
+static void contact_point_rate(const gs_tree *t, const double *p, const Kin *k, int sh, int pl, double u[3]) {
+    const double *sp = p + t->p_shp + GS_SHP_NP * sh, *n = p + t->p_pln + GS_PLN_NP * pl + GS_PLN_N;
+    const double *S = sp + GS_SHP_R;
+    const int i = t->shp_b[sh];
+    double nb[3], wn[3], d[3], dd[3], sd[3], ub[3];
+    mtv3(k->Rw[i], n, nb);
+    cross3(k->v[i], nb, wn);
+    for (int a = 0; a < 3; a++) {
+        d[a] = -(S[a] * nb[0] + S[3 + a] * nb[1] + S[6 + a] * nb[2]);
+        dd[a] = S[a] * wn[0] + S[3 + a] * wn[1] + S[6 + a] * wn[2];
+    }
+    shape_support_rate(t->shp_k[sh], sp + GS_SHP_DIM, d, dd, sd);
+    for (int a = 0; a < 3; a++) ub[a] = S[3 * a] * sd[0] + S[3 * a + 1] * sd[1] + S[3 * a + 2] * sd[2];
+    mv3(k->Rw[i], ub, u);
+}
+
+/* the physical spatial accelerations of every body (its frame; the world at rest) from the joint accelerations
+ * qdd: a_i = X_i a_parent + S_i qdd_i + c_i (c from kin's velocities: zero at rest) */
+static void body_accels(const gs_tree *t, const double *p, const Pre *pre, const Kin *kin, const double (*qdd)[6],
+                        double (*acc)[6]) {
+    for (int i = 0; i < t->n; i++) {
+        double c[6], ap[6] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+        joint_bias(t, pre, kin, i, c);
+        if (t->parent[i] >= 0) xm(kin, i, acc[t->parent[i]], ap);
+        for (int a = 0; a < 6; a++) acc[i][a] = ap[a] + c[a];
+        add_joint_acc(t, p, pre, i, qdd[i], acc[i]);
+    }
+}
+
+/* A constraint row (see the top of this file) */
+#define ROW_POINT 0   /* dir . (the material point's velocity at the contact point) */
+#define ROW_SPIN 1    /* scale * dir . omega (world) */
+typedef struct {
+    int contact, body, kind;
+    double cb[3];        /* the contact point, body frame */
+    double dir[3];       /* world */
+    double scale;        /* ROW_SPIN: the contact radius */
+    double F[3], M[3];   /* the column: the unit wrench at the contact point (world) */
+} Row;
+
+/* the rigid contact c's index in the state's modes: contact c = sh * n_pln + pl */
+static int rigid(const gs_tree *t, int pl) { return t->pln_law[pl] == GS_CONTACT_RIGID; }
+
+/* A rigid contact's slip at a touch: s = (v_t, R_c omega_n) (world v_t) and the plane's frame */
+typedef struct {
+    double n[3], t1[3], t2[3];
+    double s[4];      /* the slip */
+    double ns;        /* |s| */
+    double wt[3];     /* the angular velocity along the plane (rolling), world */
+} Slip;
+
+static void slip_of(const gs_tree *t, const double *p, int pl, const Touch *T, Slip *S) {
+    const double *pp = p + t->p_pln + GS_PLN_NP * pl, *n = pp + GS_PLN_N;
+    memcpy(S->n, n, sizeof(S->n));
+    plane_tangents(n, S->t1, S->t2);
+    const double vn = dot3(n, T->vc), wn = dot3(n, T->w);
+    for (int a = 0; a < 3; a++) {
+        S->s[a] = T->vc[a] - vn * n[a];
+        S->wt[a] = T->w[a] - wn * n[a];
+    }
+    S->s[3] = pp[GS_PLN_RS] * wn;
+    S->ns = sqrt(S->s[0] * S->s[0] + S->s[1] * S->s[1] + S->s[2] * S->s[2] + S->s[3] * S->s[3]);
+}
+
+/* the rolling resistance's torque per unit normal force (world): -r_r tanh(rho |omega_t| / v_s) omega_t / |omega_t| */
+static void rolling_torque(const double *pp, const Touch *T, const Slip *S, double M[3]) {
+    const double rr = pp[GS_PLN_RR];
+    const treal rrr = rr;
+    M[0] = M[1] = M[2] = 0.0;
+    if (!(rrr > 0.0)) return;
+    const double m = rr * T->rho * tanh_over(T->rho * T->rho * dot3(S->wt, S->wt), pp[GS_PLN_VS]);
+    for (int a = 0; a < 3; a++) M[a] = -m * S->wt[a];
+}
+
+/* The rows of the active rigid contacts under modes; pure: every column its row's own direction (J^T), a sliding
+ * contact's normal row without its friction (the impulses') */
+static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, const double *modes, int pure,
+                           Row *rows) {
+    int nr = 0;
+    for (int sh = 0; sh < t->n_shp; sh++) {
+        for (int pl = 0; pl < t->n_pln; pl++) {
+            const int c = sh * t->n_pln + pl;
+            if (!rigid(t, pl)) continue;
+            const treal mode = modes[GS_CM_NP * c + GS_CM_MODE];
+            if (mode == GS_MODE_APART) continue;
+            const double *pp = p + t->p_pln + GS_PLN_NP * pl;
+            Touch T;
+            Slip S;
+            touch(t, p, k, sh, pl, &T);
+            slip_of(t, p, pl, &T, &S);
+            Row *r = rows + nr;
+            r->contact = c;
+            r->body = t->shp_b[sh];
+            r->kind = ROW_POINT;
+            r->scale = 1.0;
+            memcpy(r->cb, T.cb, sizeof(T.cb));
+            memcpy(r->dir, S.n, sizeof(S.n));
+            memcpy(r->F, S.n, sizeof(S.n));
+            r->M[0] = r->M[1] = r->M[2] = 0.0;
+            if (!pure) rolling_torque(pp, &T, &S, r->M);
+            nr++;
+            const double mu = pp[GS_PLN_MU], rs = pp[GS_PLN_RS];
+            if (mode == GS_MODE_SLIDE) {   /* Coulomb-Contensou: (F_t, M_n / R_c) = -mu lambda_n s_hat */
+                if (pure) continue;
+                double sh4[4];
+                const double *dir = modes + GS_CM_NP * c + GS_CM_DIR;
+                const treal ns = S.ns, ahead = S.s[0] * dir[0] + S.s[1] * dir[1] + S.s[2] * dir[2] + S.s[3] * dir[3];
+                if (t->pln_fric[pl] == GS_FRICTION_REGULARIZED) {
+                    const double f = tanh_over(S.ns * S.ns, pp[GS_PLN_VS]);
+                    for (int a = 0; a < 4; a++) sh4[a] = f * S.s[a];
+                } else if (ns > 0.0 && ahead > 0.0) {
+                    for (int a = 0; a < 4; a++) sh4[a] = S.s[a] / S.ns;
+                } else {
+                    /* no slip yet (a slide from rest), or past the slip's stop (the event's indicator has crossed
+                     * zero within a step): the direction the slide began with, so that the friction does not turn
+                     * back inside the step and the step's end shows the crossing for the event loop to locate */
+                    for (int a = 0; a < 4; a++) sh4[a] = dir[a];
+                }
+                for (int a = 0; a < 3; a++) {
+                    r->F[a] -= mu * sh4[a];
+                    r->M[a] -= mu * rs * sh4[3] * S.n[a];
+                }
+                continue;
+            }
+            /* sticking: the tangents, and the spin where spin friction acts */
+            const treal rsr = rs;
+            for (int j = 0; j < 2 + (rsr > 0.0); j++) {
+                Row *q = rows + nr++;
+                *q = *r;
+                q->M[0] = q->M[1] = q->M[2] = 0.0;
+                if (j < 2) {
+                    memcpy(q->dir, j ? S.t2 : S.t1, sizeof(q->dir));
+                    memcpy(q->F, q->dir, sizeof(q->F));
+                } else {
+                    q->kind = ROW_SPIN;
+                    q->scale = rs;
+                    q->F[0] = q->F[1] = q->F[2] = 0.0;
+                    for (int a = 0; a < 3; a++) q->M[a] = rs * S.n[a];
+                }
+            }
+        }
+    }
+    return nr;
+}
+
+/* a row's acceleration from the body accelerations acc (kin's velocities; u: the contact point's rate over the
+ * body, world, NULL: at rest) */
+static double row_accel(const Row *r, const Kin *k, const double (*acc)[6], const double *u) {
+    const int i = r->body;
+    const double *a = acc[i], *w = k->v[i], *vl = k->v[i] + 3;
+    double aw[3];
+    if (r->kind == ROW_SPIN) {   /* d/dt (n . omega_w) = n . R alpha_b (n fixed in the world) */
+        mv3(k->Rw[i], a, aw);
+        return r->scale * dot3(r->dir, aw);
+    }
+    /* the material point's classical acceleration a + alpha x c + omega x (v + omega x c), body frame */
+    double ac[3], wc[3], vp[3], wvp[3], ab[3];
+    cross3(a, r->cb, ac);
+    cross3(w, r->cb, wc);
+    for (int j = 0; j < 3; j++) vp[j] = vl[j] + wc[j];
+    cross3(w, vp, wvp);
+    for (int j = 0; j < 3; j++) ab[j] = a[3 + j] + ac[j] + wvp[j];
+    mv3(k->Rw[i], ab, aw);
+    if (u != NULL) {   /* + omega x u: the contact point moves over the body */
+        double ww[3], wu[3];
+        mv3(k->Rw[i], w, ww);
+        cross3(ww, u, wu);
+        for (int j = 0; j < 3; j++) aw[j] += wu[j];
+    }
+    return dot3(r->dir, aw);
+}
+
+/* fx[i] += lambda times the row's unit wrench, in body i's frame about its origin */
+static void add_row_wrench(const Row *r, const Kin *k, double lambda, double (*fx)[6]) {
+    double F[3], M[3], Fb[3], Mb[3];
+    for (int a = 0; a < 3; a++) {
+        F[a] = lambda * r->F[a];
+        M[a] = lambda * r->M[a];
+    }
+    mtv3(k->Rw[r->body], F, Fb);
+    mtv3(k->Rw[r->body], M, Mb);
+    add_point_force(r->body, r->cb, Fb, fx);
+    for (int a = 0; a < 3; a++) fx[r->body][a] += Mb[a];
+}
+
+/* G x = b for x in place of b (n x n, row-major), Gaussian elimination with partial pivoting; an unknown whose
+ * pivot vanishes (a redundant row) is set to 0 */
+static void solve_dense(int n, double *G, double *b) {
+    for (int c = 0; c < n; c++) {
+        int piv = c;
+        treal best = fabs(G[c * n + c]);
+        for (int r = c + 1; r < n; r++) {
+            const treal v = fabs(G[r * n + c]);
+            if (v > best) {
+                best = v;
+                piv = r;
+            }
+        }
+        if (piv != c) {
+            for (int j = 0; j < n; j++) {
+                const double tmp = G[c * n + j];
+                G[c * n + j] = G[piv * n + j];
+                G[piv * n + j] = tmp;
+            }
+            const double tb = b[c];
+            b[c] = b[piv];
+            b[piv] = tb;
+        }
+        if (best == 0.0) continue;
+        for (int r = c + 1; r < n; r++) {
+            const double f = G[r * n + c] / G[c * n + c];
+            for (int j = c; j < n; j++) G[r * n + j] -= f * G[c * n + j];
+            b[r] -= f * b[c];
+        }
+    }
+    for (int c = n - 1; c >= 0; c--) {
+        const treal piv = fabs(G[c * n + c]);
+        if (piv == 0.0) {
+            b[c] = 0.0;
+            continue;
+        }
+        double s = b[c];
+        for (int j = c + 1; j < n; j++) s -= G[c * n + j] * b[j];
+        b[c] = s / G[c * n + c];
+    }
+}
+
+/* kz: the kinematics of y at rest (every velocity coordinate zero), for the responses to unit wrenches; ys its
+ * state */
+static void rest_kinematics(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *ys, Kin *kz) {
+    memcpy(ys, y, (size_t)t->nx * sizeof(double));
+    for (int i = 0; i < t->n; i++) {
+        double *s = ys + t->yi[i];
+        switch (t->joint[i]) {
+            case GS_J_BALL: s[4] = s[5] = s[6] = 0.0; break;
+            case GS_J_HINGE: case GS_J_SLIDER: s[1] = 0.0; break;
+            case GS_J_FREE: for (int a = 7; a < 13; a++) s[a] = 0.0; break;
+            default: break;
+        }
+    }
+    kinematics(t, ys, p, pre, kz, 1);
+}
+
+/* G (nr x nr): row r's acceleration from column k's unit wrench at rest, J M^-1 W_k */
+static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre, const double *ys, const Kin *kz,
+                              const Row *rows, int nr, double *G) {
+    WS_OPEN;
+    TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, tz, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, ak, [6], GS_TREE_SMALL, t->n);
+    memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
+    for (int c = 0; c < nr; c++) {
+        memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
+        add_row_wrench(rows + c, kz, 1.0, fk);
+        aba(t, ys, p, pre, kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
+        body_accels(t, p, pre, kz, (const double (*)[6])qk, ak);
+        for (int r = 0; r < nr; r++) G[r * nr + c] = row_accel(rows + r, kz, (const double (*)[6])ak, NULL);
+    }
+    WS_CLOSE;
+}
+
+/* What the solve gives per contact (out of constraint_forces): the normal force, the friction force (world), the
+ * sticking rows' multipliers and the friction cone's margin */
+#define CL_FN 0
+#define CL_FT 1       /* 3 */
+#define CL_LT 4       /* 3: lambda_t1, lambda_t2, lambda_spin (sticking) */
+#define CL_MARGIN 7   /* mu lambda_n - |lambda_t| (sticking) */
+#define CL_NP 8
+
+/* The rigid contacts' forces under modes, added to fx, and the constrained accelerations into qdd (which holds the
+ * accelerations of every other force: the articulated-body algorithm's with fx). Returns their power (friction's:
+ * <= 0; the normal force does none on the constraint). out (CL_NP per contact, NULL: not wanted). */
+static double constraint_forces(const gs_tree *t, const double *y, const double *p, const Pre *pre,
+                                const double *modes, const Kin *kin, double (*fx)[6], double (*qdd)[6],
+                                double *out) {
+    WS_OPEN;
+    TLOC(Row, rows, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
+    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX);
+    TLOC(double, lam, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
+    TLOC(double, a0, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, ys, , GS_ODE_MAX, t->nx);
+    const int nc = t->n_shp * t->n_pln;
+    if (out != NULL) memset(out, 0, (size_t)nc * CL_NP * sizeof(double));
+    const int nr = constraint_rows(t, p, kin, modes, 0, rows);
+    double P = 0.0;
+    if (nr > 0) {
+        KIN_DECL(kz, t->n);
+        body_accels(t, p, pre, kin, (const double (*)[6])qdd, a0);
+        for (int r = 0; r < nr; r++) {
+            double u[3];
+            const int c = rows[r].contact;
+            contact_point_rate(t, p, kin, c / t->n_pln, c % t->n_pln, u);
+            lam[r] = -row_accel(rows + r, kin, (const double (*)[6])a0, u);
+        }
+        rest_kinematics(t, y, p, pre, ys, &kz);
+        constraint_matrix(t, p, pre, ys, &kz, rows, nr, G);
+        solve_dense(nr, G, lam);
+        for (int r = 0; r < nr; r++) {
+            const Row *q = rows + r;
+            add_row_wrench(q, kin, lam[r], fx);
+            double xw[3], vw[3], ww[3];
+            body_point(kin, q->body, q->cb, xw, vw);
+            mv3(kin->Rw[q->body], kin->v[q->body], ww);
+            P += lam[r] * (dot3(q->F, vw) + dot3(q->M, ww));
+        }
+        if (out != NULL) {   /* per contact: the normal row first, then a sticking contact's t1, t2, spin */
+            for (int r = 0; r < nr;) {
+                const int c = rows[r].contact, pl = c % t->n_pln;
+                double *o = out + CL_NP * c;
+                const double *pp = p + t->p_pln + GS_PLN_NP * pl;
+                o[CL_FN] = lam[r];
+                int j = r + 1;
+                if (j < nr && rows[j].contact == c) {   /* sticking */
+                    double l2 = 0.0;
+                    for (int m = 0; j < nr && rows[j].contact == c; j++, m++) {
+                        o[CL_LT + m] = lam[j];
+                        l2 += lam[j] * lam[j];
+                        if (rows[j].kind == ROW_POINT) {
+                            for (int a = 0; a < 3; a++) o[CL_FT + a] += lam[j] * rows[j].F[a];
+                        }
+                    }
+                    o[CL_MARGIN] = pp[GS_PLN_MU] * lam[r] - sqrt(l2);
+                } else {   /* sliding: the column's tangential part times lambda_n */
+                    const double fn = dot3(rows[r].F, rows[r].dir);
+                    for (int a = 0; a < 3; a++) o[CL_FT + a] = lam[r] * (rows[r].F[a] - fn * rows[r].dir[a]);
+                }
+                r = j;
+            }
+        }
+        aba(t, y, p, pre, kin, (const double (*)[6])fx, NULL, qdd);
+    }
+    WS_CLOSE;
+    return P;
+}
+
+/* GS_CT_NOUT outputs per contact into out; a rigid contact's forces from cl (constraint_forces' out under modes) */
+static void contact_outputs(const gs_tree *t, const double *p, const Kin *k, const double *modes, const double *cl,
+                            double *out) {
+    for (int sh = 0; sh < t->n_shp; sh++) {
+        for (int pl = 0; pl < t->n_pln; pl++) {
+            const int c = sh * t->n_pln + pl;
+            double *o = out + GS_CT_NOUT * c;
+            Touch T;
+            touch(t, p, k, sh, pl, &T);
+            o[GS_CT_GAP] = T.gap;
+            memcpy(o + GS_CT_X, T.c, sizeof(T.c));
+            if (!rigid(t, pl)) {
+                ContactForce f;
+                contact_law(t, p, pl, &T, &f);
+                o[GS_CT_FN] = f.fn;
+                memcpy(o + GS_CT_FT, f.Ft, sizeof(f.Ft));
+                o[GS_CT_SLIP] = f.slip;
+                o[GS_CT_MODE] = f.mode;
+                continue;
+            }
+            Slip S;
+            slip_of(t, p, pl, &T, &S);
+            const double *m = modes + GS_CM_NP * c, *q = cl + CL_NP * c;
+            o[GS_CT_FN] = q[CL_FN];
+            memcpy(o + GS_CT_FT, q + CL_FT, 3 * sizeof(double));
+            o[GS_CT_SLIP] = sqrt(dot3(S.s, S.s));
+            const treal mode = m[GS_CM_MODE], turn = sqrt(dot3(T.w, T.w));
+            /* sticking: resting where the body does not turn (within 1e-9 rad/s) */
+            o[GS_CT_MODE] = mode != GS_MODE_ROLL ? m[GS_CM_MODE] : turn <= 1e-9 ? GS_MODE_REST : GS_MODE_ROLL;
+        }
+    }
+}
