@@ -107,3 +107,42 @@ def test_contact_scene_in_model_exchange_meets_a_tight_run(ball):
     for n in names:
         tol = 1e-5 if n == "surface.normal_force" else 1e-6
         assert np.abs(r[n] - tight[n]).max() < tol * max(1.0, np.abs(tight[n]).max()), n
+
+
+def test_rigid_contact_fmu_jacobian_at_the_start_is_the_engines(tmp_path):
+    """The tippe top on its rigid floor (sliding and spinning: the normal row with Coulomb-Contensou friction on its
+    column): the model-exchange FMU's directional derivatives at the start, along omega_x, are
+    gyrosim.core._engine.tree_directional's in Python on the start state with the start's modes (tree_start makes
+    them, as the FMU's initialisation does), to the bit; and the contact shows in them: the centre's accelerations
+    along y (the friction's) and z (the normal force's) move with the spin."""
+    from fmpy import extract
+    from fmpy.fmi2 import FMU2Model
+
+    from gyrosim.core import _engine
+    from gyrosim.kernel_tree import tree_layout
+
+    path = build_fmu("tippe_top", 2, tmp_path, fmi_type="me", windows=False)
+    md = read_model_description(str(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    f = FMU2Model(guid=md.guid, unzipDirectory=extract(str(path), unzipdir=str(tmp_path / "x")),
+                  modelIdentifier=md.modelExchange.modelIdentifier, instanceName="top")
+    f.instantiate()
+    f.setupExperiment(startTime=0.0)
+    f.enterInitializationMode()
+    f.exitInitializationMode()
+    ders = [f"der({n})" for n in ("omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z")]
+    got = f.getDirectionalDerivative([vr[d] for d in ders], [vr["omega_x"]], [1.0])
+    f.terminate()
+    f.freeInstance()
+    sc = load_scene("tippe_top")
+    lay = tree_layout(sc)
+    p = lay.params(float(sc.g), float(sc.max_drift))
+    y = lay.state().copy()
+    _engine.tree_start(lay.desc, y.reshape(1, -1), p.reshape(1, -1))
+    vy = np.zeros(lay.nx)
+    vy[lay.coord_slots[(0, "omega_x")]] = 1.0
+    ddy, dout = np.zeros(lay.nx + 1), np.zeros(lay.nout)
+    _engine.tree_directional(lay.desc, y.reshape(1, -1), p.reshape(1, -1), vy, np.zeros(lay.np), ddy, dout)
+    want = [ddy[lay.coord_slots[(0, n)]] for n in ("omega_x", "omega_y", "omega_z", "v_x", "v_y", "v_z")]
+    assert got == want
+    assert want[4] != 0.0 and want[5] != 0.0   # v_y (the friction's), v_z (the normal force's)

@@ -40,9 +40,7 @@ from gyrosim.scene import CONTACT_SCENES, EMBEDDED_SCENES, load_scene
 TWO_GYROS = "service/scenes/two_gyros.toml"
 #: scenes on an orbit: FMI 2 only (their glue is the other trees'; the orbit's terms are what is new)
 ORBIT_SCENES = ("satellite", "satellite_wheels")
-#: the contact scenes' Jacobians: tests/fmu/test_fmu_contact.py (a stiff compliant contact's central differences
-#: are no 1e-6 reference)
-SCENES = (None, *(s for s in EMBEDDED_SCENES if s not in ORBIT_SCENES and s not in CONTACT_SCENES), TWO_GYROS)
+SCENES = (None, *(s for s in EMBEDDED_SCENES if s not in ORBIT_SCENES), TWO_GYROS)
 BUILDS = ([(s, v, "both") for s in SCENES for v in (2, 3)] + [(s, 2, "both") for s in ORBIT_SCENES]
           + [("heavy_top", 3, "cs"), ("heavy_top", 3, "me"), ("gimbal_gyroscope", 2, "cs")])
 RTOL = 1e-6
@@ -243,6 +241,10 @@ def _python_reference(scene, f, states, ders, outs, inputs, known):
         else:
             y[:lay.nx] = [f.get([vr])[0] for vr in [next(vr for vr, r in enumerate(rows, start=1)
                                                          if r.kind == "state" and r.index == k) for k in range(lay.nx)]]
+        if lay.ny > lay.nx + _engine.TREE_NMON:
+            # rigid contacts: their modes are discrete state the FMU keeps (the host's steps above left them as the
+            # start made them) and the test cannot read; the central differences below check these columns
+            return None
         quats = [lay.coord_slots[(b, "q_w")] for b in range(len(sc.tree)) if (b, "q_w") in lay.coord_slots]
         vy, vp = np.zeros(lay.nx), np.zeros(lay.np)
         if known in in_slot:
@@ -356,8 +358,12 @@ def _jacobian_check(f, scene, me):
 
 
 @pytest.mark.parametrize("v", (2, 3))
-@pytest.mark.parametrize("scene", SCENES, ids=lambda s: (s or "full").replace("/", "_"))
+@pytest.mark.parametrize("scene", [s for s in SCENES if s not in CONTACT_SCENES],
+                         ids=lambda s: (s or "full").replace("/", "_"))
 def test_model_exchange_jacobian_is_the_fmus_own_derivative(fmus, scene, v):
+    """(The contact scenes: their columns are exact-zero where the central differences show 1e-9 of the constraint
+    solve's round-off over a 1e-3 floor, and a slip speed |v_t| near a small slip is no smooth function for them; the
+    FMUs' contact Jacobians are checked in tests/fmu/test_fmu_contact.py.)"""
     path, d = fmus[(scene, v, "both")]
     f = Fmu(path, d, me=True)
     states, _, _, inputs, _ = _structure(f.md)

@@ -74,7 +74,7 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
     KIN_DECL(kz, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const int all = constraint_rows(t, p, &kin, modes, 1, rows);
-    int nr = 0;
+    int nr = 0, open = 0;
     for (int r = 0; r < all; r++) {   /* the normal rows, with their gaps */
         if (r > 0 && rows[r].contact == rows[r - 1].contact) continue;
         Touch T;
@@ -82,8 +82,9 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
         touch(t, p, &kin, c / t->n_pln, c % t->n_pln, &T);
         rows[nr] = rows[r];
         D[nr++] = -T.gap;
+        open |= T.gap != 0.0;
     }
-    if (nr > 0) {
+    if (nr > 0 && open) {   /* every gap closed already: the state as it is, to the bit */
         Totals before, after;
         totals_pre(t, y, p, pre, &before);
         rest_kinematics(t, y, p, pre, ys, &kz);
@@ -121,6 +122,8 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
 /* A slip this small (m/s) is no slip: a contact taking up its contact with less sticks (the impulse that makes it
  * stick takes it off), and a slide whose indicator crosses zero with less has stopped */
 #define SLIP_STOP 1e-9
+/* friction = inf in a scene is held as 1e12 (ranges.MAX_MAGNITUDE): never slips */
+#define MU_NEVER_SLIPS 1e12
 
 /* contact c takes up its contact: sliding along its slip, or sticking where there is none and the cone holds it
  * (then its row velocities are set to zero: the start of a stick holds exactly); cl the solve at y under modes */
@@ -131,7 +134,9 @@ static void contact_take_up(const gs_tree *t, double *y, const double *p, const 
     Slip S;
     slip_of(t, p, pl, T, &S);
     const double mu = p[t->p_pln + GS_PLN_NP * pl + GS_PLN_MU];
-    if (t->pln_fric[pl] == GS_FRICTION_REGULARIZED || mu == 0.0 || S.ns > SLIP_STOP) {
+    /* sliding where it slips (or cannot stick); friction = inf (held as 1e12, GS_MU_NEVER_SLIPS) sticks at once,
+     * the impulse that makes it stick taking the slip off */
+    if (t->pln_fric[pl] == GS_FRICTION_REGULARIZED || mu == 0.0 || (S.ns > SLIP_STOP && mu < MU_NEVER_SLIPS)) {
         m[GS_CM_MODE] = GS_MODE_SLIDE;
         for (int a = 0; a < 4; a++) m[GS_CM_DIR + a] = S.ns > 0.0 ? S.s[a] / S.ns : 0.0;
         m[GS_CM_SCALE] = S.ns;
@@ -176,9 +181,12 @@ static int contact_events(const gs_tree *t, double *y, const double *p, const Pr
             const double *m = modes + GS_CM_NP * c, *n = p + t->p_pln + GS_PLN_NP * pl + GS_PLN_N;
             const double vn = dot3(n, T[c].vc);
             if (m[GS_CM_MODE] == GS_MODE_APART) {
-                if (T[c].gap <= 0.0 && (vn < 0.0 || plastic)) what = 1;   /* touch-down */
-            } else if (cl[CL_NP * c + CL_FN] < 0.0) {
-                what = 2;   /* lift-off */
+                /* touch-down: on or in the plane and moving in faster than a slip that counts (a contact that has
+                 * just lifted off moves out or at round-off); the event loop's plastic call takes any that does
+                 * not move out, the end of an accumulation of bounces */
+                if (T[c].gap <= 0.0 && (vn < -SLIP_STOP || (plastic && vn <= 0.0))) what = 1;
+            } else if (cl[CL_NP * c + CL_FN] <= 0.0) {
+                what = 2;   /* lift-off (a located root may land on -0.0) */
             } else if (m[GS_CM_MODE] == GS_MODE_SLIDE && t->pln_fric[pl] == GS_FRICTION_COULOMB) {
                 Slip S;
                 slip_of(t, p, pl, T + c, &S);
@@ -337,7 +345,7 @@ static void contact_start(const gs_tree *t, double *y, const double *p, const Pr
         Touch T;
         touch(t, p, &kin, c / t->n_pln, pl, &T);
         const double vn = dot3(p + t->p_pln + GS_PLN_NP * pl + GS_PLN_N, T.vc);
-        if (T.gap <= start_tolerance(t, p, c) && vn <= 0.0) contact_take_up(t, y, p, pre, modes, c, &T);
+        if (T.gap <= start_tolerance(t, p, c) && vn <= SLIP_STOP) contact_take_up(t, y, p, pre, modes, c, &T);
         WS_CLOSE;
     }
     contact_place(t, y, p, pre, modes);

@@ -2303,6 +2303,11 @@ typedef struct {
     const double *modes;   /* the rigid contacts' modes over the step (the system's state: constant in it) */
 } Ctx;
 
+/* the components the adaptive methods' error norm takes: the joint coordinates, and with contact the work integral
+ * W too (a contact's power has the kinks of its law, at touch-down and where its damping clamps the force, which the
+ * state alone does not show the error control) */
+static int err_components(const gs_tree *t) { return t->nx + (t->n_shp * t->n_pln > 0); }
+
 static void ode_rhs(const void *ctx, const double *y, double *dy) {
     const Ctx *c = (const Ctx *)ctx;
     derivs(c->t, y, c->p, c->pre, c->modes, dy);
@@ -2444,7 +2449,7 @@ static int lie_invariants(const void *ctx, const double *y, double r[GS_LIE_MAXI
 
 /* the quaternions, their angular velocities and the velocities of every joint */
 static void lie_view(const gs_tree *t, Ctx *ctx, gs_lie *L) {
-    L->ode = (gs_ode){ode_rhs, NULL, ode_check, ctx, t->nx + 1, t->nx, t->ny};
+    L->ode = (gs_ode){ode_rhs, NULL, ode_check, ctx, t->nx + 1, err_components(t), t->ny};
     L->nq = 0;
     L->nvel = 0;
     L->npos = 0;
@@ -2492,7 +2497,7 @@ static int32_t advance_system(const gs_tree *t, int method, double *y, const dou
         lie_view(t, &ctx, &L);
         k = gs_lie_advance(method, &L, y, H, n_sub, stats);
     } else {
-        gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
+        gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, err_components(t), t->ny};
         k = gs_ode_advance(method, &o, y, H, n_sub, rtol, atol, max_step, hint, stats);
     }
     return (int32_t)(k > 2147483647 ? 2147483647 : k);
@@ -2803,7 +2808,7 @@ static int64_t dense_trajectory(const gs_tree *t, int method, double *y, const d
                                 int64_t n_out, int64_t n_fixed, double rtol, double atol, double max_step,
                                 double *hint, int64_t *stats, double *row0, size_t stride, TotalsMemo *memo) {
     Ctx ctx = {t, p, pre, memo, t->ym >= 0 ? y + t->ym : NULL};
-    const gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, t->nx, t->ny};
+    const gs_ode o = {ode_rhs, ode_project, ode_check, &ctx, t->nx + 1, err_components(t), t->ny};
     TreeRows rows = {t, p, pre, row0, stride, memo};
     if (method == GS_EULER || method == GS_RK4) {
         return gs_ode_dense_fixed(method, &o, y, dt, n_out, n_fixed, stats, tree_row, &rows);
