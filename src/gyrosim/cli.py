@@ -1001,8 +1001,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "an existing folder (default: docs/study, made with its parents)")
     b.add_argument("--quick", action="store_true", help="a short ladder (seconds, for a smoke test)")
     b.add_argument("--only", action="append", help="run only these parts (accuracy, cost, long, stability, symplectic, "
-                   "startup, peers, fmu, service, sweep, tree, tree_targets, tree_scaling), merged into the folder's "
-                   "earlier results")
+                   "startup, peers, fmu, service, sweep, tree, tree_targets, tree_scaling, contact), merged into the "
+                   "folder's earlier results")
     add_verbosity(b)
     b.set_defaults(func=cmd_bench)
     for mod in _PLUGINS:

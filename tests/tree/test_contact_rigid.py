@@ -165,7 +165,9 @@ def test_billiard_ball_slides_then_rolls_at_five_sevenths(integrator, max_step):
     assert np.max(np.abs(c["surface.normal_force"] / (BB_M * G) - 1.0)) < 1e-14
     assert np.max(np.abs(c["r_z"] - BB_R)) < 1e-15
     assert np.max(np.abs(E0 - c["energy"] - BB_M * v0 * v0 / 7)) < 1e-14
-    assert np.max(np.abs(c["energy_error"])) < 1e-14
+    # every accepted step ends projected onto the contact (ode_project) and books what that moves: round-off of
+    # 1e-17 J a step, 1.5e-14 J over rk4's 2000 steps here
+    assert np.max(np.abs(c["energy_error"])) < 5e-14
 
 
 # ------------------------------------------------------------------------------------------------ bouncing ball
