@@ -11,8 +11,9 @@ and through a sweep.
   rounding); the centre stays (to 1e-4 m).
 * rattleback (Kane and Levinson's rolling without slip: the contact sticks, mu = 1) spun the wrong way reverses:
   its spin about the vertical changes sign, and with nothing dissipating (a sticking contact does no work) its
-  energy stays constant to the integrator's error over the reversal (dop853 at the scene's 1e-8 over 8 s: 6e-8
-  relative seen, asserted below 1e-6; a friction that worked would take a share of the 0.12 J at once).
+  energy stays constant to the integrator's error over the reversal (dop853 at the scene's 1e-10 and max_step
+  2e-4 s over 8 s: 3e-15 J of 0.12 J seen, asserted below 1e-6 relative; a friction that worked would take a share
+  of the 0.12 J at once).
 * tippe_top, swept over I1 (gyrosim.sweep, in process): Leine and Glocker's top (I1/I3 = 8/7) turns over onto its
   stem within 3 s (body z down: below -0.9); a top with I1/I3 = 0.7, below 1 - a/R = 0.8 (Cohen's and Ebenfeld
   and Scheck's condition for the upright spin to be unstable), stays up (body z above +0.5). The Parquet rows carry
@@ -36,6 +37,22 @@ G = 9.81
 def _world_z_of_body_z(m) -> float:
     qx, qy = m.get("q_x"), m.get("q_y")
     return 1.0 - 2.0 * (qx * qx + qy * qy)
+
+
+def test_a_scene_file_that_starts_inside_its_plane_is_refused(tmp_path):
+    """The billiard ball's own scene file with the ball 75 um into the floor (r_z = 0.0285 m): refused when the model
+    is made, naming the gap and what is allowed, as --set r_z=0.0285 is; never put on the plane and run."""
+    from importlib import resources
+
+    from gyrosim.errors import ConfigError
+
+    src = resources.files("gyrosim").joinpath("scenes/billiard_ball.toml").read_text()
+    bad = tmp_path / "ball.toml"
+    bad.write_text(src.replace("r = [0.0, 0.0, 0.028575]", "r = [0.0, 0.0, 0.0285]"))
+    assert "0.0285]" in bad.read_text()
+    with pytest.raises(ConfigError, match=r"surface.gap = -7.4999\d*e-05 is not allowed: a start on or above plane "
+                                          "floor"):
+        Model(str(bad))
 
 
 def test_billiard_ball_scene_rolls_out_at_its_closed_form():
