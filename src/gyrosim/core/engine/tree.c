@@ -2094,37 +2094,11 @@ static void unit_response(const gs_tree *t, const double *y, const double *p, co
     TLOC(double, tau, [6], GS_TREE_SMALL, t->n);
     TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
     KIN_DECL(kin, t->n);
-    memcpy(ys, y, (size_t)t->nx * sizeof(double));
-    for (int i = 0; i < t->n; i++) {
-        double *s = ys + t->yi[i];
-        switch (t->joint[i]) {
-            case GS_J_BALL: s[4] = s[5] = s[6] = 0.0; break;
-            case GS_J_HINGE: case GS_J_SLIDER: s[1] = 0.0; break;
-            case GS_J_FREE: for (int a = 7; a < 13; a++) s[a] = 0.0; break;
-            default: break;
-        }
-    }
+    rest_kinematics(t, y, p, pre, ys, &kin);
     memset(tau, 0, (size_t)t->n * sizeof(tau[0]));
     tau[j][0] = 1.0;
-    kinematics(t, ys, p, pre, &kin, 1);
     aba(t, ys, p, pre, &kin, NULL, (const double (*)[6])tau, qdd);
-    memset(dy, 0, (size_t)t->nx * sizeof(double));
-    for (int i = 0; i < t->n; i++) {
-        double *d = dy + t->yi[i];
-        switch (t->joint[i]) {
-            case GS_J_BALL: memcpy(d + 4, qdd[i], 3 * sizeof(double)); break;
-            case GS_J_HINGE: case GS_J_SLIDER: d[1] = qdd[i][0]; break;
-            case GS_J_FREE:
-                memcpy(d + 7, qdd[i], 3 * sizeof(double));
-                if (t->parent[i] < 0) {
-                    mv3(kin.Rw[i], qdd[i] + 3, d + 10);
-                } else {
-                    mtv3(kin.E[i], qdd[i] + 3, d + 10);
-                }
-                break;
-            default: break;
-        }
-    }
+    qdd_to_dy(t, ys, &kin, (const double (*)[6])qdd, dy);   /* at rest: the positions' rates are zero */
     WS_CLOSE;
 }
 
