@@ -138,6 +138,8 @@ _CONTACT_META = {
     "contact_y": ("m", "contact point, world y"),
     "contact_z": ("m", "contact point, world z"),
     "mode": ("1", "contact mode: 0 apart, 1 sliding, 2 rolling, 3 resting"),
+    "jellett": ("kg.m3/s", "Jellett's integral L . rho (L about the centre of mass, rho the contact point from it): "
+                "constant for a sphere without spin friction"),
 }
 
 

@@ -59,7 +59,7 @@ BODY_OUTPUTS = ("q_world_w", "q_world_x", "q_world_y", "q_world_z", "r_world_x",
 SCENE_OUTPUTS = ("energy", "energy_error", "L_x", "L_y", "L_z")
 #: Every contact's outputs (a shape against a plane), in the engine's order (gyrosim_tree.h GS_CT_*).
 CONTACT_OUTPUTS = ("gap", "normal_force", "friction_x", "friction_y", "friction_z", "slip_speed", "contact_x",
-                   "contact_y", "contact_z", "mode")
+                   "contact_y", "contact_z", "mode", "jellett")
 #: The contact modes (the ``mode`` output's values).
 CONTACT_MODES = ("apart", "sliding", "rolling", "resting")
 #: Shape kinds and their engine codes; the normal and friction laws and theirs.

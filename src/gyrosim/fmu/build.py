@@ -96,7 +96,7 @@ _UNITS = {  # unit -> SI base-unit exponents
     "N": {"kg": 1, "m": 1, "s": -2}, "N/m": {"kg": 1, "s": -2}, "N.s/m": {"kg": 1, "s": -1},
     # contact: Hunt-Crossley's stiffness is kg m^-1/2 s^-2, which FMI's integer exponents cannot write (the unit
     # stays named, without a BaseUnit)
-    "s/m": {"s": 1, "m": -1}, "N/m1.5": None,
+    "s/m": {"s": 1, "m": -1}, "N/m1.5": None, "kg.m3/s": {"kg": 1, "m": 3, "s": -1},
 }
 _TOKEN = "@INSTANTIATION_TOKEN@"
 #: ``fmi_type`` values: co-simulation, model exchange, or both interfaces in one FMU.

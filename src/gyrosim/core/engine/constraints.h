@@ -428,6 +428,24 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
     return P;
 }
 
+/* Jellett's integral J = L . rho of body i with contact point c (world): L = R I_c w its angular momentum about its
+ * own centre of mass, rho = c - r_G. For a body whose contact shape is a sphere (the tippe top's ball, a billiard
+ * ball) dJ/dt = 0 whatever the friction force, which acts at c and so has no moment along rho, as long as no spin
+ * friction acts (Gray and Nickel, Am. J. Phys. 68 (2000) 821; Leine and Glocker 2003, eq. 27); the Contensou torque
+ * changes it by M_n (n . rho). For other shapes it is only an output. */
+static double jellett(const double *p, const Kin *k, int i, const double c[3]) {
+    const double *b = body_p(p, i), *cm = b + GS_TB_CM, *J = b + GS_TB_I, *w = k->v[i];
+    double Lb[3], L[3], cw[3];
+    Lb[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2];
+    Lb[1] = J[3] * w[0] + J[1] * w[1] + J[5] * w[2];
+    Lb[2] = J[4] * w[0] + J[5] * w[1] + J[2] * w[2];
+    mv3(k->Rw[i], Lb, L);
+    mv3(k->Rw[i], cm, cw);
+    double rho[3];
+    for (int a = 0; a < 3; a++) rho[a] = c[a] - (k->ow[i][a] + cw[a]);
+    return dot3(L, rho);
+}
+
 /* GS_CT_NOUT outputs per contact into out; a rigid contact's forces from cl (constraint_forces' out under modes) */
 static void contact_outputs(const gs_tree *t, const double *p, const Kin *k, const double *modes, const double *cl,
                             double *out) {
@@ -439,6 +457,7 @@ static void contact_outputs(const gs_tree *t, const double *p, const Kin *k, con
             touch(t, p, k, sh, pl, &T);
             o[GS_CT_GAP] = T.gap;
             memcpy(o + GS_CT_X, T.c, sizeof(T.c));
+            o[GS_CT_JELLETT] = jellett(p, k, t->shp_b[sh], T.c);
             if (!rigid(t, pl)) {
                 ContactForce f;
                 contact_law(t, p, pl, &T, &f);

@@ -168,7 +168,9 @@ extern "C" {
 #define GS_CT_SLIP 5     /* m/s: the speed of the body's material point at the contact along the plane */
 #define GS_CT_X 6        /* 3: the contact point (m, world): the shape's point nearest the plane */
 #define GS_CT_MODE 9     /* GS_MODE_* */
-#define GS_CT_NOUT 10
+#define GS_CT_JELLETT 10 /* kg*m^3/s: Jellett's L . rho (L about the body's centre of mass, rho the contact point from
+                          * it, world): an invariant of a sphere rolling or sliding without spin friction */
+#define GS_CT_NOUT 11
 #define GS_MODE_APART 0
 #define GS_MODE_SLIDE 1
 #define GS_MODE_ROLL 2
