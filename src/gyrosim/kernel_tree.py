@@ -19,7 +19,9 @@ from .core.tree import (
     BODY_OUTPUTS,
     BODY_SLOTS,
     CONTACT_OUTPUTS,
+    GEAR_OUTPUTS,
     INPUT_SLOTS,
+    LOOP_OUTPUTS,
     ORBIT_BODY_OUTPUTS,
     ORBIT_COORD,
     ORBIT_OUTPUTS,
@@ -93,7 +95,8 @@ _ORBIT_OUT_META = {
 def tree_output_names(scene: Scene) -> list[str]:
     """The output columns of a tree scene's engine rows: ``<body>.<coordinate>`` (and a circular orbit's
     ``orbit_anomaly``), ``<body>.q_world_*``, the scene-wide ``energy``, ``energy_error``, ``L_x``, ``L_y``,
-    ``L_z``; on an orbit then ``<body>.q_orbit_*`` and ``orbit_r_*``, ``orbit_v_*``."""
+    ``L_z``; on an orbit then ``<body>.q_orbit_*`` and ``orbit_r_*``, ``orbit_v_*``; then the contacts' outputs, the
+    closed loops' ``<loop>.residual``, ... and the gears' ``<gear>.torque`` (scene-wide)."""
     name = scene.var_name
     out = []
     for body in scene.tree:
@@ -110,6 +113,10 @@ def tree_output_names(scene: Scene) -> list[str]:
         out += list(ORBIT_OUTPUTS)
     for h, stem in contact_stems(scene):
         out += [name(scene.tree[h.body].name, f"{stem}.{c}") for c in CONTACT_OUTPUTS]
+    for lp in getattr(scene, "loops", ()):
+        out += [f"{lp.name}.{c}" for c in LOOP_OUTPUTS]
+    for gr in getattr(scene, "gears", ()):
+        out += [f"{gr.name}.{c}" for c in GEAR_OUTPUTS]
     return out
 
 
@@ -141,6 +148,19 @@ _CONTACT_META = {
     "jellett": ("kg.m3/s", "Jellett's integral L . rho (L about the centre of mass, rho the contact point from it): "
                 "constant for a sphere without spin friction"),
 }
+#: The closed loops' outputs (LOOP_OUTPUTS): unit and description (DESIGN 4b).
+_LOOP_META = {
+    "residual": ("m", "position residual: the points' distance (revolute, prismatic: with the axes' misalignment "
+                 "times the loop's length scale)"),
+    "rate_residual": ("m/s", "rate residual: the constraint rows' velocities (angular ones times the loop's length "
+                      "scale)"),
+    "f_x": ("N", "reaction force of the loop on body_b, world x"),
+    "f_y": ("N", "reaction force of the loop on body_b, world y"),
+    "f_z": ("N", "reaction force of the loop on body_b, world z"),
+}
+#: The gears' outputs (GEAR_OUTPUTS): description (the unit is joint a's generalized force: scene_loops.gear_units).
+_GEAR_META = {"torque": "generalized force of the gear on joint a (N*m on a hinge, N on a slider; on joint b -ratio "
+                        "times it)"}
 
 
 def _body_param_value(b, name: str) -> float:
@@ -212,11 +232,11 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
                               **rng.fields()))
         if b.motor_input and b.joint == "slider":
             V.append(Variable(pre + "motor_force", "input", "continuous", "Real", "N",
-                              "motor force along the slider axis (on this body; its reaction on the parent)", 0.0,
+                              "motor force along the slider axis (on this body; its reaction on the parent)", b.motor0,
                               **BOUNDED.fields()))
         elif b.motor_input:
             V.append(Variable(pre + "motor_torque", "input", "continuous", "Real", "N.m",
-                              "motor torque about the hinge axis (on this body; its reaction on the parent)", 0.0,
+                              "motor torque about the hinge axis (on this body; its reaction on the parent)", b.motor0,
                               **BOUNDED.fields()))
         for f in scene.forces:
             if scene.tree[f.body] is not b:
@@ -266,12 +286,39 @@ def tree_variables(scene: Scene) -> dict[str, Variable]:
             for c in CONTACT_OUTPUTS:
                 unit, desc = _CONTACT_META[c]
                 V.append(Variable(f"{pre}{stem}.{c}", "output", "continuous", "Real", unit, desc + against, None))
+    V += loop_variables(scene)
     for n, (unit, desc) in _SCENE_OUT_META.items():
         V.append(Variable(n, "output", "continuous", "Real", unit, desc, None))
     if orbit is not None:
         for n, (unit, desc) in _ORBIT_OUT_META.items():
             V.append(Variable(n, "output", "continuous", "Real", unit, desc, None))
     return {v.name: v for v in V}
+
+
+def loop_variables(scene: Scene) -> list[Variable]:
+    """The closed loops' and the gears' variables: each gear's parameter ``<gear>.ratio`` (its range the scene file's
+    sign: scene_loops.ratio_range), then the loops' outputs ``<loop>.residual``, ``.rate_residual``, ``.f_x..z`` and
+    the gears' ``<gear>.torque`` (scene-wide names, in the engine's order)."""
+    from .scene_loops import gear_units, ratio_range
+
+    V = []
+    tree = scene.tree
+    for gr in scene.gears:
+        a, b = tree[gr.a].name, tree[gr.b].name
+        V.append(Variable(f"{gr.name}.ratio", "parameter", "fixed", "Real", gear_units(tree, gr)[0],
+                          f"gear ratio: rate of {a}'s {tree[gr.a].joint} = ratio x rate of {b}'s {tree[gr.b].joint}",
+                          float(gr.ratio), **ratio_range(gr.ratio).fields()))
+    for lp in scene.loops:
+        a, b = (tree[i].name if i >= 0 else "the world" for i in (lp.a, lp.b))
+        ends = f" ({lp.kind} loop {lp.name}: body_a {a}, body_b {b})"
+        for c in LOOP_OUTPUTS:
+            unit, desc = _LOOP_META[c]
+            V.append(Variable(f"{lp.name}.{c}", "output", "continuous", "Real", unit, desc + ends, None))
+    for gr in scene.gears:
+        for c in GEAR_OUTPUTS:
+            V.append(Variable(f"{gr.name}.{c}", "output", "continuous", "Real", gear_units(tree, gr)[1],
+                              f"{_GEAR_META[c]} (gear {tree[gr.a].name}:{tree[gr.b].name})", None))
+    return V
 
 
 #: The health monitor's scales in a tree's state row, after its nx coordinates (gyrosim_tree.h: y[nx + 1] the energy
@@ -291,6 +338,8 @@ def element_columns(sc, layout: TreeLayout) -> dict[str, int]:
                                                    "damping": _engine.SPR_C}[short]
         elif kind == "plane":
             out[name] = layout.plane_offset(e) + PLANE_SLOTS[short]
+        elif kind == "gear":
+            out[name] = layout.gear_offset(e) + _engine.GR_RATIO
         else:
             out[name] = layout.force_offset(e) + _engine.FRC_F + "xyz".index(short[-1])
     return out
@@ -331,7 +380,8 @@ def _scene_tables(sc) -> tuple:
         return hit[1:]
     names = tree_output_names(sc)
     layout = TreeLayout(sc.tree, sc.couplings, sc.orbit, springs=sc.springs, forces=sc.forces,
-                        gravity_dir=sc.gravity_dir, shapes=sc.shapes, planes=sc.planes)
+                        gravity_dir=sc.gravity_dir, shapes=sc.shapes, planes=sc.planes,
+                        loops=getattr(sc, "loops", ()), gears=getattr(sc, "gears", ()))
     tables = (weakref.ref(sc), layout, tree_variables(sc), tuple(names), {n: i for i, n in enumerate(names)},
               element_columns(sc, layout))
     _TABLES[key] = tables
@@ -439,6 +489,11 @@ class TreeKernel:
 
     def _rule(self, name: str, v: Variable) -> str:
         """What a value of variable ``name`` must be, as the messages say it."""
+        gears = {f"{gr.name}.ratio": gr for gr in getattr(self.scene, "gears", ())}
+        if name in gears:
+            from .scene_loops import ratio_rule
+
+            return ratio_rule(self.scene.tree, gears[name])
         return v.range.text(v.unit) + (f" (the range of scene parameter {name})" if name in self._alias_names
                                        else "")
 
@@ -471,6 +526,12 @@ class TreeKernel:
             raise ConfigError(gap, float(out[0, at]), f"a start on or above plane {pl.name} (a gap >= -{tol:.3g} m, "
                               f"put on the plane; shape {h.name} starts inside it: move the body's start position "
                               "or attitude)")
+        if code == _engine.TREE_BAD_LOOP:   # slot: the loop
+            lp = self.scene.loops[slot]
+            _, res = _engine.tree_loop_open(self.layout.desc, self._y[c:c + 1], self._pp[c:c + 1])
+            raise ConfigError(f"{lp.name}.residual", res, "a start from which the loop closes (its points, and "
+                              "its axes, brought together by the least mass-weighted move of the joints; this one "
+                              "stays open: set the joints' start angles of a closed position)")
         if code == _engine.TREE_BAD_STOPS:
             (hi, unit), (lo, _) = param(slot), param(lo_slot)
             raise ConfigError(hi, float(pp[slot]), f"a number above {lo} = {float(pp[lo_slot])!r} {unit}")

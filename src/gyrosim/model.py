@@ -353,9 +353,9 @@ class Model:
         self._initialized = False
         self._state_dirty = True
         self._out = None
-        if parameters or getattr(self.scene, "shapes", ()):
-            # the values that hold together checked once (a rigid contact's start on its plane: the scene file's
-            # own start too, which no set call checks)
+        if parameters or getattr(self.scene, "shapes", ()) or getattr(self.scene, "loops", ()):
+            # the values that hold together checked once (a rigid contact's start on its plane, a loop that closes:
+            # the scene file's own start too, which no set call checks)
             self.set_values(dict(parameters or {}))
 
     # ----------------------------------------------------------------------------------------------- variables

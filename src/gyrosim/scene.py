@@ -71,9 +71,13 @@ __all__ = ["Scene", "BodySpec", "load_scene", "SceneNotFoundError", "EMBEDDED_SC
 EMBEDDED_SCENES = ("free_body", "heavy_top", "gyroscope", "gimbal_gyroscope", "spacecraft", "cmg_spacecraft",
                    "double_pendulum", "coupled_pendula", "satellite", "satellite_wheels", "mass_spring_chain",
                    "triatomic", "tippe_top", "eulers_disk", "rattleback", "top_on_floor", "rolling_coin",
-                   "billiard_ball")
+                   "billiard_ball", "iftomm_a01", "iftomm_a02", "iftomm_a03", "iftomm_a04", "iftomm_a05",
+                   "cmg_scissored")
 #: The embedded scenes with contact (DESIGN 4b: shapes on bodies against the plane ``floor``).
 CONTACT_SCENES = ("tippe_top", "eulers_disk", "rattleback", "top_on_floor", "rolling_coin", "billiard_ball")
+#: The IFToMM multibody benchmark's problems A01-A05 (docs/study/iftomm_problems.md) and the geared CMG pair: the
+#: scenes of DESIGN 4b's closed loops and gears (A01 and A05 are trees as the benchmark states them).
+LOOP_SCENES = ("iftomm_a01", "iftomm_a02", "iftomm_a03", "iftomm_a04", "iftomm_a05", "cmg_scissored")
 INTEGRATORS = ("euler", "rk4", "splitting", "splitting4", "adaptive", "dop853", "exact", "strang_exact",
                "yoshida_exact", "bm4_exact", "bm6_exact")
 G_DEFAULT = 9.81
@@ -152,6 +156,9 @@ class Scene:
     #: a tree's contact: convex shapes on bodies (core.tree.Shape) and planes in the world (core.tree.Plane)
     shapes: tuple = ()
     planes: tuple = ()
+    #: a tree's closed loops (core.tree.Loop) and gears (core.tree.Gear), scene_loops
+    loops: tuple = ()
+    gears: tuple = ()
     #: gravity's direction (unit, world; g is its magnitude): -z unless the scene's ``gravity`` turns it
     gravity_dir: tuple = (0.0, 0.0, -1.0)
 
@@ -171,7 +178,17 @@ class Scene:
             for e, pl in enumerate(self.planes):
                 for k in plane_parameters(pl):
                     out[f"{pl.name}.{k}"] = ("plane", e, k)
+        for e, gr in enumerate(self.gears):
+            out[f"{gr.name}.ratio"] = ("gear", e, "ratio")
         return out
+
+    def loop_outputs(self) -> tuple:
+        """The closed loops' and the gears' output names (``<loop>.residual``, ``<gear>.torque``, ...): scene-wide,
+        never with a body's prefix."""
+        from .core.tree import GEAR_OUTPUTS, LOOP_OUTPUTS
+
+        return tuple(f"{lp.name}.{c}" for lp in self.loops for c in LOOP_OUTPUTS) + \
+            tuple(f"{gr.name}.{c}" for gr in self.gears for c in GEAR_OUTPUTS)
 
     def contact_outputs(self) -> tuple:
         """The contacts' output names (``<shape>.gap``, ...; kernel_tree.contact_stems): scene-wide, like the
@@ -299,6 +316,11 @@ class Scene:
                                        ("contact (" + ", ".join(f"{h.name} on {h.kind}" for h in self.shapes) +
                                         " against " + ", ".join(p.name for p in self.planes) + ")",
                                         bool(self.shapes) and bool(self.planes)),
+                                       ("closed loops (" + ", ".join(f"{lp.name} {lp.kind}" for lp in self.loops) +
+                                        ")", bool(self.loops)),
+                                       ("gears (" + ", ".join(f"{gr.name} {self.tree[gr.a].name}:"
+                                                              f"{self.tree[gr.b].name}" for gr in self.gears) + ")",
+                                        bool(self.gears)),
                                        (orbit, self.orbit is not None)) if on]
 
     def to_dict(self) -> dict:
@@ -324,7 +346,12 @@ class Scene:
                                 "axes": [float(x) for x in np.asarray(h.axes).ravel()],
                                 "dims": [float(x) for x in h.dims]} for h in self.shapes],
                     "planes": [{k: (v.tolist() if isinstance(v, np.ndarray) else v)
-                                for k, v in dataclasses.asdict(p).items()} for p in self.planes]}
+                                for k, v in dataclasses.asdict(p).items()} for p in self.planes],
+                    "loops": [{"name": lp.name, "a": lp.a, "b": lp.b, "kind": lp.kind,
+                               **{k: [float(x) for x in getattr(lp, k)] for k in ("point_a", "point_b", "axis_a",
+                                                                                  "axis_b", "q0")}}
+                              for lp in self.loops],
+                    "gears": [{"name": gr.name, "a": gr.a, "b": gr.b, "ratio": float(gr.ratio)} for gr in self.gears]}
         b = self.bodies[0]
         return {**head, "gravity": self.gravity, "damping": self.damping, "torque": self.torque,
                 "integrator": self.integrator, "max_step": self.max_step, "max_drift": self.max_drift,
@@ -352,7 +379,8 @@ class Scene:
 
         body, _, short = name.rpartition(".")
         names = self.body_names
-        if body and body not in names and (name in self.element_variables() or name in self.contact_outputs()):
+        if body and body not in names and (name in self.element_variables() or name in self.contact_outputs()
+                                           or name in self.loop_outputs()):
             return None, name
         if body:
             return names.index(body), short
@@ -641,8 +669,8 @@ def scene_from_dict(data: dict, source: str = "<dict>") -> Scene:
     ConfigError
         Naming the source, the key, the value and what is allowed; unknown keys get a "did you mean".
     """
-    _check_keys(data, ("scene", "body", "sweep", "coupling", "parameters", "spring", "force", "shape", "plane"),
-                source)
+    _check_keys(data, ("scene", "body", "sweep", "coupling", "parameters", "spring", "force", "shape", "plane", "loop",
+                       "gear"), source)
     # [sweep]: `gyrosim sweep`
     sc = data.get("scene", {})
     if not isinstance(sc, dict):
@@ -702,14 +730,14 @@ def _one_body_scene(name, bodies, terms, integ, g, sc, where, source) -> Scene:
 
 
 def _tree_syntax(data: dict) -> bool:
-    """True where a scene uses the tree syntax (a joint, a parent, couplings, scene parameters, elements, contact or an
-    orbit)."""
+    """True where a scene uses the tree syntax (a joint, a parent, couplings, scene parameters, elements, contact,
+    closed loops, gears or an orbit)."""
     from .scene_tree import TREE_KEYS
 
     bodies = data.get("body")
     sc = data.get("scene")
     return ("coupling" in data or "parameters" in data or "spring" in data or "force" in data or "shape" in data or
-            "plane" in data or
+            "plane" in data or "loop" in data or "gear" in data or
             (isinstance(sc, dict) and "orbit" in sc) or
             (isinstance(bodies, list) and any(isinstance(b, dict) and any(k in b for k in TREE_KEYS) for b in bodies)))
 
@@ -756,6 +784,7 @@ def _one_body_kernel(data: dict, bodies, couplings, aliases, orbit, g, source) -
 
 def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) -> Scene:
     from .scene_contact import planes_from_dict, shapes_from_dict
+    from .scene_loops import check_closed, gears_from_dict, loops_from_dict, with_start_rotations
     from .scene_tree import check_inert_joints, orbit_from_dict, tree_from_dict
 
     bodies, couplings, cnames, aliases, springs, forces = tree_from_dict(data, source)
@@ -770,9 +799,12 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
     if shapes and not planes or planes and not shapes:
         raise ConfigError("shape" if planes else "plane", "none", "[[shape]] and [[plane]] tables together (a "
                           "shape touches planes)", where=source)
+    taken += [h.name for h in shapes] + [p.name for p in planes]
+    loops = loops_from_dict(data, bodies, taken, source)
+    gears = gears_from_dict(data, bodies, taken + [lp.name for lp in loops], source)
     check_inert_joints(bodies, source)   # after the format's checks: a joint that carries nothing, before any run
     # a tree-only integrator keeps a tree of one body on the tree engine; so do elements and a turned gravity
-    plain = not springs and not forces and not shapes and gdir == (0.0, 0.0, -1.0)
+    plain = not springs and not forces and not shapes and not loops and not gears and gdir == (0.0, 0.0, -1.0)
     one = (_one_body_kernel(data, bodies, couplings, aliases, orbit, g, source) if integ in INTEGRATORS and plain
            else None)
     if one is not None:  # a tree of one body that Euler's equations describe: the one-body kernel
@@ -782,10 +814,13 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
         raise ConfigError("integrator", integ, f"one of {', '.join(TREE_INTEGRATORS)}: a tree of bodies is "
                           f"integrated by the tree engine ('{integ}' solves one body)", where=where)
     for what, count in (("coupling", len(couplings)), ("spring", len(springs)), ("force", len(forces)),
-                        ("shape", len(shapes)), ("plane", len(planes))):
+                        ("shape", len(shapes)), ("plane", len(planes)), ("loop", len(loops)),
+                        ("gear", len(gears))):
         if count > _engine.TREE_ELEM_MAX:
             raise ConfigError(what, f"{count} [[{what}]] tables", f"at most {_engine.TREE_ELEM_MAX} in a tree",
                               where=source)
+    check_closed(bodies, loops, gears, len(shapes) * len(planes), source)
+    loops = with_start_rotations(loops, bodies)
     if integ in ("midpoint", "energy_momentum"):
         from .scene_tree import implicit_fits, implicit_refusal
 
@@ -801,7 +836,7 @@ def _tree_scene(data, sc, name, integ, g, where, source, gdir=(0.0, 0.0, -1.0)) 
         stop_time=_num(sc, "stop_time", where, 10.0, lo=0.0, lo_open=True),
         g=g, description=str(sc.get("description", "")), source=source, tree=bodies, couplings=couplings,
         coupling_names=cnames, aliases=aliases, orbit=orbit, springs=springs, forces=forces, gravity_dir=gdir,
-        shapes=shapes, planes=planes)
+        shapes=shapes, planes=planes, loops=loops, gears=gears)
     if integ in ("splitting", "splitting4"):
         from .scene_tree import split_fits, split_refusal
 

@@ -54,7 +54,7 @@ import numpy as np
 from .core.inertia import InertiaTensor
 from .core.tree import BODY_OUTPUTS, JOINT_COORDS, JOINTS, MU_EARTH, ORBIT_BODY_OUTPUTS, Orbit, TreeBody
 from .errors import ConfigError
-from .ranges import NONNEGATIVE, Range
+from .ranges import BOUNDED, NONNEGATIVE, Range
 
 __all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "BODY_VARIABLES", "TREE_KEYS",
            "NONNEGATIVE_PARAMS"]
@@ -62,7 +62,8 @@ __all__ = ["Alias", "tree_from_dict", "orbit_from_dict", "BODY_PARAMS", "BODY_VA
 _TREE_BODY_KEYS = ("name", "parent", "joint", "position", "axis", "mass", "cm", "cm_distance", "inertia",
                    "stiffness", "rest_angle", "joint_damping", "damping", "motor_input", "torque_input", "attitude",
                    "rates", "angle", "rate", "r", "v", "rotation", "displacement", "velocity", "rest_displacement",
-                   "lower", "upper", "stop", "restitution", "stop_stiffness", "stop_damping")
+                   "lower", "upper", "stop", "restitution", "stop_stiffness", "stop_damping", "motor_torque",
+                   "motor_force")
 _SPRING_KEYS = ("name", "body_a", "point_a", "body_b", "point_b", "stiffness", "rest_length", "damping")
 _FORCE_KEYS = ("name", "body", "point", "frame")
 #: The stops' default spring-damper: a critically damped contact of time constant STOP_TIME (s) for the joint's
@@ -219,6 +220,7 @@ def _tree_body(tbl, index, names, where):
     only = {"axis": ("hinge", "slider"), "stiffness": ("hinge", "slider", "ball", "free_rotation"),
             "rest_angle": ("hinge",), "joint_damping": ("hinge", "slider", "ball", "free_rotation"),
             "motor_input": ("hinge", "slider"), "angle": ("hinge",), "rate": ("hinge",),
+            "motor_torque": ("hinge",), "motor_force": ("slider",),
             "displacement": ("slider",), "velocity": ("slider",), "rest_displacement": ("slider",),
             "lower": ("hinge", "slider"), "upper": ("hinge", "slider"), "stop": ("hinge", "slider"),
             "restitution": ("hinge", "slider"), "stop_stiffness": ("hinge", "slider"),
@@ -261,6 +263,15 @@ def _tree_body(tbl, index, names, where):
               motor_input=_bool(tbl, "motor_input", where), torque_input=_bool(tbl, "torque_input", where),
               angle0=s._num(tbl, "displacement" if joint == "slider" else "angle", where, 0.0),
               rate0=s._num(tbl, "velocity" if joint == "slider" else "rate", where, 0.0))
+    motor_key = "motor_force" if joint == "slider" else "motor_torque"
+    if motor_key in tbl:   # the motor input's start value: a constant drive unless something sets the input
+        if not kw["motor_input"]:
+            raise ConfigError(motor_key, tbl[motor_key], f"a start value of the input {motor_key}: only with "
+                              "motor_input = true", where=where)
+        v = s._num(tbl, motor_key, where, 0.0)
+        if v not in BOUNDED:   # the input's range, as every door checks it
+            raise ConfigError(motor_key, v, BOUNDED.text("N" if joint == "slider" else "N.m"), where=where)
+        kw["motor0"] = v
     if joint in ("ball", "free_rotation", "free"):
         kw.update(_ball_spring_damping(tbl, joint, where))
     if "rotation" in tbl:
@@ -465,10 +476,11 @@ def forces_from_dict(data: dict, names: list, taken: list, source: str) -> tuple
     return tuple(out)
 
 
-def _element_tables(data: dict, kind: str, keys: tuple, bodies: list, taken: list, source: str):
+def _element_tables(data: dict, kind: str, keys: tuple, bodies: list, taken: list, source: str,
+                    others: str = "body, spring or force"):
     """The ``[[kind]]`` tables of an element kind, checked as tables with known keys and a name (default ``kind``,
     ``kind_1``, ...) no body, earlier element (``taken``) or earlier table of this kind has: ``(table, where,
-    name)`` each."""
+    name)`` each. ``others``: the named things a clash is checked against, as the message lists them."""
     s = _h()
     tl = data.get(kind, [])
     if not isinstance(tl, list):
@@ -484,7 +496,7 @@ def _element_tables(data: dict, kind: str, keys: tuple, bodies: list, taken: lis
             raise ConfigError("name", nm, "a non-empty name of letters, digits, '_' and '-' (it names variables)",
                               where=w)
         if nm in bodies or nm in seen:
-            raise ConfigError("name", nm, "a name no body, spring or force of the scene has", where=w)
+            raise ConfigError("name", nm, f"a name no {others} of the scene has", where=w)
         seen.append(nm)
         yield t, w, nm
 

@@ -11,7 +11,7 @@ import pytest
 
 from gyrosim import ConfigError, Gyroscope, Model, normal_modes
 from gyrosim.analysis.linear import steady_precession
-from gyrosim.scene import CONTACT_SCENES, EMBEDDED_SCENES
+from gyrosim.scene import CONTACT_SCENES, EMBEDDED_SCENES, LOOP_SCENES
 
 G = 9.81
 
@@ -341,9 +341,10 @@ def _gyrostat_librations(n, I, Ip):
 _STEADY_DEFAULTS = {"gyroscope"}
 
 
-@pytest.mark.parametrize("name", [s for s in EMBEDDED_SCENES if s not in CONTACT_SCENES])
+@pytest.mark.parametrize("name", [s for s in EMBEDDED_SCENES if s not in CONTACT_SCENES + LOOP_SCENES])
 def test_every_embedded_scene_linearizes(name):
-    """(The contact scenes: tests/tree/test_contact*.py, a top sleeping on the floor among them.)
+    """(The contact scenes: tests/tree/test_contact*.py, a top sleeping on the floor among them. The closed-loop
+    scenes (IFToMM A01-A05, the geared CMG pair): their linearization on the constraint manifold is not built yet.)
     The default linearization is about a steady motion exactly for the scenes that start in one, and at each
     scene's closed-form point (_closed_form_point: its equilibrium, or a steady motion at or near its default) the
     verdict is "marginally stable" (every one is a conservative motion about a stable state), with as many

@@ -901,7 +901,34 @@ done:
     return res;
 }
 
+/* tree_loop_open(desc, y, p) -> None, or (loop, residual) of the first loop the first system cannot close */
+static PyObject *py_tree_loop_open(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "tree_loop_open() takes 3 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    Buf b[2] = {{0}};
+    PyObject *res = NULL;
+    if (first_system(&t, args[1], args[2], b, 0) < 0) goto done;
+    double r = 0.0;
+    const int e = gs_tree_loop_open(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf, &r);
+    if (e >= 0) {
+        res = Py_BuildValue("(id)", e, r);
+    } else {
+        res = Py_None;
+        Py_INCREF(res);
+    }
+done:
+    release(b, 2);
+    return res;
+}
+
 static PyMethodDef methods[] = {
+    {"tree_loop_open", (PyCFunction)(void (*)(void))py_tree_loop_open, METH_FASTCALL,
+     "tree_loop_open(desc, y, p) -> None, or (loop, residual) of the first loop that cannot be closed"},
     {"tree_impact", (PyCFunction)(void (*)(void))py_tree_impact, METH_FASTCALL,
      "tree_impact(desc, y, p) -> the impacts applied to the first system (y changed in place); "
      "tree_impact(desc, y, p, z) -> the number of event indicators, written into z"},
@@ -977,6 +1004,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
     PyModule_AddIntConstant(m, "TREE_MAX", GS_TREE_MAX);
     PyModule_AddIntConstant(m, "TREE_ELEM_MAX", GS_TREE_ELEM_MAX);
     PyModule_AddIntConstant(m, "TREE_SMALL", GS_TREE_SMALL);
+    PyModule_AddIntConstant(m, "TREE_ROWS_MAX", GS_TREE_ROWS_MAX);
     PyModule_AddIntConstant(m, "IMPLICIT_MAX", GS_ODE_MAX);
     PyModule_AddIntConstant(m, "TREE_NMON", GS_TREE_NMON);
     PyModule_AddIntConstant(m, "LD_MANT_DIG", gs_tree_ld_mant_dig());
@@ -987,7 +1015,7 @@ PyMODINIT_FUNC PyInit__engine(void) {
         static const struct { const char *name; int value; } tc[] = {
             {"J_BALL", GS_J_BALL}, {"J_HINGE", GS_J_HINGE}, {"J_FREE", GS_J_FREE}, {"J_FIXED", GS_J_FIXED},
             {"J_SLIDER", GS_J_SLIDER}, {"TB_ROT", GS_TB_ROT}, {"TB_KB", GS_TB_KB}, {"TB_CB", GS_TB_CB},
-            {"TB_LIM", GS_TB_LIM}, {"TREE_BAD_STOPS", GS_TREE_BAD_STOPS}, {"TREE_BAD_START", GS_TREE_BAD_START}, {"TREE_BAD_CONTACT", GS_TREE_BAD_CONTACT}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
+            {"TB_LIM", GS_TB_LIM}, {"TREE_BAD_STOPS", GS_TREE_BAD_STOPS}, {"TREE_BAD_START", GS_TREE_BAD_START}, {"TREE_BAD_CONTACT", GS_TREE_BAD_CONTACT}, {"TREE_BAD_LOOP", GS_TREE_BAD_LOOP}, {"TB_LO", GS_TB_LO}, {"TB_HI", GS_TB_HI}, {"TB_STOP_K", GS_TB_STOP_K},
             {"TB_STOP_C", GS_TB_STOP_C}, {"TB_RESTITUTION", GS_TB_RESTITUTION}, {"TP_GDIR", GS_TP_GDIR}, {"SPR_PA", GS_SPR_PA}, {"SPR_PB", GS_SPR_PB},
             {"SPR_K", GS_SPR_K}, {"SPR_L0", GS_SPR_L0}, {"SPR_C", GS_SPR_C}, {"SPR_NP", GS_SPR_NP},
             {"FRC_P", GS_FRC_P}, {"FRC_F", GS_FRC_F}, {"FRC_NP", GS_FRC_NP},
@@ -1006,6 +1034,11 @@ PyMODINIT_FUNC PyInit__engine(void) {
             {"FRICTION_COULOMB", GS_FRICTION_COULOMB}, {"FRICTION_REGULARIZED", GS_FRICTION_REGULARIZED},
             {"CT_GAP", GS_CT_GAP}, {"CT_FN", GS_CT_FN}, {"CT_FT", GS_CT_FT}, {"CT_SLIP", GS_CT_SLIP},
             {"CT_X", GS_CT_X}, {"CT_MODE", GS_CT_MODE}, {"CT_NOUT", GS_CT_NOUT},
+            /* closed loops and gears (GS_LOOP_*, GS_LP_*, GS_GR_*, GS_LO_*, GS_GO_*) */
+            {"LOOP_SPHERICAL", GS_LOOP_SPHERICAL}, {"LOOP_REVOLUTE", GS_LOOP_REVOLUTE},
+            {"LOOP_PRISMATIC", GS_LOOP_PRISMATIC}, {"LP_PA", GS_LP_PA}, {"LP_PB", GS_LP_PB}, {"LP_AA", GS_LP_AA},
+            {"LP_AB", GS_LP_AB}, {"LP_Q0", GS_LP_Q0}, {"LP_NP", GS_LP_NP}, {"GR_RATIO", GS_GR_RATIO},
+            {"GR_NP", GS_GR_NP}, {"LO_NOUT", GS_LO_NOUT}, {"GO_NOUT", GS_GO_NOUT},
             /* the one-body rows' offsets (gyrosim_engine.h) */
             {"Y_Q", GS_Y_Q}, {"Y_OMEGA", GS_Y_OMEGA}, {"Y_NQW", GS_Y_NQW}, {"Y_REF", GS_Y_REF}, {"Y_TURN", GS_Y_TURN},
             {"Y_MON", GS_Y_MON}, {"Y_BALANCE", GS_Y_BALANCE}, {"Y_ESCALE", GS_Y_ESCALE}, {"Y_L0", GS_Y_L0},

@@ -60,6 +60,11 @@ SCENE_OUTPUTS = ("energy", "energy_error", "L_x", "L_y", "L_z")
 #: Every contact's outputs (a shape against a plane), in the engine's order (gyrosim_tree.h GS_CT_*).
 CONTACT_OUTPUTS = ("gap", "normal_force", "friction_x", "friction_y", "friction_z", "slip_speed", "contact_x",
                    "contact_y", "contact_z", "mode", "jellett")
+#: Every closed loop's outputs and every gear's (gyrosim_tree.h GS_LO_*, GS_GO_*), scene-wide ``<name>.<output>``.
+LOOP_OUTPUTS = ("residual", "rate_residual", "f_x", "f_y", "f_z")
+GEAR_OUTPUTS = ("torque",)
+LOOP_KINDS = {"spherical": _engine.LOOP_SPHERICAL, "revolute": _engine.LOOP_REVOLUTE,
+              "prismatic": _engine.LOOP_PRISMATIC}
 #: The contact modes (the ``mode`` output's values).
 CONTACT_MODES = ("apart", "sliding", "rolling", "resting")
 #: Shape kinds and their engine codes; the normal and friction laws and theirs.
@@ -180,6 +185,7 @@ class TreeBody:
     rest_angle: float = 0.0
     damping: float = 0.0
     motor_input: bool = False
+    motor0: float = 0.0
     torque_input: bool = False
     q0: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
     omega0: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -266,6 +272,36 @@ class Plane:
     slip_velocity: float = 0.0
 
 
+@dataclass(frozen=True)
+class Loop:
+    """A closed loop (DESIGN 4b ``[[loop]]``): body ``b``'s point ``point_b`` (its frame) held on body ``a``'s
+    ``point_a`` (``a`` = -1: the world, the point in world coordinates); ``kind`` (LOOP_KINDS): spherical (the points
+    coincide), revolute (and the unit axes ``axis_a``, ``axis_b`` in their bodies' frames stay aligned) or prismatic
+    (b's point stays on a's axis through a's point, and the bodies' relative rotation stays ``q0``, R_a^T R_b as a
+    quaternion w, x, y, z)."""
+
+    name: str
+    a: int
+    b: int
+    kind: str
+    point_a: np.ndarray
+    point_b: np.ndarray
+    axis_a: np.ndarray = (0.0, 0.0, 1.0)
+    axis_b: np.ndarray = (0.0, 0.0, 1.0)
+    q0: np.ndarray = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Gear:
+    """A gear (DESIGN 4b ``[[gear]]``): the rate of body ``a``'s joint = ``ratio`` x the rate of body ``b``'s (hinges
+    or sliders)."""
+
+    name: str
+    a: int
+    b: int
+    ratio: float
+
+
 class TreeLayout:
     """The engine's arrays for a tree: description, parameter row, start state and column names.
 
@@ -296,13 +332,15 @@ class TreeLayout:
     """
 
     def __init__(self, bodies, couplings=(), orbit: Orbit | None = None, springs=(), forces=(),
-                 gravity_dir=GRAVITY_DOWN, shapes=(), planes=()):
+                 gravity_dir=GRAVITY_DOWN, shapes=(), planes=(), loops=(), gears=()):
         self.bodies = tuple(bodies)
         self.couplings = tuple((int(a), int(b), float(k)) for a, b, k in couplings)
         self.orbit = orbit
         self.springs, self.forces = tuple(springs), tuple(forces)
         self.shapes, self.planes = tuple(shapes), tuple(planes)
-        contacts = bool(self.shapes) and bool(self.planes)
+        self.loops, self.gears = tuple(loops), tuple(gears)
+        closed = bool(self.loops) or bool(self.gears)
+        contacts = bool(self.shapes) and bool(self.planes) or closed
         self.gravity_dir = _vec(gravity_dir)
         d = [len(self.bodies), len(self.couplings)]
         for b in self.bodies:
@@ -323,6 +361,12 @@ class TreeLayout:
                 d += [h.body, SHAPE_KINDS[h.kind]]
             for pl in self.planes:
                 d += [CONTACT_MODELS[pl.model], FRICTION_MODELS[pl.friction_model]]
+        if closed:
+            d += [len(self.loops), len(self.gears)]
+            for lp in self.loops:
+                d += [lp.a, lp.b, LOOP_KINDS[lp.kind]]
+            for gr in self.gears:
+                d += [gr.a, gr.b]
         self.desc = np.array(d, dtype=np.int32)
         self.nx, self.ny, self.np, self.nout = _engine.tree_info(self.desc)
         self.coord_slots = {}
@@ -352,6 +396,10 @@ class TreeLayout:
                 for pl in self.planes:
                     stem = h.name if len(self.planes) == 1 else f"{h.name}.{pl.name}"
                     self.output_names += [(h.body, f"{stem}.{c}") for c in CONTACT_OUTPUTS]
+        for lp in self.loops:
+            self.output_names += [(None, f"{lp.name}.{c}") for c in LOOP_OUTPUTS]
+        for gr in self.gears:
+            self.output_names += [(None, f"{gr.name}.{c}") for c in GEAR_OUTPUTS]
         assert len(self.output_names) == self.nout
         self.dof = sum({"hinge": 1, "slider": 1, "free": 6, "fixed": 0}.get(b.joint, 3) for b in self.bodies)
 
@@ -375,6 +423,14 @@ class TreeLayout:
         """Where plane ``e``'s parameters start in a parameter row."""
         return self.shape_offset(len(self.shapes)) + _engine.PLN_NP * e
 
+    def loop_offset(self, e: int) -> int:
+        """Where loop ``e``'s parameters start in a parameter row."""
+        return self.plane_offset(len(self.planes)) + _engine.LP_NP * e
+
+    def gear_offset(self, e: int) -> int:
+        """Where gear ``e``'s parameters start in a parameter row."""
+        return self.loop_offset(len(self.loops)) + _engine.GR_NP * e
+
     def params(self, g: float, max_drift: float) -> np.ndarray:
         """(np,) the parameter row of the bodies' values (inputs at 0)."""
         p = np.zeros(self.np)
@@ -394,6 +450,7 @@ class TreeLayout:
             p[o + _engine.TB_CM:o + _engine.TB_CM + 3] = _vec(b.cm)
             J = np.asarray(b.inertia, dtype=float)
             p[o + _engine.TB_I:o + _engine.TB_I + 6] = [J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]]
+            p[o + _engine.TB_MOTOR] = b.motor0
             p[o + _engine.TB_STIFF] = b.stiffness
             p[o + _engine.TB_REST] = b.rest_angle
             p[o + _engine.TB_DAMP] = b.damping
@@ -428,6 +485,14 @@ class TreeLayout:
                 p[o + _engine.PLN_N:o + _engine.PLN_N + 3] = _vec(pl.normal)
                 for k, slot in PLANE_SLOTS.items():
                     p[o + slot] = getattr(pl, k)
+        for e, lp in enumerate(self.loops):
+            o = self.loop_offset(e)
+            for slot, v, k in ((_engine.LP_PA, lp.point_a, 3), (_engine.LP_PB, lp.point_b, 3),
+                               (_engine.LP_AA, lp.axis_a, 3), (_engine.LP_AB, lp.axis_b, 3),
+                               (_engine.LP_Q0, lp.q0, 4)):
+                p[o + slot:o + slot + k] = _vec(v, k)
+        for e, gr in enumerate(self.gears):
+            p[self.gear_offset(e) + _engine.GR_RATIO] = gr.ratio
         return p
 
     def state(self) -> np.ndarray:

@@ -97,6 +97,8 @@ _UNITS = {  # unit -> SI base-unit exponents
     # contact: Hunt-Crossley's stiffness is kg m^-1/2 s^-2, which FMI's integer exponents cannot write (the unit
     # stays named, without a BaseUnit)
     "s/m": {"s": 1, "m": -1}, "N/m1.5": None, "kg.m3/s": {"kg": 1, "m": 3, "s": -1},
+    # a gear between a slider and a hinge (rack and pinion): its ratio
+    "m/rad": {"m": 1, "rad": -1}, "rad/m": {"rad": 1, "m": -1},
 }
 _TOKEN = "@INSTANTIATION_TOKEN@"
 #: ``fmi_type`` values: co-simulation, model exchange, or both interfaces in one FMU.

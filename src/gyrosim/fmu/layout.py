@@ -252,9 +252,10 @@ def _tree_pattern(sc: Scene, lay, rows, seed: int):
         else:
             vp[inputs[j - lay.nx]] = 1.0
         _engine.tree_directional(lay.desc, y.reshape(1, -1), p.reshape(1, -1), vy, vp, ddy[j], dout[j])
-    if sc.shapes:
+    if sc.shapes or getattr(sc, "loops", ()) or getattr(sc, "gears", ()):
         # a contact's forces couple what its state couples, and a random state may hold it apart (a rigid contact's
-        # mode is apart in the start row): every derivative and output may depend on every coordinate and input
+        # mode is apart in the start row); a closed loop's or a gear's constraint solve couples every joint of the
+        # tree through the mass matrix: every derivative and output may depend on every coordinate and input
         return np.ones_like(ddy.T, dtype=bool), np.ones_like(dout.T, dtype=bool)
     return ddy.T != 0.0, dout.T != 0.0
 

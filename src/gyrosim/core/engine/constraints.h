@@ -5,8 +5,11 @@
  *
  * Rows. A row is a velocity that the constraint holds at zero, linear in the generalized velocities (J v): the
  * velocity of the body's material point at a contact along a world direction d (the normal n, the plane's tangents
- * t1, t2), or the spin about the normal scaled by the contact radius (R_c n . omega). Its column is the unit wrench
- * (a force at the contact point and a torque, world) that the row's multiplier lambda scales. For a sticking
+ * t1, t2), or the spin about the normal scaled by the contact radius (R_c n . omega). A closed loop's rows (loops.h)
+ * are the same with a second body b: d . (v_a(p_a) - v_b(p_b)) and d . (omega_a - omega_b); a gear's row is the
+ * joint rates' qd_a - ratio qd_b. Its column is the unit wrench (a force at the contact point and a torque, world;
+ * the opposite on body b at its point; a gear's: the joint forces 1 and -ratio) that the row's multiplier lambda
+ * scales. For a sticking
  * contact the column is the row's own direction (J^T); a sliding contact has only its normal row, and its column
  * carries Coulomb's friction with it (n - mu s/|s| and the Contensou torque), so that the friction is mu lambda_n.
  *
@@ -18,8 +21,13 @@
  * forward pass of the body accelerations (a_i = X a_parent + S qdd + c, RBDA 7.1). A row's acceleration is the
  * derivative of the material point's velocity at the moving contact point: the point's classical acceleration
  * a + alpha x c + omega x (v + omega x c) plus omega x u, u the contact point's velocity over the body, which the
- * geometry table's support-map derivative gives (shape_support_rate). The multipliers' wrenches join the applied
- * forces and the algorithm runs once more: the constrained accelerations.
+ * geometry table's support-map derivative gives (shape_support_rate); a direction fixed in body a adds its own
+ * rate, (omega_a x d) . (the rows' relative velocity). The multipliers' wrenches join the applied forces and the
+ * algorithm runs once more: the constrained accelerations. G is J M^-1 J^T (with a sliding contact's friction in
+ * its column): singular where rows are redundant (the Bricard mechanism, a planar loop's out-of-plane rows) or at a
+ * mechanism's singular position; the elimination (solve_dense) pivots completely and drops the rows whose pivot
+ * falls below round-off of G's largest entry, with multiplier 0: the rows kept carry the constraint, and the
+ * constraint being consistent, the accelerations are those of the whole set.
  *
  * Modes (GS_CM_*, in the state) and events. A rigid contact is apart, sliding or sticking. Each has two event
  * indicators (gs_tree_indicators), located by the one event loop as the impact stops are (tree.c advance_from):
@@ -122,15 +130,32 @@ static void body_accels(const gs_tree *t, const double *p, const Pre *pre, const
 }
 
 /* A constraint row (see the top of this file) */
-#define ROW_POINT 0   /* dir . (the material point's velocity at the contact point) */
-#define ROW_SPIN 1    /* scale * dir . omega (world) */
+#define ROW_POINT 0   /* dir . (v_a(cb) - v_b(cb_b)): body a's material point's velocity, less body b's */
+#define ROW_SPIN 1    /* scale * dir . (omega_a - omega_b) (world) */
+#define ROW_JOINT 2   /* qd_a - scale * qd_b: a gear between the joints of body and body_b (hinges, sliders) */
 typedef struct {
-    int contact, body, kind;
-    double cb[3];        /* the contact point, body frame */
-    double dir[3];       /* world */
-    double scale;        /* ROW_SPIN: the contact radius */
-    double F[3], M[3];   /* the column: the unit wrench at the contact point (world) */
+    int contact;          /* the rigid contact the row is of, -1: a loop's or a gear's */
+    int elem;             /* the loop (ROW_POINT, ROW_SPIN) or the gear (ROW_JOINT) the row is of, -1: a contact's */
+    int body, body_b;     /* body a and body b (-1: the world, at rest; a contact's body_b is the world) */
+    int kind;
+    double cb[3], cb_b[3];   /* the points on a and on b, their frames (world coordinates for the world) */
+    double dir[3];        /* world */
+    double ddir[3];       /* the direction's rate (world): one fixed in body a turns with it (0 for a contact's) */
+    double u[3];          /* the rate of body a's point over body a (world; a contact's comes from its shape) */
+    double scale;         /* ROW_SPIN: the contact radius (1 for a loop's); ROW_JOINT: the gear's ratio */
+    double F[3], M[3];    /* the column: the unit wrench on body a at cb (world); on body b -F at cb_b and -M */
 } Row;
+
+/* a row of body a alone (a contact's): no body b, no direction rate, no slide over the body */
+static void row_single(Row *r, int contact, int body, int kind) {
+    memset(r, 0, sizeof(*r));
+    r->contact = contact;
+    r->elem = -1;
+    r->body = body;
+    r->body_b = -1;
+    r->kind = kind;
+    r->scale = 1.0;
+}
 
 /* the rigid contact c's index in the state's modes: contact c = sh * n_pln + pl */
 static int rigid(const gs_tree *t, int pl) { return t->pln_law[pl] == GS_CONTACT_RIGID; }
@@ -168,10 +193,11 @@ static void rolling_torque(const double *pp, const Touch *T, const Slip *S, doub
 
 /* The rows of the active rigid contacts under modes; pure: every column its row's own direction (J^T), a sliding
  * contact's normal row without its friction (the impulses') */
+static int loop_rows(const gs_tree *t, const double *p, const Kin *k, Row *rows, int nr);
 static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, const double *modes, int pure,
                            Row *rows) {
     int nr = 0;
-    for (int sh = 0; sh < t->n_shp; sh++) {
+    for (int sh = 0; sh < t->n_shp && modes != NULL; sh++) {
         for (int pl = 0; pl < t->n_pln; pl++) {
             const int c = sh * t->n_pln + pl;
             if (!rigid(t, pl)) continue;
@@ -183,10 +209,7 @@ static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, cons
             touch(t, p, k, sh, pl, &T);
             slip_of(t, p, pl, &T, &S);
             Row *r = rows + nr;
-            r->contact = c;
-            r->body = t->shp_b[sh];
-            r->kind = ROW_POINT;
-            r->scale = 1.0;
+            row_single(r, c, t->shp_b[sh], ROW_POINT);
             memcpy(r->cb, T.cb, sizeof(T.cb));
             memcpy(r->dir, S.n, sizeof(S.n));
             memcpy(r->F, S.n, sizeof(S.n));
@@ -234,89 +257,203 @@ static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, cons
             }
         }
     }
-    return nr;
+    return loop_rows(t, p, k, rows, nr);
 }
 
-/* a row's acceleration from the body accelerations acc (kin's velocities; u: the contact point's rate over the
- * body, world, NULL: at rest) */
-static double row_accel(const Row *r, const Kin *k, const double (*acc)[6], const double *u) {
-    const int i = r->body;
-    const double *a = acc[i], *w = k->v[i], *vl = k->v[i] + 3;
-    double aw[3];
-    if (r->kind == ROW_SPIN) {   /* d/dt (n . omega_w) = n . R alpha_b (n fixed in the world) */
-        mv3(k->Rw[i], a, aw);
-        return r->scale * dot3(r->dir, aw);
+/* body i's angular velocity (world; 0 for the world) */
+static void side_omega(const Kin *k, int i, double w[3]) {
+    if (i < 0) {
+        w[0] = w[1] = w[2] = 0.0;
+        return;
     }
-    /* the material point's classical acceleration a + alpha x c + omega x (v + omega x c), body frame */
+    mv3(k->Rw[i], k->v[i], w);
+}
+
+/* body i's angular acceleration (world) and its material point cb's classical acceleration a + alpha x c + omega x
+ * (v + omega x c) (world), plus omega x u where the point moves over the body at u (world; NULL: it does not); 0
+ * for the world */
+static void side_accel(const Kin *k, const double (*acc)[6], int i, const double *cb, const double *u,
+                       double alpha[3], double ap[3]) {
+    if (i < 0) {
+        alpha[0] = alpha[1] = alpha[2] = ap[0] = ap[1] = ap[2] = 0.0;
+        return;
+    }
+    const double *a = acc[i], *w = k->v[i], *vl = k->v[i] + 3;
     double ac[3], wc[3], vp[3], wvp[3], ab[3];
-    cross3(a, r->cb, ac);
-    cross3(w, r->cb, wc);
+    mv3(k->Rw[i], a, alpha);
+    cross3(a, cb, ac);
+    cross3(w, cb, wc);
     for (int j = 0; j < 3; j++) vp[j] = vl[j] + wc[j];
     cross3(w, vp, wvp);
     for (int j = 0; j < 3; j++) ab[j] = a[3 + j] + ac[j] + wvp[j];
-    mv3(k->Rw[i], ab, aw);
-    if (u != NULL) {   /* + omega x u: the contact point moves over the body */
+    mv3(k->Rw[i], ab, ap);
+    if (u != NULL) {   /* + omega x u: the point moves over the body */
         double ww[3], wu[3];
         mv3(k->Rw[i], w, ww);
         cross3(ww, u, wu);
-        for (int j = 0; j < 3; j++) aw[j] += wu[j];
+        for (int j = 0; j < 3; j++) ap[j] += wu[j];
     }
-    return dot3(r->dir, aw);
 }
 
-/* fx[i] += lambda times the row's unit wrench, in body i's frame about its origin */
-static void add_row_wrench(const Row *r, const Kin *k, double lambda, double (*fx)[6]) {
-    double F[3], M[3], Fb[3], Mb[3];
+/* a row's relative velocity before the direction (world): v_a(cb) - v_b(cb_b), or omega_a - omega_b */
+static void row_relative(const Row *r, const Kin *k, double rel[3]) {
+    double xa[3], va[3], xb[3], vb[3];
+    if (r->kind == ROW_SPIN) {
+        side_omega(k, r->body, va);
+        side_omega(k, r->body_b, vb);
+    } else {
+        body_point(k, r->body, r->cb, xa, va);
+        body_point(k, r->body_b, r->cb_b, xb, vb);
+    }
+    for (int a = 0; a < 3; a++) rel[a] = va[a] - vb[a];
+}
+
+/* a row's acceleration from the body accelerations acc and the joint accelerations qdd (kin's velocities; u: the
+ * point's rate over body a, world, NULL: at rest) */
+static double row_accel(const Row *r, const Kin *k, const double (*acc)[6], const double (*qdd)[6],
+                        const double *u) {
+    if (r->kind == ROW_JOINT) return qdd[r->body][0] - r->scale * qdd[r->body_b][0];
+    double al_a[3], ap_a[3], al_b[3], ap_b[3];
+    side_accel(k, acc, r->body, r->cb, u, al_a, ap_a);
+    side_accel(k, acc, r->body_b, r->cb_b, NULL, al_b, ap_b);
+    double acc_rel[3];
+    if (r->kind == ROW_SPIN) {   /* d/dt (d . (omega_a - omega_b)) = d . (alpha_a - alpha_b) + d' . (omega_a - omega_b) */
+        for (int a = 0; a < 3; a++) acc_rel[a] = al_a[a] - al_b[a];
+    } else {
+        for (int a = 0; a < 3; a++) acc_rel[a] = ap_a[a] - ap_b[a];
+    }
+    double v = r->scale * dot3(r->dir, acc_rel);
+    if (r->elem >= 0 && r->body >= 0) {   /* a loop's direction fixed in body a: + d' . (the relative velocity) */
+        double rel[3];
+        row_relative(r, k, rel);
+        v += r->scale * dot3(r->ddir, rel);
+    }
+    return v;
+}
+
+/* fx[i] += the wrench (F at pt, M; world) on body i (its frame about its origin; nothing for the world) */
+static void add_world_wrench(const Kin *k, int i, const double pt[3], const double F[3], const double M[3],
+                             double (*fx)[6]) {
+    if (i < 0) return;
+    double Fb[3], Mb[3];
+    mtv3(k->Rw[i], F, Fb);
+    mtv3(k->Rw[i], M, Mb);
+    add_point_force(i, pt, Fb, fx);
+    for (int a = 0; a < 3; a++) fx[i][a] += Mb[a];
+}
+
+/* a joint force f on body i's hinge or slider as body wrenches: the torque f axis (a hinge) or the force f axis at
+ * the body's origin (a slider) on it, the opposite on its parent at the same place. The pair cancels in every joint
+ * above (equal and opposite within the parent's subtree), so the algorithm sees f at this joint alone. */
+static void add_joint_wrench(const gs_tree *t, const double *p, const Kin *k, int i, double f, double (*fx)[6]) {
+    const double *ax = body_p(p, i) + GS_TB_AXIS, zero[3] = {0.0, 0.0, 0.0};
+    double aw[3], F[3], M[3] = {0.0, 0.0, 0.0}, Fn[3], Mn[3];
+    mv3(k->Rw[i], ax, aw);
+    for (int a = 0; a < 3; a++) F[a] = 0.0;
+    if (t->joint[i] == GS_J_HINGE) {
+        for (int a = 0; a < 3; a++) M[a] = f * aw[a];
+    } else {
+        for (int a = 0; a < 3; a++) F[a] = f * aw[a];
+    }
+    for (int a = 0; a < 3; a++) {
+        Fn[a] = -F[a];
+        Mn[a] = -M[a];
+    }
+    add_world_wrench(k, i, zero, F, M, fx);
+    add_world_wrench(k, t->parent[i], k->r[i], Fn, Mn, fx);
+}
+
+/* fx += lambda times the row's unit wrench: on body a at cb, its opposite on body b at cb_b (each in its frame about
+ * its origin); a gear's the joint forces lambda on a and -ratio lambda on b */
+static void add_row_wrench(const gs_tree *t, const double *p, const Row *r, const Kin *k, double lambda,
+                           double (*fx)[6]) {
+    if (r->kind == ROW_JOINT) {
+        add_joint_wrench(t, p, k, r->body, lambda, fx);
+        add_joint_wrench(t, p, k, r->body_b, -r->scale * lambda, fx);
+        return;
+    }
+    double F[3], M[3], Fn[3], Mn[3];
     for (int a = 0; a < 3; a++) {
         F[a] = lambda * r->F[a];
         M[a] = lambda * r->M[a];
+        Fn[a] = -F[a];
+        Mn[a] = -M[a];
     }
-    mtv3(k->Rw[r->body], F, Fb);
-    mtv3(k->Rw[r->body], M, Mb);
-    add_point_force(r->body, r->cb, Fb, fx);
-    for (int a = 0; a < 3; a++) fx[r->body][a] += Mb[a];
+    add_world_wrench(k, r->body, r->cb, F, M, fx);
+    add_world_wrench(k, r->body_b, r->cb_b, Fn, Mn, fx);
 }
 
-/* G x = b for x in place of b (n x n, row-major), Gaussian elimination with partial pivoting; an unknown whose
- * pivot vanishes (a redundant row) is set to 0 */
-static void solve_dense(int n, double *G, double *b) {
+/* G x = b for x in place of b (n x n, row-major): Gaussian elimination with complete pivoting. It stops where the
+ * largest pivot left is below 1e-12 of G's largest entry (round-off of a singular G: redundant rows, a mechanism at
+ * a singular position; an exact 0 for a row with no reach): those unknowns are 0 and their equations, consistent
+ * with the rest, are dropped. Returns the rank it found. */
+static int solve_dense(int n, double *G, double *b) {
+    WS_OPEN;
+    TLOC(int, perm, , GS_TREE_ROWS_MAX, n);
+    TLOC(double, x, , GS_TREE_ROWS_MAX, n);
+    treal g0 = 0.0;
     for (int c = 0; c < n; c++) {
-        int piv = c;
-        treal best = fabs(G[c * n + c]);
-        for (int r = c + 1; r < n; r++) {
-            const treal v = fabs(G[r * n + c]);
-            if (v > best) {
-                best = v;
-                piv = r;
+        perm[c] = c;
+        for (int j = 0; j < n; j++) {
+            const treal v = fabs(G[c * n + j]);
+            if (v > g0) g0 = v;
+        }
+    }
+    const treal tiny = 1e-12 * g0;
+    int rank = 0;
+    for (int c = 0; c < n; c++) {
+        int pr = c, pc = c;
+        treal best = -1.0;
+        for (int r = c; r < n; r++) {
+            for (int j = c; j < n; j++) {
+                const treal v = fabs(G[r * n + j]);
+                if (v > best) {
+                    best = v;
+                    pr = r;
+                    pc = j;
+                }
             }
         }
-        if (piv != c) {
+        if (!(best > tiny)) break;
+        if (pr != c) {
             for (int j = 0; j < n; j++) {
                 const double tmp = G[c * n + j];
-                G[c * n + j] = G[piv * n + j];
-                G[piv * n + j] = tmp;
+                G[c * n + j] = G[pr * n + j];
+                G[pr * n + j] = tmp;
             }
             const double tb = b[c];
-            b[c] = b[piv];
-            b[piv] = tb;
+            b[c] = b[pr];
+            b[pr] = tb;
         }
-        if (best == 0.0) continue;
+        if (pc != c) {
+            for (int r = 0; r < n; r++) {
+                const double tmp = G[r * n + c];
+                G[r * n + c] = G[r * n + pc];
+                G[r * n + pc] = tmp;
+            }
+            const int tp = perm[c];
+            perm[c] = perm[pc];
+            perm[pc] = tp;
+        }
         for (int r = c + 1; r < n; r++) {
             const double f = G[r * n + c] / G[c * n + c];
             for (int j = c; j < n; j++) G[r * n + j] -= f * G[c * n + j];
             b[r] -= f * b[c];
         }
+        rank++;
     }
     for (int c = n - 1; c >= 0; c--) {
-        const treal piv = fabs(G[c * n + c]);
-        if (piv == 0.0) {
-            b[c] = 0.0;
+        if (c >= rank) {
+            x[c] = 0.0;
             continue;
         }
         double s = b[c];
-        for (int j = c + 1; j < n; j++) s -= G[c * n + j] * b[j];
-        b[c] = s / G[c * n + c];
+        for (int j = c + 1; j < rank; j++) s -= G[c * n + j] * x[j];
+        x[c] = s / G[c * n + c];
     }
+    for (int c = 0; c < n; c++) b[perm[c]] = x[c];
+    WS_CLOSE;
+    return rank;
 }
 
 /* kz: the kinematics of y at rest (every velocity coordinate zero), for the responses to unit wrenches; ys its
@@ -346,10 +483,12 @@ static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre,
     memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
     for (int c = 0; c < nr; c++) {
         memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
-        add_row_wrench(rows + c, kz, 1.0, fk);
+        add_row_wrench(t, p, rows + c, kz, 1.0, fk);
         aba(t, ys, p, pre, kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
         body_accels(t, p, pre, kz, (const double (*)[6])qk, ak);
-        for (int r = 0; r < nr; r++) G[r * nr + c] = row_accel(rows + r, kz, (const double (*)[6])ak, NULL);
+        for (int r = 0; r < nr; r++) {
+            G[r * nr + c] = row_accel(rows + r, kz, (const double (*)[6])ak, (const double (*)[6])qk, NULL);
+        }
     }
     WS_CLOSE;
 }
@@ -361,6 +500,10 @@ static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre,
 #define CL_LT 4       /* 3: lambda_t1, lambda_t2, lambda_spin (sticking) */
 #define CL_MARGIN 7   /* mu lambda_n - |lambda_t| (sticking) */
 #define CL_NP 8
+/* then per loop the reaction on its body b (3, N, world), then per gear its joint force on joint a */
+#define CL_LOOPS(t) (CL_NP * (t)->n_shp * (t)->n_pln)
+#define CL_GEARS(t) (CL_LOOPS(t) + 3 * (t)->n_lop)
+#define CL_SIZE(t) (CL_GEARS(t) + (t)->n_gr)
 
 /* The rigid contacts' forces under modes, added to fx, and the constrained accelerations into qdd (which holds the
  * accelerations of every other force: the articulated-body algorithm's with fx). Returns their power (friction's:
@@ -369,13 +512,12 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
                                 const double *modes, const Kin *kin, double (*fx)[6], double (*qdd)[6],
                                 double *out) {
     WS_OPEN;
-    TLOC(Row, rows, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX);
-    TLOC(double, lam, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
+    TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
+    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
+    TLOC(double, lam, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, a0, [6], GS_TREE_SMALL, t->n);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
-    const int nc = t->n_shp * t->n_pln;
-    if (out != NULL) memset(out, 0, (size_t)nc * CL_NP * sizeof(double));
+    if (out != NULL) memset(out, 0, (size_t)CL_SIZE(t) * sizeof(double));
     const int nr = constraint_rows(t, p, kin, modes, 0, rows);
     double P = 0.0;
     if (nr > 0) {
@@ -384,22 +526,38 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
         for (int r = 0; r < nr; r++) {
             double u[3];
             const int c = rows[r].contact;
-            contact_point_rate(t, p, kin, c / t->n_pln, c % t->n_pln, u);
-            lam[r] = -row_accel(rows + r, kin, (const double (*)[6])a0, u);
+            if (c >= 0) {
+                contact_point_rate(t, p, kin, c / t->n_pln, c % t->n_pln, u);
+            } else {
+                memcpy(u, rows[r].u, sizeof(u));
+            }
+            lam[r] = -row_accel(rows + r, kin, (const double (*)[6])a0, (const double (*)[6])qdd, u);
         }
         rest_kinematics(t, y, p, pre, ys, &kz);
         constraint_matrix(t, p, pre, ys, &kz, rows, nr, G);
         solve_dense(nr, G, lam);
         for (int r = 0; r < nr; r++) {
             const Row *q = rows + r;
-            add_row_wrench(q, kin, lam[r], fx);
+            add_row_wrench(t, p, q, kin, lam[r], fx);
+            if (q->contact < 0) continue;   /* a loop's or a gear's force does no work on its constraint */
             double xw[3], vw[3], ww[3];
             body_point(kin, q->body, q->cb, xw, vw);
             mv3(kin->Rw[q->body], kin->v[q->body], ww);
             P += lam[r] * (dot3(q->F, vw) + dot3(q->M, ww));
         }
+        if (out != NULL) {   /* per loop the reaction on body b, -lambda F of its point rows; per gear lambda */
+            for (int r = 0; r < nr; r++) {
+                const Row *q = rows + r;
+                if (q->elem < 0) continue;
+                if (q->kind == ROW_JOINT) {
+                    out[CL_GEARS(t) + q->elem] = lam[r];
+                } else if (q->kind == ROW_POINT) {
+                    for (int a = 0; a < 3; a++) out[CL_LOOPS(t) + 3 * q->elem + a] -= lam[r] * q->F[a];
+                }
+            }
+        }
         if (out != NULL) {   /* per contact: the normal row first, then a sticking contact's t1, t2, spin */
-            for (int r = 0; r < nr;) {
+            for (int r = 0; r < nr && rows[r].contact >= 0;) {
                 const int c = rows[r].contact, pl = c % t->n_pln;
                 double *o = out + CL_NP * c;
                 const double *pp = p + t->p_pln + GS_PLN_NP * pl;

@@ -3,16 +3,6 @@
  * tree.c beside the impact stops' events, in the double build only: the event loop (advance_from) locates where an
  * indicator crosses zero and calls contact_events there, as it calls the stops' impacts.
  */
-/* a row's velocity at kin */
-static double row_velocity(const Row *r, const Kin *k) {
-    double xw[3], vw[3], ww[3];
-    if (r->kind == ROW_SPIN) {
-        mv3(k->Rw[r->body], k->v[r->body], ww);
-        return r->scale * dot3(r->dir, ww);
-    }
-    body_point(k, r->body, r->cb, xw, vw);
-    return dot3(r->dir, vw);
-}
 
 /* The impulse that sets the active rows' velocities (pure directions: a sliding contact's normal only) to target
  * (0 for every row; row `hit`, a touch-down's normal, to -e times its velocity, where hit >= 0: it is active in
@@ -20,9 +10,9 @@ static double row_velocity(const Row *r, const Kin *k) {
 static int contact_impulse(const gs_tree *t, double *y, const double *p, const Pre *pre, const double *modes,
                            int hit, double e) {
     WS_OPEN;
-    TLOC(Row, rows, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX);
-    TLOC(double, P, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
+    TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
+    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
+    TLOC(double, P, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, tz, [6], GS_TREE_SMALL, t->n);
@@ -36,8 +26,8 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
         Totals before, after;
         totals_pre(t, y, p, pre, &before);
         for (int r = 0; r < nr; r++) {
-            const double v = row_velocity(rows + r, &kin);
-            const int normal = rows[r].contact == hit && (r == 0 || rows[r - 1].contact != hit);
+            const double v = row_velocity(t, y, rows + r, &kin);
+            const int normal = hit >= 0 && rows[r].contact == hit && (r == 0 || rows[r - 1].contact != hit);
             P[r] = (normal ? -e * v : 0.0) - v;
         }
         rest_kinematics(t, y, p, pre, ys, &kz);
@@ -45,7 +35,7 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
         solve_dense(nr, G, P);
         memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
         memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
-        for (int r = 0; r < nr; r++) add_row_wrench(rows + r, &kz, P[r], fk);
+        for (int r = 0; r < nr; r++) add_row_wrench(t, p, rows + r, &kz, P[r], fk);
         aba(t, ys, p, pre, &kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
         qdd_to_dy(t, ys, &kz, (const double (*)[6])qk, dv);   /* at rest: the velocity coordinates' change */
         for (int a = 0; a < t->nx; a++) y[a] += dv[a];
@@ -56,26 +46,19 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
     return nr;
 }
 
-/* The active contacts put on their planes: the positions moved by the least (mass-weighted) displacement that
- * closes their gaps, M^-1 J_n^T (J_n M^-1 J_n^T)^-1 (-gap), one Gauss-Newton step (the gaps left are of the order
- * of their square); the potential energy it changes booked in W. A contact ends an impact or a located event
- * beyond its plane by the bracket's width; this keeps a resting or rolling contact from sinking by it. */
+/* The active contacts put on their planes, the loops kept closed: one displacement (projection.h) closes the
+ * contacts' gaps and the loops' residuals together; the potential energy it changes booked in W. A contact ends an
+ * impact or a located event beyond its plane by the bracket's width; this keeps a resting or rolling contact from
+ * sinking by it. */
 static void contact_place(const gs_tree *t, double *y, const double *p, const Pre *pre, const double *modes) {
     WS_OPEN;
-    TLOC(Row, rows, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX);
-    TLOC(double, D, , GS_TREE_ROWS_MAX, GS_TREE_ROWS_MAX);
-    TLOC(double, ys, , GS_ODE_MAX, t->nx);
-    TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, tz, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, dv, , GS_ODE_MAX, t->nx);
+    TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
+    TLOC(double, D, , GS_TREE_ROWS_MAX, t->nrow);
     KIN_DECL(kin, t->n);
-    KIN_DECL(kz, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const int all = constraint_rows(t, p, &kin, modes, 1, rows);
     int nr = 0, open = 0;
-    for (int r = 0; r < all; r++) {   /* the normal rows, with their gaps */
+    for (int r = 0; r < all && rows[r].contact >= 0; r++) {   /* the normal rows, with their gaps */
         if (r > 0 && rows[r].contact == rows[r - 1].contact) continue;
         Touch T;
         const int c = rows[r].contact;
@@ -85,34 +68,12 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
         open |= T.gap != 0.0;
     }
     if (nr > 0 && open) {   /* every gap closed already: the state as it is, to the bit */
+        const int nl = loop_rows(t, p, &kin, rows, nr) - nr;   /* the loops' and gears' rows, held */
+        loop_residuals(t, p, &kin, D + nr);
+        for (int r = nr; r < nr + nl; r++) D[r] = -D[r];
         Totals before, after;
         totals_pre(t, y, p, pre, &before);
-        rest_kinematics(t, y, p, pre, ys, &kz);
-        constraint_matrix(t, p, pre, ys, &kz, rows, nr, G);
-        solve_dense(nr, G, D);
-        memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
-        memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
-        for (int r = 0; r < nr; r++) add_row_wrench(rows + r, &kz, D[r], fk);
-        aba(t, ys, p, pre, &kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
-        qdd_to_dy(t, ys, &kz, (const double (*)[6])qk, dv);   /* a generalized velocity: applied for unit time */
-        for (int i = 0; i < t->n; i++) {
-            double *s = y + t->yi[i];
-            const double *d = dv + t->yi[i];
-            if (t->joint[i] == GS_J_HINGE || t->joint[i] == GS_J_SLIDER) {
-                s[0] += d[1];
-            } else if (t->joint[i] == GS_J_BALL || t->joint[i] == GS_J_FREE) {
-                const double *w = d + (t->joint[i] == GS_J_BALL ? 4 : 7);   /* the rotation, body frame */
-                const double th = sqrt(dot3(w, w)), q0[4] = {s[0], s[1], s[2], s[3]};
-                const double c = cos(0.5 * th), sn = th > 0.0 ? sin(0.5 * th) / th : 0.5;
-                const double dq[4] = {c, sn * w[0], sn * w[1], sn * w[2]};
-                quat_mul(q0, dq, s);
-                const double nq = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2] + s[3] * s[3]);
-                for (int a = 0; a < 4; a++) s[a] /= nq;
-                if (t->joint[i] == GS_J_FREE) {
-                    for (int a = 0; a < 3; a++) s[4 + a] += d[10 + a];
-                }
-            }
-        }
+        displace(t, y, p, pre, rows, nr + nl, D);
         totals_pre(t, y, p, pre, &after);
         y[t->nx] += (after.T + after.V) - (before.T + before.V);
     }

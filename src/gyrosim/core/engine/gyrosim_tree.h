@@ -182,8 +182,34 @@ extern "C" {
 #define GS_CM_DIR 1    /* 4: the slip's direction at the piece's start (unit: v_t (world), R_c omega_n) */
 #define GS_CM_SCALE 5  /* |slip| there (m/s): a slip turned across its direction is no stop unless it is small */
 #define GS_CM_NP 6
-/* The constraint rows the one solver takes at once (a sticking contact has up to 4, a sliding one 1) */
-#define GS_TREE_ROWS_MAX 32
+/* The constraint rows the stack build's solver takes at once (a sticking contact has up to 4, a sliding one 1; a
+ * spherical loop 3, a revolute 5, a prismatic 5, a gear 1); a tree with more runs in the heap build */
+#define GS_TREE_ROWS_MAX 64
+
+/* Closed loops (DESIGN 4b [[loop]]): body b's point coincides with body a's (spherical), and their axes stay aligned
+ * (revolute), or b's point stays on a's axis and their relative rotation stays as it started (prismatic). A body
+ * index -1 is the world. Parameters per loop (their block after the planes): */
+#define GS_LOOP_SPHERICAL 0
+#define GS_LOOP_REVOLUTE 1
+#define GS_LOOP_PRISMATIC 2
+#define GS_LP_PA 0     /* 3: the point on body a, its frame (m; world coordinates for the world) */
+#define GS_LP_PB 3     /* 3: the point on body b, its frame (m) */
+#define GS_LP_AA 6     /* 3: the axis on body a, its frame (unit; revolute, prismatic) */
+#define GS_LP_AB 9     /* 3: the axis on body b, its frame (unit; revolute) */
+#define GS_LP_Q0 12    /* 4: prismatic: the relative rotation R_a^T R_b it holds (quaternion w, x, y, z) */
+#define GS_LP_NP 16
+/* Gears (DESIGN 4b [[gear]]): rate of joint a = ratio x rate of joint b (hinges or sliders). Parameters per gear
+ * (after the loops): */
+#define GS_GR_RATIO 0
+#define GS_GR_NP 1
+/* a loop's outputs (their block after the contacts'), then a gear's */
+#define GS_LO_RES 0    /* m: the position residual's norm (the points' distance; + the axes' misalignment times the
+                        * loop's length scale for revolute and prismatic) */
+#define GS_LO_RATE 1   /* m/s: the rate residual's norm (the rows' velocities, angular ones times the length scale) */
+#define GS_LO_F 2      /* 3: the reaction force on body b (N, world) */
+#define GS_LO_NOUT 5
+#define GS_GO_TORQUE 0 /* N*m (N on a slider): the gear's generalized force on joint a (on b: -ratio times it) */
+#define GS_GO_NOUT 1
 
 #define GS_ORBIT_NONE 0
 #define GS_ORBIT_CIRCULAR 1
@@ -206,6 +232,12 @@ typedef struct {
     int shp_b[GS_TREE_ELEM_MAX], shp_k[GS_TREE_ELEM_MAX];    /* a shape's body and kind (GS_SHAPE_*) */
     int pln_law[GS_TREE_ELEM_MAX], pln_fric[GS_TREE_ELEM_MAX];   /* a plane's GS_CONTACT_* and GS_FRICTION_* */
     int p_shp, p_pln;            /* where the shapes' and the planes' parameters start in p */
+    int n_lop, n_gr;             /* closed loops and gears */
+    int lop_a[GS_TREE_ELEM_MAX], lop_b[GS_TREE_ELEM_MAX], lop_k[GS_TREE_ELEM_MAX];   /* bodies (-1 world), kind */
+    int gr_a[GS_TREE_ELEM_MAX], gr_b[GS_TREE_ELEM_MAX];   /* a gear's bodies: their joints (hinge, slider) */
+    int p_lop, p_gr;             /* where the loops' and the gears' parameters start in p */
+    int nrow;                    /* the most constraint rows the solve takes at once (beyond GS_TREE_ROWS_MAX: the
+                                  * heap build, as a tree beyond GS_TREE_SMALL) */
     int ym;                      /* where the rigid contacts' modes start in y (after the monitor), -1 without */
     int leaf[GS_TREE_MAX];       /* 1 when no body hangs from this one */
     int orbit;                   /* GS_ORBIT_* */
@@ -216,7 +248,8 @@ typedef struct {
 /* The description as a flat int32 array: n, n_cpl, then (parent, joint) per body, then (a, b) per coupling, then
  * optionally the orbit (GS_ORBIT_*; none when left out), then optionally n_spr, n_frc, (a, b) per spring (-1: the
  * world), (body, world) per force, then optionally n_shp, n_pln, (body, kind) per shape, (law, friction) per
- * plane. Returns 0, or a nonzero code when it is not a valid tree (a parent not before its
+ * plane, then optionally n_lop, n_gr, (a, b, kind) per loop (-1: the world), (a, b) per gear. Returns 0, or a
+ * nonzero code when it is not a valid tree (a parent not before its
  * child, an unknown joint, a coupling between bodies that are not hinges, sizes
  * beyond GS_TREE_MAX or GS_TREE_ELEM_MAX, an unknown orbit, a Kepler orbit with a root that is not free, an element on no body). */
 int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len);
@@ -241,19 +274,27 @@ void gs_tree_accelerations(const gs_tree *t, const double *y, const double *p, d
  * orbit frame q_orbit (4 each; body -> local vertical/local horizontal: x along-track, z towards the centre, y = z x
  * x, the negative orbit normal; w >= 0), the orbit point's position (m) and velocity (m/s) from the central body,
  * world axes (circular: the orbit point; Kepler: the tree's centre of mass); then GS_CT_NOUT per contact
- * (GS_CT_*, from GS_TREE_CONTACT_OUT(t)). GS_TREE_NOUT(t) values. */
+ * (GS_CT_*, from GS_TREE_CONTACT_OUT(t)), GS_LO_NOUT per loop (GS_LO_*) and GS_GO_NOUT per gear. GS_TREE_NOUT(t)
+ * values. */
 #define GS_TREE_BODY_NOUT 10   /* q_world[4], r_world[3], v_world[3] */
 #define GS_TREE_OUT_QW 0
 #define GS_TREE_OUT_RW 4
 #define GS_TREE_OUT_VW 7
 #define GS_TREE_SCENE_OUT(t) ((t)->nx + GS_TREE_BODY_NOUT * (t)->n)   /* where energy is in a row */
 #define GS_TREE_CONTACT_OUT(t) (GS_TREE_SCENE_OUT(t) + 5 + ((t)->orbit ? 4 * (t)->n + 6 : 0))
-#define GS_TREE_NOUT(t) (GS_TREE_CONTACT_OUT(t) + GS_CT_NOUT * (t)->n_shp * (t)->n_pln)
+#define GS_TREE_LOOP_OUT(t) (GS_TREE_CONTACT_OUT(t) + GS_CT_NOUT * (t)->n_shp * (t)->n_pln)
+#define GS_TREE_GEAR_OUT(t) (GS_TREE_LOOP_OUT(t) + GS_LO_NOUT * (t)->n_lop)
+#define GS_TREE_NOUT(t) (GS_TREE_GEAR_OUT(t) + GS_GO_NOUT * (t)->n_gr)
 void gs_tree_outputs(const gs_tree *t, const double *y, const double *p, double *out);
 
 /* Start a state: quaternions normalised (0 returned when one is zero or a value is not finite, else 1), the
  * monitor's start values set. */
 int gs_tree_start(const gs_tree *t, double *y, const double *p);
+
+/* A loop that gs_tree_start cannot close (after its assembly, the loop's largest position residual above 1e-9 of
+ * the loop's size, 1 mm at least: the mechanism cannot be assembled from these start values): its index, and that
+ * residual (m; an angle's in rad) into *residual; -1 when every loop closes (or there is none). */
+int gs_tree_loop_open(const gs_tree *t, const double *y, const double *p, double *residual);
 
 /* Parameters changed during a run: the balance's expected energy moves by the energy change they make. */
 void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new);
@@ -332,6 +373,7 @@ size_t gs_tree_trajectory(const gs_tree *t, int method, size_t n, double *y, con
 #define GS_TREE_BAD_STOPS 1
 #define GS_TREE_BAD_START 2
 #define GS_TREE_BAD_CONTACT 3   /* a rigid shape starts inside a plane: slot[0] = the contact (shape * n_pln + plane) */
+#define GS_TREE_BAD_LOOP 4      /* a loop cannot be closed from the start values: slot[0] = the loop (gs_tree_loop_open) */
 int gs_tree_check(const gs_tree *t, const double *y, const double *p, int slot[3]);
 
 /* The first rigid contact whose shape is inside its plane deeper than a start allows (1e-9 m + 1e-6 of the shape's

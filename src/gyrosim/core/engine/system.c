@@ -184,6 +184,7 @@ int gs_tree_check(const gs_tree *t, const double *y, const double *p, int slot[3
     }
     double gap;
     if (y != NULL && t->ym >= 0 && (slot[0] = gs_tree_contact_inside(t, y, p, &gap)) >= 0) return GS_TREE_BAD_CONTACT;
+    if (y != NULL && t->n_lop > 0 && (slot[0] = gs_tree_loop_open(t, y, p, &gap)) >= 0) return GS_TREE_BAD_LOOP;
     return GS_TREE_OK;
 }
 

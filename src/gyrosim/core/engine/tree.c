@@ -153,7 +153,7 @@ static void ws_release(WsMark m) {
  * named big_tree_*) */
 #ifndef GS_TREE_CS
 #define TREE_DISPATCH(...) \
-    if (t->n > GS_TREE_SMALL) { \
+    if (t->n > GS_TREE_SMALL || t->nrow > GS_TREE_ROWS_MAX) { \
         __VA_ARGS__; \
     }
 void big_tree_derivatives(const gs_tree *t, const double *y, const double *p, double *dy);
@@ -207,7 +207,9 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     const size_t base = (size_t)(2 + 2 * n + 2 * nc);
     if (len != base && len != base + 1 && len < base + 3) return 3;
     t->orbit = len >= base + 1 ? desc[base] : GS_ORBIT_NONE;
-    t->n_spr = t->n_frc = t->n_shp = t->n_pln = 0;
+    t->n_spr = t->n_frc = t->n_shp = t->n_pln = t->n_lop = t->n_gr = 0;
+    t->nrow = 0;
+    size_t loops = 0;   /* where the loops' and gears' tables start in desc (0: none) */
     if (len >= base + 3) {   /* the elements */
         const int ns = desc[base + 1], nf = desc[base + 2];
         if (ns < 0 || ns > GS_TREE_ELEM_MAX || nf < 0 || nf > GS_TREE_ELEM_MAX) return 2;
@@ -216,7 +218,9 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
         if (len > tail) {   /* the contact shapes and planes */
             const int nh = desc[tail], np = desc[tail + 1];
             if (nh < 0 || nh > GS_TREE_ELEM_MAX || np < 0 || np > GS_TREE_ELEM_MAX) return 2;
-            if (len != tail + 2 + 2 * (size_t)nh + 2 * (size_t)np) return 3;
+            const size_t cend = tail + 2 + 2 * (size_t)nh + 2 * (size_t)np;
+            if (len != cend && len < cend + 2) return 3;
+            if (len > cend) loops = cend;
             for (int e = 0; e < nh; e++) {
                 const int b = desc[tail + 2 + 2 * e], k = desc[tail + 3 + 2 * e];
                 if (b < 0 || b >= n || k < GS_SHAPE_SPHERE || k > GS_SHAPE_POINT) return 14;
@@ -233,6 +237,7 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
             }
             t->n_shp = nh;
             t->n_pln = np;
+            t->nrow = 4 * nh * np;   /* a rigid contact's rows: its normal, two tangents and its spin */
         }
         for (int e = 0; e < ns; e++) {
             const int a = desc[base + 3 + 2 * e], b = desc[base + 4 + 2 * e];
@@ -264,6 +269,31 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
         t->yi[i] = at;
         at += gs_tree_ncoord(j);
     }
+    if (loops > 0) {   /* the closed loops and the gears (after the bodies: a gear needs its joints' kinds) */
+        const int nl = desc[loops], ng = desc[loops + 1];
+        if (nl < 0 || nl > GS_TREE_ELEM_MAX || ng < 0 || ng > GS_TREE_ELEM_MAX) return 2;
+        if (len != loops + 2 + 3 * (size_t)nl + 2 * (size_t)ng) return 3;
+        int rows = 0;
+        for (int e = 0; e < nl; e++) {
+            const int *d = desc + loops + 2 + 3 * e;
+            if (d[0] < -1 || d[0] >= n || d[1] < -1 || d[1] >= n || d[0] == d[1]) return 17;
+            if (d[2] < GS_LOOP_SPHERICAL || d[2] > GS_LOOP_PRISMATIC) return 17;
+            t->lop_a[e] = d[0];
+            t->lop_b[e] = d[1];
+            t->lop_k[e] = d[2];
+            rows += d[2] == GS_LOOP_SPHERICAL ? 3 : 5;
+        }
+        for (int e = 0; e < ng; e++) {
+            const int *d = desc + loops + 2 + 3 * nl + 2 * e;
+            if (d[0] < 0 || d[0] >= n || d[1] < 0 || d[1] >= n || d[0] == d[1]) return 18;
+            if (!one_dof(t->joint[d[0]]) || !one_dof(t->joint[d[1]])) return 18;
+            t->gr_a[e] = d[0];
+            t->gr_b[e] = d[1];
+        }
+        t->nrow += rows + ng;
+        t->n_lop = nl;
+        t->n_gr = ng;
+    }
     for (int c = 0; c < nc; c++) {
         const int a = desc[2 + 2 * n + 2 * c], b = desc[3 + 2 * n + 2 * c];
         if (a < 0 || a >= n || b < 0 || b >= n || a == b) return 7;
@@ -292,7 +322,9 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     t->p_frc = t->p_spr + GS_SPR_NP * t->n_spr;
     t->p_shp = t->p_frc + GS_FRC_NP * t->n_frc;
     t->p_pln = t->p_shp + GS_SHP_NP * t->n_shp;
-    t->np = t->p_pln + GS_PLN_NP * t->n_pln;
+    t->p_lop = t->p_pln + GS_PLN_NP * t->n_pln;
+    t->p_gr = t->p_lop + GS_LP_NP * t->n_lop;
+    t->np = t->p_gr + GS_GR_NP * t->n_gr;
     return 0;
 }
 
@@ -466,6 +498,7 @@ typedef struct {
     int elements;              /* springs or forces: the world kinematics is needed */
     int impacts;               /* impact stops or rigid contacts: gs_tree_advance locates their events */
     int rigid;                 /* rigid contacts: their modes are in the state (t->ym) */
+    int closed;                /* closed loops or gears: their rows join the constraint solve (loops.h) */
     double TB(U)[6][6];   /* ia_fixed: U = IA S (k columns) */
     double TB(Di)[6][6];  /* ia_fixed: D^-1 (k x k) */
     M6 TB(Ia);            /* ia_fixed, not a root: IA - U D^-1 U^T */
@@ -531,7 +564,8 @@ static void joint_factor(const gs_tree *t, const double *p, const Pre *pre, int 
 
 static void precompute(const gs_tree *t, const double *p, Pre *d) {
     d->g0 = p[GS_TP_G] == 0.0;
-    d->elements = t->n_spr > 0 || t->n_frc > 0 || t->n_shp * t->n_pln > 0;
+    d->closed = t->n_lop > 0 || t->n_gr > 0;
+    d->elements = t->n_spr > 0 || t->n_frc > 0 || t->n_shp * t->n_pln > 0 || d->closed;
     d->impacts = 0;
     d->rigid = t->ym >= 0;
     for (int i = 0; i < t->n; i++) {
@@ -1663,6 +1697,8 @@ static void derivs_full(const gs_tree *t, const double *y, const double *p, cons
 
 #include "contact.h"
 #include "constraints.h"
+#include "loops.h"
+#include "projection.h"
 
 /* The potential of the joints' springs and stops, the ball springs, the couplings and the spring elements (J);
  * the elements need the world kinematics (kin; NULL where the tree has none). */
@@ -1727,6 +1763,20 @@ static void derivs_full(const gs_tree *t, const double *y, const double *p, cons
                         double *dy, double *cl) {
     if (kern_derivs(t, &pre->kern, y, p, dy)) return;
     WS_OPEN;
+    if (pre->closed) {
+        /* closed loops and gears: the vector field on their constraint manifold, taken at y projected onto it
+         * (positions and velocities, projection.h) and carried off it unchanged along the projection. An
+         * integrator's stage lies off the manifold by the step's error, and there the rows' accelerations ask for
+         * forces that need not exist: at a mechanism's singular position (the N-four-bar's links aligned) a row's
+         * reach J_r vanishes while its bias b_r, consistent on the manifold (0/0 with a finite limit), is not at the
+         * stage, and lambda_r = b_r / G_rr grows without bound. Projected, every stage is consistent to round-off;
+         * the linearization is the field's on the manifold (the directions across it project to zero), and the FMUs'
+         * model exchange integrates the same field. */
+        TLOC(double, yp, , GS_ODE_MAX + 1, t->nx + 1);
+        memcpy(yp, y, (size_t)(t->nx + 1) * sizeof(double));
+        loop_project(t, yp, p, pre);
+        y = yp;
+    }
     KIN_DECL(kin, t->n);
     TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
     TLOC(double, fnc, [6], GS_TREE_SMALL, t->n);
@@ -1744,7 +1794,7 @@ static void derivs_full(const gs_tree *t, const double *y, const double *p, cons
     }
     if (pre->elements) P_el = element_forces(t, p, &kin, fx) + contact_forces(t, p, &kin, fx);
     aba(t, y, p, pre, &kin, ext ? (const double (*)[6])fx : NULL, NULL, qdd);
-    if (modes != NULL && pre->rigid) P_el += constraint_forces(t, y, p, pre, modes, &kin, fx, qdd, cl);
+    if ((modes != NULL && pre->rigid) || pre->closed) P_el += constraint_forces(t, y, p, pre, modes, &kin, fx, qdd, cl);
     qdd_to_dy(t, y, &kin, (const double (*)[6])qdd, dy);
     dy[t->nx] = power(t, y, p, &kin) + P_el;
     if (orbit) {   /* the work of the gravity-gradient torques and the tidal forces */
@@ -1976,10 +2026,11 @@ int gs_tree_start(const gs_tree *t, double *y, const double *p) {
         if (!(nq > 0.0)) return 0;
         for (int a = 0; a < 4; a++) q[a] /= nq;
     }
-    if (t->ym >= 0) {   /* the rigid contacts' modes from the start state */
+    if (t->ym >= 0 || t->n_lop + t->n_gr > 0) {   /* the loops assembled, the rigid contacts' modes set */
         WS_ENTER(t->n);
         PRE_DECL(pre, t->n);
         precompute(t, p, &pre);
+        if (pre.closed) loop_project(t, y, p, &pre);
         contact_start(t, y, p, &pre);
         WS_CLOSE;
     }
@@ -1991,6 +2042,40 @@ int gs_tree_start(const gs_tree *t, double *y, const double *p) {
     memcpy(m + 2, s.L, sizeof(s.L));
     m[5] = fmax(norm3(s.L), sqrt(2.0 * m[1] * s.inertia));
     return 1;
+}
+
+#ifndef big_tree_loop_open
+int big_tree_loop_open(const gs_tree *t, const double *y, const double *p, double *residual);
+#endif
+int gs_tree_loop_open(const gs_tree *t, const double *y, const double *p, double *residual) {
+    TREE_DISPATCH(return big_tree_loop_open(t, y, p, residual));
+    if (t->n_lop == 0) return -1;
+    int found = -1, at = 0;
+    WS_ENTER(t->n);
+    TLOC(double, phi, , GS_TREE_ROWS_MAX, t->nrow);
+    TLOC(double, ya, , GS_ODE_MAX + 1, t->nx + 1);
+    PRE_DECL(pre, t->n);
+    KIN_DECL(kin, t->n);
+    precompute(t, p, &pre);
+    memcpy(ya, y, (size_t)(t->nx + 1) * sizeof(double));   /* assembled as gs_tree_start assembles it */
+    loop_project(t, ya, p, &pre);
+    kinematics(t, ya, p, &pre, &kin, 1);
+    loop_residuals(t, p, &kin, phi);
+    for (int e = 0; e < t->n_lop && found < 0; e++) {
+        const double *lp = p + t->p_lop + GS_LP_NP * e;
+        const double size = fmax(1e-3, fmax(sqrt(dot3(lp + GS_LP_PA, lp + GS_LP_PA)),
+                                            sqrt(dot3(lp + GS_LP_PB, lp + GS_LP_PB))));
+        double worst = 0.0;
+        const int rows = t->lop_k[e] == GS_LOOP_SPHERICAL ? 3 : 5;   /* loops.h: a loop's rows */
+        for (int r = 0; r < rows; r++) worst = fmax(worst, fabs(phi[at + r]));
+        at += rows;
+        if (!(worst <= 1e-9 * size)) {
+            found = e;
+            *residual = worst;
+        }
+    }
+    WS_CLOSE;
+    return found;
 }
 
 void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new) {
@@ -2229,11 +2314,14 @@ static void outputs_pre(const gs_tree *t, const double *y, const double *p, cons
     } else {
         totals_kin(t, y, p, &kin, &s);
     }
-    if (t->n_shp * t->n_pln > 0) {   /* the rigid contacts' forces from their solve under the state's modes */
-        TLOC(double, cl, , CL_NP * GS_TREE_ROWS_MAX, CL_NP * t->n_shp * t->n_pln);
+    if (t->n_shp * t->n_pln > 0 || pre->closed) {   /* the constraint forces from their solve (under the modes) */
+        TLOC(double, cl, , CL_NP * GS_TREE_ROWS_MAX, CL_SIZE(t));
         TLOC(double, dyc, , GS_ODE_MAX + 1, t->nx + 1);
-        if (t->ym >= 0) derivs_full(t, y, p, pre, y + t->ym, dyc, cl);
-        contact_outputs(t, p, &kin, t->ym >= 0 ? y + t->ym : NULL, cl, out + GS_TREE_CONTACT_OUT(t));
+        if (t->ym >= 0 || pre->closed) derivs_full(t, y, p, pre, t->ym >= 0 ? y + t->ym : NULL, dyc, cl);
+        if (t->n_shp * t->n_pln > 0) {
+            contact_outputs(t, p, &kin, t->ym >= 0 ? y + t->ym : NULL, cl, out + GS_TREE_CONTACT_OUT(t));
+        }
+        if (pre->closed) loop_outputs(t, p, &kin, cl, out + GS_TREE_LOOP_OUT(t));
     }
     double *o = out + GS_TREE_SCENE_OUT(t);
     o[0] = s.T + s.V;
@@ -2301,6 +2389,7 @@ static void ode_project(const void *ctx, double *y) {
     /* the rigid contacts' constraints, held at the acceleration level by the solve, drift by the integrator's error:
      * every accepted step ends on them again, positions (the gaps closed) then velocities (the rows' velocities
      * zero), the energy both change booked in W (y holds the whole state here, the modes among its constants) */
+    if (c->pre->closed) loop_project(t, y, c->p, c->pre);
     if (t->ym >= 0 && c->pre->rigid) {
         contact_place(t, y, c->p, c->pre, y + t->ym);
         contact_impulse(t, y, c->p, c->pre, y + t->ym, -1, 0.0);

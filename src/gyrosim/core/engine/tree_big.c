@@ -26,6 +26,7 @@
 #define gs_tree_indicators big_tree_indicators
 #define gs_tree_impact big_tree_impact
 #define gs_tree_contact_inside big_tree_contact_inside
+#define gs_tree_loop_open big_tree_loop_open
 
 int big_tree_ncoord(int joint);
 int big_tree_ndof(int joint);
@@ -48,5 +49,6 @@ int big_tree_n_indicators(const gs_tree *t, const double *p);
 void big_tree_indicators(const gs_tree *t, const double *y, const double *p, double *z);
 int big_tree_impact(const gs_tree *t, double *y, const double *p);
 int big_tree_contact_inside(const gs_tree *t, const double *y, const double *p, double *gap);
+int big_tree_loop_open(const gs_tree *t, const double *y, const double *p, double *residual);
 
 #include "tree.c"

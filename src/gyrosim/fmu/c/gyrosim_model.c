@@ -90,6 +90,15 @@ static int values_together(GsInstance *m, const double *y, const double *p) {
                      "the body's start position or attitude)", g ? g->name : "a contact's gap", num(gap).s);
         return 0;
     }
+    if (code == GS_TREE_BAD_LOOP) {   /* the loop's residual output names it */
+        const gs_tree *t = &m->sys.tree;
+        double res = 0.0;
+        gs_tree_loop_open(t, y, p, &res);
+        const GsVar *g = var_at(GS_K_OUTPUT, GS_TREE_LOOP_OUT(t) + GS_LO_NOUT * slot[0] + GS_LO_RES);
+        gs_log_error(m, "%s = %s is not allowed: a start from which the loop closes (set the joints' start angles "
+                     "of a closed position)", g ? g->name : "a loop's residual", num(res).s);
+        return 0;
+    }
     const GsVar *x = var_at(GS_K_STATE, slot[0]);
     gs_log_error(m, "%s = %s is not allowed: a start within the impact stops [%s, %s] %s", x ? x->name : "a joint",
                  num(y[slot[0]]).s, slot[1] >= 0 ? num(p[slot[1]]).s : "-inf", slot[2] >= 0 ? num(p[slot[2]]).s : "inf",
