@@ -261,6 +261,9 @@ def cmd_simulate(args) -> int:
         return simulate_fmu(args)
     run, out = prepare_simulate(args)
     model = run.model
+    locked = model.locked_text()
+    if locked and v >= 0:
+        print(f"gyrosim simulate: note: {locked}", file=sys.stderr)
     if v > 0:
         bodies = f"{model.n_bodies} bod{'y' if model.n_bodies == 1 else 'ies'}"
         print(f"scene {run.scene.name} ({run.scene.source}), {bodies}, integrator {model.integrator}, "
@@ -629,7 +632,9 @@ def scene_info(scene) -> str:
                 f" varying {', '.join(n for n, _ in spec.vary)}" if spec.vary else "")
     else:
         sc = load_scene(scene)
-    Model(sc).initialize()  # the checks of the first step too (a file is validated whole, nothing runs)
+    model = Model(sc)
+    model.initialize()  # the checks of the first step too (a file is validated whole, nothing runs)
+    mob = model.mobility()
     rows = [(name, var.causality, _start_text(var.start), var.unit, var.description)
             for name, var in sc.variables().items()]
     width = max(18, *(len(r[0]) for r in rows))
@@ -643,6 +648,9 @@ def scene_info(scene) -> str:
              f"  Integrator         {sc.integrator}",
              *_field("Integrators", ", ".join(sc.integrators)),
              f"  Kernel             {sc.kernel_description}",
+             *([f"  Mobility           {mob['mobility']} ({mob['joint_dof']} joint degrees of freedom less the rank "
+                f"{mob['rank']} of {mob['rows']} loop and gear rows{': locked' if mob['mobility'] == 0 else ''})"]
+               if mob else []),
              f"  Variables          {len(rows)}",
              *([f"  Sweep              {sweep_line} (gyrosim sweep FILE --output DIR)"] if sweep_line else []),
              "", "Default Experiment", "",

@@ -453,6 +453,27 @@ class Model:
 
         return jacobian(self, system=system)
 
+    def mobility(self, system: int = 0) -> dict | None:
+        """A mechanism's degrees of freedom at its assembled start (a scene with closed loops or gears; None
+        without): ``{"mobility": m, "joint_dof": n, "rows": r, "rank": k}`` with m = n - k, k the rank of the loops'
+        and gears' rows as the constraint solve finds it (redundant rows do not count: the Bricard mechanism has
+        mobility 1 where Gruebler's count gives 0). m = 0: the mechanism is locked."""
+        if not (getattr(self.scene, "loops", ()) or getattr(self.scene, "gears", ())):
+            return None
+        from .core import _engine
+
+        m, k, r = _engine.tree_mobility(self.layout.desc, self._y[system:system + 1], self._pp[system:system + 1])
+        return {"mobility": m, "joint_dof": m + k, "rows": r, "rank": k}
+
+    def locked_text(self) -> str | None:
+        """One line where the mechanism is locked (mobility 0), else None."""
+        mob = self.mobility()
+        if mob is None or mob["mobility"] > 0:
+            return None
+        return (f"the mechanism is locked: its loops and gears ({mob['rows']} rows of rank {mob['rank']}) take all "
+                f"{mob['joint_dof']} of its joints' degrees of freedom, so nothing moves but what the constraint "
+                "forces hold")
+
     def linearize(self, *, about=None, system: int = 0):
         """State-space matrices and normal modes about the present state, an equilibrium or a steady motion:
         ``A, B, C, D, names = model.linearize()``; the result also has ``.modes``, ``.stability`` and ``.table()``

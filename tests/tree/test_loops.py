@@ -288,3 +288,58 @@ def test_four_bar_mode_on_the_constraint_manifold():
     osc = ev[np.abs(ev) > 1e-6]
     assert len(osc) == 2 and np.max(np.abs(np.sort(osc.imag) - [-w, w])) < 1e-12 * w
     assert np.max(np.abs(osc.real)) < 1e-12 and np.max(np.abs(ev[np.abs(ev) <= 1e-6])) < 1e-9
+
+
+TRIANGLE = """
+[scene]
+name = "triangle"
+gravity = [0.0, -9.81, 0.0]
+
+[[body]]
+name = "crank"
+joint = "hinge"
+mass = 1.0
+cm = [0.5, 0.0, 0.0]
+inertia = { principal = [0.0, 0.08333333333333333, 0.08333333333333333] }
+angle = 1.0471975511965976
+
+[[body]]
+name = "coupler"
+parent = "crank"
+joint = "hinge"
+position = [1.0, 0.0, 0.0]
+mass = 1.0
+cm = [0.5, 0.0, 0.0]
+inertia = { principal = [0.0, 0.08333333333333333, 0.08333333333333333] }
+angle = -2.0943951023931957
+
+[[loop]]
+name = "pin"
+kind = "spherical"
+body_a = "coupler"
+point_a = [1.0, 0.0, 0.0]
+body_b = "world"
+point_b = [1.0, 0.0, 0.0]
+"""
+
+
+def test_mobility_and_a_locked_mechanism(capsys, tmp_path):
+    """The mobility the solve finds: the four-bar 1 (2 cranks and a coupler, 3 loop rows of rank 2), the Bricard 1
+    (Gruebler's 0: 5 rows of rank 4), the CMG pair 6 (a free bus's 3 and 4 hinges less the gear's 1). A triangle of
+    two links pinned to the ground (equilateral, 1 m) is locked: mobility 0, and `gyrosim simulate` says so in one
+    line; it stands still (its rates stay 0 to round-off) with the pin carrying the weight."""
+    from gyrosim.cli import main
+
+    assert Model(load_scene_text(n_four_bar(1))).mobility() == {"mobility": 1, "joint_dof": 3, "rows": 3, "rank": 2}
+    assert Model("iftomm_a04").mobility() == {"mobility": 1, "joint_dof": 5, "rows": 5, "rank": 4}
+    assert Model("cmg_scissored").mobility()["mobility"] == 6
+    assert Model("heavy_top").mobility() is None
+    m = Model(load_scene_text(TRIANGLE))
+    assert m.mobility()["mobility"] == 0 and "locked" in m.locked_text()
+    c = _columns(m, 0.1, 10)
+    assert np.max(np.abs(c["crank.rate"])) < 1e-12 and np.max(np.abs(c["coupler.rate"])) < 1e-12
+    path = tmp_path / "triangle.toml"
+    path.write_text(TRIANGLE)
+    assert main(["simulate", str(path), "--stop-time", "0.1", "--output-file", str(tmp_path / "t.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "gyrosim simulate: note: the mechanism is locked" in err

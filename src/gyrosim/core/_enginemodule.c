@@ -926,7 +926,29 @@ done:
     return res;
 }
 
+/* tree_mobility(desc, y, p) -> (mobility, rank, rows) of the first system */
+static PyObject *py_tree_mobility(PyObject *self, PyObject *const *args, Py_ssize_t nargs) {
+    (void)self;
+    gs_tree t;
+    if (nargs != 3) {
+        PyErr_SetString(PyExc_TypeError, "tree_mobility() takes 3 arguments");
+        return NULL;
+    }
+    if (get_tree(args[0], &t) < 0) return NULL;
+    Buf b[2] = {{0}};
+    PyObject *res = NULL;
+    if (first_system(&t, args[1], args[2], b, 0) < 0) goto done;
+    int rank = 0, rows = 0;
+    const int mob = gs_tree_mobility(&t, (const double *)b[0].view.buf, (const double *)b[1].view.buf, &rank, &rows);
+    res = Py_BuildValue("(iii)", mob, rank, rows);
+done:
+    release(b, 2);
+    return res;
+}
+
 static PyMethodDef methods[] = {
+    {"tree_mobility", (PyCFunction)(void (*)(void))py_tree_mobility, METH_FASTCALL,
+     "tree_mobility(desc, y, p) -> (mobility, rank, rows): the joints' degrees of freedom less the loops' rank"},
     {"tree_loop_open", (PyCFunction)(void (*)(void))py_tree_loop_open, METH_FASTCALL,
      "tree_loop_open(desc, y, p) -> None, or (loop, residual) of the first loop that cannot be closed"},
     {"tree_impact", (PyCFunction)(void (*)(void))py_tree_impact, METH_FASTCALL,

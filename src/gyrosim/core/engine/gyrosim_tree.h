@@ -296,6 +296,11 @@ int gs_tree_start(const gs_tree *t, double *y, const double *p);
  * residual (m; an angle's in rad) into *residual; -1 when every loop closes (or there is none). */
 int gs_tree_loop_open(const gs_tree *t, const double *y, const double *p, double *residual);
 
+/* The mechanism's mobility at its assembled start: the joints' degrees of freedom less the rank of the loops' and
+ * gears' rows (the elimination's, constraints.h solve_dense: redundant rows do not count; Gruebler's count would).
+ * *rank and *rows: that rank and the rows' count (0, 0 without loops or gears). 0: the mechanism is locked. */
+int gs_tree_mobility(const gs_tree *t, const double *y, const double *p, int *rank, int *rows);
+
 /* Parameters changed during a run: the balance's expected energy moves by the energy change they make. */
 void gs_tree_reparam(const gs_tree *t, double *y, const double *p_old, const double *p_new);
 

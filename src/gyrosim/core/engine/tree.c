@@ -2044,6 +2044,38 @@ int gs_tree_start(const gs_tree *t, double *y, const double *p) {
     return 1;
 }
 
+#ifndef big_tree_mobility
+int big_tree_mobility(const gs_tree *t, const double *y, const double *p, int *rank, int *rows);
+#endif
+int gs_tree_mobility(const gs_tree *t, const double *y, const double *p, int *rank, int *rows) {
+    TREE_DISPATCH(return big_tree_mobility(t, y, p, rank, rows));
+    int ndof = 0;
+    for (int i = 0; i < t->n; i++) ndof += gs_tree_ndof(t->joint[i]);
+    *rank = *rows = 0;
+    if (t->n_lop + t->n_gr == 0) return ndof;
+    WS_ENTER(t->n);
+    TLOC(Row, rw, , GS_TREE_ROWS_MAX, t->nrow);
+    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
+    TLOC(double, D, , GS_TREE_ROWS_MAX, t->nrow);
+    TLOC(double, ya, , GS_ODE_MAX + 1, t->nx + 1);
+    TLOC(double, ys, , GS_ODE_MAX, t->nx);
+    PRE_DECL(pre, t->n);
+    KIN_DECL(kin, t->n);
+    KIN_DECL(kz, t->n);
+    precompute(t, p, &pre);
+    memcpy(ya, y, (size_t)(t->nx + 1) * sizeof(double));   /* at the assembled start */
+    loop_project(t, ya, p, &pre);
+    kinematics(t, ya, p, &pre, &kin, 1);
+    const int nr = loop_rows(t, p, &kin, rw, 0);
+    rest_kinematics(t, ya, p, &pre, ys, &kz);
+    constraint_matrix(t, p, &pre, ys, &kz, rw, nr, G);
+    for (int r = 0; r < nr; r++) D[r] = 0.0;
+    *rank = solve_dense(nr, G, D);   /* G = J M^-1 J^T: its rank is J's */
+    *rows = nr;
+    WS_CLOSE;
+    return ndof - *rank;
+}
+
 #ifndef big_tree_loop_open
 int big_tree_loop_open(const gs_tree *t, const double *y, const double *p, double *residual);
 #endif

@@ -27,6 +27,7 @@
 #define gs_tree_impact big_tree_impact
 #define gs_tree_contact_inside big_tree_contact_inside
 #define gs_tree_loop_open big_tree_loop_open
+#define gs_tree_mobility big_tree_mobility
 
 int big_tree_ncoord(int joint);
 int big_tree_ndof(int joint);
@@ -50,5 +51,6 @@ void big_tree_indicators(const gs_tree *t, const double *y, const double *p, dou
 int big_tree_impact(const gs_tree *t, double *y, const double *p);
 int big_tree_contact_inside(const gs_tree *t, const double *y, const double *p, double *gap);
 int big_tree_loop_open(const gs_tree *t, const double *y, const double *p, double *residual);
+int big_tree_mobility(const gs_tree *t, const double *y, const double *p, int *rank, int *rows);
 
 #include "tree.c"
