@@ -150,6 +150,51 @@ def _check_finite(block, run) -> None:
     raise e
 
 
+class _Rests:
+    """Where each contact's ``mode`` column has read 3 (resting) since: the first row of its last run of 3s."""
+
+    def __init__(self):
+        self.since: dict[str, float | None] = {}
+
+    def see(self, block) -> None:
+        import numpy as np
+
+        names = block.dtype.names or ()
+        for name in names:
+            if not name.endswith(".mode") or not len(block):
+                continue
+            stem = name[:-len(".mode")]
+            moving = np.flatnonzero(block[name] != 3.0)
+            if not len(moving):
+                if self.since.get(stem) is None:   # the run of 3s begins with this block
+                    self.since[stem] = float(block["time"][0])
+            elif moving[-1] + 1 < len(block):
+                self.since[stem] = float(block["time"][moving[-1] + 1])
+            else:
+                self.since[stem] = None
+
+
+def face_lines(model, rests: _Rests | None = None) -> list[str]:
+    """One line per rigid contact lying flat on a face at the end of the run (Model.on_face): a disk's or
+    cylinder's plastic landing on its face, as Euler's disk's finite-time end has it (docs/engine.md), and
+    whether, and from when (the output rows' ``mode`` where they have it), it rests."""
+    from .kernel_tree import contacts_of
+
+    lines = []
+    sc = model.scene
+    for stem in model.on_face():
+        found = [(h, pl) for h, pl, st in contacts_of(sc) if sc.var_name(sc.tree[h.body].name, st) == stem]
+        h, pl = found[0]
+        tol = 1e-9 + 1e-6 * max(h.dims)   # contact_events.h start_tolerance
+        mode = int(model.get(f"{stem}.mode"))
+        since = None if rests is None else rests.since.get(stem)
+        how = (f"resting from t = {since:g} s" if mode == 3 and since is not None else "resting" if mode == 3
+               else f"{('apart', 'sliding', 'rolling', 'resting')[mode]} on it")
+        lines.append(f"{stem}: lies flat on its face on plane {pl.name} (its face's centre within {tol:.3g} m of the "
+                     f"plane: a plastic landing on the face, as Euler's disk ends in finite time), {how}")
+    return lines
+
+
 def _write_rows(fh, block) -> None:
     """Structured rows -> CSV lines (shortest round-trip reprs), formatted in bulk."""
     import numpy as np
@@ -273,6 +318,7 @@ def cmd_simulate(args) -> int:
     # the engine produces the grid in chunks (one call each, no Python per step); rows are formatted in bulk
     chunk = max(1, min(run.n, 200_000 // max(1, model.n_bodies)))
     kept = [] if args.show_plot else None
+    rests = _Rests()
     bar, t_wall, done = None, time.perf_counter(), 0
     flag = "--output-file"
     try:
@@ -287,6 +333,7 @@ def cmd_simulate(args) -> int:
                     for block in run.chunks(chunk):
                         _check_finite(block, run)
                         _write_rows(fh, block)
+                        rests.see(block)
                         if kept is not None:
                             kept.append(block)
                         done += len(block)
@@ -315,6 +362,8 @@ def cmd_simulate(args) -> int:
     if v >= 0:
         print(f"wrote {out} ({run.n + 1} rows, t = {run.t0:g} .. {model.time:g} s, integrator {model.integrator}, "
               f"{model.stats['steps']} internal steps)", file=sys.stderr)
+        for line in face_lines(model, rests):
+            print(line, file=sys.stderr)
     if kept is not None:
         import numpy as np
 

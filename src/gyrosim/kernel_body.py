@@ -815,6 +815,10 @@ class BodyKernel:
         """None: a body of this kernel has principal moments > 0 (checked when it is initialised)."""
         return []
 
+    def on_face(self, system: int = 0) -> list[str]:
+        """None: this kernel has no contacts."""
+        return []
+
     def specific_force(self, system: int = 0) -> np.ndarray:
         """(n_bodies, 3) (``system`` is the body's row here): a body of this kernel turns about a point at rest in
         the world (its pivot, or its centre of mass), so its origin does not accelerate: an accelerometer there reads

@@ -796,6 +796,18 @@ class TreeKernel:
         a = np.stack([dout[k + vw:k + vw + 3] for k in at])
         return np.einsum("bji,bj->bi", R, a - g)   # R^T (a - g)
 
+    def on_face(self, system: int = 0) -> list[str]:
+        """The rigid contacts lying flat on a face (Model.on_face): their outputs' stems, from the modes in the
+        state (gyrosim_tree.h GS_CM_FLAT, after the health monitor: the state row's last slots)."""
+        self._outputs_array()   # initialises
+        contacts = contacts_of(self.scene)
+        if not any(pl.model == "rigid" for pl in getattr(self.scene, "planes", ())):
+            return []
+        ym = self.layout.ny - _engine.CM_NP * len(contacts)
+        y = self._y[system]
+        return [self.scene.var_name(self._bodies[h.body].name, stem) for c, (h, _, stem) in enumerate(contacts)
+                if y[ym + _engine.CM_NP * c + _engine.CM_FLAT] != 0.0]
+
     def dynamics_kernel(self, system: int = 0) -> str:
         p = self._p if self._p is not None else self._pp   # before initialize: the parameters set so far
         return TREE_KERNELS[int(_engine.tree_scalar(self.layout.desc, self._y[system:system + 1],

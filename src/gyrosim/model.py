@@ -247,6 +247,12 @@ class Model:
             body = self.body_names.index(body)
         return f[int(body)]
 
+    def on_face(self, system: int = 0) -> list[str]:
+        """The rigid contacts of copy ``system`` lying flat on a face: a disk or cylinder that has landed on it
+        (Euler's disk's finite-time end: docs/engine.md) or started on it. Their outputs' stems (``rim``,
+        ``disk.rim.floor``): ``<stem>.mode`` reads 3 once the face rests."""
+        return self._k.on_face(self, system)
+
     def fastest_rate(self, system: int = 0) -> float:
         """The fastest rate (rad/s) in system ``system``'s state: the step-size scale of its dynamics."""
         return self._k.fastest_rate(self, system)

@@ -1055,7 +1055,8 @@ PyMODINIT_FUNC PyInit__engine(void) {
             {"PLN_NP", GS_PLN_NP}, {"CONTACT_RIGID", GS_CONTACT_RIGID}, {"CONTACT_COMPLIANT", GS_CONTACT_COMPLIANT},
             {"FRICTION_COULOMB", GS_FRICTION_COULOMB}, {"FRICTION_REGULARIZED", GS_FRICTION_REGULARIZED},
             {"CT_GAP", GS_CT_GAP}, {"CT_FN", GS_CT_FN}, {"CT_FT", GS_CT_FT}, {"CT_SLIP", GS_CT_SLIP},
-            {"CT_X", GS_CT_X}, {"CT_MODE", GS_CT_MODE}, {"CT_NOUT", GS_CT_NOUT},
+            {"CT_X", GS_CT_X}, {"CT_MODE", GS_CT_MODE}, {"CT_NOUT", GS_CT_NOUT}, {"CM_MODE", GS_CM_MODE},
+            {"CM_FLAT", GS_CM_FLAT}, {"CM_NP", GS_CM_NP},
             /* closed loops and gears (GS_LOOP_*, GS_LP_*, GS_GR_*, GS_LO_*, GS_GO_*) */
             {"LOOP_SPHERICAL", GS_LOOP_SPHERICAL}, {"LOOP_REVOLUTE", GS_LOOP_REVOLUTE},
             {"LOOP_PRISMATIC", GS_LOOP_PRISMATIC}, {"LP_PA", GS_LP_PA}, {"LP_PB", GS_LP_PB}, {"LP_AA", GS_LP_AA},

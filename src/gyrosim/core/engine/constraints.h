@@ -99,8 +99,13 @@ static void shape_support_rate(int kind, const double *dim, const double d[3], c
 }
 
 /* u: the contact point's velocity over body i (world): the support point moving as the normal turns in the body,
- * d = -S^T R^T n, d' = S^T (omega_b x n_b) */
-static void contact_point_rate(const gs_tree *t, const double *p, const Kin *k, int sh, int pl, double u[3]) {
+ * d = -S^T R^T n, d' = S^T (omega_b x n_b); a face's centre (flat) is fixed in the body */
+static void contact_point_rate(const gs_tree *t, const double *p, const Kin *k, int sh, int pl, int flat,
+                               double u[3]) {
+    if (flat) {
+        u[0] = u[1] = u[2] = 0.0;
+        return;
+    }
     const double *sp = p + t->p_shp + GS_SHP_NP * sh, *n = p + t->p_pln + GS_PLN_NP * pl + GS_PLN_N;
     const double *S = sp + GS_SHP_R;
     const int i = t->shp_b[sh];
@@ -133,6 +138,7 @@ static void body_accels(const gs_tree *t, const double *p, const Pre *pre, const
 #define ROW_POINT 0   /* dir . (v_a(cb) - v_b(cb_b)): body a's material point's velocity, less body b's */
 #define ROW_SPIN 1    /* scale * dir . (omega_a - omega_b) (world) */
 #define ROW_JOINT 2   /* qd_a - scale * qd_b: a gear between the joints of body and body_b (hinges, sliders) */
+#define ROW_TILT 3    /* scale * dir . omega_a about a plane's tangent: a face's tilt (a contact's; scale its radius) */
 typedef struct {
     int contact;          /* the rigid contact the row is of, -1: a loop's or a gear's */
     int elem;             /* the loop (ROW_POINT, ROW_SPIN) or the gear (ROW_JOINT) the row is of, -1: a contact's */
@@ -142,7 +148,8 @@ typedef struct {
     double dir[3];        /* world */
     double ddir[3];       /* the direction's rate (world): one fixed in body a turns with it (0 for a contact's) */
     double u[3];          /* the rate of body a's point over body a (world; a contact's comes from its shape) */
-    double scale;         /* ROW_SPIN: the contact radius (1 for a loop's); ROW_JOINT: the gear's ratio */
+    double scale;         /* ROW_SPIN: the contact radius (1 for a loop's); ROW_JOINT: the gear's ratio; ROW_TILT: the
+                           * face's radius */
     double F[3], M[3];    /* the column: the unit wrench on body a at cb (world); on body b -F at cb_b and -M */
 } Row;
 
@@ -159,6 +166,18 @@ static void row_single(Row *r, int contact, int body, int kind) {
 
 /* the rigid contact c's index in the state's modes: contact c = sh * n_pln + pl */
 static int rigid(const gs_tree *t, int pl) { return t->pln_law[pl] == GS_CONTACT_RIGID; }
+
+/* whether rigid contact c lies flat on its face (modes: NULL, none does) */
+static int contact_flat(const double *modes, int c) {
+    if (modes == NULL) return 0;
+    const treal f = modes[GS_CM_NP * c + GS_CM_FLAT];
+    return f != 0.0;
+}
+
+/* touch under the modes: a contact lying on its face touches at the face's centre */
+static void touch_mode(const gs_tree *t, const double *p, const Kin *k, const double *modes, int c, Touch *T) {
+    touch_as(t, p, k, c / t->n_pln, c % t->n_pln, rigid(t, c % t->n_pln) && contact_flat(modes, c), T);
+}
 
 /* A rigid contact's slip at a touch: s = (v_t, R_c omega_n) (world v_t) and the plane's frame */
 typedef struct {
@@ -177,7 +196,7 @@ static void slip_of(const gs_tree *t, const double *p, int pl, const Touch *T, S
         S->s[a] = T->vc[a] - vn * n[a];
         S->wt[a] = T->w[a] - wn * n[a];
     }
-    S->s[3] = pp[GS_PLN_RS] * wn;
+    S->s[3] = T->rc * wn;
     S->ns = sqrt(S->s[0] * S->s[0] + S->s[1] * S->s[1] + S->s[2] * S->s[2] + S->s[3] * S->s[3]);
 }
 
@@ -204,9 +223,10 @@ static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, cons
             const treal mode = modes[GS_CM_NP * c + GS_CM_MODE];
             if (mode == GS_MODE_APART) continue;
             const double *pp = p + t->p_pln + GS_PLN_NP * pl;
+            const int flat = contact_flat(modes, c);
             Touch T;
             Slip S;
-            touch(t, p, k, sh, pl, &T);
+            touch_mode(t, p, k, modes, c, &T);
             slip_of(t, p, pl, &T, &S);
             Row *r = rows + nr;
             row_single(r, c, t->shp_b[sh], ROW_POINT);
@@ -216,9 +236,23 @@ static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, cons
             r->M[0] = r->M[1] = r->M[2] = 0.0;
             if (!pure) rolling_torque(pp, &T, &S, r->M);
             nr++;
-            const double mu = pp[GS_PLN_MU], rs = pp[GS_PLN_RS];
+            const double mu = pp[GS_PLN_MU], rs = T.rc;
+            if (flat) {   /* the face on the plane: its tilts about the tangents held, last of the contact's rows */
+                for (int j = 0; j < 2; j++) {
+                    Row *q = rows + nr + j;
+                    *q = *r;
+                    q->kind = ROW_TILT;
+                    q->scale = p[t->p_shp + GS_SHP_NP * sh + GS_SHP_DIM];   /* its radius: lambda a force at the rim */
+                    memcpy(q->dir, j ? S.t2 : S.t1, sizeof(q->dir));
+                    q->F[0] = q->F[1] = q->F[2] = 0.0;
+                    for (int a = 0; a < 3; a++) q->M[a] = q->scale * q->dir[a];
+                }
+            }
             if (mode == GS_MODE_SLIDE) {   /* Coulomb-Contensou: (F_t, M_n / R_c) = -mu lambda_n s_hat */
-                if (pure) continue;
+                if (pure) {
+                    nr += 2 * flat;
+                    continue;
+                }
                 double sh4[4];
                 const double *dir = modes + GS_CM_NP * c + GS_CM_DIR;
                 const treal ns = S.ns, ahead = S.s[0] * dir[0] + S.s[1] * dir[1] + S.s[2] * dir[2] + S.s[3] * dir[3];
@@ -237,11 +271,18 @@ static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, cons
                     r->F[a] -= mu * sh4[a];
                     r->M[a] -= mu * rs * sh4[3] * S.n[a];
                 }
+                nr += 2 * flat;
                 continue;
             }
-            /* sticking: the tangents, and the spin where spin friction acts */
+            /* sticking: the tangents, and the spin where spin friction acts (a face's always); a face's tilts after
+             * them */
             const treal rsr = rs;
-            for (int j = 0; j < 2 + (rsr > 0.0); j++) {
+            const int nt = 2 + (rsr > 0.0);
+            if (flat) {
+                rows[nr + nt] = rows[nr];
+                rows[nr + nt + 1] = rows[nr + 1];
+            }
+            for (int j = 0; j < nt; j++) {
                 Row *q = rows + nr++;
                 *q = *r;
                 q->M[0] = q->M[1] = q->M[2] = 0.0;
@@ -255,6 +296,7 @@ static int constraint_rows(const gs_tree *t, const double *p, const Kin *k, cons
                     for (int a = 0; a < 3; a++) q->M[a] = rs * S.n[a];
                 }
             }
+            nr += 2 * flat;
         }
     }
     return loop_rows(t, p, k, rows, nr);
@@ -298,7 +340,7 @@ static void side_accel(const Kin *k, const double (*acc)[6], int i, const double
 /* a row's relative velocity before the direction (world): v_a(cb) - v_b(cb_b), or omega_a - omega_b */
 static void row_relative(const Row *r, const Kin *k, double rel[3]) {
     double xa[3], va[3], xb[3], vb[3];
-    if (r->kind == ROW_SPIN) {
+    if (r->kind == ROW_SPIN || r->kind == ROW_TILT) {
         side_omega(k, r->body, va);
         side_omega(k, r->body_b, vb);
     } else {
@@ -317,7 +359,7 @@ static double row_accel(const Row *r, const Kin *k, const double (*acc)[6], cons
     side_accel(k, acc, r->body, r->cb, u, al_a, ap_a);
     side_accel(k, acc, r->body_b, r->cb_b, NULL, al_b, ap_b);
     double acc_rel[3];
-    if (r->kind == ROW_SPIN) {   /* d/dt (d . (omega_a - omega_b)) = d . (alpha_a - alpha_b) + d' . (omega_a - omega_b) */
+    if (r->kind == ROW_SPIN || r->kind == ROW_TILT) {   /* d/dt (d . (w_a - w_b)) = d . (al_a - al_b) + d' . (w_a - w_b) */
         for (int a = 0; a < 3; a++) acc_rel[a] = al_a[a] - al_b[a];
     } else {
         for (int a = 0; a < 3; a++) acc_rel[a] = ap_a[a] - ap_b[a];
@@ -499,7 +541,10 @@ static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre,
 #define CL_FT 1       /* 3 */
 #define CL_LT 4       /* 3: lambda_t1, lambda_t2, lambda_spin (sticking) */
 #define CL_MARGIN 7   /* mu lambda_n - |lambda_t| (sticking) */
-#define CL_NP 8
+#define CL_TIP 8      /* lambda_n - |lambda_tilt|: a face's margin before it tips (its pressure's centre inside it;
+                       * lambda_n for a point) */
+#define CL_LTILT 9    /* 2: a face's tilt multipliers (its moment over its radius, about t1 and t2) */
+#define CL_NP 11
 /* then per loop the reaction on its body b (3, N, world), then per gear its joint force on joint a */
 #define CL_LOOPS(t) (CL_NP * (t)->n_shp * (t)->n_pln)
 #define CL_GEARS(t) (CL_LOOPS(t) + 3 * (t)->n_lop)
@@ -527,7 +572,7 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
             double u[3];
             const int c = rows[r].contact;
             if (c >= 0) {
-                contact_point_rate(t, p, kin, c / t->n_pln, c % t->n_pln, u);
+                contact_point_rate(t, p, kin, c / t->n_pln, c % t->n_pln, contact_flat(modes, c), u);
             } else {
                 memcpy(u, rows[r].u, sizeof(u));
             }
@@ -562,16 +607,22 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
                 double *o = out + CL_NP * c;
                 const double *pp = p + t->p_pln + GS_PLN_NP * pl;
                 o[CL_FN] = lam[r];
-                int j = r + 1;
-                if (j < nr && rows[j].contact == c) {   /* sticking */
-                    double l2 = 0.0;
-                    for (int m = 0; j < nr && rows[j].contact == c; j++, m++) {
-                        o[CL_LT + m] = lam[j];
-                        l2 += lam[j] * lam[j];
-                        if (rows[j].kind == ROW_POINT) {
-                            for (int a = 0; a < 3; a++) o[CL_FT + a] += lam[j] * rows[j].F[a];
-                        }
+                int j = r + 1, m = 0, mt = 0;
+                double l2 = 0.0, lt2 = 0.0;
+                for (; j < nr && rows[j].contact == c; j++) {
+                    if (rows[j].kind == ROW_TILT) {   /* a face's moment: its pressure's centre off the middle */
+                        o[CL_LTILT + mt++] = lam[j];
+                        lt2 += lam[j] * lam[j];
+                        continue;
                     }
+                    o[CL_LT + m++] = lam[j];
+                    l2 += lam[j] * lam[j];
+                    if (rows[j].kind == ROW_POINT) {
+                        for (int a = 0; a < 3; a++) o[CL_FT + a] += lam[j] * rows[j].F[a];
+                    }
+                }
+                o[CL_TIP] = lam[r] - sqrt(lt2);
+                if (m > 0) {   /* sticking */
                     o[CL_MARGIN] = pp[GS_PLN_MU] * lam[r] - sqrt(l2);
                 } else {   /* sliding: the column's tangential part times lambda_n */
                     const double fn = dot3(rows[r].F, rows[r].dir);
@@ -612,7 +663,7 @@ static void contact_outputs(const gs_tree *t, const double *p, const Kin *k, con
             const int c = sh * t->n_pln + pl;
             double *o = out + GS_CT_NOUT * c;
             Touch T;
-            touch(t, p, k, sh, pl, &T);
+            touch_mode(t, p, k, modes, c, &T);
             o[GS_CT_GAP] = T.gap;
             memcpy(o + GS_CT_X, T.c, sizeof(T.c));
             o[GS_CT_JELLETT] = jellett(p, k, t->shp_b[sh], T.c);
@@ -634,6 +685,13 @@ static void contact_outputs(const gs_tree *t, const double *p, const Kin *k, con
             const treal mode = m[GS_CM_MODE], turn = sqrt(dot3(T.w, T.w));
             /* sticking: resting where the body does not turn (within 1e-9 rad/s) */
             o[GS_CT_MODE] = mode != GS_MODE_ROLL ? m[GS_CM_MODE] : turn <= 1e-9 ? GS_MODE_REST : GS_MODE_ROLL;
+            if (mode == GS_MODE_SLIDE && t->pln_fric[pl] == GS_FRICTION_REGULARIZED) {
+                /* the regularized friction always slides (it creeps where Coulomb's would stick): read from the
+                 * slip against v_s, as the compliant law's mode */
+                const double vs = p[t->p_pln + GS_PLN_NP * pl + GS_PLN_VS];
+                const treal sr = S.ns, roll = T.rho * sqrt(dot3(S.wt, S.wt)), vsr = vs;
+                o[GS_CT_MODE] = sr >= vsr ? GS_MODE_SLIDE : roll >= vsr ? GS_MODE_ROLL : GS_MODE_REST;
+            }
         }
     }
 }

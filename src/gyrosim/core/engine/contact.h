@@ -78,18 +78,52 @@ typedef struct {
     double vc[3];   /* the body's material velocity at the contact point (m/s, world) */
     double w[3];    /* the body's angular velocity (rad/s, world) */
     double rho;     /* the distance from the shape's centre to the contact point (m): rolling's lever */
+    double rc;      /* the contact radius of spin friction (m): the plane's, a face's own (face_radius) */
+    double lean;    /* a disk or cylinder: sin of its face's angle to the plane (a lean: the face's centre's height
+                     * over the rim's low point); 0 for the other kinds */
+    double tilt[3]; /* a disk or cylinder: the rotation (world, |tilt| = lean) that lays its face nearest the plane
+                     * flat on it; 0 for the other kinds */
 } Touch;
 
-static void touch(const gs_tree *t, const double *p, const Kin *k, int sh, int pl, Touch *T) {
+/* a shape that can lie flat on a plane: a disk (on either side) or a cylinder (on an end) */
+static int has_face(int kind) { return kind == GS_SHAPE_DISK || kind == GS_SHAPE_CYLINDER; }
+
+/* the contact radius of a face's spin friction: Contensou's for a uniform pressure over a disk of radius R, the
+ * largest torque about the normal mu F_n (2/3) R */
+static double face_radius(const double *dim) { return 2.0 / 3.0 * dim[0]; }
+
+/* touch: the support point along -n, or with flat (a rigid contact lying on its face, contact_events.h) the
+ * centre of the face nearest the plane, which then stands for the whole face at any round-off of its tilt */
+static void touch_as(const gs_tree *t, const double *p, const Kin *k, int sh, int pl, int flat, Touch *T) {
     const double *sp = p + t->p_shp + GS_SHP_NP * sh, *pp = p + t->p_pln + GS_PLN_NP * pl;
     const double *n = pp + GS_PLN_N, *S = sp + GS_SHP_R;
-    const int i = t->shp_b[sh];
+    const int i = t->shp_b[sh], kind = t->shp_k[sh];
     double nb[3], d[3], s[3], xw[3];
     mtv3(k->Rw[i], n, nb);                       /* the normal in the body frame */
     for (int a = 0; a < 3; a++) {                /* -n in the shape frame: S^T (-nb) */
         d[a] = -(S[a] * nb[0] + S[3 + a] * nb[1] + S[6 + a] * nb[2]);
     }
-    shape_support(t->shp_k[sh], sp + GS_SHP_DIM, d, s);
+    T->rc = pp[GS_PLN_RS];
+    T->lean = 0.0;
+    T->tilt[0] = T->tilt[1] = T->tilt[2] = 0.0;
+    if (has_face(kind)) {
+        /* the face towards the plane, outward normal f = (0, 0, sg) (shape frame), turned onto d = -n by the
+         * rotation f x d = sg (-d_y, d_x, 0) (its size the lean) */
+        const treal dz = d[2];
+        const double sg = dz < 0.0 ? -1.0 : 1.0, fd[3] = {-sg * d[1], sg * d[0], 0.0};
+        double fb[3];
+        T->lean = sqrt(d[0] * d[0] + d[1] * d[1]);
+        for (int a = 0; a < 3; a++) fb[a] = S[3 * a] * fd[0] + S[3 * a + 1] * fd[1] + S[3 * a + 2] * fd[2];
+        mv3(k->Rw[i], fb, T->tilt);
+    }
+    if (flat) {
+        const treal dz = d[2];
+        s[0] = s[1] = 0.0;
+        s[2] = kind == GS_SHAPE_CYLINDER ? (dz < 0.0 ? -0.5 : 0.5) * sp[GS_SHP_DIM + 1] : 0.0;
+        T->rc = face_radius(sp + GS_SHP_DIM);
+    } else {
+        shape_support(kind, sp + GS_SHP_DIM, d, s);
+    }
     for (int a = 0; a < 3; a++) T->cb[a] = sp[GS_SHP_C + a] + S[3 * a] * s[0] + S[3 * a + 1] * s[1] + S[3 * a + 2] * s[2];
     body_point(k, i, T->cb, xw, T->vc);
     memcpy(T->c, xw, sizeof(xw));
@@ -97,7 +131,11 @@ static void touch(const gs_tree *t, const double *p, const Kin *k, int sh, int p
     for (int a = 0; a < 3; a++) rel[a] = xw[a] - pp[GS_PLN_P + a];
     T->gap = dot3(n, rel);
     mv3(k->Rw[i], k->v[i], T->w);
-    T->rho = sqrt(dot3(s, s));
+    T->rho = flat ? 0.0 : sqrt(dot3(s, s));   /* a face does not roll */
+}
+
+static void touch(const gs_tree *t, const double *p, const Kin *k, int sh, int pl, Touch *T) {
+    touch_as(t, p, k, sh, pl, 0, T);
 }
 
 /* The law's result at one contact: the force and torque on the body at the contact point (world) */

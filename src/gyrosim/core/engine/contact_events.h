@@ -4,6 +4,22 @@
  * indicator crosses zero and calls contact_events there, as it calls the stops' impacts.
  */
 
+/* the gap within which a start puts contact c on its plane (1e-9 m + 1e-6 of its shape's size); also the height
+ * of a disk's or cylinder's face's centre over its rim's low point (its radius times the lean) within which it
+ * lies on its face */
+static double start_tolerance(const gs_tree *t, const double *p, int c) {
+    const double *dim = p + t->p_shp + GS_SHP_NP * (c / t->n_pln) + GS_SHP_DIM;
+    return 1e-9 + 1e-6 * fmax(dim[0], fmax(dim[1], dim[2]));
+}
+
+/* whether contact c (touch T, not on its face) leans within the tolerance of its face: a disk or cylinder whose
+ * face's centre is within start_tolerance of the plane, a sin(alpha) (alpha the face's angle to the plane) */
+static int leans_flat(const gs_tree *t, const double *p, int c, const Touch *T) {
+    const int sh = c / t->n_pln;
+    if (!has_face(t->shp_k[sh])) return 0;
+    return p[t->p_shp + GS_SHP_NP * sh + GS_SHP_DIM] * T->lean <= start_tolerance(t, p, c);
+}
+
 /* The impulse that sets the active rows' velocities (pure directions: a sliding contact's normal only) to target
  * (0 for every row; row `hit`, a touch-down's normal, to -e times its velocity, where hit >= 0: it is active in
  * modes for this), the energy it changes booked in the balance's W. Returns the rows. */
@@ -49,7 +65,8 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
 /* The active contacts put on their planes, the loops kept closed: one displacement (projection.h) closes the
  * contacts' gaps and the loops' residuals together; the potential energy it changes booked in W. A contact ends an
  * impact or a located event beyond its plane by the bracket's width; this keeps a resting or rolling contact from
- * sinking by it. */
+ * sinking by it. A contact lying on its face has its tilt closed too (its tilt rows: the face turned flat onto the
+ * plane). */
 static void contact_place(const gs_tree *t, double *y, const double *p, const Pre *pre, const double *modes) {
     WS_OPEN;
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
@@ -58,14 +75,20 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
     kinematics(t, y, p, pre, &kin, 1);
     const int all = constraint_rows(t, p, &kin, modes, 1, rows);
     int nr = 0, open = 0;
-    for (int r = 0; r < all && rows[r].contact >= 0; r++) {   /* the normal rows, with their gaps */
-        if (r > 0 && rows[r].contact == rows[r - 1].contact) continue;
-        Touch T;
+    for (int r = 0; r < all && rows[r].contact >= 0; r++) {   /* the normal rows, with their gaps; a face's tilts */
         const int c = rows[r].contact;
-        touch(t, p, &kin, c / t->n_pln, c % t->n_pln, &T);
+        if (r > 0 && c == rows[r - 1].contact && rows[r].kind != ROW_TILT) continue;
+        Touch T;
+        touch_mode(t, p, &kin, modes, c, &T);
         rows[nr] = rows[r];
-        D[nr++] = -T.gap;
-        open |= T.gap != 0.0;
+        if (rows[r].kind == ROW_TILT) {   /* the face's turn onto the plane about this tangent: its radius times
+                                           * the angle (asin(lean) along the tilt's axis) */
+            const double f = T.lean > 0.0 ? asin(fmin(T.lean, 1.0)) / T.lean : 1.0;
+            D[nr] = rows[r].scale * f * dot3(T.tilt, rows[r].dir);
+        } else {
+            D[nr] = -T.gap;
+        }
+        open |= D[nr++] != 0.0;
     }
     if (nr > 0 && open) {   /* every gap closed already: the state as it is, to the bit */
         const int nl = loop_rows(t, p, &kin, rows, nr) - nr;   /* the loops' and gears' rows, held */
@@ -107,6 +130,81 @@ static void contact_take_up(const gs_tree *t, double *y, const double *p, const 
     contact_impulse(t, y, p, pre, modes, -1, 0.0);
 }
 
+/* Contact c, in touch, lands on its face (a disk or cylinder leaning within the tolerance: Euler's disk's
+ * finite-time end, or a disk let go lying nearly flat): a plastic landing of the face. The face is laid on the
+ * plane (its tilt and gap closed: contact_place), its normal velocity and tilt rates set to zero (contact_impulse),
+ * and it takes up its contact as any contact does: sticking where it does not slip, else sliding on the face. The
+ * energy each takes is booked in the balance's W. */
+static void contact_land_flat(const gs_tree *t, double *y, const double *p, const Pre *pre, double *modes, int c) {
+    double *m = modes + GS_CM_NP * c;
+    m[GS_CM_FLAT] = 1.0;
+    m[GS_CM_MODE] = GS_MODE_SLIDE;   /* active, its pure rows the face's normal and tilts */
+    contact_place(t, y, p, pre, modes);
+    contact_impulse(t, y, p, pre, modes, -1, 0.0);
+    WS_OPEN;
+    Touch T;
+    KIN_DECL(kin, t->n);
+    kinematics(t, y, p, pre, &kin, 1);
+    touch_mode(t, p, &kin, modes, c, &T);
+    contact_take_up(t, y, p, pre, modes, c, &T);
+    WS_CLOSE;
+}
+
+/* Contact c, lying on its face (touch T, the solve's results o), tips onto its rim: the moment the face holds
+ * (its tilt multipliers, a force on its rim each) has put the pressure's centre on the rim, at the pivot P = the
+ * face's centre + a e, e = n x (lambda_t1 t1 + lambda_t2 t2) made unit. The face is turned about the rim's tangent
+ * at P by 2 tol / a (P held, the centre raised to twice the tolerance, so that it does not land again at once; W
+ * books the potential energy), and the contact, a rim contact from then on, takes up its contact at P. */
+static void contact_tip(const gs_tree *t, double *y, const double *p, const Pre *pre, double *modes, int c,
+                        const double *o, const Touch *T) {
+    const int sh = c / t->n_pln, pl = c % t->n_pln, i = t->shp_b[sh];
+    const double a = p[t->p_shp + GS_SHP_NP * sh + GS_SHP_DIM], eps = 2.0 * start_tolerance(t, p, c) / a;
+    double *m = modes + GS_CM_NP * c;
+    WS_OPEN;
+    TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
+    KIN_DECL(kin, t->n);
+    kinematics(t, y, p, pre, &kin, 1);
+    Slip S;
+    slip_of(t, p, pl, T, &S);
+    double u[3], e[3], k[3], pw[3];
+    for (int b = 0; b < 3; b++) u[b] = o[CL_LTILT] * S.t1[b] + o[CL_LTILT + 1] * S.t2[b];
+    cross3(S.n, u, e);
+    const double le = sqrt(dot3(e, e));
+    for (int b = 0; b < 3; b++) {
+        e[b] /= le;
+        pw[b] = a * e[b];
+    }
+    cross3(S.n, e, k);   /* the turn's axis: the centre rises */
+    double D[6];
+    int nr = 0;
+    for (int j = 0; j < 6; j++) {   /* P held (its velocity along n, t1, t2), the face turned about t1, t2, n */
+        Row *r = rows + nr;
+        const double *dir = j % 3 == 0 ? S.n : j % 3 == 1 ? S.t1 : S.t2;
+        row_single(r, c, i, j < 3 ? ROW_POINT : j == 3 ? ROW_SPIN : ROW_TILT);
+        r->scale = j < 3 ? 1.0 : a;
+        double pb[3];
+        mtv3(kin.Rw[i], pw, pb);
+        for (int b = 0; b < 3; b++) {
+            r->cb[b] = T->cb[b] + pb[b];
+            r->dir[b] = dir[b];
+            r->F[b] = j < 3 ? dir[b] : 0.0;
+            r->M[b] = j < 3 ? 0.0 : a * dir[b];
+        }
+        D[nr++] = j < 4 ? 0.0 : a * eps * dot3(k, dir);
+    }
+    Totals before, after;
+    totals_pre(t, y, p, pre, &before);
+    displace(t, y, p, pre, rows, nr, D);
+    totals_pre(t, y, p, pre, &after);
+    y[t->nx] += (after.T + after.V) - (before.T + before.V);
+    m[GS_CM_FLAT] = 0.0;
+    Touch Tp;
+    kinematics(t, y, p, pre, &kin, 1);
+    touch_mode(t, p, &kin, modes, c, &Tp);
+    contact_take_up(t, y, p, pre, modes, c, &Tp);
+    WS_CLOSE;
+}
+
 /* the state's contacts: touch (every contact) and the solve's results under modes */
 static void contact_look(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
                          Touch *T, double *cl) {
@@ -114,7 +212,7 @@ static void contact_look(const gs_tree *t, const double *y, const double *p, con
     TLOC(double, dy, , GS_ODE_MAX + 1, t->nx + 1);
     KIN_DECL(kin, t->n);
     kinematics(t, y, p, pre, &kin, 1);
-    for (int c = 0; c < t->n_shp * t->n_pln; c++) touch(t, p, &kin, c / t->n_pln, c % t->n_pln, T + c);
+    for (int c = 0; c < t->n_shp * t->n_pln; c++) touch_mode(t, p, &kin, modes, c, T + c);
     derivs_full(t, y, p, pre, modes, dy, cl);
     WS_CLOSE;
 }
@@ -148,6 +246,10 @@ static int contact_events(const gs_tree *t, double *y, const double *p, const Pr
                 if (T[c].gap <= 0.0 && (vn < -SLIP_STOP || (plastic && vn <= 0.0))) what = 1;
             } else if (cl[CL_NP * c + CL_FN] <= 0.0) {
                 what = 2;   /* lift-off (a located root may land on -0.0) */
+            } else if (!contact_flat(modes, c) && leans_flat(t, p, c, T + c)) {
+                what = 6;   /* lands on its face */
+            } else if (contact_flat(modes, c) && cl[CL_NP * c + CL_TIP] < 0.0) {
+                what = 7;   /* tips off its face onto its rim */
             } else if (m[GS_CM_MODE] == GS_MODE_SLIDE && t->pln_fric[pl] == GS_FRICTION_COULOMB) {
                 Slip S;
                 slip_of(t, p, pl, T + c, &S);
@@ -182,12 +284,17 @@ static int contact_events(const gs_tree *t, double *y, const double *p, const Pr
                 Touch Tc;
                 KIN_DECL(kin, t->n);
                 kinematics(t, y, p, pre, &kin, 1);
-                touch(t, p, &kin, c / t->n_pln, pl, &Tc);
+                touch_mode(t, p, &kin, modes, c, &Tc);
                 contact_take_up(t, y, p, pre, modes, c, &Tc);
                 WS_CLOSE;
             }
         } else if (what == 2) {
             m[GS_CM_MODE] = GS_MODE_APART;
+            m[GS_CM_FLAT] = 0.0;   /* the face leaves the plane */
+        } else if (what == 6) {
+            contact_land_flat(t, y, p, pre, modes, c);
+        } else if (what == 7) {
+            contact_tip(t, y, p, pre, modes, c, cl + CL_NP * c, T + c);
         } else if (what == 3) {
             m[GS_CM_MODE] = GS_MODE_ROLL;
             contact_impulse(t, y, p, pre, modes, -1, 0.0);
@@ -233,8 +340,22 @@ static void contact_indicators(const gs_tree *t, const double *y, const double *
         if (m[GS_CM_MODE] == GS_MODE_APART) {
             z0 = T[c].gap;
             zd0 = dot3(n, T[c].vc);
+        } else if (contact_flat(modes, c)) {
+            /* on its face: lambda_n - |lambda_tilt|, below lambda_n: where it lifts off or tips */
+            z0 = cl[CL_NP * c + CL_TIP];
         } else {
             z0 = cl[CL_NP * c + CL_FN];
+            if (has_face(t->shp_k[c / t->n_pln])) {
+                /* a disk or cylinder: also where it comes to lean within the tolerance of its face (its face's
+                 * centre, a sin(alpha) over the plane, within start_tolerance): the sign of a sin(alpha) - tol
+                 * scaled by |lambda_n|, continuous, negative where either is; lambda_n itself (to the bit) while
+                 * a sin(alpha) > 2 tol */
+                const double tol = start_tolerance(t, p, c), a = p[t->p_shp + GS_SHP_NP * (c / t->n_pln) +
+                                                                    GS_SHP_DIM];
+                z0 = fmin(z0, fabs(z0) * (a * T[c].lean - tol) / tol);
+            }
+        }
+        if (m[GS_CM_MODE] != GS_MODE_APART) {
             if (m[GS_CM_MODE] == GS_MODE_SLIDE && t->pln_fric[pl] == GS_FRICTION_COULOMB) {
                 Slip S;
                 slip_of(t, p, pl, T + c, &S);
@@ -255,6 +376,70 @@ static void contact_indicators(const gs_tree *t, const double *y, const double *
     WS_CLOSE;
 }
 
+/* How long (s) the disks and cylinders in touch on their rims may go before one of them could land on its face:
+ * half the time their lean (its rate and acceleration now, a parabola) would take to fall to half the landing's
+ * tolerance (+inf where none falls). The event loop takes no longer piece (advance_from): past the flat attitude
+ * the rim's support point flips across the disk, and an adaptive step taken through it (the landing not yet
+ * applied) would chase that kink down to tiny steps. Halved, the pieces close in on the landing geometrically,
+ * and the landing is located in the last of them. */
+static double contact_landing_horizon(const gs_tree *t, const double *y, const double *p, const Pre *pre) {
+    if (t->ym < 0) return INFINITY;
+    const double *modes = y + t->ym;
+    double h = INFINITY;
+    WS_OPEN;
+    KIN_DECL(kin, t->n);
+    TLOC(double, dy, , GS_ODE_MAX + 1, t->nx + 1);
+    TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, acc, [6], GS_TREE_SMALL, t->n);
+    int any = 0;
+    for (int c = 0; c < t->n_shp * t->n_pln; c++) {
+        const int sh = c / t->n_pln, pl = c % t->n_pln, i = t->shp_b[sh];
+        const double *m = modes + GS_CM_NP * c;
+        if (!rigid(t, pl) || !has_face(t->shp_k[sh]) || m[GS_CM_MODE] == GS_MODE_APART || contact_flat(modes, c)) {
+            continue;
+        }
+        if (!any) {   /* the bodies' angular accelerations: the joints' (the state's rates), up the tree */
+            kinematics(t, y, p, pre, &kin, 1);
+            derivs_full(t, y, p, pre, modes, dy, NULL);
+            memset(qdd, 0, (size_t)t->n * sizeof(qdd[0]));
+            for (int j = 0; j < t->n; j++) {
+                const double *d = dy + t->yi[j];
+                if (t->joint[j] == GS_J_BALL) memcpy(qdd[j], d + 4, 3 * sizeof(double));
+                if (t->joint[j] == GS_J_FREE) memcpy(qdd[j], d + 7, 3 * sizeof(double));
+                if (t->joint[j] == GS_J_HINGE || t->joint[j] == GS_J_SLIDER) qdd[j][0] = d[1];
+            }
+            body_accels(t, p, pre, &kin, (const double (*)[6])qdd, acc);   /* their angular parts are right */
+        }
+        any = 1;
+        /* lean = |(d_x, d_y)|, d = -S^T n_b (shape frame, n_b = R^T n), d' = S^T (w x n_b),
+         * d'' = S^T (w' x n_b - w x (w x n_b)) */
+        const double *sp = p + t->p_shp + GS_SHP_NP * sh, *S = sp + GS_SHP_R;
+        const double *n = p + t->p_pln + GS_PLN_NP * pl + GS_PLN_N, *w = kin.v[i];
+        double nb[3], wn[3], wwn[3], an[3], d[2], d1[2], d2[2];
+        mtv3(kin.Rw[i], n, nb);
+        cross3(w, nb, wn);
+        cross3(w, wn, wwn);
+        cross3(acc[i], nb, an);
+        for (int a = 0; a < 2; a++) {
+            d[a] = -(S[a] * nb[0] + S[3 + a] * nb[1] + S[6 + a] * nb[2]);
+            d1[a] = S[a] * wn[0] + S[3 + a] * wn[1] + S[6 + a] * wn[2];
+            d2[a] = S[a] * (an[0] - wwn[0]) + S[3 + a] * (an[1] - wwn[1]) + S[6 + a] * (an[2] - wwn[2]);
+        }
+        const double lean = sqrt(d[0] * d[0] + d[1] * d[1]);
+        const double half = 0.5 * start_tolerance(t, p, c) / sp[GS_SHP_DIM], L = lean - half;
+        if (!(L > 0.0)) continue;
+        const double r = (d[0] * d1[0] + d[1] * d1[1]) / lean;
+        const double q = (d1[0] * d1[0] + d1[1] * d1[1] + d[0] * d2[0] + d[1] * d2[1] - r * r) / lean;
+        /* the first tau > 0 with lean + r tau + q tau^2 / 2 = half: 2 L / (-r + sqrt(r^2 - 2 q L)) */
+        const double disc = r * r - 2.0 * q * L;
+        if (!(disc >= 0.0)) continue;
+        const double den = sqrt(disc) - r;
+        if (den > 0.0) h = fmin(h, L / den);   /* half of 2 L / den */
+    }
+    WS_CLOSE;
+    return h;
+}
+
 /* The sliding contacts' reference directions renewed from the state at a piece's start: the slip's own (where it
  * has one), so that the indicator s . dir (contact_indicators) crosses zero where the slip stops, not where a slip
  * that turns over many pieces (a precessing top's) has turned a quarter round. Deterministic: part of the state. */
@@ -272,7 +457,7 @@ static void contact_refresh(const gs_tree *t, double *y, const double *p, const 
         any = 1;
         Touch T;
         Slip S;
-        touch(t, p, &kin, c / t->n_pln, pl, &T);
+        touch_mode(t, p, &kin, modes, c, &T);
         slip_of(t, p, pl, &T, &S);
         double sd = 0.0;
         for (int a = 0; a < 4; a++) sd += S.s[a] * m[GS_CM_DIR + a];
@@ -284,14 +469,9 @@ static void contact_refresh(const gs_tree *t, double *y, const double *p, const 
     WS_CLOSE;
 }
 
-/* the gap within which a start puts contact c on its plane (1e-9 m + 1e-6 of its shape's size) */
-static double start_tolerance(const gs_tree *t, const double *p, int c) {
-    const double *dim = p + t->p_shp + GS_SHP_NP * (c / t->n_pln) + GS_SHP_DIM;
-    return 1e-9 + 1e-6 * fmax(dim[0], fmax(dim[1], dim[2]));
-}
-
 /* The modes of a start state: a contact within 1e-9 m + 1e-6 of its shape's size of its plane (or in it) and not
- * moving out is taken up (contact_take_up) and put on it (contact_place), the others are apart */
+ * moving out is taken up (contact_take_up) and put on it (contact_place), the others are apart; a disk or cylinder
+ * taken up leaning within that of its face lands on it (contact_land_flat) */
 static void contact_start(const gs_tree *t, double *y, const double *p, const Pre *pre) {
     if (t->ym < 0) return;
     const int nc = t->n_shp * t->n_pln;
@@ -306,7 +486,10 @@ static void contact_start(const gs_tree *t, double *y, const double *p, const Pr
         Touch T;
         touch(t, p, &kin, c / t->n_pln, pl, &T);
         const double vn = dot3(p + t->p_pln + GS_PLN_NP * pl + GS_PLN_N, T.vc);
-        if (T.gap <= start_tolerance(t, p, c) && vn <= SLIP_STOP) contact_take_up(t, y, p, pre, modes, c, &T);
+        if (T.gap <= start_tolerance(t, p, c) && vn <= SLIP_STOP) {
+            contact_take_up(t, y, p, pre, modes, c, &T);
+            if (leans_flat(t, p, c, &T)) contact_land_flat(t, y, p, pre, modes, c);
+        }
         WS_CLOSE;
     }
     contact_place(t, y, p, pre, modes);

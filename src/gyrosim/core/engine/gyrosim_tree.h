@@ -181,9 +181,11 @@ extern "C" {
 #define GS_CM_MODE 0   /* GS_MODE_APART, GS_MODE_SLIDE or GS_MODE_ROLL (sticking: rolling or resting) */
 #define GS_CM_DIR 1    /* 4: the slip's direction at the piece's start (unit: v_t (world), R_c omega_n) */
 #define GS_CM_SCALE 5  /* |slip| there (m/s): a slip turned across its direction is no stop unless it is small */
-#define GS_CM_NP 6
-/* The constraint rows the stack build's solver takes at once (a sticking contact has up to 4, a sliding one 1; a
- * spherical loop 3, a revolute 5, a prismatic 5, a gear 1); a tree with more runs in the heap build */
+#define GS_CM_FLAT 6   /* 1: a disk or cylinder lying flat on its face (its support the face's centre), else 0 */
+#define GS_CM_NP 7
+/* The constraint rows the stack build's solver takes at once (a sticking contact has up to 4, a sliding one 1, a
+ * disk's or cylinder's face 2 more, its tilts, and a sticking face always its spin; a spherical loop 3, a revolute
+ * 5, a prismatic 5, a gear 1); a tree with more runs in the heap build */
 #define GS_TREE_ROWS_MAX 64
 
 /* Closed loops (DESIGN 4b [[loop]]): body b's point coincides with body a's (spherical), and their axes stay aligned

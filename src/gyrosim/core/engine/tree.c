@@ -237,7 +237,10 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
             }
             t->n_shp = nh;
             t->n_pln = np;
-            t->nrow = 4 * nh * np;   /* a rigid contact's rows: its normal, two tangents and its spin */
+            for (int e = 0; e < nh; e++) {   /* a rigid contact's rows: its normal, two tangents and its spin; a
+                                              * disk's or cylinder's face its two tilts too */
+                t->nrow += np * (t->shp_k[e] == GS_SHAPE_DISK || t->shp_k[e] == GS_SHAPE_CYLINDER ? 6 : 4);
+            }
         }
         for (int e = 0; e < ns; e++) {
             const int a = desc[base + 3 + 2 * e], b = desc[base + 4 + 2 * e];
@@ -313,7 +316,11 @@ int gs_tree_init(gs_tree *t, const int32_t *desc, size_t len) {
     t->ym = -1;
     for (int e = 0; e < t->n_pln && t->n_shp > 0; e++) {   /* a rigid plane: every contact's mode in the state */
         if (t->pln_law[e] != GS_CONTACT_RIGID) continue;
-        if (t->n_shp * t->n_pln * 4 > GS_TREE_ROWS_MAX || n > GS_TREE_SMALL) return 16;
+        int rows = 0;   /* every contact's rows at once: 4 (sticking), a disk's or cylinder's face 6 */
+        for (int sh = 0; sh < t->n_shp; sh++) {
+            rows += t->n_pln * (t->shp_k[sh] == GS_SHAPE_DISK || t->shp_k[sh] == GS_SHAPE_CYLINDER ? 6 : 4);
+        }
+        if (rows > GS_TREE_ROWS_MAX || n > GS_TREE_SMALL) return 16;
         t->ym = t->ny;
         t->ny += GS_CM_NP * t->n_shp * t->n_pln;
         break;
@@ -2694,6 +2701,8 @@ static int32_t advance_from(const gs_tree *t, int method, double *y, const doubl
                 start = h * (double)k;
             } else {
                 piece = fmin(H - done_t, fmin(max_step, *hint > 0.0 ? *hint : max_step));
+                /* a disk nearing its face: the piece ends before it could get there (contact_landing_horizon) */
+                if (pre->rigid) piece = fmin(piece, contact_landing_horizon(t, y, p, pre));
                 if (!(piece > 0.0) || H - done_t - piece <= 4.0 * DBL_EPSILON * H) piece = H - done_t;
                 start = done_t;
                 done_t += piece;
