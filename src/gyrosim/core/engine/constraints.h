@@ -514,24 +514,208 @@ static void rest_kinematics(const gs_tree *t, const double *y, const double *p, 
     kinematics(t, ys, p, pre, kz, 1);
 }
 
-/* G (nr x nr): row r's acceleration from column k's unit wrench at rest, J M^-1 W_k */
-static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre, const double *ys, const Kin *kz,
+/* The articulated-body algorithm at rest, split in two (G's columns, and the responses M^-1 J^T x of the impulses
+ * and the displacements). At rest (rest_kinematics: every velocity zero; no joint force; the world still) the
+ * algorithm of Featherstone's RBDA table 7.1 keeps of its bias terms only the applied wrench: the bias forces are
+ * pA = -f, the bias accelerations c = v x vj vanish, and what is left is linear in the wrench. Its articulated
+ * inertias IA, joint factors U = IA S and D^-1 = (S^T U)^-1 depend on the positions alone: rest_factor makes them
+ * once per positions (the inward pass's inertia half, exactly as aba() makes it: Pre's constant factors for the
+ * bodies whose IA is constant, Pre.fold's children already in IAbase, only the columns Pre.ia_cols says are read),
+ * and rest_solve is the rest per wrench: the force half of the inward pass (u = -S^T pA; pA_parent += X^T (pA + U
+ * D^-1 u)) and the outward pass (qdd = D^-1 (u - U^T X a_parent), a = X a_parent + S qdd). The same arithmetic in
+ * the same order as aba() at rest, with body_accels after it: the same values. */
+typedef struct {
+    double TB(U)[6][6];    /* not Pre.ia_fixed: U = IA S (k columns) */
+    double TB(Di)[6][6];   /* not Pre.ia_fixed: D^-1 (k x k) */
+} RestFactor;
+
+#ifdef TREE_HEAP
+#define REST_DECL(name, n) \
+    RestFactor name; \
+    WS_CARVE(name.U, (n)); \
+    WS_CARVE(name.Di, (n))
+#else
+#define REST_DECL(name, n) RestFactor name
+#endif
+
+/* f: the joint factors at kz's positions */
+static void rest_factor(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, RestFactor *f) {
+    WS_OPEN;
+    TLOC(M6, IA, , GS_TREE_SMALL, t->n);   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
+    for (int i = 0; i < t->n; i++) {
+        if (!pre->ia_fixed[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));
+    }
+    for (int i = t->n - 1; i >= 0; i--) {
+        const int par = t->parent[i];
+        if (pre->ia_fixed[i]) {   /* its factors are Pre's; its Ia is in its parent's IA below */
+            if (par >= 0 && !pre->fold[i]) add_transformed_inertia(kz, i, pre->Ia[i], IA[par], pre->ia_cols[par]);
+            continue;
+        }
+        M6 Ia;
+        joint_factor(t, p, pre, i, IA[i], f->U[i], f->Di[i], par >= 0 ? Ia : NULL);
+        if (par >= 0 && !pre->fold[i]) add_transformed_inertia(kz, i, Ia, IA[par], pre->ia_cols[par]);
+    }
+    WS_CLOSE;
+}
+
+/* the joint accelerations qdd and the body accelerations acc (each body's frame) at rest from the body wrenches fx
+ * (each body's frame about its origin), f the factors at kz's positions; returns whether anything moves. Only what
+ * the wrench reaches is worked: the inward pass over the bodies with a wrench on them or below them (elsewhere pA
+ * and u are 0), the outward pass over the bodies with a joint force u not 0 and those below a moving one
+ * (elsewhere qdd and a are 0: a force across a planar mechanism's plane moves nothing). */
+static int rest_solve(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const RestFactor *f,
+                      const double (*fx)[6], double (*qdd)[6], double (*acc)[6]) {
+    WS_OPEN;
+    TLOC(double, pA, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, u, [6], GS_TREE_SMALL, t->n);
+    TLOC(int, live, , GS_TREE_SMALL, t->n);   /* inwards: a wrench on the body or below it */
+    TLOC(int, moves, , GS_TREE_SMALL, t->n);  /* u not 0; outwards: the body moves */
+    int any = 0;
+    for (int i = 0; i < t->n; i++) {
+        live[i] = 0;
+        for (int a = 0; a < 6; a++) {
+            pA[i][a] = 0.0 - fx[i][a];
+            live[i] |= fx[i][a] != 0.0;
+        }
+    }
+    for (int i = t->n - 1; i >= 0; i--) {
+        const int k = pre->nd[i], par = t->parent[i], fixed = pre->ia_fixed[i];
+        moves[i] = 0;
+        if (!live[i]) {
+            for (int a = 0; a < k; a++) u[i][a] = 0.0;
+            continue;
+        }
+        const double (*Ui)[6] = fixed ? pre->U[i] : f->U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : f->Di[i];
+        /* u = -S^T pA (no joint force) */
+        if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
+            u[i][0] = 0.0 - pA[i][pre->axis_k[i]];
+        } else if (t->joint[i] == GS_J_HINGE) {
+            const double *ax = body_p(p, i) + GS_TB_AXIS;
+            u[i][0] = 0.0 - (ax[0] * pA[i][0] + ax[1] * pA[i][1] + ax[2] * pA[i][2]);
+        } else if (t->joint[i] == GS_J_SLIDER) {
+            const double *ax = body_p(p, i) + GS_TB_AXIS;
+            u[i][0] = 0.0 - (ax[0] * pA[i][3] + ax[1] * pA[i][4] + ax[2] * pA[i][5]);
+        } else {
+            for (int a = 0; a < k; a++) u[i][a] = 0.0 - pA[i][a];
+        }
+        for (int a = 0; a < k; a++) moves[i] |= u[i][a] != 0.0;
+        if (par < 0) continue;
+        /* to the parent: pa = pA + U D^-1 u (Ia c = 0 at rest); pA_p += X^T pa */
+        double pa[6];
+        if (k == 1) {
+            for (int a = 0; a < 6; a++) pa[a] = Ui[a][0] * Dii[0][0] * u[i][0];
+        } else if (k == 3) {   /* a ball: the loops unroll */
+            u_dinv_u(3, Ui, Dii, u[i], pa);
+        } else {
+            u_dinv_u(k, Ui, Dii, u[i], pa);
+        }
+        for (int a = 0; a < 6; a++) pa[a] += pA[i][a];
+        add_xtf(kz, i, pa, pA[par]);
+        live[par] = 1;
+    }
+    for (int i = 0; i < t->n; i++) {
+        const int par = t->parent[i], k = pre->nd[i], fixed = pre->ia_fixed[i];
+        if (!moves[i] && (par < 0 || !moves[par])) {   /* no force of its own and its parent at rest: at rest */
+            for (int a = 0; a < 6; a++) qdd[i][a] = acc[i][a] = 0.0;
+            continue;
+        }
+        moves[i] = any = 1;
+        const double (*Ui)[6] = fixed ? pre->U[i] : f->U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : f->Di[i];
+        double ap[6];
+        if (par < 0) {   /* the world at rest: ap = 0, qdd = D^-1 u */
+            for (int a = 0; a < 6; a++) ap[a] = 0.0;
+            if (k == 1) {
+                qdd[i][0] = Dii[0][0] * u[i][0];
+            } else if (k == 3) {
+                dinv_mul(3, Dii, u[i], qdd[i]);
+            } else {
+                dinv_mul(k, Dii, u[i], qdd[i]);
+            }
+        } else {
+            xm(kz, i, acc[par], ap);
+            /* qdd = D^-1 (u - U^T ap) */
+            if (k == 1) {
+                qdd[i][0] = Dii[0][0] * (u[i][0] - (Ui[0][0] * ap[0] + Ui[1][0] * ap[1] + Ui[2][0] * ap[2] +
+                                                    Ui[3][0] * ap[3] + Ui[4][0] * ap[4] + Ui[5][0] * ap[5]));
+            } else if (k == 3) {
+                joint_qdd(3, Ui, Dii, u[i], ap, qdd[i]);
+            } else {
+                joint_qdd(k, Ui, Dii, u[i], ap, qdd[i]);
+            }
+        }
+        for (int a = 0; a < 6; a++) acc[i][a] = ap[a];
+        add_joint_acc(t, p, pre, i, qdd[i], acc[i]);
+    }
+    WS_CLOSE;
+    return any;
+}
+
+/* body i's angular acceleration (spin: a spin or tilt row's) or its material point cb's acceleration a + alpha x c
+ * (world) at rest: side_accel's without its velocity terms (zero at rest: the same value); 0 for the world */
+static void side_accel_rest(const Kin *k, const double (*acc)[6], int i, const double *cb, int spin, double out[3]) {
+    if (i < 0) {
+        out[0] = out[1] = out[2] = 0.0;
+        return;
+    }
+    const double *a = acc[i];
+    if (spin) {
+        mv3(k->Rw[i], a, out);
+        return;
+    }
+    double ac[3], ab[3];
+    cross3(a, cb, ac);
+    for (int j = 0; j < 3; j++) ab[j] = a[3 + j] + ac[j];
+    mv3(k->Rw[i], ab, out);
+}
+
+/* a row's acceleration at rest (k: the kinematics at rest) from the body and joint accelerations: row_accel's
+ * without its velocity terms (zero at rest: the same value) */
+static double row_accel_rest(const Row *r, const Kin *k, const double (*acc)[6], const double (*qdd)[6]) {
+    if (r->kind == ROW_JOINT) return qdd[r->body][0] - r->scale * qdd[r->body_b][0];
+    const int spin = r->kind == ROW_SPIN || r->kind == ROW_TILT;   /* the angular rows */
+    double aa[3], ab[3], rel[3];
+    side_accel_rest(k, acc, r->body, r->cb, spin, aa);
+    side_accel_rest(k, acc, r->body_b, r->cb_b, spin, ab);
+    for (int a = 0; a < 3; a++) rel[a] = aa[a] - ab[a];
+    return r->scale * dot3(r->dir, rel);
+}
+
+/* G (nr x nr): row r's acceleration from column k's unit wrench at rest, J M^-1 W_k (kz the kinematics at rest, f
+ * the algorithm's factors there) */
+static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const RestFactor *f,
                               const Row *rows, int nr, double *G) {
     WS_OPEN;
     TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, tz, [6], GS_TREE_SMALL, t->n);
     TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, ak, [6], GS_TREE_SMALL, t->n);
-    memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
     for (int c = 0; c < nr; c++) {
         memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
         add_row_wrench(t, p, rows + c, kz, 1.0, fk);
-        aba(t, ys, p, pre, kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
-        body_accels(t, p, pre, kz, (const double (*)[6])qk, ak);
+        if (!rest_solve(t, p, pre, kz, f, (const double (*)[6])fk, qk, ak)) {   /* nothing moves: 0 */
+            for (int r = 0; r < nr; r++) G[r * nr + c] = 0.0;
+            continue;
+        }
         for (int r = 0; r < nr; r++) {
-            G[r * nr + c] = row_accel(rows + r, kz, (const double (*)[6])ak, (const double (*)[6])qk, NULL);
+            G[r * nr + c] = row_accel_rest(rows + r, kz, (const double (*)[6])ak, (const double (*)[6])qk);
         }
     }
+    WS_CLOSE;
+}
+
+/* dv (the state's nx): M^-1 sum_r x_r W_r at rest (W_r the rows' unit wrenches) as a change of the velocity
+ * coordinates (qdd_to_dy; the positions' is zero), with f the algorithm's factors at kz's positions (ys the state) */
+static void rows_response(const gs_tree *t, const double *p, const Pre *pre, const double *ys, const Kin *kz,
+                          const RestFactor *f, const Row *rows, int nr, const double *x, double *dv) {
+    WS_OPEN;
+    TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, ak, [6], GS_TREE_SMALL, t->n);
+    memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
+    for (int r = 0; r < nr; r++) add_row_wrench(t, p, rows + r, kz, x[r], fk);
+    rest_solve(t, p, pre, kz, f, (const double (*)[6])fk, qk, ak);
+    qdd_to_dy(t, ys, kz, (const double (*)[6])qk, dv);
     WS_CLOSE;
 }
 
@@ -567,6 +751,7 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
     double P = 0.0;
     if (nr > 0) {
         KIN_DECL(kz, t->n);
+        REST_DECL(f, t->n);
         body_accels(t, p, pre, kin, (const double (*)[6])qdd, a0);
         for (int r = 0; r < nr; r++) {
             double u[3];
@@ -579,7 +764,8 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
             lam[r] = -row_accel(rows + r, kin, (const double (*)[6])a0, (const double (*)[6])qdd, u);
         }
         rest_kinematics(t, y, p, pre, ys, &kz);
-        constraint_matrix(t, p, pre, ys, &kz, rows, nr, G);
+        rest_factor(t, p, pre, &kz, &f);
+        constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
         solve_dense(nr, G, lam);
         for (int r = 0; r < nr; r++) {
             const Row *q = rows + r;

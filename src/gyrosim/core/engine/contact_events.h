@@ -30,12 +30,10 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
     TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
     TLOC(double, P, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
-    TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, tz, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
     KIN_DECL(kin, t->n);
     KIN_DECL(kz, t->n);
+    REST_DECL(f, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const int nr = constraint_rows(t, p, &kin, modes, 1, rows);
     if (nr > 0) {
@@ -47,13 +45,10 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
             P[r] = (normal ? -e * v : 0.0) - v;
         }
         rest_kinematics(t, y, p, pre, ys, &kz);
-        constraint_matrix(t, p, pre, ys, &kz, rows, nr, G);
+        rest_factor(t, p, pre, &kz, &f);
+        constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
         solve_dense(nr, G, P);
-        memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
-        memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
-        for (int r = 0; r < nr; r++) add_row_wrench(t, p, rows + r, &kz, P[r], fk);
-        aba(t, ys, p, pre, &kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
-        qdd_to_dy(t, ys, &kz, (const double (*)[6])qk, dv);   /* at rest: the velocity coordinates' change */
+        rows_response(t, p, pre, ys, &kz, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
         for (int a = 0; a < t->nx; a++) y[a] += dv[a];
         totals_pre(t, y, p, pre, &after);
         y[t->nx] += (after.T + after.V) - (before.T + before.V);

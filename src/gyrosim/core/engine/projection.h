@@ -75,19 +75,14 @@ static void displace(const gs_tree *t, double *y, const double *p, const Pre *pr
     WS_OPEN;
     TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
-    TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, tz, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
     KIN_DECL(kz, t->n);
+    REST_DECL(f, t->n);
     rest_kinematics(t, y, p, pre, ys, &kz);
-    constraint_matrix(t, p, pre, ys, &kz, rows, nr, G);
+    rest_factor(t, p, pre, &kz, &f);
+    constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
     solve_dense(nr, G, D);
-    memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
-    memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
-    for (int r = 0; r < nr; r++) add_row_wrench(t, p, rows + r, &kz, D[r], fk);
-    aba(t, ys, p, pre, &kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
-    qdd_to_dy(t, ys, &kz, (const double (*)[6])qk, dv);   /* a generalized velocity: applied for unit time */
+    rows_response(t, p, pre, ys, &kz, &f, rows, nr, D, dv);   /* a generalized velocity: applied for unit time */
     for (int i = 0; i < t->n; i++) {
         double *s = y + t->yi[i];
         const double *d = dv + t->yi[i];
@@ -157,20 +152,15 @@ static void impulse_rows(const gs_tree *t, double *y, const double *p, const Pre
     TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
     TLOC(double, P, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
-    TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, tz, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
     KIN_DECL(kz, t->n);
+    REST_DECL(f, t->n);
     for (int r = 0; r < nr; r++) P[r] = -row_velocity(t, y, rows + r, kin);
     rest_kinematics(t, y, p, pre, ys, &kz);
-    constraint_matrix(t, p, pre, ys, &kz, rows, nr, G);
+    rest_factor(t, p, pre, &kz, &f);
+    constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
     solve_dense(nr, G, P);
-    memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
-    memset(tz, 0, (size_t)t->n * sizeof(tz[0]));
-    for (int r = 0; r < nr; r++) add_row_wrench(t, p, rows + r, &kz, P[r], fk);
-    aba(t, ys, p, pre, &kz, (const double (*)[6])fk, (const double (*)[6])tz, qk);
-    qdd_to_dy(t, ys, &kz, (const double (*)[6])qk, dv);   /* at rest: the velocity coordinates' change */
+    rows_response(t, p, pre, ys, &kz, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
     for (int a = 0; a < t->nx; a++) y[a] += dv[a];
     WS_CLOSE;
 }

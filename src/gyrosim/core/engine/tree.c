@@ -2069,13 +2069,15 @@ int gs_tree_mobility(const gs_tree *t, const double *y, const double *p, int *ra
     PRE_DECL(pre, t->n);
     KIN_DECL(kin, t->n);
     KIN_DECL(kz, t->n);
+    REST_DECL(f, t->n);
     precompute(t, p, &pre);
     memcpy(ya, y, (size_t)(t->nx + 1) * sizeof(double));   /* at the assembled start */
     loop_project(t, ya, p, &pre);
     kinematics(t, ya, p, &pre, &kin, 1);
     const int nr = loop_rows(t, p, &kin, rw, 0);
     rest_kinematics(t, ya, p, &pre, ys, &kz);
-    constraint_matrix(t, p, &pre, ys, &kz, rw, nr, G);
+    rest_factor(t, p, &pre, &kz, &f);
+    constraint_matrix(t, p, &pre, &kz, &f, rw, nr, G);
     for (int r = 0; r < nr; r++) D[r] = 0.0;
     *rank = solve_dense(nr, G, D);   /* G = J M^-1 J^T: its rank is J's */
     *rows = nr;
