@@ -25,7 +25,7 @@
  * rate, (omega_a x d) . (the rows' relative velocity). The multipliers' wrenches join the applied forces and the
  * algorithm runs once more: the constrained accelerations. G is J M^-1 J^T (with a sliding contact's friction in
  * its column): singular where rows are redundant (the Bricard mechanism, a planar loop's out-of-plane rows) or at a
- * mechanism's singular position; the elimination (solve_dense) pivots completely and drops the rows whose pivot
+ * mechanism's singular position; the elimination (lu_factor) pivots completely and drops the rows whose pivot
  * falls below round-off of G's largest entry, with multiplier 0: the rows kept carry the constraint, and the
  * constraint being consistent, the accelerations are those of the whole set.
  *
@@ -425,47 +425,59 @@ static void add_row_wrench(const gs_tree *t, const double *p, const Row *r, cons
     add_world_wrench(k, r->body_b, r->cb_b, Fn, Mn, fx);
 }
 
-/* G x = b for x in place of b (n x n, row-major): Gaussian elimination with complete pivoting. It stops where the
- * largest pivot left is below 1e-12 of G's largest entry (round-off of a singular G: redundant rows, a mechanism at
- * a singular position; an exact 0 for a row with no reach): those unknowns are 0 and their equations, consistent
- * with the rest, are dropped. Returns the rank it found. */
-static int solve_dense(int n, double *G, double *b) {
-    WS_OPEN;
-    TLOC(int, perm, , GS_TREE_ROWS_MAX, n);
-    TLOC(double, x, , GS_TREE_ROWS_MAX, n);
-    treal g0 = 0.0;
-    for (int c = 0; c < n; c++) {
-        perm[c] = c;
+/* G's LU factors with complete pivoting (Golub and Van Loan, Matrix Computations, 3.4), kept for solves with
+ * several right-hand sides: the velocity projection and the acceleration solve at the same positions share one
+ * (tree.c derivs_full). Gaussian elimination on G in place: U on and above the diagonal, the multipliers L below it
+ * (a row's travel with it through the row swaps); rp[c] is the row swapped into row c at step c and cp the
+ * unknowns' order the column swaps made. Step c takes the largest entry left, the first in row-major order. The
+ * elimination stops where the largest pivot left is below 1e-12 of G's largest entry (round-off of a singular G:
+ * redundant rows, a mechanism at a singular position; an exact 0 for a row with no reach): rank is where it
+ * stopped, the unknowns beyond it are 0 and their equations, consistent with the rest, are dropped. */
+typedef struct {
+    double *G;        /* n x n, row-major: G, then its factors */
+    int *rp, *cp;
+    int n;            /* the rows factored (-1: none) */
+    int rank;
+} RowLU;
+
+/* name: a RowLU for up to the tree's t->nrow rows, its storage declared here (the small build: on the stack) */
+#define ROWLU_DECL(name, t) \
+    TLOC(double, name##_G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, (t)->nrow * (t)->nrow); \
+    TLOC(int, name##_rp, , GS_TREE_ROWS_MAX, (t)->nrow); \
+    TLOC(int, name##_cp, , GS_TREE_ROWS_MAX, (t)->nrow); \
+    RowLU name = {name##_G, name##_rp, name##_cp, -1, 0}
+
+/* lu->G (n x n) factored in place. The search for the next pivot runs in the elimination's sweep over the rows it
+ * has just updated (the entries it compares are final there): one pass over the matrix per step, not two. A row
+ * whose multiplier is 0 is left as it is (what the update would give it, but for a zero's sign). */
+static void lu_factor(RowLU *lu, int n) {
+    double *G = lu->G;
+    int *rp = lu->rp, *cp = lu->cp;
+    treal g0 = 0.0, best = -1.0;
+    int pr = 0, pc = 0;
+    for (int r = 0; r < n; r++) {
+        cp[r] = r;
         for (int j = 0; j < n; j++) {
-            const treal v = fabs(G[c * n + j]);
+            const treal v = fabs(G[r * n + j]);
             if (v > g0) g0 = v;
+            if (v > best) {
+                best = v;
+                pr = r;
+                pc = j;
+            }
         }
     }
     const treal tiny = 1e-12 * g0;
     int rank = 0;
     for (int c = 0; c < n; c++) {
-        int pr = c, pc = c;
-        treal best = -1.0;
-        for (int r = c; r < n; r++) {
-            for (int j = c; j < n; j++) {
-                const treal v = fabs(G[r * n + j]);
-                if (v > best) {
-                    best = v;
-                    pr = r;
-                    pc = j;
-                }
-            }
-        }
         if (!(best > tiny)) break;
+        rp[c] = pr;
         if (pr != c) {
             for (int j = 0; j < n; j++) {
                 const double tmp = G[c * n + j];
                 G[c * n + j] = G[pr * n + j];
                 G[pr * n + j] = tmp;
             }
-            const double tb = b[c];
-            b[c] = b[pr];
-            b[pr] = tb;
         }
         if (pc != c) {
             for (int r = 0; r < n; r++) {
@@ -473,16 +485,69 @@ static int solve_dense(int n, double *G, double *b) {
                 G[r * n + c] = G[r * n + pc];
                 G[r * n + pc] = tmp;
             }
-            const int tp = perm[c];
-            perm[c] = perm[pc];
-            perm[pc] = tp;
+            const int tp = cp[c];
+            cp[c] = cp[pc];
+            cp[pc] = tp;
         }
+        const double *gc = G + c * n;
+        best = -1.0;
         for (int r = c + 1; r < n; r++) {
-            const double f = G[r * n + c] / G[c * n + c];
-            for (int j = c; j < n; j++) G[r * n + j] -= f * G[c * n + j];
-            b[r] -= f * b[c];
+            double *gr = G + r * n;
+            const double f = gr[c] / gc[c];
+            gr[c] = f;
+            treal rb = -1.0;
+            int rj = c + 1;
+            if (f != 0.0) {
+                for (int j = c + 1; j < n; j++) {
+                    gr[j] -= f * gc[j];
+                    const treal v = fabs(gr[j]);
+                    if (v > rb) {
+                        rb = v;
+                        rj = j;
+                    }
+                }
+            } else {
+                for (int j = c + 1; j < n; j++) {
+                    const treal v = fabs(gr[j]);
+                    if (v > rb) {
+                        rb = v;
+                        rj = j;
+                    }
+                }
+            }
+            if (rb > best) {
+                best = rb;
+                pr = r;
+                pc = rj;
+            }
         }
         rank++;
+    }
+    lu->n = n;
+    lu->rank = rank;
+}
+
+/* G x = b for x in place of b with lu's factors: b's rows swapped and L's multipliers applied (each entry of b
+ * gets the elimination's operations in the elimination's order: the same values), then U's back substitution over
+ * the rank, the unknowns put back in their order */
+static void lu_solve(const RowLU *lu, double *b) {
+    const int n = lu->n, rank = lu->rank;
+    const double *G = lu->G;
+    WS_OPEN;
+    TLOC(double, x, , GS_TREE_ROWS_MAX, n);
+    for (int c = 0; c < rank; c++) {   /* the row swaps first: L's rows are in their final order */
+        const int pr = lu->rp[c];
+        if (pr != c) {
+            const double tb = b[c];
+            b[c] = b[pr];
+            b[pr] = tb;
+        }
+    }
+    for (int c = 0; c < rank; c++) {
+        for (int r = c + 1; r < n; r++) {
+            const double f = G[r * n + c];
+            if (f != 0.0) b[r] -= f * b[c];
+        }
     }
     for (int c = n - 1; c >= 0; c--) {
         if (c >= rank) {
@@ -493,9 +558,8 @@ static int solve_dense(int n, double *G, double *b) {
         for (int j = c + 1; j < rank; j++) s -= G[c * n + j] * x[j];
         x[c] = s / G[c * n + c];
     }
-    for (int c = 0; c < n; c++) b[perm[c]] = x[c];
+    for (int c = 0; c < n; c++) b[lu->cp[c]] = x[c];
     WS_CLOSE;
-    return rank;
 }
 
 /* kz: the kinematics of y at rest (every velocity coordinate zero), for the responses to unit wrenches; ys its
@@ -704,6 +768,17 @@ static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre,
     WS_CLOSE;
 }
 
+
+/* The rows' G at y's positions, factored into lu; ys and kz: y's state and kinematics at rest, f the algorithm's
+ * factors there (for rows_response) */
+static void rows_factor(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Row *rows, int nr,
+                        double *ys, Kin *kz, RestFactor *f, RowLU *lu) {
+    rest_kinematics(t, y, p, pre, ys, kz);
+    rest_factor(t, p, pre, kz, f);
+    constraint_matrix(t, p, pre, kz, f, rows, nr, lu->G);
+    lu_factor(lu, nr);
+}
+
 /* dv (the state's nx): M^-1 sum_r x_r W_r at rest (W_r the rows' unit wrenches) as a change of the velocity
  * coordinates (qdd_to_dy; the positions' is zero), with f the algorithm's factors at kz's positions (ys the state) */
 static void rows_response(const gs_tree *t, const double *p, const Pre *pre, const double *ys, const Kin *kz,
@@ -736,22 +811,19 @@ static void rows_response(const gs_tree *t, const double *p, const Pre *pre, con
 
 /* The rigid contacts' forces under modes, added to fx, and the constrained accelerations into qdd (which holds the
  * accelerations of every other force: the articulated-body algorithm's with fx). Returns their power (friction's:
- * <= 0; the normal force does none on the constraint). out (CL_NP per contact, NULL: not wanted). */
+ * <= 0; the normal force does none on the constraint). out (CL_NP per contact, NULL: not wanted). lu: G's storage,
+ * holding its factors already where it holds as many rows and no contact is active (loop_project_into's at y). */
 static double constraint_forces(const gs_tree *t, const double *y, const double *p, const Pre *pre,
                                 const double *modes, const Kin *kin, double (*fx)[6], double (*qdd)[6],
-                                double *out) {
+                                double *out, RowLU *lu) {
     WS_OPEN;
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
     TLOC(double, lam, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, a0, [6], GS_TREE_SMALL, t->n);
-    TLOC(double, ys, , GS_ODE_MAX, t->nx);
     if (out != NULL) memset(out, 0, (size_t)CL_SIZE(t) * sizeof(double));
     const int nr = constraint_rows(t, p, kin, modes, 0, rows);
     double P = 0.0;
     if (nr > 0) {
-        KIN_DECL(kz, t->n);
-        REST_DECL(f, t->n);
         body_accels(t, p, pre, kin, (const double (*)[6])qdd, a0);
         for (int r = 0; r < nr; r++) {
             double u[3];
@@ -763,10 +835,17 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
             }
             lam[r] = -row_accel(rows + r, kin, (const double (*)[6])a0, (const double (*)[6])qdd, u);
         }
-        rest_kinematics(t, y, p, pre, ys, &kz);
-        rest_factor(t, p, pre, &kz, &f);
-        constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
-        solve_dense(nr, G, lam);
+        /* G: lu's where it holds these rows' already (the velocity projection's at these positions: the loops' and
+         * gears' rows alone, no contact active), else made here */
+        int held = lu->n == nr;
+        for (int r = 0; r < nr && held; r++) held = rows[r].contact < 0;
+        if (!held) {
+            TLOC(double, ys, , GS_ODE_MAX, t->nx);
+            KIN_DECL(kz, t->n);
+            REST_DECL(f, t->n);
+            rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, lu);
+        }
+        lu_solve(lu, lam);
         for (int r = 0; r < nr; r++) {
             const Row *q = rows + r;
             add_row_wrench(t, p, q, kin, lam[r], fx);

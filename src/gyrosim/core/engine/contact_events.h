@@ -27,10 +27,10 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
                            int hit, double e) {
     WS_OPEN;
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
     TLOC(double, P, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
+    ROWLU_DECL(lu, t);
     KIN_DECL(kin, t->n);
     KIN_DECL(kz, t->n);
     REST_DECL(f, t->n);
@@ -44,10 +44,8 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
             const int normal = hit >= 0 && rows[r].contact == hit && (r == 0 || rows[r - 1].contact != hit);
             P[r] = (normal ? -e * v : 0.0) - v;
         }
-        rest_kinematics(t, y, p, pre, ys, &kz);
-        rest_factor(t, p, pre, &kz, &f);
-        constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
-        solve_dense(nr, G, P);
+        rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, &lu);
+        lu_solve(&lu, P);
         rows_response(t, p, pre, ys, &kz, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
         for (int a = 0; a < t->nx; a++) y[a] += dv[a];
         totals_pre(t, y, p, pre, &after);
@@ -67,6 +65,7 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, D, , GS_TREE_ROWS_MAX, t->nrow);
     KIN_DECL(kin, t->n);
+    ROWLU_DECL(lu, t);
     kinematics(t, y, p, pre, &kin, 1);
     const int all = constraint_rows(t, p, &kin, modes, 1, rows);
     int nr = 0, open = 0;
@@ -91,7 +90,7 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
         for (int r = nr; r < nr + nl; r++) D[r] = -D[r];
         Totals before, after;
         totals_pre(t, y, p, pre, &before);
-        displace(t, y, p, pre, rows, nr + nl, D);
+        displace(t, y, p, pre, rows, nr + nl, D, &lu);
         totals_pre(t, y, p, pre, &after);
         y[t->nx] += (after.T + after.V) - (before.T + before.V);
     }
@@ -158,6 +157,7 @@ static void contact_tip(const gs_tree *t, double *y, const double *p, const Pre 
     WS_OPEN;
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
     KIN_DECL(kin, t->n);
+    ROWLU_DECL(lu, t);
     kinematics(t, y, p, pre, &kin, 1);
     Slip S;
     slip_of(t, p, pl, T, &S);
@@ -189,7 +189,7 @@ static void contact_tip(const gs_tree *t, double *y, const double *p, const Pre 
     }
     Totals before, after;
     totals_pre(t, y, p, pre, &before);
-    displace(t, y, p, pre, rows, nr, D);
+    displace(t, y, p, pre, rows, nr, D, &lu);
     totals_pre(t, y, p, pre, &after);
     y[t->nx] += (after.T + after.V) - (before.T + before.V);
     m[GS_CM_FLAT] = 0.0;

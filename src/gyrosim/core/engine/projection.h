@@ -69,19 +69,18 @@ static double row_velocity(const gs_tree *t, const double *y, const Row *r, cons
 
 /* y's positions moved by the generalized velocity M^-1 J^T D of the rows' unit wrenches times D, applied for unit
  * time: a hinge's and a slider's coordinate by its rate, a ball's and a free joint's rotation by its rotation
- * vector (body frame), a free joint's position by its velocity. J M^-1 J^T D = rhs is solved here (rhs in D). */
+ * vector (body frame), a free joint's position by its velocity. J M^-1 J^T D = rhs is solved here (rhs in D), G made
+ * and factored in lu (its storage: left holding none, its positions being the old ones). */
 static void displace(const gs_tree *t, double *y, const double *p, const Pre *pre, const Row *rows, int nr,
-                     double *D) {
+                     double *D, RowLU *lu) {
     WS_OPEN;
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
     KIN_DECL(kz, t->n);
     REST_DECL(f, t->n);
-    rest_kinematics(t, y, p, pre, ys, &kz);
-    rest_factor(t, p, pre, &kz, &f);
-    constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
-    solve_dense(nr, G, D);
+    rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, lu);
+    lu_solve(lu, D);
+    lu->n = -1;
     rows_response(t, p, pre, ys, &kz, &f, rows, nr, D, dv);   /* a generalized velocity: applied for unit time */
     for (int i = 0; i < t->n; i++) {
         double *s = y + t->yi[i];
@@ -104,20 +103,25 @@ static void displace(const gs_tree *t, double *y, const double *p, const Pre *pr
     WS_CLOSE;
 }
 
-/* the impulse that zeroes the rows' velocities (rows at y's kinematics kin) */
+/* the impulse that zeroes the rows' velocities (rows at y's kinematics kin); G made and factored in lu, which keeps
+ * it (the positions do not change) */
 static void impulse_rows(const gs_tree *t, double *y, const double *p, const Pre *pre, const Kin *kin,
-                         const Row *rows, int nr);
+                         const Row *rows, int nr, RowLU *lu);
 
 /* The loops put back on their rows, positions then velocities (the gears' rates with them). The largest position
  * residual left (m; radians times 1 m for the angles) is returned; Gauss-Newton runs until it stops falling by 2x or
- * is below 1e-15 of the loops' size, 12 steps at most. Not booked in W: the energy a projection changes is the
- * integrator's error, and energy_error shows it. */
-static treal loop_project(const gs_tree *t, double *y, const double *p, const Pre *pre) {
+ * is below 1e-15 of the loops' size, 12 steps at most: a state on the loops already (one the integrator's step
+ * ended with, projected there) takes no step, its one G the velocity projection's. lu: the storage for G's
+ * factors, left holding the velocity projection's (the rows of loop_rows at y's final positions; none where there
+ * are no rows) for the acceleration solve at the same positions (tree.c derivs_full). Not booked in W: the energy
+ * a projection changes is the integrator's error, and energy_error shows it. */
+static treal loop_project_into(const gs_tree *t, double *y, const double *p, const Pre *pre, RowLU *lu) {
     WS_OPEN;
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, D, , GS_TREE_ROWS_MAX, t->nrow);
     KIN_DECL(kin, t->n);
     double size = 0.0;
+    lu->n = -1;
     for (int e = 0; e < t->n_lop; e++) {
         const double *lp = p + t->p_lop + GS_LP_NP * e;
         size = fmax(size, fmax(sqrt(dot3(lp + GS_LP_PA, lp + GS_LP_PA)), sqrt(dot3(lp + GS_LP_PB, lp + GS_LP_PB))));
@@ -136,30 +140,38 @@ static treal loop_project(const gs_tree *t, double *y, const double *p, const Pr
         if (worst <= tol || !(worst < 0.5 * last) || it == 12 || t->n_lop == 0) break;
         last = worst;
         for (int r = 0; r < nr; r++) D[r] = -D[r];
-        displace(t, y, p, pre, rows, nr, D);
+        displace(t, y, p, pre, rows, nr, D, lu);
     }
     kinematics(t, y, p, pre, &kin, 1);
     const int nr = loop_rows(t, p, &kin, rows, 0);
-    impulse_rows(t, y, p, pre, &kin, rows, nr);
+    impulse_rows(t, y, p, pre, &kin, rows, nr, lu);
     WS_CLOSE;
     return worst;
 }
 
+#ifndef GS_TREE_CS   /* the start's, the steps' ends' and the loop check's (the double build's) */
+/* loop_project_into with G's storage here */
+static treal loop_project(const gs_tree *t, double *y, const double *p, const Pre *pre) {
+    WS_OPEN;
+    ROWLU_DECL(lu, t);
+    const treal worst = loop_project_into(t, y, p, pre, &lu);
+    WS_CLOSE;
+    return worst;
+}
+#endif
+
 static void impulse_rows(const gs_tree *t, double *y, const double *p, const Pre *pre, const Kin *kin,
-                         const Row *rows, int nr) {
+                         const Row *rows, int nr, RowLU *lu) {
     if (nr == 0) return;
     WS_OPEN;
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
     TLOC(double, P, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
     KIN_DECL(kz, t->n);
     REST_DECL(f, t->n);
     for (int r = 0; r < nr; r++) P[r] = -row_velocity(t, y, rows + r, kin);
-    rest_kinematics(t, y, p, pre, ys, &kz);
-    rest_factor(t, p, pre, &kz, &f);
-    constraint_matrix(t, p, pre, &kz, &f, rows, nr, G);
-    solve_dense(nr, G, P);
+    rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, lu);
+    lu_solve(lu, P);
     rows_response(t, p, pre, ys, &kz, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
     for (int a = 0; a < t->nx; a++) y[a] += dv[a];
     WS_CLOSE;

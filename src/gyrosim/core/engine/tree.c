@@ -1764,26 +1764,11 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
 }
 
 
-/* The right-hand side at state y; modes: the rigid contacts' modes (GS_CM_*; NULL: none acts); cl: what the
- * constraint solve gives per contact (constraints.h CL_*; NULL: not wanted) */
-static void derivs_full(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
-                        double *dy, double *cl) {
-    if (kern_derivs(t, &pre->kern, y, p, dy)) return;
+/* The right-hand side at state y (on the loops: derivs_full projects it there), lu the storage of the constraint
+ * solve's G (NULL: no constraint acts; it may hold the loops' G at y's positions already: loop_project_into) */
+static void derivs_at(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
+                      double *dy, double *cl, RowLU *lu) {
     WS_OPEN;
-    if (pre->closed) {
-        /* closed loops and gears: the vector field on their constraint manifold, taken at y projected onto it
-         * (positions and velocities, projection.h) and carried off it unchanged along the projection. An
-         * integrator's stage lies off the manifold by the step's error, and there the rows' accelerations ask for
-         * forces that need not exist: at a mechanism's singular position (the N-four-bar's links aligned) a row's
-         * reach J_r vanishes while its bias b_r, consistent on the manifold (0/0 with a finite limit), is not at the
-         * stage, and lambda_r = b_r / G_rr grows without bound. Projected, every stage is consistent to round-off;
-         * the linearization is the field's on the manifold (the directions across it project to zero), and the FMUs'
-         * model exchange integrates the same field. */
-        TLOC(double, yp, , GS_ODE_MAX + 1, t->nx + 1);
-        memcpy(yp, y, (size_t)(t->nx + 1) * sizeof(double));
-        loop_project(t, yp, p, pre);
-        y = yp;
-    }
     KIN_DECL(kin, t->n);
     TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
     TLOC(double, fnc, [6], GS_TREE_SMALL, t->n);
@@ -1801,7 +1786,7 @@ static void derivs_full(const gs_tree *t, const double *y, const double *p, cons
     }
     if (pre->elements) P_el = element_forces(t, p, &kin, fx) + contact_forces(t, p, &kin, fx);
     aba(t, y, p, pre, &kin, ext ? (const double (*)[6])fx : NULL, NULL, qdd);
-    if ((modes != NULL && pre->rigid) || pre->closed) P_el += constraint_forces(t, y, p, pre, modes, &kin, fx, qdd, cl);
+    if (lu != NULL) P_el += constraint_forces(t, y, p, pre, modes, &kin, fx, qdd, cl, lu);
     qdd_to_dy(t, y, &kin, (const double (*)[6])qdd, dy);
     dy[t->nx] = power(t, y, p, &kin) + P_el;
     if (orbit) {   /* the work of the gravity-gradient torques and the tidal forces */
@@ -1811,6 +1796,36 @@ static void derivs_full(const gs_tree *t, const double *y, const double *p, cons
         const double a = p[GS_TP_ORBIT_R];
         dy[t->ya] = sqrt(p[GS_TP_MU] / (a * a * a));
     }
+    WS_CLOSE;
+}
+
+/* The right-hand side at state y; modes: the rigid contacts' modes (GS_CM_*; NULL: none acts); cl: what the
+ * constraint solve gives per contact (constraints.h CL_*; NULL: not wanted) */
+static void derivs_full(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
+                        double *dy, double *cl) {
+    if (kern_derivs(t, &pre->kern, y, p, dy)) return;
+    if (!pre->closed && !(modes != NULL && pre->rigid)) {
+        derivs_at(t, y, p, pre, modes, dy, cl, NULL);
+        return;
+    }
+    WS_OPEN;
+    ROWLU_DECL(lu, t);
+    TLOC(double, yp, , GS_ODE_MAX + 1, t->nx + 1);
+    if (pre->closed) {
+        /* closed loops and gears: the vector field on their constraint manifold, taken at y projected onto it
+         * (positions and velocities, projection.h) and carried off it unchanged along the projection. An
+         * integrator's stage lies off the manifold by the step's error, and there the rows' accelerations ask for
+         * forces that need not exist: at a mechanism's singular position (the N-four-bar's links aligned) a row's
+         * reach J_r vanishes while its bias b_r, consistent on the manifold (0/0 with a finite limit), is not at the
+         * stage, and lambda_r = b_r / G_rr grows without bound. Projected, every stage is consistent to round-off;
+         * the linearization is the field's on the manifold (the directions across it project to zero), and the FMUs'
+         * model exchange integrates the same field. The velocity projection's G, at the positions the solve takes,
+         * is the solve's too where no contact adds rows (lu keeps its factors). */
+        memcpy(yp, y, (size_t)(t->nx + 1) * sizeof(double));
+        loop_project_into(t, yp, p, pre, &lu);
+        y = yp;
+    }
+    derivs_at(t, y, p, pre, modes, dy, cl, &lu);
     WS_CLOSE;
 }
 
@@ -2062,10 +2077,9 @@ int gs_tree_mobility(const gs_tree *t, const double *y, const double *p, int *ra
     if (t->n_lop + t->n_gr == 0) return ndof;
     WS_ENTER(t->n);
     TLOC(Row, rw, , GS_TREE_ROWS_MAX, t->nrow);
-    TLOC(double, G, , GS_TREE_ROWS_MAX * GS_TREE_ROWS_MAX, t->nrow * t->nrow);
-    TLOC(double, D, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ya, , GS_ODE_MAX + 1, t->nx + 1);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
+    ROWLU_DECL(lu, t);
     PRE_DECL(pre, t->n);
     KIN_DECL(kin, t->n);
     KIN_DECL(kz, t->n);
@@ -2075,11 +2089,8 @@ int gs_tree_mobility(const gs_tree *t, const double *y, const double *p, int *ra
     loop_project(t, ya, p, &pre);
     kinematics(t, ya, p, &pre, &kin, 1);
     const int nr = loop_rows(t, p, &kin, rw, 0);
-    rest_kinematics(t, ya, p, &pre, ys, &kz);
-    rest_factor(t, p, &pre, &kz, &f);
-    constraint_matrix(t, p, &pre, &kz, &f, rw, nr, G);
-    for (int r = 0; r < nr; r++) D[r] = 0.0;
-    *rank = solve_dense(nr, G, D);   /* G = J M^-1 J^T: its rank is J's */
+    rows_factor(t, ya, p, &pre, rw, nr, ys, &kz, &f, &lu);
+    *rank = lu.rank;   /* G = J M^-1 J^T: its rank is J's */
     *rows = nr;
     WS_CLOSE;
     return ndof - *rank;
