@@ -447,14 +447,74 @@ typedef struct {
     TLOC(int, name##_cp, , GS_TREE_ROWS_MAX, (t)->nrow); \
     RowLU name = {name##_G, name##_rp, name##_cp, -1, 0}
 
+/* row gr of the elimination, gr -= f gc over the columns listed in cl (f = 0: as it is), and the first of its
+ * largest entries there in *rb, *rj (-1 where it has none). Two running maxima, over the list's even and odd places,
+ * halve the comparisons' chain; the first of the larger is the first largest. */
+static TREE_INLINE void lu_row(double *gr, const double *gc, double f, const int *cl, int ncl, treal *rb, int *rj) {
+    treal m0 = -1.0, m1 = -1.0;
+    int j0 = -1, j1 = -1, q = 0;
+    if (f != 0.0) {
+        for (; q + 1 < ncl; q += 2) {
+            const int ja = cl[q], jb = cl[q + 1];
+            gr[ja] -= f * gc[ja];
+            gr[jb] -= f * gc[jb];
+            const treal va = fabs(gr[ja]), vb = fabs(gr[jb]);
+            if (va > m0) {
+                m0 = va;
+                j0 = ja;
+            }
+            if (vb > m1) {
+                m1 = vb;
+                j1 = jb;
+            }
+        }
+        if (q < ncl) gr[cl[q]] -= f * gc[cl[q]];
+    } else {
+        for (; q + 1 < ncl; q += 2) {
+            const int ja = cl[q], jb = cl[q + 1];
+            const treal va = fabs(gr[ja]), vb = fabs(gr[jb]);
+            if (va > m0) {
+                m0 = va;
+                j0 = ja;
+            }
+            if (vb > m1) {
+                m1 = vb;
+                j1 = jb;
+            }
+        }
+    }
+    if (q < ncl) {
+        const treal va = fabs(gr[cl[q]]);
+        if (va > m0) {
+            m0 = va;
+            j0 = cl[q];
+        }
+    }
+    *rb = m0;
+    *rj = j0;
+    if (m1 > m0 || (m1 == m0 && j1 >= 0 && j1 < j0)) {
+        *rb = m1;
+        *rj = j1;
+    }
+}
+
 /* lu->G (n x n) factored in place. The search for the next pivot runs in the elimination's sweep over the rows it
- * has just updated (the entries it compares are final there): one pass over the matrix per step, not two. A row
- * whose multiplier is 0 is left as it is (what the update would give it, but for a zero's sign). */
+ * has just updated (the entries it compares are final there): one pass over the matrix per step, not two. A row or
+ * a column of G all zero (a row with no reach: a planar mechanism's rows across its plane) stays so through the
+ * elimination and holds no pivot: the sweeps pass over them (the positions of the others in rl and cl, in order,
+ * through the swaps), and a row whose multiplier is 0 is left as it is (what the update would give it, but for a
+ * zero's sign). The same pivots as the full search, the same values. */
 static void lu_factor(RowLU *lu, int n) {
     double *G = lu->G;
     int *rp = lu->rp, *cp = lu->cp;
+    WS_OPEN;
+    TLOC(int, zr, , GS_TREE_ROWS_MAX, n);   /* zr[k]: the row at position k is all zero */
+    TLOC(int, zc, , GS_TREE_ROWS_MAX, n);   /* the same of the columns */
+    TLOC(int, rl, , GS_TREE_ROWS_MAX, n);   /* the positions beyond the step of the rows not all zero, ascending */
+    TLOC(int, cl, , GS_TREE_ROWS_MAX, n);   /* the same of the columns */
     treal g0 = 0.0, best = -1.0;
-    int pr = 0, pc = 0;
+    int pr = 0, pc = 0, nrl = 0, ncl = 0;
+    for (int k = 0; k < n; k++) zr[k] = zc[k] = 1;
     for (int r = 0; r < n; r++) {
         cp[r] = r;
         for (int j = 0; j < n; j++) {
@@ -465,7 +525,12 @@ static void lu_factor(RowLU *lu, int n) {
                 pr = r;
                 pc = j;
             }
+            if (G[r * n + j] != 0.0) zr[r] = zc[j] = 0;
         }
+    }
+    for (int k = 0; k < n; k++) {
+        if (!zr[k]) rl[nrl++] = k;
+        if (!zc[k]) cl[ncl++] = k;
     }
     const treal tiny = 1e-12 * g0;
     int rank = 0;
@@ -478,6 +543,8 @@ static void lu_factor(RowLU *lu, int n) {
                 G[c * n + j] = G[pr * n + j];
                 G[pr * n + j] = tmp;
             }
+            zr[pr] = zr[c];
+            zr[c] = 0;
         }
         if (pc != c) {
             for (int r = 0; r < n; r++) {
@@ -488,33 +555,29 @@ static void lu_factor(RowLU *lu, int n) {
             const int tp = cp[c];
             cp[c] = cp[pc];
             cp[pc] = tp;
+            zc[pc] = zc[c];
+            zc[c] = 0;
         }
+        int m = 0;   /* the lists beyond c: the pivot's position left out, and one a zero line was swapped into */
+        for (int q = 0; q < nrl; q++) {
+            if (rl[q] > c && !zr[rl[q]]) rl[m++] = rl[q];
+        }
+        nrl = m;
+        m = 0;
+        for (int q = 0; q < ncl; q++) {
+            if (cl[q] > c && !zc[cl[q]]) cl[m++] = cl[q];
+        }
+        ncl = m;
         const double *gc = G + c * n;
         best = -1.0;
-        for (int r = c + 1; r < n; r++) {
+        for (int q = 0; q < nrl; q++) {
+            const int r = rl[q];
             double *gr = G + r * n;
             const double f = gr[c] / gc[c];
             gr[c] = f;
-            treal rb = -1.0;
-            int rj = c + 1;
-            if (f != 0.0) {
-                for (int j = c + 1; j < n; j++) {
-                    gr[j] -= f * gc[j];
-                    const treal v = fabs(gr[j]);
-                    if (v > rb) {
-                        rb = v;
-                        rj = j;
-                    }
-                }
-            } else {
-                for (int j = c + 1; j < n; j++) {
-                    const treal v = fabs(gr[j]);
-                    if (v > rb) {
-                        rb = v;
-                        rj = j;
-                    }
-                }
-            }
+            treal rb;
+            int rj;
+            lu_row(gr, gc, f, cl, ncl, &rb, &rj);
             if (rb > best) {
                 best = rb;
                 pr = r;
@@ -525,6 +588,7 @@ static void lu_factor(RowLU *lu, int n) {
     }
     lu->n = n;
     lu->rank = rank;
+    WS_CLOSE;
 }
 
 /* G x = b for x in place of b with lu's factors: b's rows swapped and L's multipliers applied (each entry of b
