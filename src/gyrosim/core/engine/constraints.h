@@ -626,9 +626,8 @@ static void lu_solve(const RowLU *lu, double *b) {
     WS_CLOSE;
 }
 
-/* kz: the kinematics of y at rest (every velocity coordinate zero), for the responses to unit wrenches; ys its
- * state */
-static void rest_kinematics(const gs_tree *t, const double *y, const double *p, const Pre *pre, double *ys, Kin *kz) {
+/* ys: y at rest (every velocity coordinate zero: qdd_to_dy there gives the positions no rate) */
+static void rest_state(const gs_tree *t, const double *y, double *ys) {
     memcpy(ys, y, (size_t)t->nx * sizeof(double));
     for (int i = 0; i < t->n; i++) {
         double *s = ys + t->yi[i];
@@ -639,11 +638,10 @@ static void rest_kinematics(const gs_tree *t, const double *y, const double *p, 
             default: break;
         }
     }
-    kinematics(t, ys, p, pre, kz, 1);
 }
 
 /* The articulated-body algorithm at rest, split in two (G's columns, and the responses M^-1 J^T x of the impulses
- * and the displacements). At rest (rest_kinematics: every velocity zero; no joint force; the world still) the
+ * and the displacements). At rest (rest_state: every velocity zero; no joint force; the world still) the
  * algorithm of Featherstone's RBDA table 7.1 keeps of its bias terms only the applied wrench: the bias forces are
  * pA = -f, the bias accelerations c = v x vj vanish, and what is left is linear in the wrench. Its articulated
  * inertias IA, joint factors U = IA S and D^-1 = (S^T U)^-1 depend on the positions alone: rest_factor makes them
@@ -832,19 +830,20 @@ static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre,
     WS_CLOSE;
 }
 
-
-/* The rows' G at y's positions, factored into lu; ys and kz: y's state and kinematics at rest, f the algorithm's
- * factors there (for rows_response) */
-static void rows_factor(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Row *rows, int nr,
-                        double *ys, Kin *kz, RestFactor *f, RowLU *lu) {
-    rest_kinematics(t, y, p, pre, ys, kz);
-    rest_factor(t, p, pre, kz, f);
-    constraint_matrix(t, p, pre, kz, f, rows, nr, lu->G);
+/* The rows' G at the positions of k (kinematics(..., 1), at rest or not: nothing at rest reads a velocity of it, the
+ * positions' parts being the same as at rest), factored into lu; f the algorithm's factors there (for
+ * rows_response) */
+static void rows_factor(const gs_tree *t, const double *p, const Pre *pre, const Kin *k, const Row *rows, int nr,
+                        RestFactor *f, RowLU *lu) {
+    rest_factor(t, p, pre, k, f);
+    constraint_matrix(t, p, pre, k, f, rows, nr, lu->G);
     lu_factor(lu, nr);
 }
 
 /* dv (the state's nx): M^-1 sum_r x_r W_r at rest (W_r the rows' unit wrenches) as a change of the velocity
- * coordinates (qdd_to_dy; the positions' is zero), with f the algorithm's factors at kz's positions (ys the state) */
+ * coordinates (qdd_to_dy at ys, y at rest: the positions' is zero), with f the algorithm's factors at the positions
+ * of kz (as rows_factor's k: of y at rest or not; qdd_to_dy reads only a free joint's linear velocity of it, times
+ * ys' zero rate) */
 static void rows_response(const gs_tree *t, const double *p, const Pre *pre, const double *ys, const Kin *kz,
                           const RestFactor *f, const Row *rows, int nr, const double *x, double *dv) {
     WS_OPEN;
@@ -904,10 +903,8 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
         int held = lu->n == nr;
         for (int r = 0; r < nr && held; r++) held = rows[r].contact < 0;
         if (!held) {
-            TLOC(double, ys, , GS_ODE_MAX, t->nx);
-            KIN_DECL(kz, t->n);
             REST_DECL(f, t->n);
-            rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, lu);
+            rows_factor(t, p, pre, kin, rows, nr, &f, lu);
         }
         lu_solve(lu, lam);
         for (int r = 0; r < nr; r++) {

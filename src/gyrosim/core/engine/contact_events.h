@@ -32,7 +32,6 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
     ROWLU_DECL(lu, t);
     KIN_DECL(kin, t->n);
-    KIN_DECL(kz, t->n);
     REST_DECL(f, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const int nr = constraint_rows(t, p, &kin, modes, 1, rows);
@@ -44,9 +43,10 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
             const int normal = hit >= 0 && rows[r].contact == hit && (r == 0 || rows[r - 1].contact != hit);
             P[r] = (normal ? -e * v : 0.0) - v;
         }
-        rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, &lu);
+        rest_state(t, y, ys);
+        rows_factor(t, p, pre, &kin, rows, nr, &f, &lu);
         lu_solve(&lu, P);
-        rows_response(t, p, pre, ys, &kz, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
+        rows_response(t, p, pre, ys, &kin, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
         for (int a = 0; a < t->nx; a++) y[a] += dv[a];
         totals_pre(t, y, p, pre, &after);
         y[t->nx] += (after.T + after.V) - (before.T + before.V);
@@ -90,7 +90,7 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
         for (int r = nr; r < nr + nl; r++) D[r] = -D[r];
         Totals before, after;
         totals_pre(t, y, p, pre, &before);
-        displace(t, y, p, pre, rows, nr + nl, D, &lu);
+        displace(t, y, p, pre, &kin, rows, nr + nl, D, &lu);
         totals_pre(t, y, p, pre, &after);
         y[t->nx] += (after.T + after.V) - (before.T + before.V);
     }
@@ -189,7 +189,7 @@ static void contact_tip(const gs_tree *t, double *y, const double *p, const Pre 
     }
     Totals before, after;
     totals_pre(t, y, p, pre, &before);
-    displace(t, y, p, pre, rows, nr, D, &lu);
+    displace(t, y, p, pre, &kin, rows, nr, D, &lu);
     totals_pre(t, y, p, pre, &after);
     y[t->nx] += (after.T + after.V) - (before.T + before.V);
     m[GS_CM_FLAT] = 0.0;

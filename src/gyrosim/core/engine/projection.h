@@ -70,18 +70,18 @@ static double row_velocity(const gs_tree *t, const double *y, const Row *r, cons
 /* y's positions moved by the generalized velocity M^-1 J^T D of the rows' unit wrenches times D, applied for unit
  * time: a hinge's and a slider's coordinate by its rate, a ball's and a free joint's rotation by its rotation
  * vector (body frame), a free joint's position by its velocity. J M^-1 J^T D = rhs is solved here (rhs in D), G made
- * and factored in lu (its storage: left holding none, its positions being the old ones). */
-static void displace(const gs_tree *t, double *y, const double *p, const Pre *pre, const Row *rows, int nr,
-                     double *D, RowLU *lu) {
+ * and factored in lu (its storage: left holding none, its positions being the old ones); kin: y's kinematics. */
+static void displace(const gs_tree *t, double *y, const double *p, const Pre *pre, const Kin *kin,
+                     const Row *rows, int nr, double *D, RowLU *lu) {
     WS_OPEN;
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
-    KIN_DECL(kz, t->n);
     REST_DECL(f, t->n);
-    rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, lu);
+    rest_state(t, y, ys);
+    rows_factor(t, p, pre, kin, rows, nr, &f, lu);
     lu_solve(lu, D);
     lu->n = -1;
-    rows_response(t, p, pre, ys, &kz, &f, rows, nr, D, dv);   /* a generalized velocity: applied for unit time */
+    rows_response(t, p, pre, ys, kin, &f, rows, nr, D, dv);   /* a generalized velocity: applied for unit time */
     for (int i = 0; i < t->n; i++) {
         double *s = y + t->yi[i];
         const double *d = dv + t->yi[i];
@@ -128,9 +128,10 @@ static treal loop_project_into(const gs_tree *t, double *y, const double *p, con
     }
     const treal tol = 1e-15 * fmax(size, 1e-3);
     treal worst = 0.0, last = INFINITY;
-    for (int it = 0; it <= 12; it++) {
+    int nr = 0;
+    for (int it = 0; it <= 12; it++) {   /* it ends before a step: kin and rows are of y */
         kinematics(t, y, p, pre, &kin, 1);
-        const int nr = loop_rows(t, p, &kin, rows, 0);
+        nr = loop_rows(t, p, &kin, rows, 0);
         loop_residuals(t, p, &kin, D);
         worst = 0.0;
         for (int r = 0; r < nr; r++) {
@@ -140,10 +141,8 @@ static treal loop_project_into(const gs_tree *t, double *y, const double *p, con
         if (worst <= tol || !(worst < 0.5 * last) || it == 12 || t->n_lop == 0) break;
         last = worst;
         for (int r = 0; r < nr; r++) D[r] = -D[r];
-        displace(t, y, p, pre, rows, nr, D, lu);
+        displace(t, y, p, pre, &kin, rows, nr, D, lu);
     }
-    kinematics(t, y, p, pre, &kin, 1);
-    const int nr = loop_rows(t, p, &kin, rows, 0);
     impulse_rows(t, y, p, pre, &kin, rows, nr, lu);
     WS_CLOSE;
     return worst;
@@ -167,12 +166,12 @@ static void impulse_rows(const gs_tree *t, double *y, const double *p, const Pre
     TLOC(double, P, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
-    KIN_DECL(kz, t->n);
     REST_DECL(f, t->n);
     for (int r = 0; r < nr; r++) P[r] = -row_velocity(t, y, rows + r, kin);
-    rows_factor(t, y, p, pre, rows, nr, ys, &kz, &f, lu);
+    rest_state(t, y, ys);
+    rows_factor(t, p, pre, kin, rows, nr, &f, lu);
     lu_solve(lu, P);
-    rows_response(t, p, pre, ys, &kz, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
+    rows_response(t, p, pre, ys, kin, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
     for (int a = 0; a < t->nx; a++) y[a] += dv[a];
     WS_CLOSE;
 }

@@ -2078,18 +2078,16 @@ int gs_tree_mobility(const gs_tree *t, const double *y, const double *p, int *ra
     WS_ENTER(t->n);
     TLOC(Row, rw, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ya, , GS_ODE_MAX + 1, t->nx + 1);
-    TLOC(double, ys, , GS_ODE_MAX, t->nx);
     ROWLU_DECL(lu, t);
     PRE_DECL(pre, t->n);
     KIN_DECL(kin, t->n);
-    KIN_DECL(kz, t->n);
     REST_DECL(f, t->n);
     precompute(t, p, &pre);
     memcpy(ya, y, (size_t)(t->nx + 1) * sizeof(double));   /* at the assembled start */
     loop_project(t, ya, p, &pre);
     kinematics(t, ya, p, &pre, &kin, 1);
     const int nr = loop_rows(t, p, &kin, rw, 0);
-    rows_factor(t, ya, p, &pre, rw, nr, ys, &kz, &f, &lu);
+    rows_factor(t, p, &pre, &kin, rw, nr, &f, &lu);
     *rank = lu.rank;   /* G = J M^-1 J^T: its rank is J's */
     *rows = nr;
     WS_CLOSE;
@@ -2231,7 +2229,8 @@ static void unit_response(const gs_tree *t, const double *y, const double *p, co
     TLOC(double, tau, [6], GS_TREE_SMALL, t->n);
     TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
     KIN_DECL(kin, t->n);
-    rest_kinematics(t, y, p, pre, ys, &kin);
+    rest_state(t, y, ys);
+    kinematics(t, ys, p, pre, &kin, 1);
     memset(tau, 0, (size_t)t->n * sizeof(tau[0]));
     tau[j][0] = 1.0;
     aba(t, ys, p, pre, &kin, NULL, (const double (*)[6])tau, qdd);
