@@ -685,24 +685,28 @@ static void rest_factor(const gs_tree *t, const double *p, const Pre *pre, const
 }
 
 /* the joint accelerations qdd and the body accelerations acc (each body's frame) at rest from the body wrenches fx
- * (each body's frame about its origin), f the factors at kz's positions; returns whether anything moves. Only what
- * the wrench reaches is worked: the inward pass over the bodies with a wrench on them or below them (elsewhere pA
- * and u are 0), the outward pass over the bodies with a joint force u not 0 and those below a moving one
- * (elsewhere qdd and a are 0: a force across a planar mechanism's plane moves nothing). */
+ * (each body's frame about its origin), f the factors at kz's positions; returns whether anything moves. wb: the nwb
+ * bodies the wrench is on (repeats and -1, the world, allowed; NULL: found in fx). Only what the wrench reaches is
+ * worked: the inward pass over the bodies with a wrench on them or below them (elsewhere pA and u are 0), the
+ * outward pass over the bodies with a joint force u not 0 and those below a moving one (elsewhere qdd and a are 0:
+ * a force across a planar mechanism's plane moves nothing). */
 static int rest_solve(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const RestFactor *f,
-                      const double (*fx)[6], double (*qdd)[6], double (*acc)[6]) {
+                      const double (*fx)[6], const int *wb, int nwb, double (*qdd)[6], double (*acc)[6]) {
     WS_OPEN;
-    TLOC(double, pA, [6], GS_TREE_SMALL, t->n);
+    TLOC(double, pA, [6], GS_TREE_SMALL, t->n);   /* made where live */
     TLOC(double, u, [6], GS_TREE_SMALL, t->n);
     TLOC(int, live, , GS_TREE_SMALL, t->n);   /* inwards: a wrench on the body or below it */
     TLOC(int, moves, , GS_TREE_SMALL, t->n);  /* u not 0; outwards: the body moves */
     int any = 0;
-    for (int i = 0; i < t->n; i++) {
-        live[i] = 0;
-        for (int a = 0; a < 6; a++) {
-            pA[i][a] = 0.0 - fx[i][a];
-            live[i] |= fx[i][a] != 0.0;
-        }
+    memset(live, 0, (size_t)t->n * sizeof(live[0]));
+    for (int q = 0; q < (wb != NULL ? nwb : t->n); q++) {
+        const int i = wb != NULL ? wb[q] : q;
+        if (i < 0 || live[i]) continue;
+        int on = wb != NULL;
+        for (int a = 0; a < 6 && !on; a++) on = fx[i][a] != 0.0;
+        if (!on) continue;
+        live[i] = 1;
+        for (int a = 0; a < 6; a++) pA[i][a] = 0.0 - fx[i][a];
     }
     for (int i = t->n - 1; i >= 0; i--) {
         const int k = pre->nd[i], par = t->parent[i], fixed = pre->ia_fixed[i];
@@ -737,8 +741,11 @@ static int rest_solve(const gs_tree *t, const double *p, const Pre *pre, const K
             u_dinv_u(k, Ui, Dii, u[i], pa);
         }
         for (int a = 0; a < 6; a++) pa[a] += pA[i][a];
+        if (!live[par]) {
+            live[par] = 1;
+            for (int a = 0; a < 6; a++) pA[par][a] = 0.0 - fx[par][a];
+        }
         add_xtf(kz, i, pa, pA[par]);
-        live[par] = 1;
     }
     for (int i = 0; i < t->n; i++) {
         const int par = t->parent[i], k = pre->nd[i], fixed = pre->ia_fixed[i];
@@ -796,35 +803,60 @@ static void side_accel_rest(const Kin *k, const double (*acc)[6], int i, const d
     mv3(k->Rw[i], ab, out);
 }
 
-/* a row's acceleration at rest (k: the kinematics at rest) from the body and joint accelerations: row_accel's
- * without its velocity terms (zero at rest: the same value) */
-static double row_accel_rest(const Row *r, const Kin *k, const double (*acc)[6], const double (*qdd)[6]) {
-    if (r->kind == ROW_JOINT) return qdd[r->body][0] - r->scale * qdd[r->body_b][0];
+/* a point, spin or tilt row's relative acceleration at rest before its direction (world): a_a(cb) - a_b(cb_b), or
+ * alpha_a - alpha_b (k: the kinematics at rest) */
+static void row_relative_rest(const Row *r, const Kin *k, const double (*acc)[6], double rel[3]) {
     const int spin = r->kind == ROW_SPIN || r->kind == ROW_TILT;   /* the angular rows */
-    double aa[3], ab[3], rel[3];
+    double aa[3], ab[3];
     side_accel_rest(k, acc, r->body, r->cb, spin, aa);
     side_accel_rest(k, acc, r->body_b, r->cb_b, spin, ab);
     for (int a = 0; a < 3; a++) rel[a] = aa[a] - ab[a];
-    return r->scale * dot3(r->dir, rel);
 }
 
-/* G (nr x nr): row r's acceleration from column k's unit wrench at rest, J M^-1 W_k (kz the kinematics at rest, f
- * the algorithm's factors there) */
+/* rows a and b hold the same relative motion (the same kind, bodies and points: a loop's point rows, its spin rows),
+ * only their directions differ */
+static int rows_share(const Row *a, const Row *b) {
+    if (a->kind == ROW_JOINT || a->kind != b->kind || a->body != b->body || a->body_b != b->body_b) return 0;
+    for (int j = 0; j < 3; j++) {
+        if (!(a->cb[j] == b->cb[j] && a->cb_b[j] == b->cb_b[j])) return 0;
+    }
+    return 1;
+}
+
+/* G (nr x nr): row r's acceleration from column k's unit wrench at rest, J M^-1 W_k (kz: the positions' kinematics,
+ * f the algorithm's factors there): row_accel's at rest, without its velocity terms (zero at rest: the same value).
+ * A row holding the same relative motion as the one before it (rows_share) takes its relative acceleration. */
 static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const RestFactor *f,
                               const Row *rows, int nr, double *G) {
     WS_OPEN;
     TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, ak, [6], GS_TREE_SMALL, t->n);
+    TLOC(int, same, , GS_TREE_ROWS_MAX, nr);
+    for (int r = 0; r < nr; r++) same[r] = r > 0 && rows_share(rows + r, rows + r - 1);
+    memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
     for (int c = 0; c < nr; c++) {
-        memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
-        add_row_wrench(t, p, rows + c, kz, 1.0, fk);
-        if (!rest_solve(t, p, pre, kz, f, (const double (*)[6])fk, qk, ak)) {   /* nothing moves: 0 */
+        const Row *w = rows + c;   /* its wrench: on bodies a and b, a gear's on their parents too */
+        const int wb[4] = {w->body, w->body_b, w->kind == ROW_JOINT ? t->parent[w->body] : -1,
+                           w->kind == ROW_JOINT ? t->parent[w->body_b] : -1};
+        add_row_wrench(t, p, w, kz, 1.0, fk);
+        const int moves = rest_solve(t, p, pre, kz, f, (const double (*)[6])fk, wb, 4, qk, ak);
+        for (int q = 0; q < 4; q++) {   /* fk back to 0 */
+            if (wb[q] >= 0) memset(fk[wb[q]], 0, sizeof(fk[0]));
+        }
+        if (!moves) {   /* nothing moves: 0 */
             for (int r = 0; r < nr; r++) G[r * nr + c] = 0.0;
             continue;
         }
+        double rel[3] = {0.0, 0.0, 0.0};
         for (int r = 0; r < nr; r++) {
-            G[r * nr + c] = row_accel_rest(rows + r, kz, (const double (*)[6])ak, (const double (*)[6])qk);
+            const Row *q = rows + r;
+            if (q->kind == ROW_JOINT) {
+                G[r * nr + c] = qk[q->body][0] - q->scale * qk[q->body_b][0];
+                continue;
+            }
+            if (!same[r]) row_relative_rest(q, kz, (const double (*)[6])ak, rel);
+            G[r * nr + c] = q->scale * dot3(q->dir, rel);
         }
     }
     WS_CLOSE;
@@ -852,7 +884,7 @@ static void rows_response(const gs_tree *t, const double *p, const Pre *pre, con
     TLOC(double, ak, [6], GS_TREE_SMALL, t->n);
     memset(fk, 0, (size_t)t->n * sizeof(fk[0]));
     for (int r = 0; r < nr; r++) add_row_wrench(t, p, rows + r, kz, x[r], fk);
-    rest_solve(t, p, pre, kz, f, (const double (*)[6])fk, qk, ak);
+    rest_solve(t, p, pre, kz, f, (const double (*)[6])fk, NULL, 0, qk, ak);
     qdd_to_dy(t, ys, kz, (const double (*)[6])qk, dv);
     WS_CLOSE;
 }
