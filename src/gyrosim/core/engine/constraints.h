@@ -640,49 +640,14 @@ static void rest_state(const gs_tree *t, const double *y, double *ys) {
     }
 }
 
-/* The articulated-body algorithm at rest, split in two (G's columns, and the responses M^-1 J^T x of the impulses
- * and the displacements). At rest (rest_state: every velocity zero; no joint force; the world still) the
- * algorithm of Featherstone's RBDA table 7.1 keeps of its bias terms only the applied wrench: the bias forces are
- * pA = -f, the bias accelerations c = v x vj vanish, and what is left is linear in the wrench. Its articulated
- * inertias IA, joint factors U = IA S and D^-1 = (S^T U)^-1 depend on the positions alone: rest_factor makes them
- * once per positions (the inward pass's inertia half, exactly as aba() makes it: Pre's constant factors for the
- * bodies whose IA is constant, Pre.fold's children already in IAbase, only the columns Pre.ia_cols says are read),
- * and rest_solve is the rest per wrench: the force half of the inward pass (u = -S^T pA; pA_parent += X^T (pA + U
- * D^-1 u)) and the outward pass (qdd = D^-1 (u - U^T X a_parent), a = X a_parent + S qdd). The same arithmetic in
- * the same order as aba() at rest, with body_accels after it: the same values. */
-typedef struct {
-    double TB(U)[6][6];    /* not Pre.ia_fixed: U = IA S (k columns) */
-    double TB(Di)[6][6];   /* not Pre.ia_fixed: D^-1 (k x k) */
-} RestFactor;
-
-#ifdef TREE_HEAP
-#define REST_DECL(name, n) \
-    RestFactor name; \
-    WS_CARVE(name.U, (n)); \
-    WS_CARVE(name.Di, (n))
-#else
-#define REST_DECL(name, n) RestFactor name
-#endif
-
-/* f: the joint factors at kz's positions */
-static void rest_factor(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, RestFactor *f) {
-    WS_OPEN;
-    TLOC(M6, IA, , GS_TREE_SMALL, t->n);   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
-    for (int i = 0; i < t->n; i++) {
-        if (!pre->ia_fixed[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));
-    }
-    for (int i = t->n - 1; i >= 0; i--) {
-        const int par = t->parent[i];
-        if (pre->ia_fixed[i]) {   /* its factors are Pre's; its Ia is in its parent's IA below */
-            if (par >= 0 && !pre->fold[i]) add_transformed_inertia(kz, i, pre->Ia[i], IA[par], pre->ia_cols[par]);
-            continue;
-        }
-        M6 Ia;
-        joint_factor(t, p, pre, i, IA[i], f->U[i], f->Di[i], par >= 0 ? Ia : NULL);
-        if (par >= 0 && !pre->fold[i]) add_transformed_inertia(kz, i, Ia, IA[par], pre->ia_cols[par]);
-    }
-    WS_CLOSE;
-}
+/* The articulated-body algorithm at rest (G's columns, and the responses M^-1 J^T x of the impulses and the
+ * displacements). At rest (rest_state: every velocity zero; no joint force; the world still) the algorithm of
+ * Featherstone's RBDA table 7.1 keeps of its bias terms only the applied wrench: the bias forces are pA = -f, the
+ * bias accelerations c = v x vj vanish, and what is left is linear in the wrench. Its factors at the positions
+ * (tree.c aba_factor: IA, U, D^-1) are made once per G; rest_solve is the rest per wrench: the force half of the
+ * inward pass (u = -S^T pA; pA_parent += X^T (pA + U D^-1 u)) and the outward pass (qdd = D^-1 (u - U^T X
+ * a_parent), a = X a_parent + S qdd). The same arithmetic in the same order as aba() at rest, with body_accels after
+ * it: the same values. */
 
 /* the joint accelerations qdd and the body accelerations acc (each body's frame) at rest from the body wrenches fx
  * (each body's frame about its origin), f the factors at kz's positions; returns whether anything moves. wb: the nwb
@@ -690,7 +655,7 @@ static void rest_factor(const gs_tree *t, const double *p, const Pre *pre, const
  * worked: the inward pass over the bodies with a wrench on them or below them (elsewhere pA and u are 0), the
  * outward pass over the bodies with a joint force u not 0 and those below a moving one (elsewhere qdd and a are 0:
  * a force across a planar mechanism's plane moves nothing). */
-static int rest_solve(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const RestFactor *f,
+static int rest_solve(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const AbaFactor *f,
                       const double (*fx)[6], const int *wb, int nwb, double (*qdd)[6], double (*acc)[6]) {
     WS_OPEN;
     TLOC(double, pA, [6], GS_TREE_SMALL, t->n);   /* made where live */
@@ -826,7 +791,7 @@ static int rows_share(const Row *a, const Row *b) {
 /* G (nr x nr): row r's acceleration from column k's unit wrench at rest, J M^-1 W_k (kz: the positions' kinematics,
  * f the algorithm's factors there): row_accel's at rest, without its velocity terms (zero at rest: the same value).
  * A row holding the same relative motion as the one before it (rows_share) takes its relative acceleration. */
-static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const RestFactor *f,
+static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre, const Kin *kz, const AbaFactor *f,
                               const Row *rows, int nr, double *G) {
     WS_OPEN;
     TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
@@ -866,8 +831,8 @@ static void constraint_matrix(const gs_tree *t, const double *p, const Pre *pre,
  * positions' parts being the same as at rest), factored into lu; f the algorithm's factors there (for
  * rows_response) */
 static void rows_factor(const gs_tree *t, const double *p, const Pre *pre, const Kin *k, const Row *rows, int nr,
-                        RestFactor *f, RowLU *lu) {
-    rest_factor(t, p, pre, k, f);
+                        AbaFactor *f, RowLU *lu) {
+    aba_factor(t, p, pre, k, f);
     constraint_matrix(t, p, pre, k, f, rows, nr, lu->G);
     lu_factor(lu, nr);
 }
@@ -877,7 +842,7 @@ static void rows_factor(const gs_tree *t, const double *p, const Pre *pre, const
  * of kz (as rows_factor's k: of y at rest or not; qdd_to_dy reads only a free joint's linear velocity of it, times
  * ys' zero rate) */
 static void rows_response(const gs_tree *t, const double *p, const Pre *pre, const double *ys, const Kin *kz,
-                          const RestFactor *f, const Row *rows, int nr, const double *x, double *dv) {
+                          const AbaFactor *f, const Row *rows, int nr, const double *x, double *dv) {
     WS_OPEN;
     TLOC(double, fk, [6], GS_TREE_SMALL, t->n);
     TLOC(double, qk, [6], GS_TREE_SMALL, t->n);
@@ -907,10 +872,11 @@ static void rows_response(const gs_tree *t, const double *p, const Pre *pre, con
 /* The rigid contacts' forces under modes, added to fx, and the constrained accelerations into qdd (which holds the
  * accelerations of every other force: the articulated-body algorithm's with fx). Returns their power (friction's:
  * <= 0; the normal force does none on the constraint). out (CL_NP per contact, NULL: not wanted). lu: G's storage,
- * holding its factors already where it holds as many rows and no contact is active (loop_project_into's at y). */
+ * holding its factors already where it holds as many rows and no contact is active (loop_project_into's at y). F:
+ * the articulated-body algorithm's factors at y's positions. */
 static double constraint_forces(const gs_tree *t, const double *y, const double *p, const Pre *pre,
                                 const double *modes, const Kin *kin, double (*fx)[6], double (*qdd)[6],
-                                double *out, RowLU *lu) {
+                                double *out, RowLU *lu, const AbaFactor *F) {
     WS_OPEN;
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, lam, , GS_TREE_ROWS_MAX, t->nrow);
@@ -935,8 +901,8 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
         int held = lu->n == nr;
         for (int r = 0; r < nr && held; r++) held = rows[r].contact < 0;
         if (!held) {
-            REST_DECL(f, t->n);
-            rows_factor(t, p, pre, kin, rows, nr, &f, lu);
+            constraint_matrix(t, p, pre, kin, F, rows, nr, lu->G);
+            lu_factor(lu, nr);
         }
         lu_solve(lu, lam);
         for (int r = 0; r < nr; r++) {
@@ -989,7 +955,7 @@ static double constraint_forces(const gs_tree *t, const double *y, const double 
                 r = j;
             }
         }
-        aba(t, y, p, pre, kin, (const double (*)[6])fx, NULL, qdd);
+        aba(t, y, p, pre, kin, F, (const double (*)[6])fx, NULL, qdd);
     }
     WS_CLOSE;
     return P;

@@ -32,7 +32,7 @@ static int contact_impulse(const gs_tree *t, double *y, const double *p, const P
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
     ROWLU_DECL(lu, t);
     KIN_DECL(kin, t->n);
-    REST_DECL(f, t->n);
+    FACTOR_DECL(f, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const int nr = constraint_rows(t, p, &kin, modes, 1, rows);
     if (nr > 0) {
@@ -66,6 +66,7 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
     TLOC(double, D, , GS_TREE_ROWS_MAX, t->nrow);
     KIN_DECL(kin, t->n);
     ROWLU_DECL(lu, t);
+    FACTOR_DECL(f, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     const int all = constraint_rows(t, p, &kin, modes, 1, rows);
     int nr = 0, open = 0;
@@ -90,7 +91,7 @@ static void contact_place(const gs_tree *t, double *y, const double *p, const Pr
         for (int r = nr; r < nr + nl; r++) D[r] = -D[r];
         Totals before, after;
         totals_pre(t, y, p, pre, &before);
-        displace(t, y, p, pre, &kin, rows, nr + nl, D, &lu);
+        displace(t, y, p, pre, &kin, rows, nr + nl, D, &lu, &f);
         totals_pre(t, y, p, pre, &after);
         y[t->nx] += (after.T + after.V) - (before.T + before.V);
     }
@@ -158,6 +159,7 @@ static void contact_tip(const gs_tree *t, double *y, const double *p, const Pre 
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
     KIN_DECL(kin, t->n);
     ROWLU_DECL(lu, t);
+    FACTOR_DECL(f, t->n);
     kinematics(t, y, p, pre, &kin, 1);
     Slip S;
     slip_of(t, p, pl, T, &S);
@@ -189,7 +191,7 @@ static void contact_tip(const gs_tree *t, double *y, const double *p, const Pre 
     }
     Totals before, after;
     totals_pre(t, y, p, pre, &before);
-    displace(t, y, p, pre, &kin, rows, nr, D, &lu);
+    displace(t, y, p, pre, &kin, rows, nr, D, &lu, &f);
     totals_pre(t, y, p, pre, &after);
     y[t->nx] += (after.T + after.V) - (before.T + before.V);
     m[GS_CM_FLAT] = 0.0;

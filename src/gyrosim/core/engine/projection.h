@@ -70,18 +70,18 @@ static double row_velocity(const gs_tree *t, const double *y, const Row *r, cons
 /* y's positions moved by the generalized velocity M^-1 J^T D of the rows' unit wrenches times D, applied for unit
  * time: a hinge's and a slider's coordinate by its rate, a ball's and a free joint's rotation by its rotation
  * vector (body frame), a free joint's position by its velocity. J M^-1 J^T D = rhs is solved here (rhs in D), G made
- * and factored in lu (its storage: left holding none, its positions being the old ones); kin: y's kinematics. */
+ * and factored in lu with the algorithm's factors in f (their storage: left holding none, their positions being the
+ * old ones); kin: y's kinematics. */
 static void displace(const gs_tree *t, double *y, const double *p, const Pre *pre, const Kin *kin,
-                     const Row *rows, int nr, double *D, RowLU *lu) {
+                     const Row *rows, int nr, double *D, RowLU *lu, AbaFactor *f) {
     WS_OPEN;
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
-    REST_DECL(f, t->n);
     rest_state(t, y, ys);
-    rows_factor(t, p, pre, kin, rows, nr, &f, lu);
+    rows_factor(t, p, pre, kin, rows, nr, f, lu);
     lu_solve(lu, D);
     lu->n = -1;
-    rows_response(t, p, pre, ys, kin, &f, rows, nr, D, dv);   /* a generalized velocity: applied for unit time */
+    rows_response(t, p, pre, ys, kin, f, rows, nr, D, dv);   /* a generalized velocity: applied for unit time */
     for (int i = 0; i < t->n; i++) {
         double *s = y + t->yi[i];
         const double *d = dv + t->yi[i];
@@ -103,19 +103,21 @@ static void displace(const gs_tree *t, double *y, const double *p, const Pre *pr
     WS_CLOSE;
 }
 
-/* the impulse that zeroes the rows' velocities (rows at y's kinematics kin); G made and factored in lu, which keeps
- * it (the positions do not change) */
+/* the impulse that zeroes the rows' velocities (rows at y's kinematics kin); G made and factored in lu with the
+ * algorithm's factors in f, which keep them (the positions do not change) */
 static void impulse_rows(const gs_tree *t, double *y, const double *p, const Pre *pre, const Kin *kin,
-                         const Row *rows, int nr, RowLU *lu);
+                         const Row *rows, int nr, RowLU *lu, AbaFactor *f);
 
 /* The loops put back on their rows, positions then velocities (the gears' rates with them). The largest position
  * residual left (m; radians times 1 m for the angles) is returned; Gauss-Newton runs until it stops falling by 2x or
  * is below 1e-15 of the loops' size, 12 steps at most: a state on the loops already (one the integrator's step
- * ended with, projected there) takes no step, its one G the velocity projection's. lu: the storage for G's
- * factors, left holding the velocity projection's (the rows of loop_rows at y's final positions; none where there
- * are no rows) for the acceleration solve at the same positions (tree.c derivs_full). Not booked in W: the energy
- * a projection changes is the integrator's error, and energy_error shows it. */
-static treal loop_project_into(const gs_tree *t, double *y, const double *p, const Pre *pre, RowLU *lu) {
+ * ended with, projected there) takes no step, its one G the velocity projection's. lu and f: the storage for G's
+ * factors and the articulated-body algorithm's, left holding the velocity projection's (the rows of loop_rows at
+ * y's final positions; lu none where there are no rows) for the acceleration solve at the same positions (tree.c
+ * derivs_full). Not booked in W: the energy a projection changes is the integrator's error, and energy_error shows
+ * it. */
+static treal loop_project_into(const gs_tree *t, double *y, const double *p, const Pre *pre, RowLU *lu,
+                               AbaFactor *f) {
     WS_OPEN;
     TLOC(Row, rows, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, D, , GS_TREE_ROWS_MAX, t->nrow);
@@ -141,9 +143,9 @@ static treal loop_project_into(const gs_tree *t, double *y, const double *p, con
         if (worst <= tol || !(worst < 0.5 * last) || it == 12 || t->n_lop == 0) break;
         last = worst;
         for (int r = 0; r < nr; r++) D[r] = -D[r];
-        displace(t, y, p, pre, &kin, rows, nr, D, lu);
+        displace(t, y, p, pre, &kin, rows, nr, D, lu, f);
     }
-    impulse_rows(t, y, p, pre, &kin, rows, nr, lu);
+    impulse_rows(t, y, p, pre, &kin, rows, nr, lu, f);
     WS_CLOSE;
     return worst;
 }
@@ -153,25 +155,25 @@ static treal loop_project_into(const gs_tree *t, double *y, const double *p, con
 static treal loop_project(const gs_tree *t, double *y, const double *p, const Pre *pre) {
     WS_OPEN;
     ROWLU_DECL(lu, t);
-    const treal worst = loop_project_into(t, y, p, pre, &lu);
+    FACTOR_DECL(f, t->n);
+    const treal worst = loop_project_into(t, y, p, pre, &lu, &f);
     WS_CLOSE;
     return worst;
 }
 #endif
 
 static void impulse_rows(const gs_tree *t, double *y, const double *p, const Pre *pre, const Kin *kin,
-                         const Row *rows, int nr, RowLU *lu) {
+                         const Row *rows, int nr, RowLU *lu, AbaFactor *f) {
     if (nr == 0) return;
     WS_OPEN;
     TLOC(double, P, , GS_TREE_ROWS_MAX, t->nrow);
     TLOC(double, ys, , GS_ODE_MAX, t->nx);
     TLOC(double, dv, , GS_ODE_MAX, t->nx);
-    REST_DECL(f, t->n);
     for (int r = 0; r < nr; r++) P[r] = -row_velocity(t, y, rows + r, kin);
     rest_state(t, y, ys);
-    rows_factor(t, p, pre, kin, rows, nr, &f, lu);
+    rows_factor(t, p, pre, kin, rows, nr, f, lu);
     lu_solve(lu, P);
-    rows_response(t, p, pre, ys, kin, &f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
+    rows_response(t, p, pre, ys, kin, f, rows, nr, P, dv);   /* at rest: the velocity coordinates' change */
     for (int a = 0; a < t->nx; a++) y[a] += dv[a];
     WS_CLOSE;
 }

@@ -1318,8 +1318,49 @@ static void add_joint_acc(const gs_tree *t, const double *p, const Pre *pre, int
     }
 }
 
+/* The articulated-body algorithm's factors at a tree's positions: the inertia half of its inward pass (Featherstone,
+ * RBDA table 7.1), which depends on the positions alone. Per body whose articulated inertia IA changes with the
+ * state (not Pre.ia_fixed: Pre holds the others'), its joint's U = IA S, D^-1 = (S^T U)^-1 and, but for a root, the
+ * inertia it passes to its parent, Ia = IA - U D^-1 U^T. Made once (aba_factor), they serve every pass at those
+ * positions: aba's with any forces, and the responses at rest (constraints.h rest_solve). */
+typedef struct {
+    double TB(U)[6][6];
+    double TB(Di)[6][6];
+    M6 TB(Ia);
+} AbaFactor;
+
+#ifdef TREE_HEAP
+#define FACTOR_DECL(name, n) \
+    AbaFactor name; \
+    WS_CARVE(name.U, (n)); \
+    WS_CARVE(name.Di, (n)); \
+    WS_CARVE(name.Ia, (n))
+#else
+#define FACTOR_DECL(name, n) AbaFactor name
+#endif
+
+/* f: the factors at kin's positions (its velocities are not read), made exactly as aba() makes them: IA from
+ * IAbase (Pre.fold's children in it already) and each child's Ia turned into its frame, only the columns Pre.ia_cols
+ * says are read; Pre's constant factors for the bodies whose IA is constant */
+static void aba_factor(const gs_tree *t, const double *p, const Pre *pre, const Kin *kin, AbaFactor *f) {
+    WS_OPEN;
+    TLOC(M6, IA, , GS_TREE_SMALL, t->n);   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
+    for (int i = 0; i < t->n; i++) {
+        if (!pre->ia_fixed[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));
+    }
+    for (int i = t->n - 1; i >= 0; i--) {
+        const int par = t->parent[i], fixed = pre->ia_fixed[i];
+        if (!fixed) joint_factor(t, p, pre, i, IA[i], f->U[i], f->Di[i], par >= 0 ? f->Ia[i] : NULL);
+        if (par >= 0 && !pre->fold[i]) {   /* else in IAbase */
+            add_transformed_inertia(kin, i, fixed ? pre->Ia[i] : f->Ia[i], IA[par], pre->ia_cols[par]);
+        }
+    }
+    WS_CLOSE;
+}
+
+/* F: the factors at kin's positions (aba_factor), NULL: made here, in the inward pass */
 static void aba(const gs_tree *t, const double *y, const double *p, const Pre *pre, const Kin *kin,
-                const double (*fx)[6], const double (*tau_in)[6], double (*qdd)[6]) {
+                const AbaFactor *F, const double (*fx)[6], const double (*tau_in)[6], double (*qdd)[6]) {
     WS_OPEN;
     TLOC(M6, IA, , GS_TREE_SMALL, t->n);   /* only the bodies whose IA changes with the state (not Pre.ia_fixed) */
     TLOC(double, pA, [6], GS_TREE_SMALL, t->n);
@@ -1339,7 +1380,7 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         const double *b = body_p(p, i);
         const double *w = kin->v[i], *vl = kin->v[i] + 3, *J = b + GS_TB_I;
         double f[6];
-        if (!pre->ia_fixed[i]) memcpy(IA[i], pre->IAbase[i], sizeof(M6));
+        if (!pre->ia_fixed[i] && F == NULL) memcpy(IA[i], pre->IAbase[i], sizeof(M6));
         if (pre->cm0[i] && pre->vlin0[i]) {   /* h = (J w; 0), f = (w x J w; 0) */
             double h[3];
             h[0] = J[0] * w[0] + J[3] * w[1] + J[4] * w[2];
@@ -1377,11 +1418,11 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
     }
     for (int i = t->n - 1; i >= 0; i--) {
         const int k = pre->nd[i], par = t->parent[i], fixed = pre->ia_fixed[i];
-        const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
-        const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
+        const double (*Ui)[6] = fixed ? pre->U[i] : F != NULL ? F->U[i] : U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : F != NULL ? F->Di[i] : Di[i];
         M6 Iav;
-        const double (*Ia)[6] = fixed ? pre->Ia[i] : Iav;
-        if (!fixed) joint_factor(t, p, pre, i, IA[i], U[i], Di[i], par >= 0 ? Iav : NULL);
+        const double (*Ia)[6] = fixed ? pre->Ia[i] : F != NULL ? F->Ia[i] : Iav;
+        if (!fixed && F == NULL) joint_factor(t, p, pre, i, IA[i], U[i], Di[i], par >= 0 ? Iav : NULL);
         /* u = tau - S^T pA */
         if (t->joint[i] == GS_J_HINGE && pre->axis_k[i] >= 0) {
             u[i][0] = tau[i][0] - pA[i][pre->axis_k[i]];
@@ -1406,15 +1447,16 @@ static void aba(const gs_tree *t, const double *y, const double *p, const Pre *p
         }
         for (int a = 0; a < 6; a++) Udu[a] += pA[i][a];
         mv6_add(pre, i, Ia, c[i], Udu, pa);
-        if (!pre->fold[i]) add_transformed_inertia(kin, i, Ia, IA[par], pre->ia_cols[par]);   /* else in IAbase */
+        /* F: in IA already; Pre.fold: in IAbase */
+        if (F == NULL && !pre->fold[i]) add_transformed_inertia(kin, i, Ia, IA[par], pre->ia_cols[par]);
         add_xtf(kin, i, pa, pA[par]);
     }
     TLOC(double, acc, [6], GS_TREE_SMALL, t->n);
     const double g = p[GS_TP_G], *gd = p + GS_TP_GDIR;
     for (int i = 0; i < t->n; i++) {
         const int par = t->parent[i], k = pre->nd[i], fixed = pre->ia_fixed[i];
-        const double (*Ui)[6] = fixed ? pre->U[i] : U[i];
-        const double (*Dii)[6] = fixed ? pre->Di[i] : Di[i];
+        const double (*Ui)[6] = fixed ? pre->U[i] : F != NULL ? F->U[i] : U[i];
+        const double (*Dii)[6] = fixed ? pre->Di[i] : F != NULL ? F->Di[i] : Di[i];
         double ap[6];
         if (par < 0 && still) {   /* the world at rest: ap = 0, qdd = D^-1 u */
             for (int a = 0; a < 6; a++) ap[a] = 0.0;
@@ -1765,9 +1807,11 @@ static double power(const gs_tree *t, const double *y, const double *p, const Ki
 
 
 /* The right-hand side at state y (on the loops: derivs_full projects it there), lu the storage of the constraint
- * solve's G (NULL: no constraint acts; it may hold the loops' G at y's positions already: loop_project_into) */
+ * solve's G and F the articulated-body algorithm's factors (NULL: no constraint acts). Holding the loops' G at y's
+ * positions already (loop_project_into: lu->n >= 0), they hold F's there too; else F is made here. Its two passes
+ * at y (the accelerations without the constraint forces and with them) and the constraint solve share it. */
 static void derivs_at(const gs_tree *t, const double *y, const double *p, const Pre *pre, const double *modes,
-                      double *dy, double *cl, RowLU *lu) {
+                      double *dy, double *cl, RowLU *lu, AbaFactor *F) {
     WS_OPEN;
     KIN_DECL(kin, t->n);
     TLOC(double, qdd, [6], GS_TREE_SMALL, t->n);
@@ -1785,8 +1829,9 @@ static void derivs_at(const gs_tree *t, const double *y, const double *p, const 
         memset(fx, 0, (size_t)t->n * sizeof(fx[0]));
     }
     if (pre->elements) P_el = element_forces(t, p, &kin, fx) + contact_forces(t, p, &kin, fx);
-    aba(t, y, p, pre, &kin, ext ? (const double (*)[6])fx : NULL, NULL, qdd);
-    if (lu != NULL) P_el += constraint_forces(t, y, p, pre, modes, &kin, fx, qdd, cl, lu);
+    if (lu != NULL && lu->n < 0) aba_factor(t, p, pre, &kin, F);
+    aba(t, y, p, pre, &kin, lu != NULL ? F : NULL, ext ? (const double (*)[6])fx : NULL, NULL, qdd);
+    if (lu != NULL) P_el += constraint_forces(t, y, p, pre, modes, &kin, fx, qdd, cl, lu, F);
     qdd_to_dy(t, y, &kin, (const double (*)[6])qdd, dy);
     dy[t->nx] = power(t, y, p, &kin) + P_el;
     if (orbit) {   /* the work of the gravity-gradient torques and the tidal forces */
@@ -1805,11 +1850,12 @@ static void derivs_full(const gs_tree *t, const double *y, const double *p, cons
                         double *dy, double *cl) {
     if (kern_derivs(t, &pre->kern, y, p, dy)) return;
     if (!pre->closed && !(modes != NULL && pre->rigid)) {
-        derivs_at(t, y, p, pre, modes, dy, cl, NULL);
+        derivs_at(t, y, p, pre, modes, dy, cl, NULL, NULL);
         return;
     }
     WS_OPEN;
     ROWLU_DECL(lu, t);
+    FACTOR_DECL(F, t->n);
     TLOC(double, yp, , GS_ODE_MAX + 1, t->nx + 1);
     if (pre->closed) {
         /* closed loops and gears: the vector field on their constraint manifold, taken at y projected onto it
@@ -1820,12 +1866,13 @@ static void derivs_full(const gs_tree *t, const double *y, const double *p, cons
          * stage, and lambda_r = b_r / G_rr grows without bound. Projected, every stage is consistent to round-off;
          * the linearization is the field's on the manifold (the directions across it project to zero), and the FMUs'
          * model exchange integrates the same field. The velocity projection's G, at the positions the solve takes,
-         * is the solve's too where no contact adds rows (lu keeps its factors). */
+         * is the solve's too where no contact adds rows (lu keeps its factors), and the algorithm's factors there
+         * serve the solve's passes (F). */
         memcpy(yp, y, (size_t)(t->nx + 1) * sizeof(double));
-        loop_project_into(t, yp, p, pre, &lu);
+        loop_project_into(t, yp, p, pre, &lu, &F);
         y = yp;
     }
-    derivs_at(t, y, p, pre, modes, dy, cl, &lu);
+    derivs_at(t, y, p, pre, modes, dy, cl, &lu, &F);
     WS_CLOSE;
 }
 
@@ -2081,7 +2128,7 @@ int gs_tree_mobility(const gs_tree *t, const double *y, const double *p, int *ra
     ROWLU_DECL(lu, t);
     PRE_DECL(pre, t->n);
     KIN_DECL(kin, t->n);
-    REST_DECL(f, t->n);
+    FACTOR_DECL(f, t->n);
     precompute(t, p, &pre);
     memcpy(ya, y, (size_t)(t->nx + 1) * sizeof(double));   /* at the assembled start */
     loop_project(t, ya, p, &pre);
@@ -2233,7 +2280,7 @@ static void unit_response(const gs_tree *t, const double *y, const double *p, co
     kinematics(t, ys, p, pre, &kin, 1);
     memset(tau, 0, (size_t)t->n * sizeof(tau[0]));
     tau[j][0] = 1.0;
-    aba(t, ys, p, pre, &kin, NULL, (const double (*)[6])tau, qdd);
+    aba(t, ys, p, pre, &kin, NULL, NULL, (const double (*)[6])tau, qdd);
     qdd_to_dy(t, ys, &kin, (const double (*)[6])qdd, dy);   /* at rest: the positions' rates are zero */
     WS_CLOSE;
 }
