@@ -428,7 +428,7 @@ static void add_row_wrench(const gs_tree *t, const double *p, const Row *r, cons
 /* G's LU factors with complete pivoting (Golub and Van Loan, Matrix Computations, 3.4), kept for solves with
  * several right-hand sides: the velocity projection and the acceleration solve at the same positions share one
  * (tree.c derivs_full). Gaussian elimination on G in place: U on and above the diagonal, the multipliers L below it
- * (a row's travel with it through the row swaps); rp[c] is the row swapped into row c at step c and cp the
+ * (moving with their rows in the row swaps); rp[c] is the row swapped into row c at step c and cp the
  * unknowns' order the column swaps made. Step c takes the largest entry left, the first in row-major order. The
  * elimination stops where the largest pivot left is below 1e-12 of G's largest entry (round-off of a singular G:
  * redundant rows, a mechanism at a singular position; an exact 0 for a row with no reach): rank is where it
@@ -751,7 +751,8 @@ static int rest_solve(const gs_tree *t, const double *p, const Pre *pre, const K
 }
 
 /* body i's angular acceleration (spin: a spin or tilt row's) or its material point cb's acceleration a + alpha x c
- * (world) at rest: side_accel's without its velocity terms (zero at rest: the same value); 0 for the world */
+ * (world) at rest: side_accel's without its velocity terms (zero at rest: the same value; k's velocities are not
+ * read); 0 for the world */
 static void side_accel_rest(const Kin *k, const double (*acc)[6], int i, const double *cb, int spin, double out[3]) {
     if (i < 0) {
         out[0] = out[1] = out[2] = 0.0;
@@ -769,7 +770,7 @@ static void side_accel_rest(const Kin *k, const double (*acc)[6], int i, const d
 }
 
 /* a point, spin or tilt row's relative acceleration at rest before its direction (world): a_a(cb) - a_b(cb_b), or
- * alpha_a - alpha_b (k: the kinematics at rest) */
+ * alpha_a - alpha_b (k: the positions' kinematics) */
 static void row_relative_rest(const Row *r, const Kin *k, const double (*acc)[6], double rel[3]) {
     const int spin = r->kind == ROW_SPIN || r->kind == ROW_TILT;   /* the angular rows */
     double aa[3], ab[3];

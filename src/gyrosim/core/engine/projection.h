@@ -151,7 +151,7 @@ static treal loop_project_into(const gs_tree *t, double *y, const double *p, con
 }
 
 #ifndef GS_TREE_CS   /* the start's, the steps' ends' and the loop check's (the double build's) */
-/* loop_project_into with G's storage here */
+/* loop_project_into with its storage here */
 static treal loop_project(const gs_tree *t, double *y, const double *p, const Pre *pre) {
     WS_OPEN;
     ROWLU_DECL(lu, t);
