@@ -87,6 +87,38 @@ def test_a04_bricard_moves_with_one_degree_of_freedom():
     assert np.max(np.abs(rates / rates[0] - [1, -1, 1, -1, 1])) < 1e-9
 
 
+def test_a04_bricard_equilibrium_and_mode_on_its_manifold():
+    """linearize(about="equilibrium") of the Bricard moves along its one free direction, not off it: from the
+    default start (at rest in the flat position, where the configurations branch) the search ends where the swing
+    is fastest and symmetric, rod1 = rod3 = rod5 = pi/2 and rod2 = rod4 = -pi/6 (the motion from rest swings rod1
+    from 0 to pi and back), to 1e-12 rad; the mobility stays 1 (rank 4 of 5), and the spectrum on the manifold is one
+    oscillation, no zero modes for the directions the loop removes. Its frequency against the period of a small
+    oscillation (rod1's rate 1e-5 rad/s, amplitude 4e-6 rad: the nonlinear shift 1e-11) that dop853 at 1e-12
+    integrates, by its upward zero crossings over two periods, to 1e-6 relative (2.5e-8 seen: the crossings'
+    interpolation)."""
+    m = Model(load_scene("iftomm_a04"), tolerance=1e-12)
+    m.set("integrator", "dop853")
+    lin = m.linearize(about="equilibrium")
+    assert lin.about == "equilibrium" and lin.stability == "marginally stable"
+    for i, want in zip(range(1, 6), (math.pi / 2, -math.pi / 6) * 3):
+        assert abs(m.get(f"rod{i}.angle") - want) < 1e-12
+    assert m.mobility()["mobility"] == 1
+    assert len(lin.ev) == 2 and len(lin.modes) == 1
+    (mode,) = lin.oscillations()
+    w = mode.frequency
+    assert set(mode.dominant(3)) == {"rod1.angle", "rod3.angle", "rod5.angle"}
+    m.set("rod1.rate", 1e-5)
+    dt = 0.01
+    n = int(2.2 * 2 * math.pi / w / dt)
+    c = _columns(m, dt, n)
+    a = np.asarray(c["rod1.angle"]) - math.pi / 2
+    t = np.arange(n + 1) * dt
+    i = np.flatnonzero((a[:-1] < 0) & (a[1:] >= 0))
+    crossings = t[i] - a[i] * dt / (a[i + 1] - a[i])
+    assert len(crossings) >= 2
+    assert abs(2 * math.pi / (crossings[-1] - crossings[0]) * (len(crossings) - 1) - w) < 1e-6 * w
+
+
 def test_a05_flyball_governor_against_exudyn():
     """A05 (the stiff flyball governor, a tree with spring-damper couplers) at t = 10 s: the slider's height against
     Exudyn's kinematic-tree model (trapezoidal, h = 1.25e-4: 0.6196237242 m; its h = 5e-4 and 1e-3 runs extrapolate

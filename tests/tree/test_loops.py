@@ -276,18 +276,24 @@ def test_four_bar_mode_on_the_constraint_manifold():
     """Model.linearize of the parallelogram four-bar (N = 1) with a torsion spring k = 10 N*m/rad on crank 0 about
     its vertical rest, gravity across the plane (no torque about the hinges): one mechanism mode at
     w^2 = k / M_eff, M_eff = ((N + 1) / 3 + N) m L^2 = 5/3 kg*m^2 (the closed form's one coordinate), w = sqrt(6).
-    The right-hand side is taken on the loops' manifold, so the directions across it carry zero eigenvalues: the
-    spectrum is +-i w (to 1e-12 relative: the complex step's exact derivative) and zeros (below 1e-9)."""
+    The right-hand side is taken on the loops' manifold, so the directions across it carry zero eigenvalues: A's
+    spectrum is +-i w (to 1e-12 relative: the complex step's exact derivative) and zeros (below 1e-9); the modes
+    (on the manifold's tangent space) are the one oscillation alone."""
     text = n_four_bar(1, crank_rate=0.0).replace(
         'name = "crank0"\njoint = "hinge"\naxis = [0.0, 0.0, 1.0]\n',
         'name = "crank0"\njoint = "hinge"\naxis = [0.0, 0.0, 1.0]\nstiffness = 10.0\nrest_angle = 1.5707963267948966\n')
     text = text.replace(f"gravity = [0.0, -{G}, 0.0]", f"gravity = [0.0, 0.0, -{G}]")
-    A, *_ = Model(load_scene_text(text)).linearize()
+    lin = Model(load_scene_text(text)).linearize()
+    A = lin.A
     ev = np.linalg.eigvals(A)
     w = math.sqrt(10.0 / (5.0 / 3.0))
     osc = ev[np.abs(ev) > 1e-6]
     assert len(osc) == 2 and np.max(np.abs(np.sort(osc.imag) - [-w, w])) < 1e-12 * w
     assert np.max(np.abs(osc.real)) < 1e-12 and np.max(np.abs(ev[np.abs(ev) <= 1e-6])) < 1e-9
+    # the modes are the mechanism's: one oscillation (its eigenvalues A's own), none for the removed directions
+    assert len(lin.ev) == 2 and len(lin.modes) == 1 and lin.modes[0].kind == "oscillation"
+    assert abs(lin.modes[0].frequency - w) < 1e-12 * w
+    assert "crank0.angle" in lin.modes[0].dominant(3)
 
 
 TRIANGLE = """

@@ -275,6 +275,7 @@ class _Block(NamedTuple):
     hinges: list           # angle indices
     gravity: bool
     orbit: bool
+    closed: bool = False   # loops or gears: the state lives on their manifold (the engine projects onto it)
 
 
 def _blocks(model, system: int = 0) -> list:
@@ -299,8 +300,9 @@ def _blocks(model, system: int = 0) -> list:
                     leaf = not any(c.parent == i for c in sc.tree)
                     roots.append((qi, wi, ri, vi, _symmetric_axis(b) if leaf else None))
         orbit = getattr(sc, "orbit", None) is not None
+        closed = bool(L.loops or L.gears)
         return [_Block(L.desc, model._y[system:system + 1].copy(), model._p[system].copy(), states, inputs,
-                       outputs, roots, hinges, float(model._p[system, _engine.TP_G]) != 0.0, orbit)]
+                       outputs, roots, hinges, float(model._p[system, _engine.TP_G]) != 0.0, orbit, closed)]
     blocks = []
     multi = model.n_bodies > 1
     for b in range(model.n_bodies):
@@ -682,6 +684,46 @@ def _length_scale(model) -> float:
     return max(ls) if ls else 1.0
 
 
+def _project(bk: _Block, x: np.ndarray) -> np.ndarray:
+    """``x`` moved onto the manifold of the block's loops and gears, as the engine assembles a start
+    (``gs_tree_start``: the positions by Gauss-Newton on the loops' residuals, then the rates by the velocity
+    impulse; projection.h); ``x`` itself where the block has none."""
+    if not bk.closed:
+        return x
+    y = _with(bk, x)
+    _engine.tree_start(bk.desc, y, bk.p.reshape(1, -1))
+    return y[0, :len(x)].copy()
+
+
+def _tangent(bk: _Block, x: np.ndarray, length: float):
+    """(T, L): an orthonormal basis T (nr, m) of the tangent space of the loops' and gears' manifold at ``x`` (on
+    it), in the minimal coordinates of :func:`_reduction`, and L = T^T Pi (m, nr), Pi the derivative of the
+    engine's projection there. Pi is a projector (Pi^2 = Pi) whose range is the tangent space and whose kernel is
+    the set of directions the projection removes, so L T = I and L kills that kernel: A = Df Pi in the basis
+    (T, kernel) is [[L A T, 0], [*, 0]], and the mechanism's own linear dynamics is R = L A T (m x m), the 2 x rank
+    zero eigenvalues of the directions across the manifold left out.
+
+    Pi by central differences of the projection, a step of 1e-6 of each coordinate's unit (1 rad, the scene's
+    length; a rate's unit 1/s times those): the projection converges to 1e-15 of the residuals' scale, so each
+    column is good to about 1e-9, and only the subspace is taken from it (its singular values are 0 across the
+    manifold and at least 1 along it: the gap decides the dimension)."""
+    _, P, names = _reduction(bk, x)
+    nr = len(names)
+    Pi = np.zeros((nr, nr))
+    for j, n in enumerate(names):
+        last = n.rpartition(".")[2]
+        h = 1e-6 * (length if last in ("displacement", "velocity") or last[:2] in ("r_", "v_") else 1.0)
+        dz = np.zeros(nr)
+        dz[j] = h
+        xp = _project(bk, _retract(bk, x, dz))
+        xm = _project(bk, _retract(bk, x, -dz))
+        Pi[:, j] = P @ (xp - xm) / (2 * h)
+    U, sv, _ = np.linalg.svd(Pi)
+    m = int(np.sum(sv > 1e-3 * max(float(sv[0]), 1e-300))) if sv.size else 0
+    T = U[:, :m]
+    return T, T.T @ Pi
+
+
 def _retract(bk: _Block, x: np.ndarray, dz: np.ndarray) -> np.ndarray:
     """The state ``x`` (engine coordinates) moved by ``dz`` in the minimal coordinates of :func:`_reduction`: a
     quaternion turned by its small rotation (q <- q (x) exp(rot / 2), normalised), every other coordinate added."""
@@ -883,8 +925,10 @@ def _rest_search(bk: _Block, length: float, n_orb: float = 0.0, max_steps: int =
     def forces(x, a):
         """(hold, r): where the joints can be held, hold = (the seeds, M^-1 factored) and r = Q = M a, the
         generalized forces, by LU on M^-1 (M is as ill-conditioned as the tree makes it, 8e10 for 500 point masses
-        on light links: solved, never inverted and multiplied); else (None, a)."""
-        seeds = None if n_orb else _hold_seeds(bk, x)
+        on light links: solved, never inverted and multiplied); else (None, a). Not with loops or gears: their
+        rows take up part of any holding force, M^-1 on their manifold is singular and Q = M a undefined; there
+        the plain accelerations (which vanish at the same states)."""
+        seeds = None if n_orb or bk.closed else _hold_seeds(bk, x)
         if seeds is None or not len(seeds) == len(unknown) == len(rows):
             return None, a
         from scipy.linalg import lu_factor, lu_solve
@@ -912,7 +956,7 @@ def _rest_search(bk: _Block, length: float, n_orb: float = 0.0, max_steps: int =
         accelerations), its Jacobian in the trust region's units (dQ/dq = M J~, J~ the accelerations' Jacobian
         with the holding forces -Q applied) and the accelerations' Jacobian."""
         evals[0] += 1
-        seeds = None if n_orb else _hold_seeds(bk, x)
+        seeds = None if n_orb or bk.closed else _hold_seeds(bk, x)  # (as forces())
         held = seeds is not None and len(seeds) == len(unknown) == len(rows)
         stages.start(f"equilibrium search, Jacobian {evals[0]}", (len(seeds) if held else 0)
                      + (len(unknown) if plain and not n_orb else nx))
@@ -1019,6 +1063,93 @@ def _rest_search(bk: _Block, length: float, n_orb: float = 0.0, max_steps: int =
     return _Search(x, steps, size(a), scale, names[rows[worst]], float(a[worst]), flat)
 
 
+def _rest_search_closed(bk: _Block, length: float, max_steps: int = 200,
+                        stages: _Stages = _QUIET) -> _Search:
+    """:func:`_rest_search` for a mechanism with loops or gears: a trust-region Newton search that moves along
+    their manifold. At rest the tangent space splits into the positions' (Tq: the range of the projection's
+    derivative on the positions) and the rates' (Tv: on the rates; Tv = Tq for loops, smaller than all rates
+    for gears); the constrained accelerations lie in Tv. The unknowns are the m = dim Tq tangent coordinates,
+    the residual the accelerations' m components r = Tv^T a, its Jacobian Tv^T (da/dq) Tq by the complex step
+    along Tq's columns (m columns, not one per coordinate). A step moves the positions along Tq and projects back
+    onto the loops; it is taken where the residual shrinks and the projection moved the state by less than a
+    tenth of the step: a large step could land on another branch of the mechanism's configurations (the
+    Bricard's, through its flat position), whose rest states are not this mechanism's motion."""
+    nx = len(bk.states)
+    x = _project(bk, bk.y[0, :nx].copy())
+    T0, P0, names = _reduction(bk, x)
+    pos = [k for k, n in enumerate(names) if not is_rate(n)]
+    vel = [k for k, n in enumerate(names) if is_rate(n)]
+    zp = np.zeros(bk.p.shape[0])
+
+    def at(x):
+        return bk._replace(y=_with(bk, x))
+
+    def accel(x):
+        b = at(x)
+        return (_reduction(b, x)[1] @ _derivs(b))[vel]
+
+    def frame(x):
+        """(Tq, Tv, J): the tangent bases at rest and the residual's Jacobian in Tq's coordinates."""
+        T, L = _tangent(bk, x, length)
+        Pi = T @ L
+        Uq, sq, _ = np.linalg.svd(Pi[np.ix_(pos, pos)])
+        Uv, sv, _ = np.linalg.svd(Pi[np.ix_(vel, vel)])
+        Tq = Uq[:, :int(np.sum(sq > 1e-3 * max(float(sq[0]), 1e-300)))] if sq.size else np.zeros((0, 0))
+        Tv = Uv[:, :int(np.sum(sv > 1e-3 * max(float(sv[0]), 1e-300)))] if sv.size else np.zeros((0, 0))
+        b = at(x)
+        Tr, P, _ = _reduction(b, x)
+        prep = _prep(b)
+        stages.start(f"equilibrium search, Jacobian {evals[0]}", Tq.shape[1])
+        J = np.zeros((Tv.shape[1], Tq.shape[1]))
+        for j in range(Tq.shape[1]):
+            dz = np.zeros(len(names))
+            dz[pos] = Tq[:, j]
+            J[:, j] = Tv.T @ (P @ _column(b, Tr @ dz, zp, prep)[0])[vel]
+            stages.tick()
+        evals[0] += 1
+        return Tq, Tv, J
+
+    def size(v):
+        return float(np.max(np.abs(v), initial=0.0))
+
+    evals, steps = [0], 0
+    a = accel(x)
+    Tq, Tv, J = frame(x)
+    scale = max(size(a), float(np.linalg.norm(J)))
+    delta = 0.25
+    while steps < max_steps and size(a) > 1e-15 * scale and Tq.shape[1]:
+        r = Tv.T @ a
+        rr = float(r @ r)
+        u = _newton_step(J, r)
+        if u is None or size(u) > delta:
+            u = _tr_step(J, r, delta)
+        pred = rr - float(np.sum((r + J @ u) ** 2))
+        dz = np.zeros(len(names))
+        dz[pos] = Tq @ u
+        step = size(dz)
+        if not step > 1e-14:
+            break
+        x_lin = _retract(bk, x, dz)
+        x_try = _project(bk, x_lin)
+        a_try = accel(x_try)
+        ok = False
+        if np.all(np.isfinite(a_try)) and size(x_try - x_lin) <= 0.1 * step:
+            r_try = Tv.T @ a_try
+            act = rr - float(r_try @ r_try)
+            ok = act > 0 and (pred <= 0 or act / pred > 1e-4)
+        if ok:
+            x, a = x_try, a_try
+            Tq, Tv, J = frame(x)
+            steps += 1
+            delta = min(2.0 * delta, 1.0) if step > 0.99 * delta else delta
+        else:
+            delta = 0.25 * step
+    worst = int(np.argmax(np.abs(a))) if a.size else 0
+    flat = float(np.max(np.abs(J), initial=0.0)) <= 1e-12 * scale
+    return _Search(x, steps, size(a), scale, names[vel[worst]] if a.size else "",
+                   float(a[worst]) if a.size else 0.0, flat)
+
+
 def _wrap_angles(bk: _Block, x: np.ndarray, scale: float) -> np.ndarray:
     """Hinge angles beyond half a turn wrapped into (-pi, pi] where the equations do not see the turn (no spring,
     no stop: the rates of change the same to round-off)."""
@@ -1106,7 +1237,8 @@ def _move_to_equilibrium(model, stages: _Stages = _QUIET) -> dict:
     model.initialize()
     (bk,) = _blocks(model)
     _check_finite(model, [bk])
-    res = _rest_search(bk, length, n_orb, stages=stages)
+    res = (_rest_search_closed(bk, length, stages=stages) if bk.closed and not n_orb else
+           _rest_search(bk, length, n_orb, stages=stages))
     _refuse_if_not_rest(bk, res)
     x = _wrap_angles(bk, res.x, res.scale)
     y = model._y[0].copy()
@@ -1246,13 +1378,37 @@ def _linearize(model, about, blocks, J, search=None, stages: _Stages = _QUIET) -
     else:
         Br, Cr = J.B.copy(), J.C.copy()
     stages.start("eigenvalues", 1)
-    ev, V = _eig(Ar, names)
+    if len(blocks) == 1 and blocks[0].closed:
+        ev, V = _eig_on_manifold(blocks[0], Ar, _length_scale(model))
+    else:
+        ev, V = _eig(Ar, names)
     stages.tick()
     modes = modes_of(Ar, names, (ev, V))
     stab = _verdict(Ar, ev)
     state = np.concatenate([bk.y[0, :len(bk.states)] for bk in blocks])
     return Linearization(Ar, Br, Cr, J.D.copy(), Names(names, list(J.inputs), list(J.outputs)), kind, rates,
                          modes, stab, J, state, ev, search)
+
+
+def _eig_on_manifold(bk: _Block, A: np.ndarray, length: float):
+    """The eigenvalues and eigenvectors of a mechanism with loops or gears on their manifold (:func:`_tangent`):
+    those of R = L A T, the vectors T w in the named coordinates. A's own spectrum is R's and 2 x rank zeros, the
+    directions across the manifold (a projection's kernel, not a symmetry: no mode). Each of R's eigenvalues is
+    then replaced by the nearest of A's (within 1e-6 of the spectrum's scale): A comes from the complex step, exact
+    to round-off, R carries the finite differences of the tangent space (about 1e-9)."""
+    x = bk.y[0, :len(bk.states)]
+    T, L = _tangent(bk, x, length)
+    if T.shape[1] == 0:
+        return np.zeros(0, dtype=complex), np.zeros((A.shape[0], 0), dtype=complex)
+    ev_r, W = np.linalg.eig(L @ A @ T)
+    ev_a = np.linalg.eigvals(A)
+    scale = max(float(np.max(np.abs(ev_a))), 1e-300)
+    ev = ev_r.astype(complex)
+    for k, lam in enumerate(ev_r):
+        j = int(np.argmin(np.abs(ev_a - lam)))
+        if abs(ev_a[j] - lam) <= 1e-6 * scale:
+            ev[k] = ev_a[j]
+    return ev, T @ W
 
 
 def _verdict(A: np.ndarray, ev=None) -> str:
