@@ -49,3 +49,32 @@ def test_tree_sweep_copies_blow_up_alone(tmp_path):
     assert fast.any() and (~fast).any()
     assert all(np.array(t["blew_up"])[fast]) and not any(np.array(t["blew_up"])[~fast])
     assert all(np.isnan(np.array(t["inner.angle"])[fast]))
+
+
+def test_a_sweep_of_mechanisms_with_loops_and_gears(tmp_path):
+    """Sweeps run the loop scenes as any tree: the Bricard (A04) with rod1's mass drawn, each row the bits of its
+    own simulate run and its closure held (P5.residual at round-off); the geared CMG pair's ratio drawn within its
+    sign, and a draw across the sign refused before any work, by the check every door uses (ratio_range)."""
+    out = tmp_path / "bricard"
+    run_sweep("iftomm_a04", samples=3, vary=["rod1.mass=uniform(0.5,2)"], set=["integrator=dop853"],
+              stop_time=1.0, output_interval=0.5, seed=3, output=out)
+    t = read_sweep(out).to_pydict()
+    assert not any(t["blew_up"]) and max(t["P5.residual"]) < 1e-13
+    assert len(set(t["rod1.mass"])) == 3
+    for i in (0, 2):
+        r = gyrosim.simulate("iftomm_a04", start_values={"rod1.mass": t["rod1.mass"][i]}, stop_time=1.0,
+                             output_interval=0.5, integrator="dop853")
+        for name in ("rod1.angle", "rod2.rate", "rod4.r_world_x", "P5.f_y", "energy"):
+            assert t[name][i] == r[name][-1], name
+    out = tmp_path / "cmg"
+    run_sweep("cmg_scissored", samples=2, vary=["scissor.ratio=uniform(-1.5,-0.5)"], stop_time=2.0,
+              output_interval=1.0, seed=2, output=out)
+    t = read_sweep(out).to_pydict()
+    assert not any(t["blew_up"])
+    for i in range(2):  # the gimbals' rates in the drawn ratio
+        assert abs(t["gimbal2.rate"][i]) > 1e-4
+        assert abs(t["gimbal1.rate"][i] - t["scissor.ratio"][i] * t["gimbal2.rate"][i]) < 1e-12
+    with pytest.raises(ConfigError, match="scissor.ratio"):
+        run_sweep("cmg_scissored", samples=4, vary=["scissor.ratio=uniform(-1,1)"], stop_time=0.1,
+                  output=tmp_path / "bad")
+    assert not (tmp_path / "bad").exists() or not any((tmp_path / "bad").iterdir())
