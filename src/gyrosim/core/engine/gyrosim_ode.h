@@ -53,7 +53,8 @@ int64_t gs_ode_advance(int method, const gs_ode *o, double *y, double H, int64_t
 #define GS_LIE_MAXQ (GS_ODE_MAX / 7)
 #define GS_LIE_MAXINV 4
 typedef struct {
-    gs_ode ode;                 /* f, the monitor (project is not used: the exponential map keeps |q| = 1) */
+    gs_ode ode;                 /* f, the monitor; project (may be NULL) after every step: the exponential map
+                                 * keeps |q| = 1, so only constraints the system holds (a tree's loops) */
     int nq;                     /* unit quaternions */
     int q[GS_LIE_MAXQ];         /* offset of each (w, x, y, z) in y */
     int omega[GS_LIE_MAXQ];     /* offset of its angular velocity (3; rad/s, body frame) */

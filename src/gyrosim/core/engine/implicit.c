@@ -663,6 +663,12 @@ static int lie_step(gs_lie_run_t *r, double *y, double h, int64_t *evals) {
         }
         memset(r->comp, 0, (size_t)r->nv * sizeof(double));   /* the projection moved the state: nothing to carry */
     }
+    if (o->project) {   /* back onto the system's constraints (a tree's loops), after the invariants' projection:
+                         * the midpoint rule keeps quadratic invariants, not the loops' nonlinear ones, which drift
+                         * by its local error; the energy moved by that much again (the projection's own step) */
+        o->project(o->ctx, y1);
+        memset(r->comp, 0, (size_t)r->nv * sizeof(double));
+    }
     if (!finite_state(r, y1)) return 0;
     memcpy(y, y1, (size_t)o->ny * sizeof(double));
     return 1;

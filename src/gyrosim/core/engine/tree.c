@@ -2592,14 +2592,26 @@ static void invariants_pre(const gs_tree *t, const double *y, const double *p, c
 }
 
 /* energy_momentum's invariants, scaled as the health monitor scales them: the energy against the balance's
- * expected value y[nx] (constant where nothing does work), the angular momentum against L0 where no torque acts */
-static int lie_invariants(const void *ctx, const double *y, double r[GS_LIE_MAXINV]) {
+ * expected value y[nx] (constant where nothing does work), the angular momentum against L0 where no torque acts.
+ * With loops or gears they are those of the state projected onto them (loop_project): the step ends with that
+ * projection (lie_project), so the invariants' projection finds the state whose projection keeps them, and its
+ * moves (along the gradient of the invariants after the projection) run along the loops, not across them, where
+ * the loop projection would take them back and the energy with them. */
+static int lie_invariants(const void *ctx, const double *y_in, double r[GS_LIE_MAXINV]) {
     const Ctx *c = (const Ctx *)ctx;
     const gs_tree *t = c->t;
-    const double *m = y + t->nx;
+    const double *y = y_in;
     int k = 0;
     const int keep_e = conservative(t, c->p), keep_l = gs_tree_torque_free(t, c->p);
     if (!keep_e && !keep_l) return 0;
+    WS_OPEN;
+    TLOC(double, yp, , GS_ODE_MAX + 16, t->ny);
+    if (c->pre->closed) {
+        memcpy(yp, y_in, (size_t)t->ny * sizeof(double));
+        loop_project(t, yp, c->p, c->pre);
+        y = yp;
+    }
+    const double *m = y + t->nx;
     double E, Lw[3];
     if (t->orbit != GS_ORBIT_NONE) {   /* a Kepler potential (mu = 0 here: conservative() refuses another) */
         Totals s;
@@ -2613,12 +2625,21 @@ static int lie_invariants(const void *ctx, const double *y, double r[GS_LIE_MAXI
     if (keep_l) {
         for (int a = 0; a < 3; a++) r[k++] = (Lw[a] - m[2 + a]) / m[5];
     }
+    WS_CLOSE;
     return k;
+}
+
+/* the implicit methods' step-end projection: onto the loops and gears (loop_project, projection.h); their
+ * exponential map keeps the quaternions unit already */
+static void lie_project(const void *ctx, double *y) {
+    const Ctx *c = (const Ctx *)ctx;
+    loop_project(c->t, y, c->p, c->pre);
 }
 
 /* the quaternions, their angular velocities and the velocities of every joint */
 static void lie_view(const gs_tree *t, Ctx *ctx, gs_lie *L) {
-    L->ode = (gs_ode){ode_rhs, NULL, ode_check, ctx, t->nx + 1, err_components(t), t->ny};
+    L->ode = (gs_ode){ode_rhs, ctx->pre->closed ? lie_project : NULL, ode_check, ctx, t->nx + 1, err_components(t),
+                      t->ny};
     L->nq = 0;
     L->nvel = 0;
     L->npos = 0;
