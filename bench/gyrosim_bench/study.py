@@ -23,7 +23,8 @@ Parts: ``accuracy`` (the three ladders), ``cost`` (ns per step per scene and int
 ``stability``, ``symplectic``, ``startup``, ``peers``, and ``fmu`` / ``service`` / ``sweep`` / ``tree`` /
 ``tree_targets`` (the FMU, service, sweep and tree benches and issue 34's tree targets: ``run(out_dir)`` of
 :mod:`gyrosim_bench.fmu_bench`, ``service_bench``, ``sweep_bench``, ``tree_bench`` and ``tree_targets``, each in its
-own process); ``contact``: the billiard ball and the tippe top against MuJoCo, Drake and PyBullet (``contact.md``).
+own process); ``contact``: the billiard ball and the tippe top against MuJoCo, Drake and PyBullet (``contact.md``);
+``iftomm``: the IFToMM benchmark problems A01-A05 against their published figures, MuJoCo and Exudyn (``iftomm.md``).
 
 The study is not part of the installed package: it lives in the source checkout's ``bench/`` folder, and
 ``gyrosim bench`` (or ``make bench``) puts that folder on ``sys.path`` and runs :func:`main`.
@@ -80,9 +81,9 @@ TIMED = CLASSIC + ADAPTIVE
 #: Nominal order of the adaptive pairs (their error against the number of steps).
 ADAPTIVE_ORDER = {"adaptive": 5, "dop853": 8}
 PARTS = ("accuracy", "cost", "long", "stability", "symplectic", "startup", "peers", "fmu", "service", "sweep",
-         "tree", "tree_targets", "tree_scaling", "contact")
+         "tree", "tree_targets", "tree_scaling", "contact", "iftomm")
 #: The parts run by a bench module of their own (``run(out_dir, quick)``, in its own process).
-EXTERNAL = ("fmu", "service", "sweep", "tree", "tree_targets", "tree_scaling", "contact")
+EXTERNAL = ("fmu", "service", "sweep", "tree", "tree_targets", "tree_scaling", "contact", "iftomm")
 #: Classical order of each fixed-step integrator (the study checks the observed one against it).
 EXPECTED_ORDER = {"euler": 1, "rk4": 4, "splitting": 2, "splitting4": 4, **EXACT_SPLIT_ORDER}
 CASES = ("free_body", "intermediate_axis", "heavy_top")
@@ -1329,7 +1330,8 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
             "sweep": (("gyrosim_bench.sweep_bench", "sweep"),), "tree": (("gyrosim_bench.tree_bench", "tree_bench"),),
             "tree_targets": (("gyrosim_bench.tree_targets", "tree_targets"),),
             "tree_scaling": (("gyrosim_bench.tree_scaling", "tree_scaling"),),
-            "contact": (("gyrosim_bench.contact_bench", "contact"),)}
+            "contact": (("gyrosim_bench.contact_bench", "contact"),),
+            "iftomm": (("gyrosim_bench.iftomm_bench", "iftomm"),)}
     bench_dir = str(Path(__file__).resolve().parents[1])  # the folder that holds gyrosim_bench
     msgs = []
     for name, label in mods[part]:
@@ -1375,7 +1377,7 @@ def _external_bench(part: str, out: Path, quick: bool, tables: dict) -> list[str
 PART_KEYS = {"accuracy": ("accuracy", "orders", "accuracy_spans"), "cost": ("cost",), "long": ("long",),
              "stability": ("stability",), "symplectic": ("symplectic",), "startup": ("startup",), "peers": ("peers",),
              "fmu": (), "service": (), "sweep": (), "tree": (), "tree_targets": (),
-             "tree_scaling": (), "contact": ()}
+             "tree_scaling": (), "contact": (), "iftomm": ()}
 #: Order of the blocks of summary.md: the parts, with the recommendation (choose) after the accuracy ladders
 SUMMARY_ORDER = ("accuracy", "choose") + PARTS[1:]
 
