@@ -20,8 +20,9 @@ venv: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests bench
 
+# two workers (pytest-xdist): the CI machine's two cores; every test keeps to its own temporary folder and ports
 test: $(STAMP) lint
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2
 
 demo: $(STAMP)
 	$(PY) -m gyrosim.demo
