@@ -17,6 +17,16 @@ def test_prints_modes_and_verdict(capsys):
     assert f"{math.sqrt(9.81):.7g}" in out and "stability: marginally stable" in out
 
 
+def test_a_mechanism_says_its_modes_are_on_its_manifold(capsys):
+    """The Bricard (5 hinges, a revolute closure: 10 states) moves with one degree of freedom: the command line says
+    that 2 of its 10 states move and lists one mode, at pi/2 and -pi/6 (its equilibrium)."""
+    assert main(["linearize", "iftomm_a04", "--about", "equilibrium"]) == 0
+    out = capsys.readouterr().out
+    assert "rod1.angle = 1.570796327, rod2.angle = -0.5235987756" in out
+    assert "manifold: 2 of the 10 states move (mobility 1: 5 joint degrees of freedom less the rank 4 of 5 rows)" in out
+    assert out.count("oscillation:") == 1 and "stability: marginally stable" in out
+
+
 def test_steady_precession_with_theta_and_spin(capsys):
     assert main(["linearize", "heavy_top", "--about", "steady_precession", "--set", "theta=0.5",
                  "--set", "spin=60"]) == 0

@@ -112,6 +112,12 @@ def cmd_linearize(args) -> int:
         print(f"scene {scene}: linearized about {what[lin.about]}{_where(lin)}"
               + ("; rates " + ", ".join(f"{k} {x:.10g}" for k, x in lin.rates.items()) if lin.rates else "")
               + f"; {len(lin.names.states)} states, {len(lin.names.inputs)} inputs")
+        if lin.ev is not None and len(lin.ev) < len(lin.names.states):   # loops or gears: the modes on their manifold
+            mob = m.mobility()
+            print(f"on the loops' and gears' manifold: {len(lin.ev)} of the {len(lin.names.states)} states move "
+                  + (f"(mobility {mob['mobility']}: {mob['joint_dof']} joint degrees of freedom less the rank "
+                     f"{mob['rank']} of {mob['rows']} rows)" if mob else "")
+                  + "; the directions across it are not modes")
     print(lin.table())
     print(f"stability: {lin.stability}")
     if args.output:
