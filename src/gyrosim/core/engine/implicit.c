@@ -160,12 +160,16 @@ static int lu_factor(int n, double *A, int *piv) {
 }
 
 static void lu_solve(int n, const double *A, const int *piv, double *b) {
+    /* lu_factor swaps whole rows, the multipliers of the earlier columns with them (as LAPACK's dgetf2), so L is in
+     * the final row order: every interchange is applied to b first, then L's forward substitution (dgetrs). */
     for (int k = 0; k < n; k++) {
         if (piv[k] != k) {
             const double tmp = b[k];
             b[k] = b[piv[k]];
             b[piv[k]] = tmp;
         }
+    }
+    for (int k = 0; k < n; k++) {
         for (int r = k + 1; r < n; r++) b[r] -= A[r * n + k] * b[k];
     }
     for (int k = n - 1; k >= 0; k--) {
