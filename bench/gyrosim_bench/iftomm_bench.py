@@ -707,7 +707,7 @@ def _gs_settings(case: str, quick: bool) -> list[tuple]:
             + fixed("rk4", 1e-4, 5e-5, 2e-5, 1e-5),
             "a04": dop(*tol, 1e-13) + fixed("rk4", 0.02, 0.01, 5e-3, 2e-3),
             "a05": dop(1e-4, 1e-6, 1e-8, 1e-10, 1e-12) + dop(1e-4, 1e-6, 1e-8, integ="adaptive")
-            + fixed("midpoint", 1e-4, 5e-5) + fixed("rk4", 2e-5, 1e-5)}[case]
+            + fixed("midpoint", 1e-2, 5e-3, 2e-3, 1e-3, 1e-4, 5e-5) + fixed("rk4", 2e-5, 1e-5)}[case]
 
 
 # ============================================================================================ gyrosim

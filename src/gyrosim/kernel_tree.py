@@ -933,6 +933,26 @@ class TreeKernel:
                 j = self._bodies[j].parent
         return None
 
+    def _stiffest_rate(self, y0: np.ndarray, p: np.ndarray) -> float:
+        """The largest |eigenvalue| (1/s) of the equations' Jacobian at the state ``y0`` (complex step, one column
+        per state; 0 beyond 200 states or where it is not finite): the rate an explicit step must resolve, springs,
+        dampers and contacts included, where the fastest rate of the motion (tree_scalar) sees only the spins."""
+        nx = self.layout.nx
+        if nx > 200:
+            return 0.0
+        y = np.ascontiguousarray(y0.reshape(1, -1))
+        pp = np.ascontiguousarray(p.reshape(1, -1))
+        A = np.zeros((nx, nx))
+        ddy, dout, vp = np.zeros(nx + 1), np.zeros(self.layout.nout), np.zeros(pp.shape[1])
+        for j in range(nx):
+            vy = np.zeros(nx)
+            vy[j] = 1.0
+            _engine.tree_directional(self.layout.desc, y, pp, vy, vp, ddy, dout)
+            A[:, j] = ddy[:nx]
+        if not np.all(np.isfinite(A)):
+            return 0.0
+        return float(np.max(np.abs(np.linalg.eigvals(A)), initial=0.0))
+
     def _blowup(self, b: int, y0: np.ndarray, t: float, h: float, k: int, where: str) -> str:
         """The message for copy ``b`` failing from state ``y0``: what drifted (the interval again with the monitor
         off), gimbal lock where the axes line up, and advice."""
@@ -945,6 +965,8 @@ class TreeKernel:
                     f"gyrostat's shape; use {split_refusal()}")
         lock = TreeKernel.gimbal_lock(self, y0, b)
         rate = float(_engine.tree_scalar(self.layout.desc, y0.reshape(1, -1), pb, 1))
+        stiff = (TreeKernel._stiffest_rate(self, y0, pb[0]) if self.integrator in _FIXED
+                 and self.integrator not in _IMPLICIT else 0.0)
         n_sub = _engine.substeps(h, self.max_step) if self.integrator in _FIXED else 0
         at = f" at internal step {k} of {n_sub}" if n_sub > 1 else ""
         y = y0.reshape(1, -1).copy()
@@ -976,9 +998,18 @@ class TreeKernel:
             hi = h / n_sub if n_sub > 0 else h
             advice = (f"the fastest rate in the state is {rate:.4g} rad/s (h*rate = {hi * rate:.3g}); use a smaller "
                       "max_step, or the integrator 'dop853'")
-        elif rate > 0:
-            advice = (f"the fastest rate in the state is {rate:.4g} rad/s; use max_step <= {0.5 / rate:.3g} s, the "
-                      "integrator 'midpoint' (A-stable: it steps over fast spin and nutation) or 'dop853'")
+        elif rate > 0 or stiff > 0:
+            hi = h / n_sub if n_sub > 0 else h
+            spins_allow = rate == 0 or 0.5 / rate > hi   # the step resolves the fastest spin
+            if stiff > rate and spins_allow:   # a stiff force (a spring, a damper, a contact) sets the limit
+                advice = (f"the step {hi:.3g} s is within the fastest rate in the state ({rate:.4g} rad/s), but the "
+                          f"equations there have a rate of {stiff:.4g} 1/s (the largest eigenvalue of their "
+                          "Jacobian: a stiff spring, damper or contact); use max_step <= "
+                          f"{2.0 / stiff:.3g} s, the integrator 'midpoint' (A-stable: it steps over stiff forces) or "
+                          "'dop853'")
+            else:
+                advice = (f"the fastest rate in the state is {rate:.4g} rad/s; use max_step <= {0.5 / rate:.3g} s, "
+                          "the integrator 'midpoint' (A-stable: it steps over fast spin and nutation) or 'dop853'")
         else:
             advice = "check the parameters, or try the integrator 'dop853'"
         return f"integrator {self.integrator!r} blew up in {where}: {cause}; {advice}"

@@ -259,3 +259,17 @@ def test_a_blow_up_of_a_joint_that_carries_nothing_says_so_not_gimbal_lock(tmp_p
     fixed = {**PENDULUM, "body": PENDULUM["body"] + [{"name": "tag", "parent": "bob", "joint": "fixed",
                                                       "inertia": {"principal": [0.0, 0.0, 0.0]}}]}
     assert Model(scene_from_dict(fixed, "f.toml")).inert_bodies() == []  # a massless fixed body is fine
+
+
+def test_a_blow_up_on_a_stiff_spring_names_its_rate_not_the_spins(tmp_path, capsys):
+    """A05's couplers (8e5 N/m, 4e4 N*s/m) have a rate of 8117 1/s (the largest eigenvalue of the Jacobian at the
+    start: the damper on the slider's 3 kg, plus the rods' share), where the fastest spin is the shaft's 6.28 rad/s:
+    rk4 at h = 0.5 ms blows up, and the advice is a step below 2/8117 s (rk4 at 0.2 ms runs) or the A-stable
+    midpoint, not the spins' 0.08 s."""
+    assert main(["simulate", "iftomm_a05", "--set", "integrator=rk4", "--set", "max_step=5e-4",
+                 "--stop-time", "0.01", "-o", str(tmp_path / "x.csv")]) == 1
+    err = one_line(capsys)
+    assert "the equations there have a rate of 8117 1/s" in err, err
+    assert "use max_step <= 0.000246 s, the integrator 'midpoint'" in err and "0.0796" not in err, err
+    assert main(["simulate", "iftomm_a05", "--set", "integrator=rk4", "--set", "max_step=2e-4",
+                 "--stop-time", "0.01", "-o", str(tmp_path / "y.csv")]) == 0
