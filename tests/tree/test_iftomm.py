@@ -223,3 +223,19 @@ def test_a05_midpoint_steps_over_the_stiff_couplers():
     assert errs[0] < 3e-3 and errs[1] < 7e-4 and errs[2] < 2e-4
     for a, b in zip(errs, errs[1:]):
         assert 3.6 < a / b < 4.4
+
+
+def test_a02_linearized_on_its_manifold_at_the_inverted_position():
+    """A02 (N = 40: 162 states, 80 independent loop rows of 120) at its start with the rates set to 0 is at rest with
+    every crank upright: an unstable equilibrium of the mechanism's one coordinate, theta'' = -c cos(theta), whose
+    linearization about theta = pi/2 is psi'' = c psi: eigenvalues +-sqrt(c), c = g ((N+1)/2 + N) / ((N+1)/3 + N),
+    to 1e-10 relative (the tangent space's finite differences, then A's own eigenvalues); the other 160 directions
+    are the loops', not modes."""
+    m = Model(load_scene("iftomm_a02"))
+    lin = m.linearize(about="equilibrium")
+    N = 40
+    c = 9.81 * ((N + 1) / 2 + N) / ((N + 1) / 3 + N)
+    assert lin.about == "equilibrium" and lin.stability == "unstable"
+    assert len(lin.ev) == 2
+    np.testing.assert_allclose(np.sort(lin.ev.real), [-math.sqrt(c), math.sqrt(c)], rtol=1e-10)
+    assert np.max(np.abs(lin.ev.imag)) == 0.0
