@@ -1076,7 +1076,7 @@ def _rest_search_closed(bk: _Block, length: float, max_steps: int = 200,
     Bricard's, through its flat position), whose rest states are not this mechanism's motion."""
     nx = len(bk.states)
     x = _project(bk, bk.y[0, :nx].copy())
-    T0, P0, names = _reduction(bk, x)
+    _, _, names = _reduction(bk, x)
     pos = [k for k, n in enumerate(names) if not is_rate(n)]
     vel = [k for k, n in enumerate(names) if is_rate(n)]
     zp = np.zeros(bk.p.shape[0])
