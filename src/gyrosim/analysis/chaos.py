@@ -462,7 +462,24 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
     rng = np.random.default_rng(seed)
     v = rng.standard_normal((k, tan.dim))
     v *= d0 / np.linalg.norm(v, axis=1, keepdims=True)
-    _restart(big, nb, tan.apply(big._y[ref], v, w))
+    lay = getattr(big, "layout", None)
+    closed = bool(getattr(lay, "loops", None) or getattr(lay, "gears", None))
+
+    def start(sep):
+        """The neighbours put at ``sep`` from the references; their distance as they start: d0, or with loops or
+        gears the distance left once the start's projection onto them took the part of ``sep`` across them."""
+        _restart(big, nb, tan.apply(big._y[ref], sep, w))
+        if not closed:
+            return d0
+        s = tan.diff(big._y[ref], big._y[nb], w)
+        return np.sqrt(np.sum(s * s, axis=1))
+
+    d_start = start(v)
+    if closed:  # the direction along the manifold, at d0 again (a second projection moves it by O(d0^2))
+        s0 = tan.diff(big._y[ref], big._y[nb], w)
+        n0 = np.linalg.norm(s0, axis=1, keepdims=True)
+        v = np.where(n0 > 0, s0 * (d0 / np.where(n0 > 0, n0, 1.0)), v)
+        d_start = start(v)
 
     names = _names(model) if period else []
     cand = [c for c in _period_candidates(model) if c in names] if period else []
@@ -492,7 +509,7 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
         sep = tan.diff(big._y[ref], big._y[nb], w)
         d = np.sqrt(np.sum(sep * sep, axis=1))
         with np.errstate(divide="ignore", invalid="ignore"):
-            growth = d / d0
+            growth = d / d_start
             ok = alive & np.isfinite(growth) & (growth > 0)
         met = alive & (growth == 0)  # both copies in the same (finite) state: ln(0) = -inf, for good
         if met.any():
@@ -513,7 +530,7 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
             safe = np.where(ok[:, None], sep * (d0 / np.where(ok, d, 1.0))[:, None], 0.0)
             if not ok.all():  # a dead or collapsed pair restarts along the first direction
                 safe[~ok] = v[~ok]
-            _restart(big, nb, tan.apply(big._y[ref], safe, w))
+            d_start = start(safe)
         if progress is not None:
             progress(done * dt, n * dt)
     hist = np.array(hist)
