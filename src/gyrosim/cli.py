@@ -977,8 +977,9 @@ def _chaos_parser(sub) -> None:
     c.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the first direction (default: 0)")
     c.add_argument("--section", metavar="VAR=VALUE", help="the Poincare section: an output crossing a value, e.g. "
                    "upper.angle=0 (angles modulo 2 pi); 'none': no section (default: the scene's, docs/chaos.md)")
-    c.add_argument("--direction", choices=("up", "down", "both"), default="up",
-                   help="count crossings with VAR increasing (default), decreasing or both")
+    c.add_argument("--direction", choices=("up", "down", "both"), default=None,
+                   help="count crossings with VAR increasing, decreasing or both (default: the scene's default "
+                   "section's own, else up)")
     c.add_argument("--record", nargs="+", metavar="NAME", help="the outputs recorded at each crossing (the first "
                    "two are plotted; default: the scene's pair)")
     c.add_argument("--trust", type=float, metavar="TOL", help="also run the scene in long double precision with "

@@ -185,6 +185,27 @@ def test_a_mechanism_neighbour_starts_on_its_loops():
     assert abs(r.exponent) < 0.3
 
 
+def test_sections_of_the_closed_mechanisms():
+    """The default sections of the loop scenes: the Bricard at its lower turning point (rod1.rate = 0 upward, every
+    4.9917 s, rod1 at 0 to 1e-10 rad, the energy constant to 1e-9 J); the N-four-bar's crank 0 revolving clockwise
+    down through -pi/2 (the section's own direction), its rate there -sqrt(1 + 4 c) from the scalar closed form
+    (theta'^2 = theta0'^2 + 2 c (sin theta0 - sin theta)) to 1e-7. A section at the N-four-bar's singular position
+    (crank0.angle = 0: the restarts of the refinement land next to it, where an adaptive method starts with steps
+    of round-off size) is refined with rk4 steps and returns: -sqrt(1 + 2 c) to 1e-3 (8e-5 seen: the solve's
+    round-off near the singular position)."""
+    b = poincare("iftomm_a04", time=20.0)
+    assert len(b) == 4 and np.allclose(np.diff(b.times), 4.99171151, atol=1e-7)
+    assert np.max(np.abs(b.points[:, 0])) < 1e-10 and np.ptp(b.points[:, 1]) < 1e-9
+    N = 40
+    c = 9.81 * ((N + 1) / 2 + N) / ((N + 1) / 3 + N)
+    s = poincare("iftomm_a02", time=4.0)
+    assert s.direction == -1 and len(s) == 2
+    np.testing.assert_allclose(s.points[:, 0], -math.sqrt(1 + 4 * c), rtol=1e-7)
+    z = poincare("iftomm_a02", section="crank0.angle=0", direction="down", time=4.0)
+    assert len(z) == 2
+    np.testing.assert_allclose(z.points[:, 0], -math.sqrt(1 + 2 * c), rtol=1e-3)
+
+
 def test_model_copied_not_advanced_and_method():
     m = Model("double_pendulum")
     m.set("upper.angle", HALF_PI)

@@ -61,6 +61,11 @@ _SECTIONS = {
     "free_body": ("omega_y", 0.0, 1, ("omega_x", "omega_z")),
     "heavy_top": ("omega_x", 0.0, 1, ("theta", "omega_y")),
     "gyroscope": ("omega_x", 0.0, 1, ("theta", "omega_y")),
+    # the closed mechanisms' one coordinate: the Bricard swings between 0 and pi (its lower turning point, the rate
+    # crossing 0 upward), the N-four-bar's cranks revolve clockwise (every turn down through -pi/2, hanging: not
+    # through 0 or pi, its singular positions)
+    "iftomm_a04": ("rod1.rate", 0.0, 1, ("rod1.angle", "energy")),
+    "iftomm_a02": ("crank0.angle", -math.pi / 2, -1, ("crank0.rate", "energy")),
 }
 _DIRECTIONS = {"up": 1, "down": -1, "both": 0, 1: 1, -1: -1, 0: 0, "+": 1, "-": -1}
 
@@ -936,7 +941,7 @@ def _crossings(u: np.ndarray, direction: int, wrap: bool):
     return j, level[j], np.where(up[j], 1, -1)
 
 
-def poincare(model_or_scene, *, section=None, direction="up", record=None, time, output_interval=None,
+def poincare(model_or_scene, *, section=None, direction=None, record=None, time, output_interval=None,
              start_values: dict | None = None, integrator: str | None = None, max_step: float | None = None,
              tolerance: float | None = None, wrap: bool | None = None, progress=None) -> PoincareSection:
     """The points where a run crosses a section: a variable crossing a value in one direction.
@@ -956,8 +961,10 @@ def poincare(model_or_scene, *, section=None, direction="up", record=None, time,
     section : str or (str, float), optional
         ``"VAR=VALUE"`` or ``(VAR, VALUE)``: an output by name (``upper.angle``, ``omega_x``, ``theta``); default
         :func:`default_section`.
-    direction : {"up", "down", "both"}
-        The variable increasing through the value (``up``), decreasing, or either.
+    direction : {"up", "down", "both"}, optional
+        The variable increasing through the value (``up``), decreasing, or either. Default: the default section's
+        own (:func:`default_section`: the N-four-bar's cranks revolve clockwise, down) where ``section`` is not
+        given, else ``up``.
     record : list of str, optional
         The variables to record (default: the section's default pair).
     time : float
@@ -980,6 +987,8 @@ def poincare(model_or_scene, *, section=None, direction="up", record=None, time,
         var, value = parse_section(section)
     else:
         var, value = section[0], float(section[1])
+    if direction is None:
+        direction = "up"
     if direction not in _DIRECTIONS:
         raise ConfigError("direction", direction, "up, down or both")
     sgn = _DIRECTIONS[direction]
@@ -1055,6 +1064,14 @@ def _refine(model: Model, S: np.ndarray, C: np.ndarray, target: np.ndarray, dirs
     Outputs that the restart resets (phi, psi, energy_error) are moved by their offset at the row."""
     c = len(S)
     fine = _copies(model, c)
+    lay = getattr(fine, "layout", None)
+    # with loops or gears the restarts land next to the crossing, which may be a singular position of the mechanism
+    # (the N-four-bar's cranks horizontal, its rows' reach vanishing there); an adaptive method started there takes
+    # steps of round-off size, so the refinement steps rk4, one step per output of each level: bounded work, its
+    # local error (h omega)^5 / 120 below 1e-12 at the levels' h = dt / 64 and dt / 4096
+    fixed = bool(getattr(lay, "loops", None) or getattr(lay, "gears", None))
+    if fixed:
+        fine.set("integrator", "rk4")
     rows = np.arange(c)
     _restart(fine, rows, S)
     fine.initialize()
@@ -1063,6 +1080,8 @@ def _refine(model: Model, S: np.ndarray, C: np.ndarray, target: np.ndarray, dirs
     t_at = np.zeros(c)
     for level in range(LEVELS):
         h /= REFINE
+        if fixed:
+            fine.set("max_step", h)
         tr = fine.trajectory(h, REFINE)  # (REFINE + 1, c, nout)
         tr = tr.reshape(REFINE + 1, c, -1) + offset[None]
         f = (tr[:, :, iv] - target[None]) * dirs[None]
