@@ -459,12 +459,18 @@ class Model:
 
         return jacobian(self, system=system)
 
+    @property
+    def closed(self) -> bool:
+        """True for a scene with closed loops or gears: its state lives on their manifold, onto which the engine
+        projects every start and step."""
+        return bool(getattr(self.scene, "loops", ()) or getattr(self.scene, "gears", ()))
+
     def mobility(self, system: int = 0) -> dict | None:
         """A mechanism's degrees of freedom at its assembled start (a scene with closed loops or gears; None
         without): ``{"mobility": m, "joint_dof": n, "rows": r, "rank": k}`` with m = n - k, k the rank of the loops'
         and gears' rows as the constraint solve finds it (redundant rows do not count: the Bricard mechanism has
         mobility 1 where Gruebler's count gives 0). m = 0: the mechanism is locked."""
-        if not (getattr(self.scene, "loops", ()) or getattr(self.scene, "gears", ())):
+        if not self.closed:
             return None
         from .core import _engine
 

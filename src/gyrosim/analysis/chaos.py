@@ -467,8 +467,7 @@ def lyapunov_copies(model: Model, *, time, d0: float = D0, interval=None, output
     rng = np.random.default_rng(seed)
     v = rng.standard_normal((k, tan.dim))
     v *= d0 / np.linalg.norm(v, axis=1, keepdims=True)
-    lay = getattr(big, "layout", None)
-    closed = bool(getattr(lay, "loops", None) or getattr(lay, "gears", None))
+    closed = big.closed
 
     def start(sep):
         """The neighbours put at ``sep`` from the references; their distance as they start: d0, or with loops or
@@ -1064,12 +1063,11 @@ def _refine(model: Model, S: np.ndarray, C: np.ndarray, target: np.ndarray, dirs
     Outputs that the restart resets (phi, psi, energy_error) are moved by their offset at the row."""
     c = len(S)
     fine = _copies(model, c)
-    lay = getattr(fine, "layout", None)
     # with loops or gears the restarts land next to the crossing, which may be a singular position of the mechanism
     # (the N-four-bar's cranks horizontal, its rows' reach vanishing there); an adaptive method started there takes
     # steps of round-off size, so the refinement steps rk4, one step per output of each level: bounded work, its
     # local error (h omega)^5 / 120 below 1e-12 at the levels' h = dt / 64 and dt / 4096
-    fixed = bool(getattr(lay, "loops", None) or getattr(lay, "gears", None))
+    fixed = fine.closed
     if fixed:
         fine.set("integrator", "rk4")
     rows = np.arange(c)

@@ -300,9 +300,8 @@ def _blocks(model, system: int = 0) -> list:
                     leaf = not any(c.parent == i for c in sc.tree)
                     roots.append((qi, wi, ri, vi, _symmetric_axis(b) if leaf else None))
         orbit = getattr(sc, "orbit", None) is not None
-        closed = bool(L.loops or L.gears)
         return [_Block(L.desc, model._y[system:system + 1].copy(), model._p[system].copy(), states, inputs,
-                       outputs, roots, hinges, float(model._p[system, _engine.TP_G]) != 0.0, orbit, closed)]
+                       outputs, roots, hinges, float(model._p[system, _engine.TP_G]) != 0.0, orbit, model.closed)]
     blocks = []
     multi = model.n_bodies > 1
     for b in range(model.n_bodies):
@@ -718,10 +717,16 @@ def _tangent(bk: _Block, x: np.ndarray, length: float):
         xp = _project(bk, _retract(bk, x, dz))
         xm = _project(bk, _retract(bk, x, -dz))
         Pi[:, j] = P @ (xp - xm) / (2 * h)
-    U, sv, _ = np.linalg.svd(Pi)
-    m = int(np.sum(sv > 1e-3 * max(float(sv[0]), 1e-300))) if sv.size else 0
-    T = U[:, :m]
+    T = _range_basis(Pi)
     return T, T.T @ Pi
+
+
+def _range_basis(P: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the range of the projector (or a block of it) P: the left singular vectors whose
+    singular values are above 1e-3 of the largest (a projector's are 0 across the manifold and at least 1 along it,
+    a block's near those: the gap decides the dimension)."""
+    U, sv, _ = np.linalg.svd(P)
+    return U[:, :int(np.sum(sv > 1e-3 * max(float(sv[0]), 1e-300)))] if sv.size else np.zeros((P.shape[0], 0))
 
 
 def _retract(bk: _Block, x: np.ndarray, dz: np.ndarray) -> np.ndarray:
@@ -1092,10 +1097,7 @@ def _rest_search_closed(bk: _Block, length: float, max_steps: int = 200,
         """(Tq, Tv, J): the tangent bases at rest and the residual's Jacobian in Tq's coordinates."""
         T, L = _tangent(bk, x, length)
         Pi = T @ L
-        Uq, sq, _ = np.linalg.svd(Pi[np.ix_(pos, pos)])
-        Uv, sv, _ = np.linalg.svd(Pi[np.ix_(vel, vel)])
-        Tq = Uq[:, :int(np.sum(sq > 1e-3 * max(float(sq[0]), 1e-300)))] if sq.size else np.zeros((0, 0))
-        Tv = Uv[:, :int(np.sum(sv > 1e-3 * max(float(sv[0]), 1e-300)))] if sv.size else np.zeros((0, 0))
+        Tq, Tv = _range_basis(Pi[np.ix_(pos, pos)]), _range_basis(Pi[np.ix_(vel, vel)])
         b = at(x)
         Tr, P, _ = _reduction(b, x)
         prep = _prep(b)
