@@ -3232,58 +3232,6 @@ def _conclusions_disk(res: dict, rows: list[dict]) -> str:
 
 # ============================================================================================ main
 
-def _environment(command: str) -> dict:
-    import platform
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"command": command, "machine": f"{cpu}, {os.cpu_count()} CPUs",
-            "python": f"Python {platform.python_version()}", "when": time.strftime("%Y-%m-%d %H:%M:%S"),
-            "load_start": _load(), "gyrosim": _gyrosim_state()}
-
-
-def _gyrosim_state() -> str:
-    """Which gyrosim ran: the package's version, the checkout's commit, whether its src differs from it (and a hash
-    of the difference) and when the engine was built."""
-    import hashlib
-
-    import gyrosim
-
-    out = f"gyrosim {getattr(gyrosim, '__version__', '?')}"
-    try:
-        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, timeout=30).stdout.strip()
-        diff = subprocess.run(["git", "-C", str(ROOT), "diff", "HEAD", "--", "src"], capture_output=True,
-                              timeout=30).stdout
-        if head:
-            out += f", commit {head}" + (f" with uncommitted changes to src (diff sha1 "
-                                         f"{hashlib.sha1(diff).hexdigest()[:10]})" if diff else "")
-    except (OSError, subprocess.TimeoutExpired):
-        pass
-    try:
-        from gyrosim.core import _engine
-
-        built = time.localtime(os.path.getmtime(_engine.__file__))
-        out += ", engine built " + time.strftime("%Y-%m-%d %H:%M:%S", built)
-    except Exception:  # noqa: BLE001 - the rest of the line without it
-        pass
-    return out
-
-
-def _load() -> str:
-    """The 1, 5 and 15 minute load averages (other processes on the machine share its cores)."""
-    try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        return "?"
-
-
 def main(output_dir, *, quick: bool = False, mujoco_python: str | None = None, drake_python: str | None = None,
          pybullet_python: str | None = None, command: str | None = None, json_file: str | None = None) -> dict:
     """Run both scenes for every code, write contact.md and the plots to ``output_dir`` (and every number to
@@ -3291,7 +3239,9 @@ def main(output_dir, *, quick: bool = False, mujoco_python: str | None = None, d
     out = Path(output_dir)
     out.mkdir(parents=True, exist_ok=True)
     cmd = command or ("python -m gyrosim_bench.contact_bench --output " + str(out) + (" --quick" if quick else ""))
-    res = {"environment": _environment(cmd), "command": cmd, "quick": quick}
+    from gyrosim_bench.runinfo import environment, load
+
+    res = {"environment": environment(cmd), "command": cmd, "quick": quick}
     t0 = time.perf_counter()
     reps = 2 if quick else 3
     mjp = _peer_python(mujoco_python, "GYROSIM_MJ_PYTHON", "mujoco", ("/tmp/mjvenv/bin/python", "/tmp/mjv/bin/python"))
@@ -3332,7 +3282,7 @@ def main(output_dir, *, quick: bool = False, mujoco_python: str | None = None, d
     if "runs" not in res.get("gyrosim_ball", {}):
         raise RuntimeError(f"gyrosim's ball runs failed: {res.get('gyrosim_ball')}")
     res["runtime_s"] = round(time.perf_counter() - t0, 1)
-    res["environment"]["load_end"] = _load()
+    res["environment"]["load_end"] = load()
     render(res, out)
     if json_file:
         Path(json_file).write_text(json.dumps({k: v for k, v in res.items() if k != "files"}, indent=1,

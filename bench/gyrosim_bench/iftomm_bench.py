@@ -1028,56 +1028,6 @@ def _log(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def _load() -> str:
-    try:
-        return " ".join(f"{x:.2f}" for x in os.getloadavg())
-    except OSError:
-        return "?"
-
-
-def _environment(command: str) -> dict:
-    import platform
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"command": command, "machine": f"{cpu}, {os.cpu_count()} CPUs",
-            "python": f"Python {platform.python_version()}", "when": time.strftime("%Y-%m-%d %H:%M:%S"),
-            "load_start": _load(), "gyrosim": _gyrosim_state()}
-
-
-def _gyrosim_state() -> str:
-    """The package's version, the checkout's commit, whether its src differs from it, when the engine was built."""
-    import hashlib
-
-    import gyrosim
-
-    out = f"gyrosim {getattr(gyrosim, '__version__', '?')}"
-    try:
-        head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, timeout=30).stdout.strip()
-        diff = subprocess.run(["git", "-C", str(ROOT), "diff", "HEAD", "--", "src"], capture_output=True,
-                              timeout=30).stdout
-        if head:
-            out += f", commit {head}" + (f" with uncommitted changes to src (diff sha1 "
-                                         f"{hashlib.sha1(diff).hexdigest()[:10]})" if diff else "")
-    except (OSError, subprocess.TimeoutExpired):
-        pass
-    try:
-        from gyrosim.core import _engine
-
-        built = time.localtime(os.path.getmtime(_engine.__file__))
-        out += ", engine built " + time.strftime("%Y-%m-%d %H:%M:%S", built)
-    except Exception:  # noqa: BLE001 - the rest of the line without it
-        pass
-    return out
-
-
 CODES = ("gyrosim", "MuJoCo", "Exudyn")
 
 
@@ -1098,7 +1048,9 @@ def main(output_dir, *, quick: bool = False, only=None, codes=None, mujoco_pytho
     cmd = command or ("python -m gyrosim_bench.iftomm_bench --output " + str(out) + (" --quick" if quick else ""))
     t0 = time.perf_counter()
     reps = 2 if quick else 3
-    res = {"environment": _environment(cmd), "quick": quick, "cases_run": cases, "codes_run": codes}
+    from gyrosim_bench.runinfo import environment, load
+
+    res = {"environment": environment(cmd), "quick": quick, "cases_run": cases, "codes_run": codes}
     res["reference"] = references(quick)
     ref = res["reference"]
     res["rows"] = {}
@@ -1133,7 +1085,7 @@ def main(output_dir, *, quick: bool = False, only=None, codes=None, mujoco_pytho
     for c in cases:
         res["rows"][c] = g.get(c, []) + peer_rows["MuJoCo"].get(c, []) + peer_rows["Exudyn"].get(c, [])
     res["runtime_s"] = round(time.perf_counter() - t0, 1)
-    res["environment"]["load_end"] = _load()
+    res["environment"]["load_end"] = load()
     jf = out / "iftomm.json"
     if (only or len(codes) < len(CODES)) and jf.is_file():   # merge: the rows not run keep their earlier numbers
         old = json.loads(jf.read_text())
